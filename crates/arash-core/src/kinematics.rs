@@ -1,0 +1,116 @@
+//! Forward kinematics, body Jacobians and the velocity/acceleration sweep shared by every
+//! dynamics algorithm.
+
+use crate::data::Data;
+use crate::model::{Body, JointKind, Model};
+use crate::spatial::{axis_angle, Motion, Vec3};
+
+/// Joint motion subspace `S` of a body, in its own frame.
+#[inline]
+fn subspace(body: &Body) -> Motion {
+    match body.kind {
+        JointKind::Revolute => Motion::new(body.axis, Vec3::zeros()),
+        JointKind::Prismatic => Motion::new(Vec3::zeros(), body.axis),
+        JointKind::Fixed => Motion::ZERO,
+    }
+}
+
+/// Tree-joint value driven by actuated values `x`; `with_offset` is false for rates.
+#[inline]
+fn tree_value(body: &Body, x: &[f64], with_offset: bool) -> f64 {
+    body.coupling.map_or(0.0, |c| {
+        c.multiplier * x[c.index] + if with_offset { c.offset } else { 0.0 }
+    })
+}
+
+/// Placements (relative and in the base frame) and body Jacobians at configuration `q`.
+///
+/// Postcondition: `data.rot/pos/world_rot/world_pos/jac` describe `q`.
+pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
+    assert_eq!(
+        q.len(),
+        model.dof(),
+        "q has {} entries, the model has {} dof",
+        q.len(),
+        model.dof()
+    );
+    let n = model.dof();
+    for (b, body) in model.bodies.iter().enumerate() {
+        let theta = tree_value(body, q, true);
+        let (rot, pos) = match body.kind {
+            JointKind::Revolute => (
+                body.origin_rot * axis_angle(&body.axis, theta),
+                body.origin_pos,
+            ),
+            JointKind::Prismatic => (
+                body.origin_rot,
+                body.origin_pos + body.origin_rot * body.axis * theta,
+            ),
+            JointKind::Fixed => (body.origin_rot, body.origin_pos),
+        };
+        data.rot[b] = rot;
+        data.pos[b] = pos;
+        let s = subspace(body);
+        let coupling = body.coupling;
+        match body.parent {
+            Some(p) => {
+                data.world_rot[b] = data.world_rot[p] * rot;
+                data.world_pos[b] = data.world_pos[p] + data.world_rot[p] * pos;
+                for k in 0..n {
+                    data.jac[b * n + k] = data.jac[p * n + k].to_child(&rot, &pos);
+                }
+            }
+            None => {
+                data.world_rot[b] = rot;
+                data.world_pos[b] = pos;
+                data.jac[b * n..(b + 1) * n].fill(Motion::ZERO);
+            }
+        }
+        if let Some(c) = coupling {
+            data.jac[b * n + c.index].axpy(c.multiplier, &s);
+        }
+    }
+}
+
+/// Body velocities `v = J q̇`, reference velocities `v_r = J q̇_r`, and reference accelerations
+/// `a_r = X a_r,parent + S q̈_r + v × S q̇_r` (the Slotine–Li recursion; with `q̇_r = q̇` it is the
+/// ordinary spatial acceleration). With `gravity`, the base accelerates at `−g` so that `a_r`
+/// carries the gravity load.
+///
+/// Precondition: [`forward_kinematics`] has been called for the same `q`.
+pub fn motion_sweep(
+    model: &Model,
+    data: &mut Data,
+    qd: &[f64],
+    qd_r: &[f64],
+    qdd_r: &[f64],
+    gravity: bool,
+) {
+    let n = model.dof();
+    assert!(
+        qd.len() == n && qd_r.len() == n && qdd_r.len() == n,
+        "velocity and acceleration vectors must have {n} entries"
+    );
+    let base = if gravity {
+        Motion::new(Vec3::zeros(), -model.gravity)
+    } else {
+        Motion::ZERO
+    };
+    for (b, body) in model.bodies.iter().enumerate() {
+        let cols = &data.jac[b * n..(b + 1) * n];
+        let mut v = Motion::ZERO;
+        let mut v_r = Motion::ZERO;
+        for k in 0..n {
+            v.axpy(qd[k], &cols[k]);
+            v_r.axpy(qd_r[k], &cols[k]);
+        }
+        let parent_acc = body.parent.map_or(base, |p| data.acc[p]);
+        let mut a = parent_acc.to_child(&data.rot[b], &data.pos[b]);
+        let s = subspace(body);
+        a.axpy(tree_value(body, qdd_r, false), &s);
+        a = a.add(&v.cross(&s).scaled(tree_value(body, qd_r, false)));
+        data.vel[b] = v;
+        data.vel_ref[b] = v_r;
+        data.acc[b] = a;
+    }
+}

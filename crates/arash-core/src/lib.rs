@@ -1,0 +1,36 @@
+//! `arash-core`: the mathematics of the ARASH:ASiST haptic robot — its dynamic model, linear in
+//! the parameters (`τ = Y(q, q̇, q̈) π`), and the base parameters that data can identify.
+//!
+//! The layout follows Pinocchio's Model/Data split: a [`Model`] is built once (from URDF), a
+//! [`Data`] holds every scratch buffer, and the algorithms are free functions writing into
+//! caller-provided outputs. Nothing on an evaluation path allocates.
+//!
+//! Units are SI throughout: rad, m, s, kg, N·m, N.
+
+pub mod base_parameters;
+pub mod data;
+pub mod dynamics;
+pub mod kinematics;
+pub mod model;
+pub mod regressor;
+pub mod spatial;
+pub mod urdf;
+
+pub use base_parameters::{BaseParameterError, BaseParameters};
+pub use data::Data;
+pub use dynamics::{
+    coriolis_matrix, forward_dynamics, gravity_torque, inverse_dynamics, kinetic_energy,
+    mass_matrix, potential_energy, DynamicsError,
+};
+pub use kinematics::forward_kinematics;
+pub use model::{ActuatedJoint, Body, CoulombShape, JointKind, Model};
+pub use regressor::{regressor, slotine_li_regressor};
+pub use urdf::{load_urdf, parse_urdf, UrdfError};
+
+/// The bundled reconstruction of ARASH:ASiST (`robots/arash_asist.urdf`).
+pub const ARASH_ASIST_URDF: &str = include_str!("../../../robots/arash_asist.urdf");
+
+/// The bundled ARASH:ASiST model.
+pub fn arash_asist() -> Model {
+    parse_urdf(ARASH_ASIST_URDF).expect("the bundled ARASH:ASiST URDF is valid")
+}

@@ -1,0 +1,190 @@
+//! The immutable description of a robot: a kinematic tree whose joints are each driven by one
+//! actuated coordinate through a mimic coupling (`q_tree = multiplier · q[joint] + offset`).
+//!
+//! Closed chains such as ARASH:ASiST's parallelogram are described the ROS way: the loop is cut
+//! into a tree and every passive joint mimics an actuated one. Build a [`Model`] once (usually with
+//! [`crate::urdf::parse_urdf`]) and pair it with a [`crate::Data`] workspace for evaluation.
+
+use crate::spatial::{Mat3, Vec3, BODY_PARAMS};
+
+/// How a body moves relative to its parent.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum JointKind {
+    /// Rotation about `axis` (URDF `revolute` or `continuous`).
+    Revolute,
+    /// Translation along `axis`.
+    Prismatic,
+    /// Rigidly attached to its parent.
+    Fixed,
+}
+
+/// The actuated coordinate that drives a tree joint: `q_tree = multiplier · q[index] + offset`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Coupling {
+    pub index: usize,
+    pub multiplier: f64,
+    pub offset: f64,
+}
+
+/// One moving rigid body and the joint that connects it to its parent.
+#[derive(Clone, Debug)]
+pub struct Body {
+    /// URDF link name.
+    pub name: String,
+    /// URDF name of the joint into this body.
+    pub joint: String,
+    /// Index of the parent body, or `None` when the parent is the fixed base.
+    pub parent: Option<usize>,
+    pub kind: JointKind,
+    /// Unit joint axis in this body's frame (the joint frame).
+    pub axis: Vec3,
+    /// Orientation of the joint frame at zero motion, in the parent frame.
+    pub origin_rot: Mat3,
+    /// Position of the joint frame origin, in the parent frame (m).
+    pub origin_pos: Vec3,
+    /// `None` for fixed joints.
+    pub coupling: Option<Coupling>,
+    /// CAD inertial parameters `[m, mcx, mcy, mcz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz]` about this body's
+    /// frame origin (kg, kg·m, kg·m²).
+    pub inertial: [f64; BODY_PARAMS],
+}
+
+/// An actuated joint, one per generalised coordinate.
+#[derive(Clone, Debug)]
+pub struct ActuatedJoint {
+    pub name: String,
+    /// The body this joint moves directly (multiplier 1, offset 0).
+    pub body: usize,
+    pub kind: JointKind,
+    /// Position limits (rad or m); infinite for continuous joints.
+    pub lower: f64,
+    pub upper: f64,
+    /// Speed limit (rad/s or m/s); infinite when the URDF gives none.
+    pub velocity: f64,
+    /// Effort limit (N·m or N); infinite when the URDF gives none.
+    pub effort: f64,
+    /// CAD viscous friction (N·m·s/rad or N·s/m), URDF `<dynamics damping>`.
+    pub viscous: f64,
+    /// CAD Coulomb friction (N·m or N), URDF `<dynamics friction>`.
+    pub coulomb: f64,
+}
+
+/// How the Coulomb friction columns turn velocity into a direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CoulombShape {
+    /// `sign(q̇)`, with `sign(0) = 0`.
+    Sign,
+    /// `tanh(q̇ / epsilon)`: smooth through zero, for controllers.
+    Tanh { epsilon: f64 },
+}
+
+impl CoulombShape {
+    #[inline]
+    pub fn eval(self, qd: f64) -> f64 {
+        match self {
+            CoulombShape::Sign if qd > 0.0 => 1.0,
+            CoulombShape::Sign if qd < 0.0 => -1.0,
+            CoulombShape::Sign => 0.0,
+            CoulombShape::Tanh { epsilon } => (qd / epsilon).tanh(),
+        }
+    }
+}
+
+/// A robot model: bodies in topological order (parents first) and its actuated joints.
+///
+/// Parameter vector layout, `P = 10·bodies + 3·dof` entries:
+/// - body `b` at `10b .. 10b+10`: `[m, mcx, mcy, mcz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz]`;
+/// - joint `k` friction at `10·bodies + 2k` (viscous `fv`) and `10·bodies + 2k + 1` (Coulomb `fc`);
+/// - joint `k` elastic stiffness `ke` at `10·bodies + 2·dof + k` (torque `ke·q_k`).
+#[derive(Clone, Debug)]
+pub struct Model {
+    pub name: String,
+    pub bodies: Vec<Body>,
+    pub joints: Vec<ActuatedJoint>,
+    /// Gravity acceleration in the base frame (m/s²).
+    pub gravity: Vec3,
+    pub coulomb_shape: CoulombShape,
+}
+
+impl Model {
+    /// Number of actuated coordinates.
+    pub fn dof(&self) -> usize {
+        self.joints.len()
+    }
+
+    /// Length of the standard parameter vector.
+    pub fn num_params(&self) -> usize {
+        BODY_PARAMS * self.bodies.len() + 3 * self.dof()
+    }
+
+    /// Index of the first friction column.
+    pub fn friction_offset(&self) -> usize {
+        BODY_PARAMS * self.bodies.len()
+    }
+
+    /// Index of the first elastic column.
+    pub fn elastic_offset(&self) -> usize {
+        self.friction_offset() + 2 * self.dof()
+    }
+
+    /// Names of the standard parameters, in vector order: `link.m`, `link.mx`, …, `joint.fv`,
+    /// `joint.fc`, `joint.ke`.
+    pub fn parameter_names(&self) -> Vec<String> {
+        const SUFFIX: [&str; BODY_PARAMS] = [
+            "m", "mx", "my", "mz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz",
+        ];
+        let mut names = Vec::with_capacity(self.num_params());
+        for body in &self.bodies {
+            names.extend(SUFFIX.iter().map(|s| format!("{}.{}", body.name, s)));
+        }
+        for joint in &self.joints {
+            names.push(format!("{}.fv", joint.name));
+            names.push(format!("{}.fc", joint.name));
+        }
+        names.extend(self.joints.iter().map(|j| format!("{}.ke", j.name)));
+        names
+    }
+
+    /// The CAD parameter vector: inertials from the URDF, friction from `<dynamics>`, and zero
+    /// cable stiffness (CAD has no value for it).
+    pub fn cad_parameters(&self) -> Vec<f64> {
+        let mut p = Vec::with_capacity(self.num_params());
+        for body in &self.bodies {
+            p.extend_from_slice(&body.inertial);
+        }
+        for joint in &self.joints {
+            p.push(joint.viscous);
+            p.push(joint.coulomb);
+        }
+        p.extend(std::iter::repeat_n(0.0, self.dof()));
+        p
+    }
+
+    /// The constant mimic coupling `G` (bodies × dof, row-major): `q̇_tree = G q̇`.
+    pub fn coupling_matrix(&self) -> Vec<f64> {
+        let n = self.dof();
+        let mut g = vec![0.0; self.bodies.len() * n];
+        for (b, body) in self.bodies.iter().enumerate() {
+            if let Some(c) = body.coupling {
+                g[b * n + c.index] = c.multiplier;
+            }
+        }
+        g
+    }
+
+    /// Tree joint positions for actuated positions `q` (`multiplier · q + offset`; 0 for fixed).
+    pub fn tree_positions(&self, q: &[f64]) -> Vec<f64> {
+        self.bodies
+            .iter()
+            .map(|b| {
+                b.coupling
+                    .map_or(0.0, |c| c.multiplier * q[c.index] + c.offset)
+            })
+            .collect()
+    }
+
+    /// Position limits as `(lower, upper)` per actuated joint.
+    pub fn position_limits(&self) -> Vec<(f64, f64)> {
+        self.joints.iter().map(|j| (j.lower, j.upper)).collect()
+    }
+}

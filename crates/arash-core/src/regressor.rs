@@ -1,0 +1,109 @@
+//! The joint-torque regressors: `τ = Y(q, q̇, q̈) π` (paper eqs. 1–10) and the Slotine–Li regressor
+//! `M q̈_r + C q̇_r + g + friction + elastic = Y_S(q, q̇, q̇_r, q̈_r) π` (eq. 22).
+//!
+//! Both are written into a caller-provided row-major `dof × P` slice (`P = model.num_params()`),
+//! with the column layout documented on [`Model`]. Neither allocates.
+
+use crate::data::Data;
+use crate::kinematics::{forward_kinematics, motion_sweep};
+use crate::model::Model;
+use crate::spatial::{inertia_coefficients, Motion, BODY_PARAMS};
+
+/// `Y(q, q̇, q̈)`, row-major `dof × P`. Coulomb columns use `model.coulomb_shape` of `q̇`.
+pub fn regressor(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    out: &mut [f64],
+) {
+    forward_kinematics(model, data, q);
+    motion_sweep(model, data, qd, qd, qdd, true);
+    // u · (I a + v ×* I v) = ρ(u, a) − ρ(v × u, v): the Newton–Euler wrench projected on u.
+    fill_rigid_columns(model, data, out, |u, v, _, a| {
+        let mut row = inertia_coefficients(u, a);
+        let coriolis = inertia_coefficients(&v.cross(u), v);
+        for (r, c) in row.iter_mut().zip(coriolis) {
+            *r -= c;
+        }
+        row
+    });
+    fill_joint_columns(model, q, qd, qd, out);
+}
+
+/// The Slotine–Li regressor `Y_S(q, q̇, q̇_r, q̈_r)`, row-major `dof × P`.
+///
+/// The rigid-body part uses the Christoffel-consistent factorisation of Echeverri, Garofalo and
+/// Wensing: per body, `f = I a_r + ½[v ×* I v_r − I(v × v_r) + v_r ×* I v]`, which makes
+/// `Ṁ − 2C` skew-symmetric. Viscous friction acts on `q̇_r`, Coulomb friction on the measured
+/// `q̇` (through `model.coulomb_shape`), elasticity on `q`. With `q̇_r = q̇` and `q̈_r = q̈` this is
+/// exactly [`regressor`].
+pub fn slotine_li_regressor(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    qd: &[f64],
+    qd_r: &[f64],
+    qdd_r: &[f64],
+    out: &mut [f64],
+) {
+    forward_kinematics(model, data, q);
+    motion_sweep(model, data, qd, qd_r, qdd_r, true);
+    fill_rigid_columns(model, data, out, slotine_li_row);
+    fill_joint_columns(model, q, qd, qd_r, out);
+}
+
+/// `u · f` for the Christoffel-consistent wrench `f` above, as coefficients of π.
+#[inline]
+pub(crate) fn slotine_li_row(
+    u: &Motion,
+    v: &Motion,
+    v_r: &Motion,
+    a_r: &Motion,
+) -> [f64; BODY_PARAMS] {
+    let mut row = inertia_coefficients(u, a_r);
+    let t1 = inertia_coefficients(&v.cross(u), v_r);
+    let t2 = inertia_coefficients(u, &v.cross(v_r));
+    let t3 = inertia_coefficients(&v_r.cross(u), v);
+    for i in 0..BODY_PARAMS {
+        row[i] -= 0.5 * (t1[i] + t2[i] + t3[i]);
+    }
+    row
+}
+
+/// Write the 10 columns of every body: row `k` of body `b` is `row(J_b[:, k], v_b, v_r,b, a_b)`.
+fn fill_rigid_columns<F>(model: &Model, data: &Data, out: &mut [f64], row: F)
+where
+    F: Fn(&Motion, &Motion, &Motion, &Motion) -> [f64; BODY_PARAMS],
+{
+    let (n, p) = (model.dof(), model.num_params());
+    assert_eq!(
+        out.len(),
+        n * p,
+        "regressor output must hold dof × P = {n} × {p} values"
+    );
+    out.fill(0.0);
+    for b in 0..model.bodies.len() {
+        let (v, v_r, a) = (&data.vel[b], &data.vel_ref[b], &data.acc[b]);
+        for k in 0..n {
+            let u = &data.jac[b * n + k];
+            if *u == Motion::ZERO {
+                continue; // joint k does not move body b
+            }
+            let start = k * p + b * BODY_PARAMS;
+            out[start..start + BODY_PARAMS].copy_from_slice(&row(u, v, v_r, a));
+        }
+    }
+}
+
+/// Friction and elastic columns: `fv·q̇_r`, `fc·shape(q̇)`, `ke·q` on each joint's own row.
+fn fill_joint_columns(model: &Model, q: &[f64], qd: &[f64], qd_r: &[f64], out: &mut [f64]) {
+    let p = model.num_params();
+    for k in 0..model.dof() {
+        let row = &mut out[k * p..(k + 1) * p];
+        row[model.friction_offset() + 2 * k] = qd_r[k];
+        row[model.friction_offset() + 2 * k + 1] = model.coulomb_shape.eval(qd[k]);
+        row[model.elastic_offset() + k] = q[k];
+    }
+}

@@ -1,0 +1,538 @@
+//! URDF loading: revolute, continuous, prismatic, fixed and mimic joints.
+//!
+//! Links rigidly attached to the root are the base and carry no parameters. A link without
+//! `<inertial>` that hangs on a fixed joint is a frame (a tool point, a sensor mount) and is folded
+//! into its parent; every link moved by a joint must have a valid `<inertial>`.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use crate::model::{ActuatedJoint, Body, CoulombShape, Coupling, JointKind, Model};
+use crate::spatial::{params_from_com, rpy_to_rotation, Mat3, Vec3};
+
+/// Why a URDF could not become a [`Model`]. Every variant names the offending element.
+#[derive(Debug, thiserror::Error)]
+pub enum UrdfError {
+    #[error("cannot read URDF {path}: {source}")]
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("URDF is not well-formed XML: {0}")]
+    Xml(#[from] roxmltree::Error),
+    #[error("the root element is <{0}>, expected <robot>")]
+    NotARobot(String),
+    #[error("link `{link}`: {what}")]
+    Link { link: String, what: String },
+    #[error("joint `{joint}`: {what}")]
+    Joint { joint: String, what: String },
+    #[error("the links form a cycle through `{0}`; a URDF must be a tree (cut closed loops with mimic joints)")]
+    Cycle(String),
+    #[error("the URDF has {0} root links ({1}); it must have exactly one")]
+    Roots(usize, String),
+    #[error("joint `{joint}` mimics `{target}`, which is not a joint of this robot")]
+    MimicUnknown { joint: String, target: String },
+    #[error("joint `{joint}` mimics `{target}`, which is itself passive (a mimic or fixed joint); mimic an actuated joint")]
+    MimicPassive { joint: String, target: String },
+    #[error("the robot has no actuated joint")]
+    NoActuatedJoint,
+}
+
+struct Inertial {
+    mass: f64,
+    com: Vec3,
+    rot: Mat3,
+    tensor: Mat3,
+}
+
+struct RawJoint {
+    name: String,
+    kind: JointKind,
+    continuous: bool,
+    parent: String,
+    child: String,
+    origin_rot: Mat3,
+    origin_pos: Vec3,
+    axis: Vec3,
+    limit: Option<(f64, f64, f64, f64)>,
+    dynamics: (f64, f64),
+    mimic: Option<(String, f64, f64)>,
+}
+
+/// Read and parse a URDF file.
+pub fn load_urdf(path: impl AsRef<Path>) -> Result<Model, UrdfError> {
+    let path = path.as_ref();
+    let text = std::fs::read_to_string(path).map_err(|source| UrdfError::Io {
+        path: path.display().to_string(),
+        source,
+    })?;
+    parse_urdf(&text)
+}
+
+/// Parse URDF text into a [`Model`] with gravity `(0, 0, −9.81)` m/s² in the root frame.
+pub fn parse_urdf(text: &str) -> Result<Model, UrdfError> {
+    let doc = roxmltree::Document::parse(text)?;
+    let robot = doc.root_element();
+    if robot.tag_name().name() != "robot" {
+        return Err(UrdfError::NotARobot(robot.tag_name().name().to_string()));
+    }
+    let mut links: Vec<(String, Option<Inertial>)> = Vec::new();
+    let mut joints: Vec<RawJoint> = Vec::new();
+    for node in robot.children().filter(|n| n.is_element()) {
+        match node.tag_name().name() {
+            "link" => {
+                let name = required_attr(node, "name", "link", "")?;
+                let inertial = node
+                    .children()
+                    .find(|c| c.has_tag_name("inertial"))
+                    .map(|i| parse_inertial(i, &name))
+                    .transpose()?;
+                links.push((name, inertial));
+            }
+            "joint" => joints.push(parse_joint(node)?),
+            _ => {}
+        }
+    }
+    TreeBuilder::new(robot.attribute("name").unwrap_or("robot"), links, joints)?.build()
+}
+
+fn required_attr(
+    node: roxmltree::Node,
+    attr: &str,
+    element: &str,
+    owner: &str,
+) -> Result<String, UrdfError> {
+    node.attribute(attr).map(str::to_string).ok_or_else(|| {
+        let what = format!("<{element}> has no `{attr}` attribute");
+        if element == "link" || owner.is_empty() {
+            UrdfError::Link {
+                link: owner.to_string(),
+                what,
+            }
+        } else {
+            UrdfError::Joint {
+                joint: owner.to_string(),
+                what,
+            }
+        }
+    })
+}
+
+fn parse_numbers<const N: usize>(
+    text: Option<&str>,
+    default: [f64; N],
+) -> Result<[f64; N], String> {
+    let Some(text) = text else { return Ok(default) };
+    let values: Vec<f64> = text
+        .split_whitespace()
+        .map(|s| {
+            s.parse::<f64>()
+                .map_err(|_| format!("`{s}` is not a number"))
+        })
+        .collect::<Result<_, _>>()?;
+    let array: [f64; N] = values
+        .try_into()
+        .map_err(|v: Vec<f64>| format!("expected {N} numbers, found {} in `{text}`", v.len()))?;
+    if let Some(bad) = array.iter().find(|x| !x.is_finite()) {
+        return Err(format!("`{bad}` is not finite in `{text}`"));
+    }
+    Ok(array)
+}
+
+fn number_attr(node: roxmltree::Node, attr: &str, default: Option<f64>) -> Result<f64, String> {
+    match node.attribute(attr) {
+        Some(s) => {
+            let v: f64 = s.trim().parse().map_err(|_| {
+                format!("<{}> {attr}=`{s}` is not a number", node.tag_name().name())
+            })?;
+            if v.is_nan() {
+                return Err(format!("<{}> {attr} is NaN", node.tag_name().name()));
+            }
+            Ok(v)
+        }
+        None => {
+            default.ok_or_else(|| format!("<{}> has no `{attr}` attribute", node.tag_name().name()))
+        }
+    }
+}
+
+fn parse_origin(node: Option<roxmltree::Node>) -> Result<(Mat3, Vec3), String> {
+    let Some(node) = node else {
+        return Ok((Mat3::identity(), Vec3::zeros()));
+    };
+    let xyz = parse_numbers::<3>(node.attribute("xyz"), [0.0; 3])
+        .map_err(|e| format!("<origin xyz>: {e}"))?;
+    let rpy = parse_numbers::<3>(node.attribute("rpy"), [0.0; 3])
+        .map_err(|e| format!("<origin rpy>: {e}"))?;
+    Ok((rpy_to_rotation(rpy[0], rpy[1], rpy[2]), Vec3::from(xyz)))
+}
+
+fn parse_inertial(node: roxmltree::Node, link: &str) -> Result<Inertial, UrdfError> {
+    let err = |what: String| UrdfError::Link {
+        link: link.to_string(),
+        what,
+    };
+    let (rot, com) =
+        parse_origin(node.children().find(|c| c.has_tag_name("origin"))).map_err(err)?;
+    let mass_node = node
+        .children()
+        .find(|c| c.has_tag_name("mass"))
+        .ok_or_else(|| err("<inertial> has no <mass>".into()))?;
+    let mass = number_attr(mass_node, "value", None).map_err(err)?;
+    let inertia = node
+        .children()
+        .find(|c| c.has_tag_name("inertia"))
+        .ok_or_else(|| err("<inertial> has no <inertia>".into()))?;
+    let mut e = [0.0; 6];
+    for (slot, key) in e.iter_mut().zip(["ixx", "iyy", "izz", "ixy", "ixz", "iyz"]) {
+        *slot = number_attr(inertia, key, Some(0.0)).map_err(err)?;
+    }
+    let tensor = Mat3::new(e[0], e[3], e[4], e[3], e[1], e[5], e[4], e[5], e[2]);
+    Ok(Inertial {
+        mass,
+        com,
+        rot,
+        tensor,
+    })
+}
+
+fn parse_joint(node: roxmltree::Node) -> Result<RawJoint, UrdfError> {
+    let name = node.attribute("name").ok_or_else(|| UrdfError::Joint {
+        joint: String::from("<unnamed>"),
+        what: "<joint> has no `name` attribute".into(),
+    })?;
+    let err = |what: String| UrdfError::Joint {
+        joint: name.to_string(),
+        what,
+    };
+    let kind_text = required_attr(node, "type", "joint", name)?;
+    let (kind, continuous) = match kind_text.as_str() {
+        "revolute" => (JointKind::Revolute, false),
+        "continuous" => (JointKind::Revolute, true),
+        "prismatic" => (JointKind::Prismatic, false),
+        "fixed" => (JointKind::Fixed, false),
+        other => {
+            return Err(err(format!(
+                "type `{other}` is not supported (revolute, continuous, prismatic or fixed)"
+            )))
+        }
+    };
+    let link_of = |tag: &str| -> Result<String, UrdfError> {
+        let n = node
+            .children()
+            .find(|c| c.has_tag_name(tag))
+            .ok_or_else(|| err(format!("has no <{tag}>")))?;
+        required_attr(n, "link", tag, name)
+    };
+    let (parent, child) = (link_of("parent")?, link_of("child")?);
+    let (origin_rot, origin_pos) =
+        parse_origin(node.children().find(|c| c.has_tag_name("origin"))).map_err(err)?;
+    let axis_node = node.children().find(|c| c.has_tag_name("axis"));
+    let axis = Vec3::from(
+        parse_numbers::<3>(axis_node.and_then(|a| a.attribute("xyz")), [1.0, 0.0, 0.0])
+            .map_err(|e| err(format!("<axis>: {e}")))?,
+    );
+    if kind != JointKind::Fixed && axis.norm() < 1e-12 {
+        return Err(err("<axis> is zero".into()));
+    }
+    let limit = match node.children().find(|c| c.has_tag_name("limit")) {
+        Some(l) => Some((
+            number_attr(l, "lower", Some(0.0)).map_err(err)?,
+            number_attr(l, "upper", Some(0.0)).map_err(err)?,
+            number_attr(l, "velocity", Some(0.0)).map_err(err)?,
+            number_attr(l, "effort", Some(0.0)).map_err(err)?,
+        )),
+        None => None,
+    };
+    let dynamics = match node.children().find(|c| c.has_tag_name("dynamics")) {
+        Some(d) => (
+            number_attr(d, "damping", Some(0.0)).map_err(err)?,
+            number_attr(d, "friction", Some(0.0)).map_err(err)?,
+        ),
+        None => (0.0, 0.0),
+    };
+    let mimic = match node.children().find(|c| c.has_tag_name("mimic")) {
+        Some(m) => Some((
+            required_attr(m, "joint", "mimic", name)?,
+            number_attr(m, "multiplier", Some(1.0)).map_err(err)?,
+            number_attr(m, "offset", Some(0.0)).map_err(err)?,
+        )),
+        None => None,
+    };
+    Ok(RawJoint {
+        name: name.to_string(),
+        kind,
+        continuous,
+        parent,
+        child,
+        origin_rot,
+        origin_pos,
+        axis: axis.normalize(),
+        limit,
+        dynamics,
+        mimic,
+    })
+}
+
+/// Where a link sits: on a moving body (or the base when `None`) at a fixed placement.
+#[derive(Clone, Copy)]
+struct Attachment {
+    body: Option<usize>,
+    rot: Mat3,
+    pos: Vec3,
+}
+
+struct TreeBuilder {
+    name: String,
+    links: HashMap<String, Option<Inertial>>,
+    joints: Vec<RawJoint>,
+    children: HashMap<String, Vec<usize>>,
+    root: String,
+}
+
+impl TreeBuilder {
+    fn new(
+        name: &str,
+        links: Vec<(String, Option<Inertial>)>,
+        joints: Vec<RawJoint>,
+    ) -> Result<Self, UrdfError> {
+        let mut link_map = HashMap::new();
+        let mut order = Vec::new();
+        for (link, inertial) in links {
+            if link_map.contains_key(&link) {
+                return Err(UrdfError::Link {
+                    link,
+                    what: "is defined twice".into(),
+                });
+            }
+            order.push(link.clone());
+            link_map.insert(link, inertial);
+        }
+        let mut children: HashMap<String, Vec<usize>> = HashMap::new();
+        let mut parent_of: HashMap<&str, &str> = HashMap::new();
+        for (j, joint) in joints.iter().enumerate() {
+            for link in [&joint.parent, &joint.child] {
+                if !link_map.contains_key(link) {
+                    return Err(UrdfError::Joint {
+                        joint: joint.name.clone(),
+                        what: format!("refers to unknown link `{link}`"),
+                    });
+                }
+            }
+            if let Some(previous) = parent_of.insert(&joint.child, &joint.parent) {
+                return Err(UrdfError::Link {
+                    link: joint.child.clone(),
+                    what: format!("has two parents (`{previous}` and `{}`); cut closed loops with mimic joints", joint.parent),
+                });
+            }
+            children.entry(joint.parent.clone()).or_default().push(j);
+        }
+        if let Some(j) = joints.iter().find(|j| j.parent == j.child) {
+            return Err(UrdfError::Cycle(j.child.clone()));
+        }
+        let roots: Vec<&String> = order
+            .iter()
+            .filter(|l| !parent_of.contains_key(l.as_str()))
+            .collect();
+        if roots.is_empty() {
+            return Err(UrdfError::Cycle(order.first().cloned().unwrap_or_default()));
+        }
+        if roots.len() > 1 {
+            let list = roots
+                .iter()
+                .map(|s| s.as_str())
+                .collect::<Vec<_>>()
+                .join(", ");
+            return Err(UrdfError::Roots(roots.len(), list));
+        }
+        // Every link has at most one parent and there is one root, so a link unreachable from the
+        // root can only be on a cycle.
+        let root = roots[0].clone();
+        let mut seen = std::collections::HashSet::from([root.as_str()]);
+        let mut stack = vec![root.as_str()];
+        while let Some(link) = stack.pop() {
+            for &j in children.get(link).map(Vec::as_slice).unwrap_or(&[]) {
+                if seen.insert(joints[j].child.as_str()) {
+                    stack.push(joints[j].child.as_str());
+                }
+            }
+        }
+        if let Some(lost) = order.iter().find(|l| !seen.contains(l.as_str())) {
+            return Err(UrdfError::Cycle(lost.clone()));
+        }
+        Ok(Self {
+            name: name.to_string(),
+            links: link_map,
+            joints,
+            children,
+            root,
+        })
+    }
+
+    fn build(self) -> Result<Model, UrdfError> {
+        let mut bodies: Vec<Body> = Vec::new();
+        let mut mimics: Vec<(usize, String, f64, f64)> = Vec::new();
+        let mut actuated: Vec<ActuatedJoint> = Vec::new();
+        let identity = Attachment {
+            body: None,
+            rot: Mat3::identity(),
+            pos: Vec3::zeros(),
+        };
+        // Depth first, children in document order, so bodies are numbered parents first, as
+        // Pinocchio numbers its joints.
+        let mut stack: Vec<(usize, Attachment)> = Vec::new();
+        self.push_children(&self.root, identity, &mut stack);
+        while let Some((j, at)) = stack.pop() {
+            let joint = &self.joints[j];
+            let placed = Attachment {
+                body: at.body,
+                rot: at.rot * joint.origin_rot,
+                pos: at.pos + at.rot * joint.origin_pos,
+            };
+            let child_at = self.attach(joint, placed, &mut bodies, &mut mimics, &mut actuated)?;
+            self.push_children(&joint.child, child_at, &mut stack);
+        }
+        if actuated.is_empty() {
+            return Err(UrdfError::NoActuatedJoint);
+        }
+        for (b, target, multiplier, offset) in mimics {
+            let Some(index) = actuated.iter().position(|a| a.name == target) else {
+                let exists = self.joints.iter().any(|j| j.name == target);
+                let joint = bodies[b].joint.clone();
+                return Err(if exists {
+                    UrdfError::MimicPassive { joint, target }
+                } else {
+                    UrdfError::MimicUnknown { joint, target }
+                });
+            };
+            bodies[b].coupling = Some(Coupling {
+                index,
+                multiplier,
+                offset,
+            });
+        }
+        Ok(Model {
+            name: self.name,
+            bodies,
+            joints: actuated,
+            gravity: Vec3::new(0.0, 0.0, -9.81),
+            coulomb_shape: CoulombShape::Sign,
+        })
+    }
+
+    fn push_children(&self, link: &str, at: Attachment, stack: &mut Vec<(usize, Attachment)>) {
+        for &j in self
+            .children
+            .get(link)
+            .map(Vec::as_slice)
+            .unwrap_or(&[])
+            .iter()
+            .rev()
+        {
+            stack.push((j, at));
+        }
+    }
+
+    /// Create the body (if any) that `joint` brings in, and say where its child link sits.
+    fn attach(
+        &self,
+        joint: &RawJoint,
+        at: Attachment,
+        bodies: &mut Vec<Body>,
+        mimics: &mut Vec<(usize, String, f64, f64)>,
+        actuated: &mut Vec<ActuatedJoint>,
+    ) -> Result<Attachment, UrdfError> {
+        let inertial = self.links[&joint.child].as_ref();
+        let link_err = |what: String| UrdfError::Link {
+            link: joint.child.clone(),
+            what,
+        };
+        if joint.kind == JointKind::Fixed {
+            if joint.mimic.is_some() {
+                return Err(UrdfError::Joint {
+                    joint: joint.name.clone(),
+                    what: "a fixed joint cannot mimic".into(),
+                });
+            }
+            let is_frame = at.body.is_none()
+                || inertial.is_none_or(|i| i.mass == 0.0 && i.tensor.norm() == 0.0);
+            if is_frame {
+                return Ok(at);
+            }
+        }
+        let inertial = inertial.ok_or_else(|| {
+            link_err(format!(
+                "is moved by joint `{}` but has no <inertial>",
+                joint.name
+            ))
+        })?;
+        let params = validated_params(inertial).map_err(link_err)?;
+        let index = bodies.len();
+        let coupling = match (&joint.mimic, joint.kind) {
+            (_, JointKind::Fixed) => None,
+            (Some((target, multiplier, offset)), _) => {
+                mimics.push((index, target.clone(), *multiplier, *offset));
+                None
+            }
+            (None, kind) => {
+                actuated.push(actuated_joint(joint, kind, index));
+                Some(Coupling {
+                    index: actuated.len() - 1,
+                    multiplier: 1.0,
+                    offset: 0.0,
+                })
+            }
+        };
+        bodies.push(Body {
+            name: joint.child.clone(),
+            joint: joint.name.clone(),
+            parent: at.body,
+            kind: joint.kind,
+            axis: joint.axis,
+            origin_rot: at.rot,
+            origin_pos: at.pos,
+            coupling,
+            inertial: params,
+        });
+        Ok(Attachment {
+            body: Some(index),
+            rot: Mat3::identity(),
+            pos: Vec3::zeros(),
+        })
+    }
+}
+
+fn actuated_joint(joint: &RawJoint, kind: JointKind, body: usize) -> ActuatedJoint {
+    let (lower, upper, velocity, effort) = match (joint.continuous, joint.limit) {
+        (false, Some((lo, hi, v, e))) => (lo, hi, v, e),
+        (true, Some((_, _, v, e))) => (f64::NEG_INFINITY, f64::INFINITY, v, e),
+        (_, None) => (f64::NEG_INFINITY, f64::INFINITY, 0.0, 0.0),
+    };
+    let positive_or_inf = |x: f64| if x > 0.0 { x } else { f64::INFINITY };
+    ActuatedJoint {
+        name: joint.name.clone(),
+        body,
+        kind,
+        lower,
+        upper,
+        velocity: positive_or_inf(velocity),
+        effort: positive_or_inf(effort),
+        viscous: joint.dynamics.0,
+        coulomb: joint.dynamics.1,
+    }
+}
+
+fn validated_params(inertial: &Inertial) -> Result<[f64; 10], String> {
+    if inertial.mass.is_nan() || inertial.mass <= 0.0 {
+        return Err(format!("mass {} kg is not positive", inertial.mass));
+    }
+    let eig = inertial.tensor.symmetric_eigenvalues();
+    if eig.iter().any(|&e| e.is_nan() || e <= 0.0) {
+        return Err(format!(
+            "inertia tensor is not positive definite (eigenvalues {:.3e}, {:.3e}, {:.3e} kg·m²)",
+            eig[0], eig[1], eig[2]
+        ));
+    }
+    let tensor = inertial.rot * inertial.tensor * inertial.rot.transpose();
+    Ok(params_from_com(inertial.mass, &inertial.com, &tensor))
+}

@@ -1,0 +1,14 @@
+"""arash: dynamics, calibration and control of the ARASH:ASiST haptic robot.
+
+Arrays are numpy float64 in SI units (rad, m, s, N·m, N). A batch of states is an ``(N, dof)``
+array; a single ``(dof,)`` vector gives a result without the batch axis.
+
+>>> import arash
+>>> robot = arash.Robot.arash_asist()
+>>> robot.base_parameters().p
+23
+"""
+
+from ._arash import BaseParameters, Robot, __version__
+
+__all__ = ["BaseParameters", "Robot", "__version__"]

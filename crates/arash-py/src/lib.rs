@@ -1,0 +1,562 @@
+//! Python bindings: `import arash`. Arrays are numpy float64 in SI units; a batch is an `(N, dof)`
+//! array (or a single `(dof,)` vector, in which case the batch axis is dropped from the result).
+//! Every bad input raises `ValueError` naming the argument; nothing panics across the FFI.
+
+use std::sync::Arc;
+
+use arash_core::base_parameters::BaseParameterOptions;
+use arash_core::{self as core, BaseParameters as CoreBase, CoulombShape, Data, Model};
+use numpy::ndarray::{ArrayD, IxDyn};
+use numpy::{IntoPyArray, PyArrayDyn, PyReadonlyArrayDyn};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+
+/// A validated batch of vectors, copied row-major into `values` (`n × width`).
+struct Batch {
+    n: usize,
+    single: bool,
+    values: Vec<f64>,
+}
+
+fn batch(name: &str, array: &PyReadonlyArrayDyn<'_, f64>, width: usize) -> PyResult<Batch> {
+    let view = array.as_array();
+    let shape = view.shape().to_vec();
+    let (n, single) = match shape.as_slice() {
+        [w] if *w == width => (1, true),
+        [n, w] if *w == width => (*n, false),
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "{name} must have shape (N, {width}) or ({width},), got {shape:?}"
+            )))
+        }
+    };
+    let values: Vec<f64> = view.iter().copied().collect();
+    if let Some(i) = values.iter().position(|x| !x.is_finite()) {
+        return Err(PyValueError::new_err(format!(
+            "{name} is not finite at sample {}, entry {}: {}",
+            i / width,
+            i % width,
+            values[i]
+        )));
+    }
+    Ok(Batch { n, single, values })
+}
+
+fn same_length(batches: &[(&str, &Batch)]) -> PyResult<usize> {
+    let (first_name, first) = batches[0];
+    for (name, b) in &batches[1..] {
+        if b.n != first.n || b.single != first.single {
+            return Err(PyValueError::new_err(format!(
+                "{first_name} has {} samples but {name} has {}",
+                first.n, b.n
+            )));
+        }
+    }
+    Ok(first.n)
+}
+
+/// Per-thread workspace: the model's `Data` and room for one full regressor.
+struct Scratch {
+    data: Data,
+    regressor: Vec<f64>,
+}
+
+/// Evaluate `f(scratch, sample, out)` for every sample, on all cores when the batch is large.
+fn run_batched<F>(model: &Model, n: usize, width: usize, f: F) -> Vec<f64>
+where
+    F: Fn(&mut Scratch, usize, &mut [f64]) + Sync,
+{
+    let mut out = vec![0.0; n * width];
+    if width == 0 || n == 0 {
+        return out;
+    }
+    let threads = if n >= 2048 {
+        std::thread::available_parallelism().map_or(1, |t| t.get())
+    } else {
+        1
+    };
+    let per_thread = n.div_ceil(threads);
+    std::thread::scope(|scope| {
+        for (chunk_index, chunk) in out.chunks_mut(per_thread * width).enumerate() {
+            let f = &f;
+            scope.spawn(move || {
+                let mut scratch = Scratch {
+                    data: Data::new(model),
+                    regressor: vec![0.0; model.dof() * model.num_params()],
+                };
+                for (i, sample_out) in chunk.chunks_mut(width).enumerate() {
+                    f(&mut scratch, chunk_index * per_thread + i, sample_out);
+                }
+            });
+        }
+    });
+    out
+}
+
+fn to_numpy<'py>(
+    py: Python<'py>,
+    values: Vec<f64>,
+    single: bool,
+    n: usize,
+    tail: &[usize],
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let mut shape = if single { vec![] } else { vec![n] };
+    shape.extend_from_slice(tail);
+    let array = ArrayD::from_shape_vec(IxDyn(&shape), values)
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    Ok(array.into_pyarray(py))
+}
+
+fn row(b: &Batch, i: usize, width: usize) -> &[f64] {
+    &b.values[i * width..(i + 1) * width]
+}
+
+/// A robot model: kinematic tree, mimic couplings, CAD parameters.
+#[pyclass(module = "arash._arash", frozen)]
+struct Robot {
+    model: Arc<Model>,
+}
+
+impl Robot {
+    fn params_or_cad(&self, params: Option<PyReadonlyArrayDyn<'_, f64>>) -> PyResult<Vec<f64>> {
+        match params {
+            None => Ok(self.model.cad_parameters()),
+            Some(p) => {
+                let b = batch("params", &p, self.model.num_params())?;
+                if !b.single {
+                    return Err(PyValueError::new_err(format!(
+                        "params must have shape ({},)",
+                        self.model.num_params()
+                    )));
+                }
+                Ok(b.values)
+            }
+        }
+    }
+}
+
+#[pymethods]
+impl Robot {
+    /// Load a robot from a URDF file. `coulomb_epsilon` (rad/s or m/s) switches the Coulomb
+    /// friction columns from sign(q̇) to tanh(q̇/ε).
+    #[staticmethod]
+    #[pyo3(signature = (path, coulomb_epsilon=None))]
+    fn from_urdf(path: std::path::PathBuf, coulomb_epsilon: Option<f64>) -> PyResult<Self> {
+        let model = core::load_urdf(&path).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Self::with_shape(model, coulomb_epsilon)
+    }
+
+    /// The bundled ARASH:ASiST reconstruction.
+    #[staticmethod]
+    #[pyo3(signature = (coulomb_epsilon=None))]
+    fn arash_asist(coulomb_epsilon: Option<f64>) -> PyResult<Self> {
+        Self::with_shape(core::arash_asist(), coulomb_epsilon)
+    }
+
+    #[getter]
+    fn dof(&self) -> usize {
+        self.model.dof()
+    }
+
+    #[getter]
+    fn num_params(&self) -> usize {
+        self.model.num_params()
+    }
+
+    #[getter]
+    fn name(&self) -> String {
+        self.model.name.clone()
+    }
+
+    /// Actuated joint names, in the order of q.
+    fn joint_names(&self) -> Vec<String> {
+        self.model.joints.iter().map(|j| j.name.clone()).collect()
+    }
+
+    /// Moving body (link) names, in parameter order.
+    fn body_names(&self) -> Vec<String> {
+        self.model.bodies.iter().map(|b| b.name.clone()).collect()
+    }
+
+    /// `(lower, upper)` position limits per actuated joint (rad or m).
+    fn position_limits(&self) -> Vec<(f64, f64)> {
+        self.model.position_limits()
+    }
+
+    /// Speed limit per actuated joint (rad/s or m/s).
+    fn velocity_limits(&self) -> Vec<f64> {
+        self.model.joints.iter().map(|j| j.velocity).collect()
+    }
+
+    fn parameter_names(&self) -> Vec<String> {
+        self.model.parameter_names()
+    }
+
+    fn cad_parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        to_numpy(
+            py,
+            self.model.cad_parameters(),
+            false,
+            self.model.num_params(),
+            &[],
+        )
+    }
+
+    /// The mimic coupling G (bodies × dof): tree joint rates are G q̇.
+    fn coupling_matrix<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let nb = self.model.bodies.len();
+        to_numpy(
+            py,
+            self.model.coupling_matrix(),
+            false,
+            nb,
+            &[self.model.dof()],
+        )
+    }
+
+    /// Y(q, q̇, q̈): (N, dof) in, (N, dof, P) out.
+    fn regressor<'py>(
+        &self,
+        py: Python<'py>,
+        q: PyReadonlyArrayDyn<'py, f64>,
+        qd: PyReadonlyArrayDyn<'py, f64>,
+        qdd: PyReadonlyArrayDyn<'py, f64>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let (m, n, p) = (&*self.model, self.model.dof(), self.model.num_params());
+        let (q, qd, qdd) = (
+            batch("q", &q, n)?,
+            batch("qd", &qd, n)?,
+            batch("qdd", &qdd, n)?,
+        );
+        let count = same_length(&[("q", &q), ("qd", &qd), ("qdd", &qdd)])?;
+        let out = py.detach(|| {
+            run_batched(m, count, n * p, |s, i, o| {
+                core::regressor(
+                    m,
+                    &mut s.data,
+                    row(&q, i, n),
+                    row(&qd, i, n),
+                    row(&qdd, i, n),
+                    o,
+                )
+            })
+        });
+        to_numpy(py, out, q.single, count, &[n, p])
+    }
+
+    /// Y_S(q, q̇, q̇_r, q̈_r): (N, dof) each, (N, dof, P) out.
+    fn slotine_li_regressor<'py>(
+        &self,
+        py: Python<'py>,
+        q: PyReadonlyArrayDyn<'py, f64>,
+        qd: PyReadonlyArrayDyn<'py, f64>,
+        qd_r: PyReadonlyArrayDyn<'py, f64>,
+        qdd_r: PyReadonlyArrayDyn<'py, f64>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let (m, n, p) = (&*self.model, self.model.dof(), self.model.num_params());
+        let (q, qd) = (batch("q", &q, n)?, batch("qd", &qd, n)?);
+        let (qd_r, qdd_r) = (batch("qd_r", &qd_r, n)?, batch("qdd_r", &qdd_r, n)?);
+        let count = same_length(&[("q", &q), ("qd", &qd), ("qd_r", &qd_r), ("qdd_r", &qdd_r)])?;
+        let out = py.detach(|| {
+            run_batched(m, count, n * p, |s, i, o| {
+                core::slotine_li_regressor(
+                    m,
+                    &mut s.data,
+                    row(&q, i, n),
+                    row(&qd, i, n),
+                    row(&qd_r, i, n),
+                    row(&qdd_r, i, n),
+                    o,
+                )
+            })
+        });
+        to_numpy(py, out, q.single, count, &[n, p])
+    }
+
+    /// τ = Y(q, q̇, q̈) π: (N, dof) out. `params` defaults to the CAD values.
+    #[pyo3(signature = (q, qd, qdd, params=None))]
+    fn inverse_dynamics<'py>(
+        &self,
+        py: Python<'py>,
+        q: PyReadonlyArrayDyn<'py, f64>,
+        qd: PyReadonlyArrayDyn<'py, f64>,
+        qdd: PyReadonlyArrayDyn<'py, f64>,
+        params: Option<PyReadonlyArrayDyn<'py, f64>>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let (m, n) = (&*self.model, self.model.dof());
+        let pi = self.params_or_cad(params)?;
+        let (q, qd, qdd) = (
+            batch("q", &q, n)?,
+            batch("qd", &qd, n)?,
+            batch("qdd", &qdd, n)?,
+        );
+        let count = same_length(&[("q", &q), ("qd", &qd), ("qdd", &qdd)])?;
+        let out = py.detach(|| {
+            run_batched(m, count, n, |s, i, o| {
+                core::inverse_dynamics(
+                    m,
+                    &mut s.data,
+                    row(&q, i, n),
+                    row(&qd, i, n),
+                    row(&qdd, i, n),
+                    &pi,
+                    o,
+                )
+            })
+        });
+        to_numpy(py, out, q.single, count, &[n])
+    }
+
+    /// M(q): (N, dof, dof) out.
+    #[pyo3(signature = (q, params=None))]
+    fn mass_matrix<'py>(
+        &self,
+        py: Python<'py>,
+        q: PyReadonlyArrayDyn<'py, f64>,
+        params: Option<PyReadonlyArrayDyn<'py, f64>>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let (m, n) = (&*self.model, self.model.dof());
+        let pi = self.params_or_cad(params)?;
+        let q = batch("q", &q, n)?;
+        let out = py.detach(|| {
+            run_batched(m, q.n, n * n, |s, i, o| {
+                core::mass_matrix(m, &mut s.data, row(&q, i, n), &pi, o)
+            })
+        });
+        to_numpy(py, out, q.single, q.n, &[n, n])
+    }
+
+    /// C(q, q̇) from the Christoffel symbols: (N, dof, dof) out.
+    #[pyo3(signature = (q, qd, params=None))]
+    fn coriolis_matrix<'py>(
+        &self,
+        py: Python<'py>,
+        q: PyReadonlyArrayDyn<'py, f64>,
+        qd: PyReadonlyArrayDyn<'py, f64>,
+        params: Option<PyReadonlyArrayDyn<'py, f64>>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let (m, n) = (&*self.model, self.model.dof());
+        let pi = self.params_or_cad(params)?;
+        let (q, qd) = (batch("q", &q, n)?, batch("qd", &qd, n)?);
+        let count = same_length(&[("q", &q), ("qd", &qd)])?;
+        let out = py.detach(|| {
+            run_batched(m, count, n * n, |s, i, o| {
+                core::coriolis_matrix(m, &mut s.data, row(&q, i, n), row(&qd, i, n), &pi, o)
+            })
+        });
+        to_numpy(py, out, q.single, count, &[n, n])
+    }
+
+    /// g(q): (N, dof) out.
+    #[pyo3(signature = (q, params=None))]
+    fn gravity<'py>(
+        &self,
+        py: Python<'py>,
+        q: PyReadonlyArrayDyn<'py, f64>,
+        params: Option<PyReadonlyArrayDyn<'py, f64>>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let (m, n) = (&*self.model, self.model.dof());
+        let pi = self.params_or_cad(params)?;
+        let q = batch("q", &q, n)?;
+        let out = py.detach(|| {
+            run_batched(m, q.n, n, |s, i, o| {
+                core::gravity_torque(m, &mut s.data, row(&q, i, n), &pi, o)
+            })
+        });
+        to_numpy(py, out, q.single, q.n, &[n])
+    }
+
+    /// q̈ = M⁻¹(τ − C q̇ − g − friction − elastic): (N, dof) out.
+    #[pyo3(signature = (q, qd, tau, params=None))]
+    fn forward_dynamics<'py>(
+        &self,
+        py: Python<'py>,
+        q: PyReadonlyArrayDyn<'py, f64>,
+        qd: PyReadonlyArrayDyn<'py, f64>,
+        tau: PyReadonlyArrayDyn<'py, f64>,
+        params: Option<PyReadonlyArrayDyn<'py, f64>>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let (m, n) = (&*self.model, self.model.dof());
+        let pi = self.params_or_cad(params)?;
+        let (q, qd, tau) = (
+            batch("q", &q, n)?,
+            batch("qd", &qd, n)?,
+            batch("tau", &tau, n)?,
+        );
+        let count = same_length(&[("q", &q), ("qd", &qd), ("tau", &tau)])?;
+        let failure = std::sync::Mutex::new(None);
+        let out = py.detach(|| {
+            run_batched(m, count, n, |s, i, o| {
+                if let Err(e) = core::forward_dynamics(
+                    m,
+                    &mut s.data,
+                    row(&q, i, n),
+                    row(&qd, i, n),
+                    row(&tau, i, n),
+                    &pi,
+                    o,
+                ) {
+                    failure
+                        .lock()
+                        .expect("no panics hold this lock")
+                        .get_or_insert(format!("sample {i}: {e}"));
+                }
+            })
+        });
+        if let Some(message) = failure.into_inner().expect("no panics hold this lock") {
+            return Err(PyValueError::new_err(message));
+        }
+        to_numpy(py, out, q.single, count, &[n])
+    }
+
+    /// The base parameters (identifiable combinations), from `samples` random states.
+    #[pyo3(signature = (samples=400, seed=0x5eed))]
+    fn base_parameters(&self, samples: usize, seed: u64) -> PyResult<BaseParameters> {
+        let options = BaseParameterOptions {
+            samples,
+            seed,
+            ..Default::default()
+        };
+        let base = CoreBase::compute(&self.model, &options)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Ok(BaseParameters {
+            model: Arc::clone(&self.model),
+            base,
+        })
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Robot('{}', dof={}, bodies={}, params={})",
+            self.model.name,
+            self.model.dof(),
+            self.model.bodies.len(),
+            self.model.num_params()
+        )
+    }
+}
+
+impl Robot {
+    fn with_shape(mut model: Model, coulomb_epsilon: Option<f64>) -> PyResult<Self> {
+        if let Some(epsilon) = coulomb_epsilon {
+            if !(epsilon.is_finite() && epsilon > 0.0) {
+                return Err(PyValueError::new_err(format!(
+                    "coulomb_epsilon must be positive and finite, got {epsilon}"
+                )));
+            }
+            model.coulomb_shape = CoulombShape::Tanh { epsilon };
+        }
+        Ok(Self {
+            model: Arc::new(model),
+        })
+    }
+}
+
+/// β = B π: the identifiable combinations of the standard parameters.
+#[pyclass(module = "arash._arash", frozen)]
+struct BaseParameters {
+    model: Arc<Model>,
+    base: CoreBase,
+}
+
+#[pymethods]
+impl BaseParameters {
+    /// Number of base parameters.
+    #[getter]
+    fn p(&self) -> usize {
+        self.base.rank
+    }
+
+    /// B, shape (p, P).
+    #[getter(B)]
+    fn b<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        to_numpy(
+            py,
+            self.base.b.clone(),
+            false,
+            self.base.rank,
+            &[self.base.num_params],
+        )
+    }
+
+    #[getter]
+    fn names(&self) -> Vec<String> {
+        self.base.names.clone()
+    }
+
+    #[getter]
+    fn expressions(&self) -> Vec<String> {
+        self.base.expressions.clone()
+    }
+
+    /// Indices of the standard parameters whose regressor columns form Y_r.
+    #[getter]
+    fn independent(&self) -> Vec<usize> {
+        self.base.independent.clone()
+    }
+
+    /// β = B π for a standard parameter vector.
+    fn project<'py>(
+        &self,
+        py: Python<'py>,
+        params: PyReadonlyArrayDyn<'py, f64>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let pi = batch("params", &params, self.base.num_params)?;
+        if !pi.single {
+            return Err(PyValueError::new_err(format!(
+                "params must have shape ({},)",
+                self.base.num_params
+            )));
+        }
+        let mut beta = vec![0.0; self.base.rank];
+        self.base.project(&pi.values, &mut beta);
+        to_numpy(py, beta, false, self.base.rank, &[])
+    }
+
+    /// Y_r(q, q̇, q̈): (N, dof) in, (N, dof, p) out, with Y π = Y_r β.
+    fn reduced_regressor<'py>(
+        &self,
+        py: Python<'py>,
+        q: PyReadonlyArrayDyn<'py, f64>,
+        qd: PyReadonlyArrayDyn<'py, f64>,
+        qdd: PyReadonlyArrayDyn<'py, f64>,
+    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+        let (m, n, rank) = (&*self.model, self.model.dof(), self.base.rank);
+        let (q, qd, qdd) = (
+            batch("q", &q, n)?,
+            batch("qd", &qd, n)?,
+            batch("qdd", &qdd, n)?,
+        );
+        let count = same_length(&[("q", &q), ("qd", &qd), ("qdd", &qdd)])?;
+        let base = &self.base;
+        let out = py.detach(|| {
+            run_batched(m, count, n * rank, |s, i, o| {
+                core::regressor(
+                    m,
+                    &mut s.data,
+                    row(&q, i, n),
+                    row(&qd, i, n),
+                    row(&qdd, i, n),
+                    &mut s.regressor,
+                );
+                base.reduce(&s.regressor, o);
+            })
+        });
+        to_numpy(py, out, q.single, count, &[n, rank])
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "BaseParameters(p={}, P={})",
+            self.base.rank, self.base.num_params
+        )
+    }
+}
+
+#[pymodule]
+fn _arash(module: &Bound<'_, PyModule>) -> PyResult<()> {
+    module.add_class::<Robot>()?;
+    module.add_class::<BaseParameters>()?;
+    module.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}
