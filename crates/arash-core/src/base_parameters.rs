@@ -34,24 +34,14 @@ pub struct BaseParameterOptions {
 
 impl Default for BaseParameterOptions {
     fn default() -> Self {
-        Self {
-            samples: 400,
-            seed: 0x5eed,
-            tolerance: 1e-8,
-            zero_column: 1e-10,
-            coefficient_floor: 1e-10,
-        }
+        Self { samples: 400, seed: 0x5eed, tolerance: 1e-8, zero_column: 1e-10, coefficient_floor: 1e-10 }
     }
 }
 
 #[derive(Debug, thiserror::Error)]
 pub enum BaseParameterError {
     #[error("need at least {needed} samples to see all {params} parameters, got {got}")]
-    TooFewSamples {
-        needed: usize,
-        params: usize,
-        got: usize,
-    },
+    TooFewSamples { needed: usize, params: usize, got: usize },
     #[error("tolerance {0} must be in (0, 1)")]
     BadTolerance(f64),
 }
@@ -79,25 +69,17 @@ pub struct BaseParameters {
 
 impl BaseParameters {
     /// Compute the base parameters of `model` from random states within its limits.
-    pub fn compute(
-        model: &Model,
-        options: &BaseParameterOptions,
-    ) -> Result<Self, BaseParameterError> {
+    pub fn compute(model: &Model, options: &BaseParameterOptions) -> Result<Self, BaseParameterError> {
         let (n, p) = (model.dof(), model.num_params());
         if !(options.tolerance > 0.0 && options.tolerance < 1.0) {
             return Err(BaseParameterError::BadTolerance(options.tolerance));
         }
         let needed = p.div_ceil(n) * 2;
         if options.samples < needed {
-            return Err(BaseParameterError::TooFewSamples {
-                needed,
-                params: p,
-                got: options.samples,
-            });
+            return Err(BaseParameterError::TooFewSamples { needed, params: p, got: options.samples });
         }
         let w = stacked_regressor(model, options.samples, options.seed);
-        let (independent, rank_gap) =
-            select_independent_columns(&w, options.tolerance, options.zero_column);
+        let (independent, rank_gap) = select_independent_columns(&w, options.tolerance, options.zero_column);
         let b = regrouping_matrix(&w, &independent, options.coefficient_floor);
         let names = model.parameter_names();
         let rank = independent.len();
@@ -106,30 +88,15 @@ impl BaseParameters {
         for (i, &lead) in independent.iter().enumerate() {
             let row = &b[i * p..(i + 1) * p];
             let regrouped = row.iter().enumerate().any(|(j, &c)| j != lead && c != 0.0);
-            short.push(if regrouped {
-                format!("{}_R", names[lead])
-            } else {
-                names[lead].clone()
-            });
+            short.push(if regrouped { format!("{}_R", names[lead]) } else { names[lead].clone() });
             expressions.push(format!("β{} = {}", i + 1, linear_combination(row, &names)));
         }
-        Ok(Self {
-            rank,
-            num_params: p,
-            independent,
-            b,
-            names: short,
-            expressions,
-            rank_gap,
-        })
+        Ok(Self { rank, num_params: p, independent, b, names: short, expressions, rank_gap })
     }
 
     /// `β = B π`.
     pub fn project(&self, params: &[f64], beta: &mut [f64]) {
-        assert!(
-            params.len() == self.num_params && beta.len() == self.rank,
-            "π must have P entries and β p entries"
-        );
+        assert!(params.len() == self.num_params && beta.len() == self.rank, "π must have P entries and β p entries");
         for (i, out) in beta.iter_mut().enumerate() {
             let row = &self.b[i * self.num_params..(i + 1) * self.num_params];
             *out = row.iter().zip(params).map(|(a, b)| a * b).sum();
@@ -153,30 +120,16 @@ impl BaseParameters {
 
 /// A uniformly random state within the limits: position limits (±π, or ±0.1 m, when unbounded),
 /// speed limits (or 2 rad/s, 0.2 m/s), and accelerations up to ten times the speed limit per second.
-pub fn random_state(
-    model: &Model,
-    rng: &mut ChaCha8Rng,
-    q: &mut [f64],
-    qd: &mut [f64],
-    qdd: &mut [f64],
-) {
+pub fn random_state(model: &Model, rng: &mut ChaCha8Rng, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
     for (k, joint) in model.joints.iter().enumerate() {
         let prismatic = joint.kind == JointKind::Prismatic;
-        let (default_range, default_speed) = if prismatic {
-            (0.1, 0.2)
-        } else {
-            (std::f64::consts::PI, 2.0)
-        };
+        let (default_range, default_speed) = if prismatic { (0.1, 0.2) } else { (std::f64::consts::PI, 2.0) };
         let (lo, hi) = if joint.lower.is_finite() && joint.upper.is_finite() {
             (joint.lower, joint.upper)
         } else {
             (-default_range, default_range)
         };
-        let speed = if joint.velocity.is_finite() {
-            joint.velocity
-        } else {
-            default_speed
-        };
+        let speed = if joint.velocity.is_finite() { joint.velocity } else { default_speed };
         q[k] = rng.random_range(lo..=hi);
         qd[k] = rng.random_range(-speed..=speed);
         qdd[k] = rng.random_range(-10.0 * speed..=10.0 * speed);
@@ -206,11 +159,7 @@ fn stacked_regressor(model: &Model, samples: usize, seed: u64) -> Mat<f64> {
 /// Keep column `j` when its component outside the span of the columns kept so far exceeds
 /// `tolerance · ‖w_j‖` (Gram–Schmidt, orthogonalised twice for accuracy). Columns below
 /// `zero_column` times the largest column norm are round-off and never kept.
-fn select_independent_columns(
-    w: &Mat<f64>,
-    tolerance: f64,
-    zero_column: f64,
-) -> (Vec<usize>, (f64, f64)) {
+fn select_independent_columns(w: &Mat<f64>, tolerance: f64, zero_column: f64) -> (Vec<usize>, (f64, f64)) {
     let m = w.nrows();
     let column_norm = |j: usize| (0..m).map(|i| w[(i, j)] * w[(i, j)]).sum::<f64>().sqrt();
     let largest = (0..w.ncols()).map(column_norm).fold(0.0, f64::max);

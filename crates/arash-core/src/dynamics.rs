@@ -13,11 +13,13 @@ use crate::spatial::{apply_inertia, Force, Motion, BODY_PARAMS};
 /// Why forward dynamics could not be solved.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum DynamicsError {
-    #[error("the mass matrix is not positive definite (pivot {pivot} is {value:.3e}); the parameters are not physical")]
+    #[error(
+        "the mass matrix is not positive definite (pivot {pivot} is {value:.3e}); the parameters are not physical"
+    )]
     MassNotPositiveDefinite { pivot: usize, value: f64 },
 }
 
-fn body_params<'a>(params: &'a [f64], b: usize) -> &'a [f64] {
+fn body_params(params: &[f64], b: usize) -> &[f64] {
     &params[b * BODY_PARAMS..(b + 1) * BODY_PARAMS]
 }
 
@@ -71,10 +73,7 @@ pub fn inverse_dynamics(
         let (v, a) = (&data.vel[b], &data.acc[b]);
         let f = apply_inertia(p, a);
         let gyro = v.cross_force(&apply_inertia(p, v));
-        Force {
-            n: f.n + gyro.n,
-            f: f.f + gyro.f,
-        }
+        Force { n: f.n + gyro.n, f: f.f + gyro.f }
     });
     add_joint_torques(model, params, q, qd, tau);
 }
@@ -113,14 +112,7 @@ fn fill_mass_matrix(model: &Model, data: &Data, params: &[f64], out: &mut [f64])
 
 /// The Coriolis/centrifugal matrix `C(q, q̇)` built from the Christoffel symbols of `M`, row-major
 /// `dof × dof`, so that `Ṁ − 2C` is skew-symmetric and `C q̇` is the velocity-product torque.
-pub fn coriolis_matrix(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    qd: &[f64],
-    params: &[f64],
-    out: &mut [f64],
-) {
+pub fn coriolis_matrix(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], params: &[f64], out: &mut [f64]) {
     check_params(model, params);
     let n = model.dof();
     assert_eq!(out.len(), n * n, "C output must hold {n} × {n} values");
@@ -130,20 +122,12 @@ pub fn coriolis_matrix(
     for l in 0..n {
         data.unit.fill(0.0);
         data.unit[l] = 1.0;
-        let (unit, zeros) = (
-            std::mem::take(&mut data.unit),
-            std::mem::take(&mut data.zeros),
-        );
+        let (unit, zeros) = (std::mem::take(&mut data.unit), std::mem::take(&mut data.zeros));
         motion_sweep(model, data, qd, &unit, &zeros, false);
         data.unit = unit;
         data.zeros = zeros;
         for b in 0..model.bodies.len() {
-            let f = christoffel_wrench(
-                body_params(params, b),
-                &data.vel[b],
-                &data.vel_ref[b],
-                &data.acc[b],
-            );
+            let f = christoffel_wrench(body_params(params, b), &data.vel[b], &data.vel_ref[b], &data.acc[b]);
             for k in 0..n {
                 out[k * n + l] += data.jac[b * n + k].dot(&f);
             }
@@ -157,10 +141,7 @@ fn christoffel_wrench(p: &[f64], v: &Motion, v_r: &Motion, a_r: &Motion) -> Forc
     let t1 = v.cross_force(&apply_inertia(p, v_r));
     let t2 = apply_inertia(p, &v.cross(v_r));
     let t3 = v_r.cross_force(&apply_inertia(p, v));
-    Force {
-        n: base.n + (t1.n - t2.n + t3.n) * 0.5,
-        f: base.f + (t1.f - t2.f + t3.f) * 0.5,
-    }
+    Force { n: base.n + (t1.n - t2.n + t3.n) * 0.5, f: base.f + (t1.f - t2.f + t3.f) * 0.5 }
 }
 
 /// The gravity torque `g(q)`.
@@ -170,9 +151,7 @@ pub fn gravity_torque(model: &Model, data: &mut Data, q: &[f64], params: &[f64],
     let zeros = std::mem::take(&mut data.zeros);
     motion_sweep(model, data, &zeros, &zeros, &zeros, true);
     data.zeros = zeros;
-    project_wrenches(model, data, tau, |b| {
-        apply_inertia(body_params(params, b), &data.acc[b])
-    });
+    project_wrenches(model, data, tau, |b| apply_inertia(body_params(params, b), &data.acc[b]));
 }
 
 /// Forward dynamics: `q̈ = M⁻¹ (τ − C q̇ − g − friction − elastic)`, by Cholesky of `M`.
@@ -186,10 +165,7 @@ pub fn forward_dynamics(
     qdd: &mut [f64],
 ) -> Result<(), DynamicsError> {
     let n = model.dof();
-    assert!(
-        tau.len() == n && qdd.len() == n,
-        "τ and q̈ must have {n} entries"
-    );
+    assert!(tau.len() == n && qdd.len() == n, "τ and q̈ must have {n} entries");
     let zeros = std::mem::take(&mut data.zeros);
     let mut bias = std::mem::take(&mut data.rhs);
     inverse_dynamics(model, data, q, qd, &zeros, params, &mut bias);
@@ -244,21 +220,15 @@ fn cholesky_solve_in_place(a: &mut [f64], n: usize, b: &mut [f64]) -> Result<(),
 }
 
 /// Kinetic energy `½ Σ vᵀ I v` (J). Precondition: none; runs its own kinematics.
-pub fn kinetic_energy(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    qd: &[f64],
-    params: &[f64],
-) -> f64 {
+pub fn kinetic_energy(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], params: &[f64]) -> f64 {
     check_params(model, params);
     forward_kinematics(model, data, q);
     let n = model.dof();
     (0..model.bodies.len())
         .map(|b| {
             let mut v = Motion::ZERO;
-            for k in 0..n {
-                v.axpy(qd[k], &data.jac[b * n + k]);
+            for (rate, column) in qd.iter().zip(&data.jac[b * n..(b + 1) * n]) {
+                v.axpy(*rate, column);
             }
             0.5 * v.dot(&apply_inertia(body_params(params, b), &v))
         })
@@ -273,9 +243,7 @@ pub fn potential_energy(model: &Model, data: &mut Data, q: &[f64], params: &[f64
         .map(|b| {
             let p = body_params(params, b);
             let h = crate::spatial::Vec3::new(p[1], p[2], p[3]);
-            -model
-                .gravity
-                .dot(&(data.world_pos[b] * p[0] + data.world_rot[b] * h))
+            -model.gravity.dot(&(data.world_pos[b] * p[0] + data.world_rot[b] * h))
         })
         .sum()
 }

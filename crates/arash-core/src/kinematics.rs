@@ -18,34 +18,20 @@ fn subspace(body: &Body) -> Motion {
 /// Tree-joint value driven by actuated values `x`; `with_offset` is false for rates.
 #[inline]
 fn tree_value(body: &Body, x: &[f64], with_offset: bool) -> f64 {
-    body.coupling.map_or(0.0, |c| {
-        c.multiplier * x[c.index] + if with_offset { c.offset } else { 0.0 }
-    })
+    body.coupling.map_or(0.0, |c| c.multiplier * x[c.index] + if with_offset { c.offset } else { 0.0 })
 }
 
 /// Placements (relative and in the base frame) and body Jacobians at configuration `q`.
 ///
 /// Postcondition: `data.rot/pos/world_rot/world_pos/jac` describe `q`.
 pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
-    assert_eq!(
-        q.len(),
-        model.dof(),
-        "q has {} entries, the model has {} dof",
-        q.len(),
-        model.dof()
-    );
+    assert_eq!(q.len(), model.dof(), "q has {} entries, the model has {} dof", q.len(), model.dof());
     let n = model.dof();
     for (b, body) in model.bodies.iter().enumerate() {
         let theta = tree_value(body, q, true);
         let (rot, pos) = match body.kind {
-            JointKind::Revolute => (
-                body.origin_rot * axis_angle(&body.axis, theta),
-                body.origin_pos,
-            ),
-            JointKind::Prismatic => (
-                body.origin_rot,
-                body.origin_pos + body.origin_rot * body.axis * theta,
-            ),
+            JointKind::Revolute => (body.origin_rot * axis_angle(&body.axis, theta), body.origin_pos),
+            JointKind::Prismatic => (body.origin_rot, body.origin_pos + body.origin_rot * body.axis * theta),
             JointKind::Fixed => (body.origin_rot, body.origin_pos),
         };
         data.rot[b] = rot;
@@ -78,24 +64,13 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
 /// carries the gravity load.
 ///
 /// Precondition: [`forward_kinematics`] has been called for the same `q`.
-pub fn motion_sweep(
-    model: &Model,
-    data: &mut Data,
-    qd: &[f64],
-    qd_r: &[f64],
-    qdd_r: &[f64],
-    gravity: bool,
-) {
+pub fn motion_sweep(model: &Model, data: &mut Data, qd: &[f64], qd_r: &[f64], qdd_r: &[f64], gravity: bool) {
     let n = model.dof();
     assert!(
         qd.len() == n && qd_r.len() == n && qdd_r.len() == n,
         "velocity and acceleration vectors must have {n} entries"
     );
-    let base = if gravity {
-        Motion::new(Vec3::zeros(), -model.gravity)
-    } else {
-        Motion::ZERO
-    };
+    let base = if gravity { Motion::new(Vec3::zeros(), -model.gravity) } else { Motion::ZERO };
     for (b, body) in model.bodies.iter().enumerate() {
         let cols = &data.jac[b * n..(b + 1) * n];
         let mut v = Motion::ZERO;

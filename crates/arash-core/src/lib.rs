@@ -19,8 +19,8 @@ pub mod urdf;
 pub use base_parameters::{BaseParameterError, BaseParameters};
 pub use data::Data;
 pub use dynamics::{
-    coriolis_matrix, forward_dynamics, gravity_torque, inverse_dynamics, kinetic_energy,
-    mass_matrix, potential_energy, DynamicsError,
+    coriolis_matrix, forward_dynamics, gravity_torque, inverse_dynamics, kinetic_energy, mass_matrix, potential_energy,
+    DynamicsError,
 };
 pub use kinematics::forward_kinematics;
 pub use model::{ActuatedJoint, Body, CoulombShape, JointKind, Model};

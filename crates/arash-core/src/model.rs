@@ -130,9 +130,7 @@ impl Model {
     /// Names of the standard parameters, in vector order: `link.m`, `link.mx`, …, `joint.fv`,
     /// `joint.fc`, `joint.ke`.
     pub fn parameter_names(&self) -> Vec<String> {
-        const SUFFIX: [&str; BODY_PARAMS] = [
-            "m", "mx", "my", "mz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz",
-        ];
+        const SUFFIX: [&str; BODY_PARAMS] = ["m", "mx", "my", "mz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"];
         let mut names = Vec::with_capacity(self.num_params());
         for body in &self.bodies {
             names.extend(SUFFIX.iter().map(|s| format!("{}.{}", body.name, s)));
@@ -174,13 +172,7 @@ impl Model {
 
     /// Tree joint positions for actuated positions `q` (`multiplier · q + offset`; 0 for fixed).
     pub fn tree_positions(&self, q: &[f64]) -> Vec<f64> {
-        self.bodies
-            .iter()
-            .map(|b| {
-                b.coupling
-                    .map_or(0.0, |c| c.multiplier * q[c.index] + c.offset)
-            })
-            .collect()
+        self.bodies.iter().map(|b| b.coupling.map_or(0.0, |c| c.multiplier * q[c.index] + c.offset)).collect()
     }
 
     /// Position limits as `(lower, upper)` per actuated joint.

@@ -10,14 +10,7 @@ use crate::model::Model;
 use crate::spatial::{inertia_coefficients, Motion, BODY_PARAMS};
 
 /// `Y(q, q̇, q̈)`, row-major `dof × P`. Coulomb columns use `model.coulomb_shape` of `q̇`.
-pub fn regressor(
-    model: &Model,
-    data: &mut Data,
-    q: &[f64],
-    qd: &[f64],
-    qdd: &[f64],
-    out: &mut [f64],
-) {
+pub fn regressor(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], qdd: &[f64], out: &mut [f64]) {
     forward_kinematics(model, data, q);
     motion_sweep(model, data, qd, qd, qdd, true);
     // u · (I a + v ×* I v) = ρ(u, a) − ρ(v × u, v): the Newton–Euler wrench projected on u.
@@ -56,12 +49,7 @@ pub fn slotine_li_regressor(
 
 /// `u · f` for the Christoffel-consistent wrench `f` above, as coefficients of π.
 #[inline]
-pub(crate) fn slotine_li_row(
-    u: &Motion,
-    v: &Motion,
-    v_r: &Motion,
-    a_r: &Motion,
-) -> [f64; BODY_PARAMS] {
+pub(crate) fn slotine_li_row(u: &Motion, v: &Motion, v_r: &Motion, a_r: &Motion) -> [f64; BODY_PARAMS] {
     let mut row = inertia_coefficients(u, a_r);
     let t1 = inertia_coefficients(&v.cross(u), v_r);
     let t2 = inertia_coefficients(u, &v.cross(v_r));
@@ -78,11 +66,7 @@ where
     F: Fn(&Motion, &Motion, &Motion, &Motion) -> [f64; BODY_PARAMS],
 {
     let (n, p) = (model.dof(), model.num_params());
-    assert_eq!(
-        out.len(),
-        n * p,
-        "regressor output must hold dof × P = {n} × {p} values"
-    );
+    assert_eq!(out.len(), n * p, "regressor output must hold dof × P = {n} × {p} values");
     out.fill(0.0);
     for b in 0..model.bodies.len() {
         let (v, v_r, a) = (&data.vel[b], &data.vel_ref[b], &data.acc[b]);

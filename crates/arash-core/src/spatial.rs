@@ -29,10 +29,7 @@ pub struct Force {
 }
 
 impl Motion {
-    pub const ZERO: Motion = Motion {
-        w: Vec3::new(0.0, 0.0, 0.0),
-        v: Vec3::new(0.0, 0.0, 0.0),
-    };
+    pub const ZERO: Motion = Motion { w: Vec3::new(0.0, 0.0, 0.0), v: Vec3::new(0.0, 0.0, 0.0) };
 
     pub fn new(w: Vec3, v: Vec3) -> Self {
         Self { w, v }
@@ -41,27 +38,18 @@ impl Motion {
     /// Spatial motion cross product `self × m`.
     #[inline]
     pub fn cross(&self, m: &Motion) -> Motion {
-        Motion {
-            w: self.w.cross(&m.w),
-            v: self.w.cross(&m.v) + self.v.cross(&m.w),
-        }
+        Motion { w: self.w.cross(&m.w), v: self.w.cross(&m.v) + self.v.cross(&m.w) }
     }
 
     /// Spatial force cross product `self ×* f`.
     #[inline]
     pub fn cross_force(&self, f: &Force) -> Force {
-        Force {
-            n: self.w.cross(&f.n) + self.v.cross(&f.f),
-            f: self.w.cross(&f.f),
-        }
+        Force { n: self.w.cross(&f.n) + self.v.cross(&f.f), f: self.w.cross(&f.f) }
     }
 
     #[inline]
     pub fn scaled(&self, s: f64) -> Motion {
-        Motion {
-            w: self.w * s,
-            v: self.v * s,
-        }
+        Motion { w: self.w * s, v: self.v * s }
     }
 
     /// `self += s · m`
@@ -73,28 +61,19 @@ impl Motion {
 
     #[inline]
     pub fn add(&self, m: &Motion) -> Motion {
-        Motion {
-            w: self.w + m.w,
-            v: self.v + m.v,
-        }
+        Motion { w: self.w + m.w, v: self.v + m.v }
     }
 
     #[inline]
     pub fn sub(&self, m: &Motion) -> Motion {
-        Motion {
-            w: self.w - m.w,
-            v: self.v - m.v,
-        }
+        Motion { w: self.w - m.w, v: self.v - m.v }
     }
 
     /// Re-express a motion given in a parent frame in a child frame whose orientation is `rot`
     /// (child axes in parent coordinates) and whose origin is at `pos` (parent coordinates).
     #[inline]
     pub fn to_child(&self, rot: &Mat3, pos: &Vec3) -> Motion {
-        Motion {
-            w: rot.tr_mul(&self.w),
-            v: rot.tr_mul(&(self.v + self.w.cross(pos))),
-        }
+        Motion { w: rot.tr_mul(&self.w), v: rot.tr_mul(&(self.v + self.w.cross(pos))) }
     }
 
     /// Power pairing `self · f`.
@@ -109,10 +88,7 @@ impl Motion {
 pub fn apply_inertia(p: &[f64], x: &Motion) -> Force {
     let h = Vec3::new(p[1], p[2], p[3]);
     let rot_inertia = rotational_inertia(p);
-    Force {
-        n: rot_inertia * x.w + h.cross(&x.v),
-        f: x.v * p[0] - h.cross(&x.w),
-    }
+    Force { n: rot_inertia * x.w + h.cross(&x.v), f: x.v * p[0] - h.cross(&x.w) }
 }
 
 /// The 3×3 inertia tensor about the frame origin held in parameters `p[4..10]`.
@@ -183,9 +159,7 @@ pub fn rpy_to_rotation(roll: f64, pitch: f64, yaw: f64) -> Mat3 {
 pub fn axis_angle(axis: &Vec3, angle: f64) -> Mat3 {
     // Rodrigues, written out so the hot path does no normalisation or allocation.
     let (s, c) = angle.sin_cos();
-    let k = Mat3::new(
-        0.0, -axis.z, axis.y, axis.z, 0.0, -axis.x, -axis.y, axis.x, 0.0,
-    );
+    let k = Mat3::new(0.0, -axis.z, axis.y, axis.z, 0.0, -axis.x, -axis.y, axis.x, 0.0);
     Mat3::identity() + k * s + k * k * (1.0 - c)
 }
 
@@ -205,9 +179,7 @@ mod tests {
         let p = params_from_com(
             1.3,
             &Vec3::new(0.1, -0.2, 0.05),
-            &Mat3::new(
-                0.02, 0.001, -0.002, 0.001, 0.03, 0.0005, -0.002, 0.0005, 0.025,
-            ),
+            &Mat3::new(0.02, 0.001, -0.002, 0.001, 0.03, 0.0005, -0.002, 0.0005, 0.025),
         );
         for s in [0.1, 0.7, 2.3] {
             let (u, w) = (motion(s), motion(s + 1.1));
@@ -216,10 +188,7 @@ mod tests {
             let via: f64 = coeffs.iter().zip(p.iter()).map(|(a, b)| a * b).sum();
             assert!((direct - via).abs() < 1e-14, "{direct} vs {via}");
             let swapped = w.dot(&apply_inertia(&p, &u));
-            assert!(
-                (direct - swapped).abs() < 1e-14,
-                "spatial inertia must be symmetric"
-            );
+            assert!((direct - swapped).abs() < 1e-14, "spatial inertia must be symmetric");
         }
     }
 
@@ -227,9 +196,7 @@ mod tests {
     fn rodrigues_matches_nalgebra() {
         let axis = Vec3::new(0.3, -0.5, 0.8).normalize();
         let ours = axis_angle(&axis, 0.77);
-        let theirs =
-            *nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(axis), 0.77)
-                .matrix();
+        let theirs = *nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(axis), 0.77).matrix();
         assert!((ours - theirs).norm() < 1e-15);
     }
 

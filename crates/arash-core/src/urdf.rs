@@ -14,10 +14,7 @@ use crate::spatial::{params_from_com, rpy_to_rotation, Mat3, Vec3};
 #[derive(Debug, thiserror::Error)]
 pub enum UrdfError {
     #[error("cannot read URDF {path}: {source}")]
-    Io {
-        path: String,
-        source: std::io::Error,
-    },
+    Io { path: String, source: std::io::Error },
     #[error("URDF is not well-formed XML: {0}")]
     Xml(#[from] roxmltree::Error),
     #[error("the root element is <{0}>, expected <robot>")]
@@ -32,7 +29,9 @@ pub enum UrdfError {
     Roots(usize, String),
     #[error("joint `{joint}` mimics `{target}`, which is not a joint of this robot")]
     MimicUnknown { joint: String, target: String },
-    #[error("joint `{joint}` mimics `{target}`, which is itself passive (a mimic or fixed joint); mimic an actuated joint")]
+    #[error(
+        "joint `{joint}` mimics `{target}`, which is itself passive (a mimic or fixed joint); mimic an actuated joint"
+    )]
     MimicPassive { joint: String, target: String },
     #[error("the robot has no actuated joint")]
     NoActuatedJoint,
@@ -62,10 +61,8 @@ struct RawJoint {
 /// Read and parse a URDF file.
 pub fn load_urdf(path: impl AsRef<Path>) -> Result<Model, UrdfError> {
     let path = path.as_ref();
-    let text = std::fs::read_to_string(path).map_err(|source| UrdfError::Io {
-        path: path.display().to_string(),
-        source,
-    })?;
+    let text =
+        std::fs::read_to_string(path).map_err(|source| UrdfError::Io { path: path.display().to_string(), source })?;
     parse_urdf(&text)
 }
 
@@ -96,43 +93,25 @@ pub fn parse_urdf(text: &str) -> Result<Model, UrdfError> {
     TreeBuilder::new(robot.attribute("name").unwrap_or("robot"), links, joints)?.build()
 }
 
-fn required_attr(
-    node: roxmltree::Node,
-    attr: &str,
-    element: &str,
-    owner: &str,
-) -> Result<String, UrdfError> {
+fn required_attr(node: roxmltree::Node, attr: &str, element: &str, owner: &str) -> Result<String, UrdfError> {
     node.attribute(attr).map(str::to_string).ok_or_else(|| {
         let what = format!("<{element}> has no `{attr}` attribute");
         if element == "link" || owner.is_empty() {
-            UrdfError::Link {
-                link: owner.to_string(),
-                what,
-            }
+            UrdfError::Link { link: owner.to_string(), what }
         } else {
-            UrdfError::Joint {
-                joint: owner.to_string(),
-                what,
-            }
+            UrdfError::Joint { joint: owner.to_string(), what }
         }
     })
 }
 
-fn parse_numbers<const N: usize>(
-    text: Option<&str>,
-    default: [f64; N],
-) -> Result<[f64; N], String> {
+fn parse_numbers<const N: usize>(text: Option<&str>, default: [f64; N]) -> Result<[f64; N], String> {
     let Some(text) = text else { return Ok(default) };
     let values: Vec<f64> = text
         .split_whitespace()
-        .map(|s| {
-            s.parse::<f64>()
-                .map_err(|_| format!("`{s}` is not a number"))
-        })
+        .map(|s| s.parse::<f64>().map_err(|_| format!("`{s}` is not a number")))
         .collect::<Result<_, _>>()?;
-    let array: [f64; N] = values
-        .try_into()
-        .map_err(|v: Vec<f64>| format!("expected {N} numbers, found {} in `{text}`", v.len()))?;
+    let array: [f64; N] =
+        values.try_into().map_err(|v: Vec<f64>| format!("expected {N} numbers, found {} in `{text}`", v.len()))?;
     if let Some(bad) = array.iter().find(|x| !x.is_finite()) {
         return Err(format!("`{bad}` is not finite in `{text}`"));
     }
@@ -142,17 +121,14 @@ fn parse_numbers<const N: usize>(
 fn number_attr(node: roxmltree::Node, attr: &str, default: Option<f64>) -> Result<f64, String> {
     match node.attribute(attr) {
         Some(s) => {
-            let v: f64 = s.trim().parse().map_err(|_| {
-                format!("<{}> {attr}=`{s}` is not a number", node.tag_name().name())
-            })?;
+            let v: f64 =
+                s.trim().parse().map_err(|_| format!("<{}> {attr}=`{s}` is not a number", node.tag_name().name()))?;
             if v.is_nan() {
                 return Err(format!("<{}> {attr} is NaN", node.tag_name().name()));
             }
             Ok(v)
         }
-        None => {
-            default.ok_or_else(|| format!("<{}> has no `{attr}` attribute", node.tag_name().name()))
-        }
+        None => default.ok_or_else(|| format!("<{}> has no `{attr}` attribute", node.tag_name().name())),
     }
 }
 
@@ -160,40 +136,25 @@ fn parse_origin(node: Option<roxmltree::Node>) -> Result<(Mat3, Vec3), String> {
     let Some(node) = node else {
         return Ok((Mat3::identity(), Vec3::zeros()));
     };
-    let xyz = parse_numbers::<3>(node.attribute("xyz"), [0.0; 3])
-        .map_err(|e| format!("<origin xyz>: {e}"))?;
-    let rpy = parse_numbers::<3>(node.attribute("rpy"), [0.0; 3])
-        .map_err(|e| format!("<origin rpy>: {e}"))?;
+    let xyz = parse_numbers::<3>(node.attribute("xyz"), [0.0; 3]).map_err(|e| format!("<origin xyz>: {e}"))?;
+    let rpy = parse_numbers::<3>(node.attribute("rpy"), [0.0; 3]).map_err(|e| format!("<origin rpy>: {e}"))?;
     Ok((rpy_to_rotation(rpy[0], rpy[1], rpy[2]), Vec3::from(xyz)))
 }
 
 fn parse_inertial(node: roxmltree::Node, link: &str) -> Result<Inertial, UrdfError> {
-    let err = |what: String| UrdfError::Link {
-        link: link.to_string(),
-        what,
-    };
-    let (rot, com) =
-        parse_origin(node.children().find(|c| c.has_tag_name("origin"))).map_err(err)?;
-    let mass_node = node
-        .children()
-        .find(|c| c.has_tag_name("mass"))
-        .ok_or_else(|| err("<inertial> has no <mass>".into()))?;
+    let err = |what: String| UrdfError::Link { link: link.to_string(), what };
+    let (rot, com) = parse_origin(node.children().find(|c| c.has_tag_name("origin"))).map_err(err)?;
+    let mass_node =
+        node.children().find(|c| c.has_tag_name("mass")).ok_or_else(|| err("<inertial> has no <mass>".into()))?;
     let mass = number_attr(mass_node, "value", None).map_err(err)?;
-    let inertia = node
-        .children()
-        .find(|c| c.has_tag_name("inertia"))
-        .ok_or_else(|| err("<inertial> has no <inertia>".into()))?;
+    let inertia =
+        node.children().find(|c| c.has_tag_name("inertia")).ok_or_else(|| err("<inertial> has no <inertia>".into()))?;
     let mut e = [0.0; 6];
     for (slot, key) in e.iter_mut().zip(["ixx", "iyy", "izz", "ixy", "ixz", "iyz"]) {
         *slot = number_attr(inertia, key, Some(0.0)).map_err(err)?;
     }
     let tensor = Mat3::new(e[0], e[3], e[4], e[3], e[1], e[5], e[4], e[5], e[2]);
-    Ok(Inertial {
-        mass,
-        com,
-        rot,
-        tensor,
-    })
+    Ok(Inertial { mass, com, rot, tensor })
 }
 
 fn parse_joint(node: roxmltree::Node) -> Result<RawJoint, UrdfError> {
@@ -201,10 +162,7 @@ fn parse_joint(node: roxmltree::Node) -> Result<RawJoint, UrdfError> {
         joint: String::from("<unnamed>"),
         what: "<joint> has no `name` attribute".into(),
     })?;
-    let err = |what: String| UrdfError::Joint {
-        joint: name.to_string(),
-        what,
-    };
+    let err = |what: String| UrdfError::Joint { joint: name.to_string(), what };
     let kind_text = required_attr(node, "type", "joint", name)?;
     let (kind, continuous) = match kind_text.as_str() {
         "revolute" => (JointKind::Revolute, false),
@@ -212,21 +170,15 @@ fn parse_joint(node: roxmltree::Node) -> Result<RawJoint, UrdfError> {
         "prismatic" => (JointKind::Prismatic, false),
         "fixed" => (JointKind::Fixed, false),
         other => {
-            return Err(err(format!(
-                "type `{other}` is not supported (revolute, continuous, prismatic or fixed)"
-            )))
+            return Err(err(format!("type `{other}` is not supported (revolute, continuous, prismatic or fixed)")))
         }
     };
     let link_of = |tag: &str| -> Result<String, UrdfError> {
-        let n = node
-            .children()
-            .find(|c| c.has_tag_name(tag))
-            .ok_or_else(|| err(format!("has no <{tag}>")))?;
+        let n = node.children().find(|c| c.has_tag_name(tag)).ok_or_else(|| err(format!("has no <{tag}>")))?;
         required_attr(n, "link", tag, name)
     };
     let (parent, child) = (link_of("parent")?, link_of("child")?);
-    let (origin_rot, origin_pos) =
-        parse_origin(node.children().find(|c| c.has_tag_name("origin"))).map_err(err)?;
+    let (origin_rot, origin_pos) = parse_origin(node.children().find(|c| c.has_tag_name("origin"))).map_err(err)?;
     let axis_node = node.children().find(|c| c.has_tag_name("axis"));
     let axis = Vec3::from(
         parse_numbers::<3>(axis_node.and_then(|a| a.attribute("xyz")), [1.0, 0.0, 0.0])
@@ -245,10 +197,9 @@ fn parse_joint(node: roxmltree::Node) -> Result<RawJoint, UrdfError> {
         None => None,
     };
     let dynamics = match node.children().find(|c| c.has_tag_name("dynamics")) {
-        Some(d) => (
-            number_attr(d, "damping", Some(0.0)).map_err(err)?,
-            number_attr(d, "friction", Some(0.0)).map_err(err)?,
-        ),
+        Some(d) => {
+            (number_attr(d, "damping", Some(0.0)).map_err(err)?, number_attr(d, "friction", Some(0.0)).map_err(err)?)
+        }
         None => (0.0, 0.0),
     };
     let mimic = match node.children().find(|c| c.has_tag_name("mimic")) {
@@ -291,19 +242,12 @@ struct TreeBuilder {
 }
 
 impl TreeBuilder {
-    fn new(
-        name: &str,
-        links: Vec<(String, Option<Inertial>)>,
-        joints: Vec<RawJoint>,
-    ) -> Result<Self, UrdfError> {
+    fn new(name: &str, links: Vec<(String, Option<Inertial>)>, joints: Vec<RawJoint>) -> Result<Self, UrdfError> {
         let mut link_map = HashMap::new();
         let mut order = Vec::new();
         for (link, inertial) in links {
             if link_map.contains_key(&link) {
-                return Err(UrdfError::Link {
-                    link,
-                    what: "is defined twice".into(),
-                });
+                return Err(UrdfError::Link { link, what: "is defined twice".into() });
             }
             order.push(link.clone());
             link_map.insert(link, inertial);
@@ -322,7 +266,10 @@ impl TreeBuilder {
             if let Some(previous) = parent_of.insert(&joint.child, &joint.parent) {
                 return Err(UrdfError::Link {
                     link: joint.child.clone(),
-                    what: format!("has two parents (`{previous}` and `{}`); cut closed loops with mimic joints", joint.parent),
+                    what: format!(
+                        "has two parents (`{previous}` and `{}`); cut closed loops with mimic joints",
+                        joint.parent
+                    ),
                 });
             }
             children.entry(joint.parent.clone()).or_default().push(j);
@@ -330,19 +277,12 @@ impl TreeBuilder {
         if let Some(j) = joints.iter().find(|j| j.parent == j.child) {
             return Err(UrdfError::Cycle(j.child.clone()));
         }
-        let roots: Vec<&String> = order
-            .iter()
-            .filter(|l| !parent_of.contains_key(l.as_str()))
-            .collect();
+        let roots: Vec<&String> = order.iter().filter(|l| !parent_of.contains_key(l.as_str())).collect();
         if roots.is_empty() {
             return Err(UrdfError::Cycle(order.first().cloned().unwrap_or_default()));
         }
         if roots.len() > 1 {
-            let list = roots
-                .iter()
-                .map(|s| s.as_str())
-                .collect::<Vec<_>>()
-                .join(", ");
+            let list = roots.iter().map(|s| s.as_str()).collect::<Vec<_>>().join(", ");
             return Err(UrdfError::Roots(roots.len(), list));
         }
         // Every link has at most one parent and there is one root, so a link unreachable from the
@@ -360,35 +300,22 @@ impl TreeBuilder {
         if let Some(lost) = order.iter().find(|l| !seen.contains(l.as_str())) {
             return Err(UrdfError::Cycle(lost.clone()));
         }
-        Ok(Self {
-            name: name.to_string(),
-            links: link_map,
-            joints,
-            children,
-            root,
-        })
+        Ok(Self { name: name.to_string(), links: link_map, joints, children, root })
     }
 
     fn build(self) -> Result<Model, UrdfError> {
         let mut bodies: Vec<Body> = Vec::new();
         let mut mimics: Vec<(usize, String, f64, f64)> = Vec::new();
         let mut actuated: Vec<ActuatedJoint> = Vec::new();
-        let identity = Attachment {
-            body: None,
-            rot: Mat3::identity(),
-            pos: Vec3::zeros(),
-        };
+        let identity = Attachment { body: None, rot: Mat3::identity(), pos: Vec3::zeros() };
         // Depth first, children in document order, so bodies are numbered parents first, as
         // Pinocchio numbers its joints.
         let mut stack: Vec<(usize, Attachment)> = Vec::new();
         self.push_children(&self.root, identity, &mut stack);
         while let Some((j, at)) = stack.pop() {
             let joint = &self.joints[j];
-            let placed = Attachment {
-                body: at.body,
-                rot: at.rot * joint.origin_rot,
-                pos: at.pos + at.rot * joint.origin_pos,
-            };
+            let placed =
+                Attachment { body: at.body, rot: at.rot * joint.origin_rot, pos: at.pos + at.rot * joint.origin_pos };
             let child_at = self.attach(joint, placed, &mut bodies, &mut mimics, &mut actuated)?;
             self.push_children(&joint.child, child_at, &mut stack);
         }
@@ -405,11 +332,7 @@ impl TreeBuilder {
                     UrdfError::MimicUnknown { joint, target }
                 });
             };
-            bodies[b].coupling = Some(Coupling {
-                index,
-                multiplier,
-                offset,
-            });
+            bodies[b].coupling = Some(Coupling { index, multiplier, offset });
         }
         Ok(Model {
             name: self.name,
@@ -421,14 +344,7 @@ impl TreeBuilder {
     }
 
     fn push_children(&self, link: &str, at: Attachment, stack: &mut Vec<(usize, Attachment)>) {
-        for &j in self
-            .children
-            .get(link)
-            .map(Vec::as_slice)
-            .unwrap_or(&[])
-            .iter()
-            .rev()
-        {
+        for &j in self.children.get(link).map(Vec::as_slice).unwrap_or(&[]).iter().rev() {
             stack.push((j, at));
         }
     }
@@ -443,29 +359,18 @@ impl TreeBuilder {
         actuated: &mut Vec<ActuatedJoint>,
     ) -> Result<Attachment, UrdfError> {
         let inertial = self.links[&joint.child].as_ref();
-        let link_err = |what: String| UrdfError::Link {
-            link: joint.child.clone(),
-            what,
-        };
+        let link_err = |what: String| UrdfError::Link { link: joint.child.clone(), what };
         if joint.kind == JointKind::Fixed {
             if joint.mimic.is_some() {
-                return Err(UrdfError::Joint {
-                    joint: joint.name.clone(),
-                    what: "a fixed joint cannot mimic".into(),
-                });
+                return Err(UrdfError::Joint { joint: joint.name.clone(), what: "a fixed joint cannot mimic".into() });
             }
-            let is_frame = at.body.is_none()
-                || inertial.is_none_or(|i| i.mass == 0.0 && i.tensor.norm() == 0.0);
+            let is_frame = at.body.is_none() || inertial.is_none_or(|i| i.mass == 0.0 && i.tensor.norm() == 0.0);
             if is_frame {
                 return Ok(at);
             }
         }
-        let inertial = inertial.ok_or_else(|| {
-            link_err(format!(
-                "is moved by joint `{}` but has no <inertial>",
-                joint.name
-            ))
-        })?;
+        let inertial =
+            inertial.ok_or_else(|| link_err(format!("is moved by joint `{}` but has no <inertial>", joint.name)))?;
         let params = validated_params(inertial).map_err(link_err)?;
         let index = bodies.len();
         let coupling = match (&joint.mimic, joint.kind) {
@@ -476,11 +381,7 @@ impl TreeBuilder {
             }
             (None, kind) => {
                 actuated.push(actuated_joint(joint, kind, index));
-                Some(Coupling {
-                    index: actuated.len() - 1,
-                    multiplier: 1.0,
-                    offset: 0.0,
-                })
+                Some(Coupling { index: actuated.len() - 1, multiplier: 1.0, offset: 0.0 })
             }
         };
         bodies.push(Body {
@@ -494,11 +395,7 @@ impl TreeBuilder {
             coupling,
             inertial: params,
         });
-        Ok(Attachment {
-            body: Some(index),
-            rot: Mat3::identity(),
-            pos: Vec3::zeros(),
-        })
+        Ok(Attachment { body: Some(index), rot: Mat3::identity(), pos: Vec3::zeros() })
     }
 }
 
@@ -535,4 +432,119 @@ fn validated_params(inertial: &Inertial) -> Result<[f64; 10], String> {
     }
     let tensor = inertial.rot * inertial.tensor * inertial.rot.transpose();
     Ok(params_from_com(inertial.mass, &inertial.com, &tensor))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LINK: &str = r#"<inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1"/></inertial>"#;
+
+    fn robot(links: &[(&str, &str)], joints: &str) -> String {
+        let links: String =
+            links.iter().map(|(name, inner)| format!(r#"<link name="{name}">{inner}</link>"#)).collect();
+        format!(r#"<robot name="t">{links}{joints}</robot>"#)
+    }
+
+    fn joint(name: &str, kind: &str, parent: &str, child: &str, extra: &str) -> String {
+        format!(
+            r#"<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="1" effort="1"/>{extra}</joint>"#
+        )
+    }
+
+    fn error_of(text: &str) -> String {
+        parse_urdf(text).expect_err("the URDF should be refused").to_string()
+    }
+
+    #[test]
+    fn accepts_a_valid_arm_with_a_mimic_joint() {
+        let j = joint("a", "revolute", "base", "l1", "")
+            + &joint("b", "revolute", "l1", "l2", r#"<mimic joint="a" multiplier="2" offset="0.1"/>"#);
+        let model = parse_urdf(&robot(&[("base", ""), ("l1", LINK), ("l2", LINK)], &j)).unwrap();
+        assert_eq!((model.dof(), model.bodies.len(), model.num_params()), (1, 2, 23));
+        let c = model.bodies[1].coupling.unwrap();
+        assert_eq!((c.index, c.multiplier, c.offset), (0, 2.0, 0.1));
+    }
+
+    #[test]
+    fn missing_inertial_names_the_link() {
+        let e = error_of(&robot(&[("base", ""), ("l1", "")], &joint("a", "revolute", "base", "l1", "")));
+        assert!(e.contains("`l1`") && e.contains("no <inertial>"), "{e}");
+    }
+
+    #[test]
+    fn mimic_of_an_unknown_joint_is_refused() {
+        let j =
+            joint("a", "revolute", "base", "l1", "") + &joint("b", "revolute", "l1", "l2", r#"<mimic joint="ghost"/>"#);
+        let e = error_of(&robot(&[("base", ""), ("l1", LINK), ("l2", LINK)], &j));
+        assert!(e.contains("`b`") && e.contains("`ghost`") && e.contains("not a joint"), "{e}");
+    }
+
+    #[test]
+    fn mimic_of_a_passive_joint_is_refused() {
+        let j = joint("a", "revolute", "base", "l1", "")
+            + &joint("b", "revolute", "l1", "l2", r#"<mimic joint="a"/>"#)
+            + &joint("c", "revolute", "l2", "l3", r#"<mimic joint="b"/>"#);
+        let e = error_of(&robot(&[("base", ""), ("l1", LINK), ("l2", LINK), ("l3", LINK)], &j));
+        assert!(e.contains("`c`") && e.contains("`b`") && e.contains("passive"), "{e}");
+    }
+
+    #[test]
+    fn a_cycle_is_refused() {
+        // l1 → l2 → l1, with base as a separate root: every link has one parent.
+        let j = joint("a", "revolute", "l1", "l2", "") + &joint("b", "revolute", "l2", "l1", "");
+        let e = error_of(&robot(&[("base", ""), ("l1", LINK), ("l2", LINK)], &j));
+        assert!(e.contains("cycle"), "{e}");
+        let e = error_of(&robot(&[("l1", LINK)], &joint("a", "revolute", "l1", "l1", "")));
+        assert!(e.contains("cycle") && e.contains("`l1`"), "{e}");
+    }
+
+    #[test]
+    fn a_closed_loop_without_mimic_is_refused() {
+        let j = joint("a", "revolute", "base", "l1", "")
+            + &joint("b", "revolute", "base", "l2", "")
+            + &joint("c", "revolute", "l1", "l2", "");
+        let e = error_of(&robot(&[("base", ""), ("l1", LINK), ("l2", LINK)], &j));
+        assert!(e.contains("`l2`") && e.contains("two parents"), "{e}");
+    }
+
+    #[test]
+    fn non_positive_mass_is_refused() {
+        for mass in ["0", "-1"] {
+            let inner =
+                format!(r#"<inertial><mass value="{mass}"/><inertia ixx="0.1" iyy="0.1" izz="0.1"/></inertial>"#);
+            let e = error_of(&robot(&[("base", ""), ("l1", &inner)], &joint("a", "revolute", "base", "l1", "")));
+            assert!(e.contains("`l1`") && e.contains("not positive"), "{e}");
+        }
+    }
+
+    #[test]
+    fn an_inertia_that_is_not_positive_definite_is_refused() {
+        let inner = r#"<inertial><mass value="1"/><inertia ixx="0.1" ixy="0.2" iyy="0.1" izz="0.1"/></inertial>"#;
+        let e = error_of(&robot(&[("base", ""), ("l1", inner)], &joint("a", "revolute", "base", "l1", "")));
+        assert!(e.contains("`l1`") && e.contains("not positive definite"), "{e}");
+    }
+
+    #[test]
+    fn malformed_input_is_refused_with_its_location() {
+        assert!(error_of("<robot><link").contains("not well-formed"));
+        assert!(error_of("<model/>").contains("<model>"));
+        let e = error_of(&robot(&[("base", ""), ("l1", LINK)], &joint("a", "revolute", "base", "nowhere", "")));
+        assert!(e.contains("`a`") && e.contains("`nowhere`"), "{e}");
+        let e = error_of(&robot(&[("base", ""), ("l1", LINK)], &joint("a", "screw", "base", "l1", "")));
+        assert!(e.contains("`screw`"), "{e}");
+        let bad_origin = r#"<origin xyz="0 zero 0"/>"#;
+        let e = error_of(&robot(&[("base", ""), ("l1", LINK)], &joint("a", "revolute", "base", "l1", bad_origin)));
+        assert!(e.contains("`a`") && e.contains("`zero`"), "{e}");
+        let e =
+            error_of(&robot(&[("base", ""), ("l1", LINK), ("l2", LINK)], &joint("a", "revolute", "base", "l1", "")));
+        assert!(e.contains("2 root links") && e.contains("l2"), "{e}");
+    }
+
+    #[test]
+    fn massless_fixed_frames_fold_into_their_parent() {
+        let j = joint("a", "prismatic", "base", "l1", "") + &joint("tip", "fixed", "l1", "tcp", "");
+        let model = parse_urdf(&robot(&[("base", ""), ("l1", LINK), ("tcp", "")], &j)).unwrap();
+        assert_eq!(model.bodies.len(), 1);
+    }
 }

@@ -8,11 +8,7 @@ use arash_core::{load_urdf, BaseParameters, JointKind, Model};
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(
-    name = "arash",
-    version,
-    about = "Calibrate and control the ARASH:ASiST haptic robot"
-)]
+#[command(name = "arash", version, about = "Calibrate and control the ARASH:ASiST haptic robot")]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -35,19 +31,10 @@ enum Command {
 
 fn main() -> anyhow::Result<()> {
     match Cli::parse().command {
-        Command::Model {
-            urdf,
-            samples,
-            seed,
-        } => {
+        Command::Model { urdf, samples, seed } => {
             let model = load_urdf(&urdf).with_context(|| format!("loading {}", urdf.display()))?;
-            let options = BaseParameterOptions {
-                samples,
-                seed,
-                ..Default::default()
-            };
-            let base =
-                BaseParameters::compute(&model, &options).context("computing base parameters")?;
+            let options = BaseParameterOptions { samples, seed, ..Default::default() };
+            let base = BaseParameters::compute(&model, &options).context("computing base parameters")?;
             print!("{}", describe(&model, &base));
             Ok(())
         }
@@ -55,13 +42,15 @@ fn main() -> anyhow::Result<()> {
 }
 
 fn describe(model: &Model, base: &BaseParameters) -> String {
-    let mut s = format!("robot `{}`: {} dof, {} moving bodies\n\njoints (SI: rad, m; limits shown in degrees and mm):\n", model.name, model.dof(), model.bodies.len());
+    let mut s = format!(
+        "robot `{}`: {} dof, {} moving bodies\n\njoints (SI: rad, m; limits shown in degrees and mm):\n",
+        model.name,
+        model.dof(),
+        model.bodies.len()
+    );
     for j in &model.joints {
-        let (scale, unit) = if j.kind == JointKind::Prismatic {
-            (1e3, "mm")
-        } else {
-            (180.0 / std::f64::consts::PI, "°")
-        };
+        let (scale, unit) =
+            if j.kind == JointKind::Prismatic { (1e3, "mm") } else { (180.0 / std::f64::consts::PI, "°") };
         s += &format!(
             "  {:<12} {:<9} [{:>7.2}, {:>7.2}] {unit}  |q̇| ≤ {:.1} {unit}/s\n",
             j.name,
@@ -78,24 +67,14 @@ fn describe(model: &Model, base: &BaseParameters) -> String {
                 if c.multiplier == 1.0
                     && c.offset == 0.0
                     && model.joints[c.index].body
-                        == model
-                            .bodies
-                            .iter()
-                            .position(|x| x.name == b.name)
-                            .unwrap_or(usize::MAX) =>
+                        == model.bodies.iter().position(|x| x.name == b.name).unwrap_or(usize::MAX) =>
             {
                 model.joints[c.index].name.clone()
             }
-            Some(c) => format!(
-                "mimic {} × {} + {}",
-                model.joints[c.index].name, c.multiplier, c.offset
-            ),
+            Some(c) => format!("mimic {} × {} + {}", model.joints[c.index].name, c.multiplier, c.offset),
             None => "fixed".into(),
         };
-        s += &format!(
-            "  {:<22} {:>7.4} kg  joint `{}` ({driver})\n",
-            b.name, b.inertial[0], b.joint
-        );
+        s += &format!("  {:<22} {:>7.4} kg  joint `{}` ({driver})\n", b.name, b.inertial[0], b.joint);
     }
     s += &format!(
         "\nstandard parameters: {} (10 × {} bodies + 3 × {} joints)\nbase parameters: p = {} (rank gap: kept ≥ {:.2e}, dropped ≤ {:.2e})\n",

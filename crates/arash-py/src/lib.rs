@@ -46,10 +46,7 @@ fn same_length(batches: &[(&str, &Batch)]) -> PyResult<usize> {
     let (first_name, first) = batches[0];
     for (name, b) in &batches[1..] {
         if b.n != first.n || b.single != first.single {
-            return Err(PyValueError::new_err(format!(
-                "{first_name} has {} samples but {name} has {}",
-                first.n, b.n
-            )));
+            return Err(PyValueError::new_err(format!("{first_name} has {} samples but {name} has {}", first.n, b.n)));
         }
     }
     Ok(first.n)
@@ -70,20 +67,14 @@ where
     if width == 0 || n == 0 {
         return out;
     }
-    let threads = if n >= 2048 {
-        std::thread::available_parallelism().map_or(1, |t| t.get())
-    } else {
-        1
-    };
+    let threads = if n >= 2048 { std::thread::available_parallelism().map_or(1, |t| t.get()) } else { 1 };
     let per_thread = n.div_ceil(threads);
     std::thread::scope(|scope| {
         for (chunk_index, chunk) in out.chunks_mut(per_thread * width).enumerate() {
             let f = &f;
             scope.spawn(move || {
-                let mut scratch = Scratch {
-                    data: Data::new(model),
-                    regressor: vec![0.0; model.dof() * model.num_params()],
-                };
+                let mut scratch =
+                    Scratch { data: Data::new(model), regressor: vec![0.0; model.dof() * model.num_params()] };
                 for (i, sample_out) in chunk.chunks_mut(width).enumerate() {
                     f(&mut scratch, chunk_index * per_thread + i, sample_out);
                 }
@@ -102,8 +93,7 @@ fn to_numpy<'py>(
 ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     let mut shape = if single { vec![] } else { vec![n] };
     shape.extend_from_slice(tail);
-    let array = ArrayD::from_shape_vec(IxDyn(&shape), values)
-        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let array = ArrayD::from_shape_vec(IxDyn(&shape), values).map_err(|e| PyValueError::new_err(e.to_string()))?;
     Ok(array.into_pyarray(py))
 }
 
@@ -193,25 +183,13 @@ impl Robot {
     }
 
     fn cad_parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-        to_numpy(
-            py,
-            self.model.cad_parameters(),
-            false,
-            self.model.num_params(),
-            &[],
-        )
+        to_numpy(py, self.model.cad_parameters(), false, self.model.num_params(), &[])
     }
 
     /// The mimic coupling G (bodies × dof): tree joint rates are G q̇.
     fn coupling_matrix<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let nb = self.model.bodies.len();
-        to_numpy(
-            py,
-            self.model.coupling_matrix(),
-            false,
-            nb,
-            &[self.model.dof()],
-        )
+        to_numpy(py, self.model.coupling_matrix(), false, nb, &[self.model.dof()])
     }
 
     /// Y(q, q̇, q̈): (N, dof) in, (N, dof, P) out.
@@ -223,22 +201,11 @@ impl Robot {
         qdd: PyReadonlyArrayDyn<'py, f64>,
     ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let (m, n, p) = (&*self.model, self.model.dof(), self.model.num_params());
-        let (q, qd, qdd) = (
-            batch("q", &q, n)?,
-            batch("qd", &qd, n)?,
-            batch("qdd", &qdd, n)?,
-        );
+        let (q, qd, qdd) = (batch("q", &q, n)?, batch("qd", &qd, n)?, batch("qdd", &qdd, n)?);
         let count = same_length(&[("q", &q), ("qd", &qd), ("qdd", &qdd)])?;
         let out = py.detach(|| {
             run_batched(m, count, n * p, |s, i, o| {
-                core::regressor(
-                    m,
-                    &mut s.data,
-                    row(&q, i, n),
-                    row(&qd, i, n),
-                    row(&qdd, i, n),
-                    o,
-                )
+                core::regressor(m, &mut s.data, row(&q, i, n), row(&qd, i, n), row(&qdd, i, n), o)
             })
         });
         to_numpy(py, out, q.single, count, &[n, p])
@@ -285,23 +252,11 @@ impl Robot {
     ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let (m, n) = (&*self.model, self.model.dof());
         let pi = self.params_or_cad(params)?;
-        let (q, qd, qdd) = (
-            batch("q", &q, n)?,
-            batch("qd", &qd, n)?,
-            batch("qdd", &qdd, n)?,
-        );
+        let (q, qd, qdd) = (batch("q", &q, n)?, batch("qd", &qd, n)?, batch("qdd", &qdd, n)?);
         let count = same_length(&[("q", &q), ("qd", &qd), ("qdd", &qdd)])?;
         let out = py.detach(|| {
             run_batched(m, count, n, |s, i, o| {
-                core::inverse_dynamics(
-                    m,
-                    &mut s.data,
-                    row(&q, i, n),
-                    row(&qd, i, n),
-                    row(&qdd, i, n),
-                    &pi,
-                    o,
-                )
+                core::inverse_dynamics(m, &mut s.data, row(&q, i, n), row(&qd, i, n), row(&qdd, i, n), &pi, o)
             })
         });
         to_numpy(py, out, q.single, count, &[n])
@@ -318,11 +273,8 @@ impl Robot {
         let (m, n) = (&*self.model, self.model.dof());
         let pi = self.params_or_cad(params)?;
         let q = batch("q", &q, n)?;
-        let out = py.detach(|| {
-            run_batched(m, q.n, n * n, |s, i, o| {
-                core::mass_matrix(m, &mut s.data, row(&q, i, n), &pi, o)
-            })
-        });
+        let out = py
+            .detach(|| run_batched(m, q.n, n * n, |s, i, o| core::mass_matrix(m, &mut s.data, row(&q, i, n), &pi, o)));
         to_numpy(py, out, q.single, q.n, &[n, n])
     }
 
@@ -358,11 +310,8 @@ impl Robot {
         let (m, n) = (&*self.model, self.model.dof());
         let pi = self.params_or_cad(params)?;
         let q = batch("q", &q, n)?;
-        let out = py.detach(|| {
-            run_batched(m, q.n, n, |s, i, o| {
-                core::gravity_torque(m, &mut s.data, row(&q, i, n), &pi, o)
-            })
-        });
+        let out =
+            py.detach(|| run_batched(m, q.n, n, |s, i, o| core::gravity_torque(m, &mut s.data, row(&q, i, n), &pi, o)));
         to_numpy(py, out, q.single, q.n, &[n])
     }
 
@@ -378,28 +327,15 @@ impl Robot {
     ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let (m, n) = (&*self.model, self.model.dof());
         let pi = self.params_or_cad(params)?;
-        let (q, qd, tau) = (
-            batch("q", &q, n)?,
-            batch("qd", &qd, n)?,
-            batch("tau", &tau, n)?,
-        );
+        let (q, qd, tau) = (batch("q", &q, n)?, batch("qd", &qd, n)?, batch("tau", &tau, n)?);
         let count = same_length(&[("q", &q), ("qd", &qd), ("tau", &tau)])?;
         let failure = std::sync::Mutex::new(None);
         let out = py.detach(|| {
             run_batched(m, count, n, |s, i, o| {
-                if let Err(e) = core::forward_dynamics(
-                    m,
-                    &mut s.data,
-                    row(&q, i, n),
-                    row(&qd, i, n),
-                    row(&tau, i, n),
-                    &pi,
-                    o,
-                ) {
-                    failure
-                        .lock()
-                        .expect("no panics hold this lock")
-                        .get_or_insert(format!("sample {i}: {e}"));
+                if let Err(e) =
+                    core::forward_dynamics(m, &mut s.data, row(&q, i, n), row(&qd, i, n), row(&tau, i, n), &pi, o)
+                {
+                    failure.lock().expect("no panics hold this lock").get_or_insert(format!("sample {i}: {e}"));
                 }
             })
         });
@@ -412,17 +348,9 @@ impl Robot {
     /// The base parameters (identifiable combinations), from `samples` random states.
     #[pyo3(signature = (samples=400, seed=0x5eed))]
     fn base_parameters(&self, samples: usize, seed: u64) -> PyResult<BaseParameters> {
-        let options = BaseParameterOptions {
-            samples,
-            seed,
-            ..Default::default()
-        };
-        let base = CoreBase::compute(&self.model, &options)
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        Ok(BaseParameters {
-            model: Arc::clone(&self.model),
-            base,
-        })
+        let options = BaseParameterOptions { samples, seed, ..Default::default() };
+        let base = CoreBase::compute(&self.model, &options).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Ok(BaseParameters { model: Arc::clone(&self.model), base })
     }
 
     fn __repr__(&self) -> String {
@@ -446,9 +374,7 @@ impl Robot {
             }
             model.coulomb_shape = CoulombShape::Tanh { epsilon };
         }
-        Ok(Self {
-            model: Arc::new(model),
-        })
+        Ok(Self { model: Arc::new(model) })
     }
 }
 
@@ -470,13 +396,7 @@ impl BaseParameters {
     /// B, shape (p, P).
     #[getter(B)]
     fn b<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-        to_numpy(
-            py,
-            self.base.b.clone(),
-            false,
-            self.base.rank,
-            &[self.base.num_params],
-        )
+        to_numpy(py, self.base.b.clone(), false, self.base.rank, &[self.base.num_params])
     }
 
     #[getter]
@@ -503,10 +423,7 @@ impl BaseParameters {
     ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let pi = batch("params", &params, self.base.num_params)?;
         if !pi.single {
-            return Err(PyValueError::new_err(format!(
-                "params must have shape ({},)",
-                self.base.num_params
-            )));
+            return Err(PyValueError::new_err(format!("params must have shape ({},)", self.base.num_params)));
         }
         let mut beta = vec![0.0; self.base.rank];
         self.base.project(&pi.values, &mut beta);
@@ -522,23 +439,12 @@ impl BaseParameters {
         qdd: PyReadonlyArrayDyn<'py, f64>,
     ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let (m, n, rank) = (&*self.model, self.model.dof(), self.base.rank);
-        let (q, qd, qdd) = (
-            batch("q", &q, n)?,
-            batch("qd", &qd, n)?,
-            batch("qdd", &qdd, n)?,
-        );
+        let (q, qd, qdd) = (batch("q", &q, n)?, batch("qd", &qd, n)?, batch("qdd", &qdd, n)?);
         let count = same_length(&[("q", &q), ("qd", &qd), ("qdd", &qdd)])?;
         let base = &self.base;
         let out = py.detach(|| {
             run_batched(m, count, n * rank, |s, i, o| {
-                core::regressor(
-                    m,
-                    &mut s.data,
-                    row(&q, i, n),
-                    row(&qd, i, n),
-                    row(&qdd, i, n),
-                    &mut s.regressor,
-                );
+                core::regressor(m, &mut s.data, row(&q, i, n), row(&qd, i, n), row(&qdd, i, n), &mut s.regressor);
                 base.reduce(&s.regressor, o);
             })
         });
@@ -546,10 +452,7 @@ impl BaseParameters {
     }
 
     fn __repr__(&self) -> String {
-        format!(
-            "BaseParameters(p={}, P={})",
-            self.base.rank, self.base.num_params
-        )
+        format!("BaseParameters(p={}, P={})", self.base.rank, self.base.num_params)
     }
 }
 

@@ -1,0 +1,287 @@
+//! Physics identities that any correct rigid-body model satisfies, checked on the bundled robot
+//! and every fixture with random states and random physically consistent parameters.
+
+mod common;
+
+use arash_core::base_parameters::BaseParameterOptions;
+use arash_core::*;
+use common::*;
+
+const STATES: usize = 200;
+
+#[test]
+fn slotine_li_regressor_with_reference_equal_to_state_is_the_regressor() {
+    for model in all_models() {
+        let (mut data, mut rng, p) = (Data::new(&model), rng(1), model.num_params());
+        let (mut y, mut ys) = (vec![0.0; model.dof() * p], vec![0.0; model.dof() * p]);
+        for _ in 0..STATES {
+            let s = state(&model, &mut rng);
+            regressor(&model, &mut data, &s.q, &s.qd, &s.qdd, &mut y);
+            slotine_li_regressor(&model, &mut data, &s.q, &s.qd, &s.qd, &s.qdd, &mut ys);
+            assert!(max_abs_diff(&y, &ys) <= 1e-12 * (1.0 + max_abs(&y)), "{}: Y_S(q, q̇, q̇, q̈) ≠ Y", model.name);
+        }
+    }
+}
+
+#[test]
+fn regressor_times_parameters_is_inverse_dynamics() {
+    for model in all_models() {
+        let (mut data, mut rng, n) = (Data::new(&model), rng(2), model.dof());
+        let mut y = vec![0.0; n * model.num_params()];
+        let mut tau = vec![0.0; n];
+        for _ in 0..STATES {
+            let (s, pi) = (state(&model, &mut rng), physical_params(&model, &mut rng));
+            regressor(&model, &mut data, &s.q, &s.qd, &s.qdd, &mut y);
+            inverse_dynamics(&model, &mut data, &s.q, &s.qd, &s.qdd, &pi, &mut tau);
+            let via_y = apply(&y, &pi);
+            assert!(
+                max_abs_diff(&via_y, &tau) <= 1e-11 * (1.0 + max_abs(&tau)),
+                "{}: {via_y:?} vs {tau:?}",
+                model.name
+            );
+        }
+    }
+}
+
+#[test]
+fn mass_coriolis_and_gravity_compose_inverse_dynamics() {
+    for model in all_models() {
+        let (mut data, mut rng, n) = (Data::new(&model), rng(3), model.dof());
+        let (mut m, mut c, mut g, mut tau) = (vec![0.0; n * n], vec![0.0; n * n], vec![0.0; n], vec![0.0; n]);
+        for _ in 0..STATES {
+            let (s, pi) = (state(&model, &mut rng), rigid_only(&model, physical_params(&model, &mut rng)));
+            mass_matrix(&model, &mut data, &s.q, &pi, &mut m);
+            coriolis_matrix(&model, &mut data, &s.q, &s.qd, &pi, &mut c);
+            gravity_torque(&model, &mut data, &s.q, &pi, &mut g);
+            inverse_dynamics(&model, &mut data, &s.q, &s.qd, &s.qdd, &pi, &mut tau);
+            for k in 0..n {
+                let composed = dot(&m[k * n..(k + 1) * n], &s.qdd) + dot(&c[k * n..(k + 1) * n], &s.qd) + g[k];
+                assert!((composed - tau[k]).abs() <= 1e-11 * (1.0 + tau[k].abs()), "{}: joint {k}", model.name);
+            }
+        }
+    }
+}
+
+/// `Ṁ` by central differences of `M` along `q + t q̇`.
+fn mass_matrix_rate(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], pi: &[f64]) -> Vec<f64> {
+    let (n, h) = (model.dof(), 1e-6);
+    let shifted = |sign: f64| q.iter().zip(qd).map(|(a, b)| a + sign * h * b).collect::<Vec<_>>();
+    let (mut plus, mut minus) = (vec![0.0; n * n], vec![0.0; n * n]);
+    mass_matrix(model, data, &shifted(1.0), pi, &mut plus);
+    mass_matrix(model, data, &shifted(-1.0), pi, &mut minus);
+    plus.iter().zip(&minus).map(|(a, b)| (a - b) / (2.0 * h)).collect()
+}
+
+#[test]
+fn mass_rate_minus_twice_coriolis_is_skew_symmetric() {
+    for model in all_models() {
+        let (mut data, mut rng, n) = (Data::new(&model), rng(4), model.dof());
+        let mut c = vec![0.0; n * n];
+        for _ in 0..STATES {
+            let (s, pi) = (state(&model, &mut rng), physical_params(&model, &mut rng));
+            let m_dot = mass_matrix_rate(&model, &mut data, &s.q, &s.qd, &pi);
+            coriolis_matrix(&model, &mut data, &s.q, &s.qd, &pi, &mut c);
+            let scale = 1.0 + max_abs(&m_dot) + max_abs(&c);
+            for i in 0..n {
+                for j in 0..n {
+                    let n_ij = m_dot[i * n + j] - 2.0 * c[i * n + j];
+                    let n_ji = m_dot[j * n + i] - 2.0 * c[j * n + i];
+                    assert!((n_ij + n_ji).abs() <= 1e-7 * scale, "{}: (Ṁ−2C) not skew at ({i},{j})", model.name);
+                    // The Christoffel factorisation also gives Ṁ = C + Cᵀ.
+                    let sym = c[i * n + j] + c[j * n + i] - m_dot[i * n + j];
+                    assert!(sym.abs() <= 1e-7 * scale, "{}: Ṁ ≠ C + Cᵀ at ({i},{j})", model.name);
+                }
+            }
+            let x: Vec<f64> = s.qdd.clone();
+            let quad: f64 = (0..n)
+                .map(|i| (0..n).map(|j| x[i] * (m_dot[i * n + j] - 2.0 * c[i * n + j]) * x[j]).sum::<f64>())
+                .sum();
+            assert!(quad.abs() <= 1e-7 * scale * dot(&x, &x), "{}: xᵀ(Ṁ−2C)x = {quad}", model.name);
+        }
+    }
+}
+
+#[test]
+fn mass_matrix_is_symmetric_positive_definite_across_the_workspace() {
+    for model in all_models() {
+        let (mut data, mut rng, n) = (Data::new(&model), rng(5), model.dof());
+        let cad = model.cad_parameters();
+        let mut m = vec![0.0; n * n];
+        for _ in 0..1000 {
+            let s = state(&model, &mut rng);
+            mass_matrix(&model, &mut data, &s.q, &cad, &mut m);
+            let mat = nalgebra::DMatrix::from_row_slice(n, n, &m);
+            assert!((&mat - mat.transpose()).amax() <= 1e-15 * mat.amax(), "{}: M not symmetric", model.name);
+            let min_eig = mat.symmetric_eigenvalues().min();
+            assert!(min_eig > 0.0, "{}: M has eigenvalue {min_eig} at q = {:?}", model.name, s.q);
+        }
+    }
+}
+
+/// Along a smooth trajectory with no friction or elasticity, the power delivered by the joints
+/// equals the rate of change of kinetic plus potential energy.
+#[test]
+fn power_balance_along_smooth_trajectories() {
+    for model in all_models() {
+        let (mut data, mut rng, n) = (Data::new(&model), rng(6), model.dof());
+        let pi = rigid_only(&model, physical_params(&model, &mut rng));
+        let centre = state(&model, &mut rng).q;
+        let amplitude: Vec<f64> =
+            model.joints.iter().map(|j| if j.lower.is_finite() { 0.2 * (j.upper - j.lower) } else { 1.0 }).collect();
+        let trajectory = |t: f64| -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+            let mut q = vec![0.0; n];
+            let mut qd = vec![0.0; n];
+            let mut qdd = vec![0.0; n];
+            for k in 0..n {
+                let w = 1.0 + k as f64 * 0.7;
+                q[k] = centre[k] + amplitude[k] * (w * t).sin();
+                qd[k] = amplitude[k] * w * (w * t).cos();
+                qdd[k] = -amplitude[k] * w * w * (w * t).sin();
+            }
+            (q, qd, qdd)
+        };
+        let mut tau = vec![0.0; n];
+        let h = 1e-5;
+        for step in 0..100 {
+            let t = 0.037 * step as f64;
+            let (q, qd, qdd) = trajectory(t);
+            inverse_dynamics(&model, &mut data, &q, &qd, &qdd, &pi, &mut tau);
+            let power = dot(&qd, &tau);
+            let mut energy = |t: f64| {
+                let (q, qd, _) = trajectory(t);
+                kinetic_energy(&model, &mut data, &q, &qd, &pi) + potential_energy(&model, &mut data, &q, &pi)
+            };
+            let rate = (energy(t + h) - energy(t - h)) / (2.0 * h);
+            assert!(
+                (power - rate).abs() <= 1e-6 * (1.0 + power.abs()),
+                "{}: t={t}: q̇ᵀτ = {power}, dE/dt = {rate}",
+                model.name
+            );
+        }
+    }
+}
+
+#[test]
+fn forward_dynamics_inverts_inverse_dynamics() {
+    for model in all_models() {
+        let (mut data, mut rng, n) = (Data::new(&model), rng(7), model.dof());
+        let (mut tau, mut qdd) = (vec![0.0; n], vec![0.0; n]);
+        for _ in 0..STATES {
+            let (s, pi) = (state(&model, &mut rng), physical_params(&model, &mut rng));
+            inverse_dynamics(&model, &mut data, &s.q, &s.qd, &s.qdd, &pi, &mut tau);
+            forward_dynamics(&model, &mut data, &s.q, &s.qd, &tau, &pi, &mut qdd).expect("physical parameters");
+            assert!(
+                max_abs_diff(&qdd, &s.qdd) <= 1e-8 * (1.0 + max_abs(&s.qdd)),
+                "{}: {qdd:?} vs {:?}",
+                model.name,
+                s.qdd
+            );
+        }
+    }
+}
+
+#[test]
+fn forward_dynamics_refuses_a_non_physical_mass_matrix() {
+    let model = arash_asist();
+    let mut data = Data::new(&model);
+    let mut pi = model.cad_parameters();
+    pi[0] = -pi[0];
+    pi[6] = -1.0; // yaw yoke Izz: the yaw inertia becomes negative
+    let mut qdd = [0.0; 3];
+    let err = forward_dynamics(&model, &mut data, &[0.0; 3], &[0.0; 3], &[0.0; 3], &pi, &mut qdd).unwrap_err();
+    assert!(matches!(err, DynamicsError::MassNotPositiveDefinite { pivot: 0, .. }), "{err}");
+}
+
+#[test]
+fn base_regressor_reproduces_the_full_regressor_for_any_parameters() {
+    for model in all_models() {
+        let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
+        let (mut data, mut rng, n, p) = (Data::new(&model), rng(8), model.dof(), model.num_params());
+        let (mut y, mut y_r, mut beta) = (vec![0.0; n * p], vec![0.0; n * base.rank], vec![0.0; base.rank]);
+        for _ in 0..STATES {
+            let s = state(&model, &mut rng);
+            // Any π, physical or not: the identity is algebraic.
+            let pi: Vec<f64> = (0..p).map(|_| rand::RngExt::random_range(&mut rng, -1.0..1.0)).collect();
+            regressor(&model, &mut data, &s.q, &s.qd, &s.qdd, &mut y);
+            base.reduce(&y, &mut y_r);
+            base.project(&pi, &mut beta);
+            let (full, reduced) = (apply(&y, &pi), apply(&y_r, &beta));
+            assert!(
+                max_abs_diff(&full, &reduced) <= 1e-9 * (1.0 + max_abs(&full)),
+                "{}: Yπ {full:?} ≠ Y_r β {reduced:?}",
+                model.name
+            );
+        }
+    }
+}
+
+#[test]
+fn base_parameter_count_is_stable_across_sample_sets() {
+    for model in all_models() {
+        let reference = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
+        for seed in 1..6 {
+            for samples in [100, 400, 1000] {
+                let options = BaseParameterOptions { seed, samples, ..Default::default() };
+                let other = BaseParameters::compute(&model, &options).unwrap();
+                assert_eq!(other.rank, reference.rank, "{}: seed {seed}, {samples} samples", model.name);
+                assert_eq!(other.independent, reference.independent, "{}: seed {seed}", model.name);
+                assert!(max_abs_diff(&other.b, &reference.b) < 1e-8, "{}: B differs for seed {seed}", model.name);
+            }
+        }
+        let (kept, dropped) = reference.rank_gap;
+        assert!(
+            kept > 1e4 * dropped.max(1e-300) && kept > 1e-6,
+            "{}: unclear rank ({kept:e} vs {dropped:e})",
+            model.name
+        );
+    }
+}
+
+#[test]
+fn arash_asist_has_23_base_parameters() {
+    let base = BaseParameters::compute(&arash_asist(), &BaseParameterOptions::default()).unwrap();
+    assert_eq!(base.rank, 23, "{:#?}", base.expressions);
+    assert_eq!(arash_asist().num_params(), 89);
+}
+
+#[test]
+fn too_few_samples_are_refused() {
+    let options = BaseParameterOptions { samples: 5, ..Default::default() };
+    let err = BaseParameters::compute(&arash_asist(), &options).unwrap_err();
+    assert!(err.to_string().contains("got 5"), "{err}");
+}
+
+/// Eq. 22: `Y_S(q, q̇, q̇_r, q̈_r) π = M q̈_r + C(q, q̇) q̇_r + g + fv q̇_r + fc sign(q̇) + ke q`, with
+/// M, C and g from their own algorithms.
+#[test]
+fn slotine_li_regressor_is_the_christoffel_reference_dynamics() {
+    for model in all_models() {
+        let (mut data, mut rng, n, p) = (Data::new(&model), rng(9), model.dof(), model.num_params());
+        let (mut ys, mut m, mut c, mut g) = (vec![0.0; n * p], vec![0.0; n * n], vec![0.0; n * n], vec![0.0; n]);
+        for _ in 0..STATES {
+            let (s, r, pi) = (state(&model, &mut rng), state(&model, &mut rng), physical_params(&model, &mut rng));
+            slotine_li_regressor(&model, &mut data, &s.q, &s.qd, &r.qd, &r.qdd, &mut ys);
+            mass_matrix(&model, &mut data, &s.q, &pi, &mut m);
+            coriolis_matrix(&model, &mut data, &s.q, &s.qd, &pi, &mut c);
+            gravity_torque(&model, &mut data, &s.q, &pi, &mut g);
+            let via_ys = apply(&ys, &pi);
+            for k in 0..n {
+                let (fo, eo) = (model.friction_offset(), model.elastic_offset());
+                let joint = pi[fo + 2 * k] * r.qd[k] + pi[fo + 2 * k + 1] * s.qd[k].signum() + pi[eo + k] * s.q[k];
+                let expected = dot(&m[k * n..(k + 1) * n], &r.qdd) + dot(&c[k * n..(k + 1) * n], &r.qd) + g[k] + joint;
+                assert!((via_ys[k] - expected).abs() <= 1e-11 * (1.0 + expected.abs()), "{}: joint {k}", model.name);
+            }
+        }
+    }
+}
+
+#[test]
+fn tanh_coulomb_shape_is_smooth_through_zero() {
+    let mut model = arash_asist();
+    model.coulomb_shape = CoulombShape::Tanh { epsilon: 0.01 };
+    let (mut data, p) = (Data::new(&model), model.num_params());
+    let mut y = vec![0.0; 3 * p];
+    regressor(&model, &mut data, &[0.0; 3], &[0.005, -0.02, 0.0], &[0.0; 3], &mut y);
+    let fc = |k: usize| y[k * p + model.friction_offset() + 2 * k + 1];
+    assert!((fc(0) - 0.5f64.tanh()).abs() < 1e-15 && (fc(1) + 2.0f64.tanh()).abs() < 1e-15 && fc(2) == 0.0);
+}

@@ -1,0 +1,58 @@
+//! Evaluating the model never touches the heap: a counting global allocator watches 10^5
+//! evaluations of each algorithm. This file holds one test so no other test allocates meanwhile.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use arash_core::*;
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn evaluations_do_not_allocate() {
+    let model = arash_asist();
+    let mut data = Data::new(&model);
+    let (n, p) = (model.dof(), model.num_params());
+    let pi = model.cad_parameters();
+    let mut y = vec![0.0; n * p];
+    let mut mat = vec![0.0; n * n];
+    let mut vec3 = vec![0.0; n];
+    let evaluations = 100_000;
+    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    for i in 0..evaluations {
+        let t = i as f64 * 1e-3;
+        let q = [0.3 * t.sin(), 0.2 + 0.4 * t.cos(), 0.01 * t.sin()];
+        let qd = [0.5 * t.cos(), -0.4 * t.sin(), 0.01 * t.cos()];
+        let qdd = [-0.5 * t.sin(), -0.4 * t.cos(), -0.01 * t.sin()];
+        regressor(&model, &mut data, &q, &qd, &qdd, &mut y);
+        slotine_li_regressor(&model, &mut data, &q, &qd, &qd, &qdd, &mut y);
+        mass_matrix(&model, &mut data, &q, &pi, &mut mat);
+        coriolis_matrix(&model, &mut data, &q, &qd, &pi, &mut mat);
+        gravity_torque(&model, &mut data, &q, &pi, &mut vec3);
+        inverse_dynamics(&model, &mut data, &q, &qd, &qdd, &pi, &mut vec3);
+        let tau = [vec3[0], vec3[1], vec3[2]];
+        forward_dynamics(&model, &mut data, &q, &qd, &tau, &pi, &mut vec3).unwrap();
+    }
+    let allocations = ALLOCATIONS.load(Ordering::SeqCst) - before;
+    assert_eq!(allocations, 0, "{allocations} heap allocations in {evaluations} evaluations");
+    assert!(y.iter().any(|v| *v != 0.0) && vec3.iter().all(|v| v.is_finite()));
+}
