@@ -1,0 +1,69 @@
+"""Shared fixtures for the Python tests: robot files, random states, Pinocchio oracles."""
+
+import math
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+FIXTURES = ROOT / "tests" / "fixtures"
+SHARED_DATA = ROOT.parent / "shared" / "data"
+
+ROBOT_FILES = {
+    "arash_asist": ROOT / "robots" / "arash_asist.urdf",
+    "planar_2link": FIXTURES / "planar_2link.urdf",
+    "serial_3dof": FIXTURES / "serial_3dof.urdf",
+}
+
+
+def kuka_urdf():
+    path = SHARED_DATA / "kuka_lwr4" / "kuka_lwr4.urdf"
+    if not path.exists():
+        pytest.skip(f"measured-data URDF not found at {path}; ../shared/data is absent")
+    return path
+
+
+def urdf_couplings(path):
+    """Independent reading of the URDF's joints: name -> (type, mimic target, multiplier, offset)."""
+    joints = {}
+    for j in ET.parse(path).getroot().findall("joint"):
+        mimic = j.find("mimic")
+        target = None if mimic is None else mimic.get("joint")
+        mult = 1.0 if mimic is None else float(mimic.get("multiplier", "1"))
+        off = 0.0 if mimic is None else float(mimic.get("offset", "0"))
+        joints[j.get("name")] = (j.get("type"), target, mult, off)
+    return joints
+
+
+def random_states(robot, n, rng):
+    """Uniform positions within the limits, speeds within the speed limits, and accelerations."""
+    lo, hi, vmax = [], [], []
+    for (a, b), v in zip(robot.position_limits(), robot.velocity_limits()):
+        lo.append(a if math.isfinite(a) else -math.pi)
+        hi.append(b if math.isfinite(b) else math.pi)
+        vmax.append(v if math.isfinite(v) else 2.0)
+    lo, hi, vmax = map(np.array, (lo, hi, vmax))
+    q = rng.uniform(lo, hi, size=(n, robot.dof))
+    qd = rng.uniform(-vmax, vmax, size=(n, robot.dof))
+    qdd = rng.uniform(-10 * vmax, 10 * vmax, size=(n, robot.dof))
+    return q, qd, qdd
+
+
+def random_physical_params(robot, rng):
+    """Each body a solid box with random mass, size, centre and orientation (valid by construction)."""
+    from scipy.spatial.transform import Rotation
+
+    blocks = []
+    for _ in robot.body_names():
+        m = rng.uniform(0.05, 2.0)
+        c = rng.uniform(-0.2, 0.2, 3)
+        a, b, d = rng.uniform(0.01, 0.3, 3)
+        principal = np.diag([b * b + d * d, a * a + d * d, a * a + b * b]) * m / 12
+        r = Rotation.from_euler("xyz", rng.uniform(-3, 3, 3)).as_matrix()
+        i_c = r @ principal @ r.T
+        i_o = i_c + m * (c @ c * np.eye(3) - np.outer(c, c))
+        blocks.append([m, *(m * c), i_o[0, 0], i_o[1, 1], i_o[2, 2], i_o[0, 1], i_o[0, 2], i_o[1, 2]])
+    joint_terms = rng.uniform(0.0, 1.0, 3 * robot.dof)
+    return np.concatenate([np.ravel(blocks), joint_terms])
