@@ -130,3 +130,15 @@ def test_smooth_coulomb_option(robot):
     fc_yaw = smooth.parameter_names().index("yaw.fc")
     assert Y[0, fc_yaw] == pytest.approx(np.tanh(0.5), rel=1e-14)
     assert robot.regressor(np.zeros(3), np.array([0.005, 0.0, 0.0]), np.zeros(3))[0, fc_yaw] == 1.0
+
+
+def test_regressor_into_a_reused_buffer(robot, states):
+    q, qd, qdd = states
+    out = np.full((500, 3, 89), np.nan)
+    result = robot.regressor(q, qd, qdd, out=out)
+    assert result is out
+    np.testing.assert_array_equal(out, robot.regressor(q, qd, qdd))
+    with pytest.raises(ValueError, match=r"out must have shape \[500, 3, 89\]"):
+        robot.regressor(q, qd, qdd, out=np.zeros((500, 3, 88)))
+    with pytest.raises(ValueError, match="C-contiguous"):
+        robot.regressor(q, qd, qdd, out=np.zeros((500, 89, 3)).transpose(0, 2, 1))

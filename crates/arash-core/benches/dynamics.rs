@@ -1,1 +1,40 @@
-fn main() {}
+//! Criterion benches of one evaluation of each algorithm on the bundled ARASH:ASiST model.
+//! Run: cargo bench -p arash-core --bench dynamics
+
+use std::hint::black_box;
+
+use arash_core::*;
+use criterion::{criterion_group, criterion_main, Criterion};
+
+fn bench(c: &mut Criterion) {
+    let model = arash_asist();
+    let mut data = Data::new(&model);
+    let (n, p) = (model.dof(), model.num_params());
+    let pi = model.cad_parameters();
+    let (q, qd, qdd) = ([0.3, 0.4, 0.01], [0.5, -0.7, 0.05], [1.1, 0.9, -0.3]);
+    let mut y = vec![0.0; n * p];
+    let mut mat = vec![0.0; n * n];
+    let mut tau = vec![0.0; n];
+
+    c.bench_function("regressor Y (arash_asist)", |b| {
+        b.iter(|| regressor(&model, &mut data, black_box(&q), black_box(&qd), black_box(&qdd), &mut y))
+    });
+    c.bench_function("slotine_li_regressor Y_S (arash_asist)", |b| {
+        b.iter(|| slotine_li_regressor(&model, &mut data, black_box(&q), &qd, &qd, &qdd, &mut y))
+    });
+    c.bench_function("mass_matrix M (arash_asist)", |b| {
+        b.iter(|| mass_matrix(&model, &mut data, black_box(&q), &pi, &mut mat))
+    });
+    c.bench_function("coriolis_matrix C (arash_asist)", |b| {
+        b.iter(|| coriolis_matrix(&model, &mut data, black_box(&q), &qd, &pi, &mut mat))
+    });
+    c.bench_function("inverse_dynamics (arash_asist)", |b| {
+        b.iter(|| inverse_dynamics(&model, &mut data, black_box(&q), &qd, &qdd, &pi, &mut tau))
+    });
+    c.bench_function("forward_dynamics (arash_asist)", |b| {
+        b.iter(|| forward_dynamics(&model, &mut data, black_box(&q), &qd, &[0.1, 0.2, 0.3], &pi, &mut tau))
+    });
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

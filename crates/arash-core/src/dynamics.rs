@@ -6,7 +6,7 @@
 //! joints.
 
 use crate::data::Data;
-use crate::kinematics::{forward_kinematics, motion_sweep};
+use crate::kinematics::{motion_sweep, placements_and_jacobians};
 use crate::model::Model;
 use crate::spatial::{apply_inertia, Force, Motion, BODY_PARAMS};
 
@@ -66,7 +66,7 @@ pub fn inverse_dynamics(
     tau: &mut [f64],
 ) {
     check_params(model, params);
-    forward_kinematics(model, data, q);
+    placements_and_jacobians(model, data, q);
     motion_sweep(model, data, qd, qd, qdd, true);
     project_wrenches(model, data, tau, |b| {
         let p = body_params(params, b);
@@ -82,7 +82,7 @@ pub fn inverse_dynamics(
 /// not used.
 pub fn mass_matrix(model: &Model, data: &mut Data, q: &[f64], params: &[f64], out: &mut [f64]) {
     check_params(model, params);
-    forward_kinematics(model, data, q);
+    placements_and_jacobians(model, data, q);
     fill_mass_matrix(model, data, params, out);
 }
 
@@ -116,7 +116,7 @@ pub fn coriolis_matrix(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], pa
     check_params(model, params);
     let n = model.dof();
     assert_eq!(out.len(), n * n, "C output must hold {n} × {n} values");
-    forward_kinematics(model, data, q);
+    placements_and_jacobians(model, data, q);
     out.fill(0.0);
     // Column l is C e_l: the Slotine–Li wrench with q̇_r = e_l, q̈_r = 0 and no gravity.
     for l in 0..n {
@@ -147,7 +147,7 @@ fn christoffel_wrench(p: &[f64], v: &Motion, v_r: &Motion, a_r: &Motion) -> Forc
 /// The gravity torque `g(q)`.
 pub fn gravity_torque(model: &Model, data: &mut Data, q: &[f64], params: &[f64], tau: &mut [f64]) {
     check_params(model, params);
-    forward_kinematics(model, data, q);
+    placements_and_jacobians(model, data, q);
     let zeros = std::mem::take(&mut data.zeros);
     motion_sweep(model, data, &zeros, &zeros, &zeros, true);
     data.zeros = zeros;
@@ -222,7 +222,7 @@ fn cholesky_solve_in_place(a: &mut [f64], n: usize, b: &mut [f64]) -> Result<(),
 /// Kinetic energy `½ Σ vᵀ I v` (J). Precondition: none; runs its own kinematics.
 pub fn kinetic_energy(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], params: &[f64]) -> f64 {
     check_params(model, params);
-    forward_kinematics(model, data, q);
+    placements_and_jacobians(model, data, q);
     let n = model.dof();
     (0..model.bodies.len())
         .map(|b| {
@@ -238,7 +238,7 @@ pub fn kinetic_energy(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], par
 /// Gravitational potential energy `−Σ gᵀ(m p + R h)` (J), zero at the base origin.
 pub fn potential_energy(model: &Model, data: &mut Data, q: &[f64], params: &[f64]) -> f64 {
     check_params(model, params);
-    forward_kinematics(model, data, q);
+    crate::kinematics::forward_kinematics(model, data, q);
     (0..model.bodies.len())
         .map(|b| {
             let p = body_params(params, b);

@@ -23,8 +23,21 @@ fn tree_value(body: &Body, x: &[f64], with_offset: bool) -> f64 {
 
 /// Placements (relative and in the base frame) and body Jacobians at configuration `q`.
 ///
-/// Postcondition: `data.rot/pos/world_rot/world_pos/jac` describe `q`.
+/// Postcondition: `data.world_rot/world_pos` and the Jacobians describe `q`.
 pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
+    placements_and_jacobians(model, data, q);
+    for (b, body) in model.bodies.iter().enumerate() {
+        let (rot, pos) = (data.rot[b], data.pos[b]);
+        (data.world_rot[b], data.world_pos[b]) = match body.parent {
+            Some(p) => (data.world_rot[p] * rot, data.world_pos[p] + data.world_rot[p] * pos),
+            None => (rot, pos),
+        };
+    }
+}
+
+/// Parent-relative placements and body Jacobians at `q`: all that the dynamics needs (gravity
+/// enters through the base acceleration, so no placement in the base frame is required).
+pub(crate) fn placements_and_jacobians(model: &Model, data: &mut Data, q: &[f64]) {
     assert_eq!(q.len(), model.dof(), "q has {} entries, the model has {} dof", q.len(), model.dof());
     let n = model.dof();
     for (b, body) in model.bodies.iter().enumerate() {
@@ -36,24 +49,19 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
         };
         data.rot[b] = rot;
         data.pos[b] = pos;
-        let s = subspace(body);
-        let coupling = body.coupling;
         match body.parent {
             Some(p) => {
-                data.world_rot[b] = data.world_rot[p] * rot;
-                data.world_pos[b] = data.world_pos[p] + data.world_rot[p] * pos;
                 for k in 0..n {
-                    data.jac[b * n + k] = data.jac[p * n + k].to_child(&rot, &pos);
+                    let parent_column = data.jac[p * n + k];
+                    // Joints that do not move the parent leave a zero column: skip the transform.
+                    data.jac[b * n + k] =
+                        if parent_column == Motion::ZERO { Motion::ZERO } else { parent_column.to_child(&rot, &pos) };
                 }
             }
-            None => {
-                data.world_rot[b] = rot;
-                data.world_pos[b] = pos;
-                data.jac[b * n..(b + 1) * n].fill(Motion::ZERO);
-            }
+            None => data.jac[b * n..(b + 1) * n].fill(Motion::ZERO),
         }
-        if let Some(c) = coupling {
-            data.jac[b * n + c.index].axpy(c.multiplier, &s);
+        if let Some(c) = body.coupling {
+            data.jac[b * n + c.index].axpy(c.multiplier, &subspace(body));
         }
     }
 }

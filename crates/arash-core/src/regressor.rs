@@ -5,13 +5,13 @@
 //! with the column layout documented on [`Model`]. Neither allocates.
 
 use crate::data::Data;
-use crate::kinematics::{forward_kinematics, motion_sweep};
+use crate::kinematics::{motion_sweep, placements_and_jacobians};
 use crate::model::Model;
 use crate::spatial::{inertia_coefficients, Motion, BODY_PARAMS};
 
 /// `Y(q, q̇, q̈)`, row-major `dof × P`. Coulomb columns use `model.coulomb_shape` of `q̇`.
 pub fn regressor(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], qdd: &[f64], out: &mut [f64]) {
-    forward_kinematics(model, data, q);
+    placements_and_jacobians(model, data, q);
     motion_sweep(model, data, qd, qd, qdd, true);
     // u · (I a + v ×* I v) = ρ(u, a) − ρ(v × u, v): the Newton–Euler wrench projected on u.
     fill_rigid_columns(model, data, out, |u, v, _, a| {
@@ -41,7 +41,7 @@ pub fn slotine_li_regressor(
     qdd_r: &[f64],
     out: &mut [f64],
 ) {
-    forward_kinematics(model, data, q);
+    placements_and_jacobians(model, data, q);
     motion_sweep(model, data, qd, qd_r, qdd_r, true);
     fill_rigid_columns(model, data, out, slotine_li_row);
     fill_joint_columns(model, q, qd, qd_r, out);

@@ -157,10 +157,21 @@ pub fn rpy_to_rotation(roll: f64, pitch: f64, yaw: f64) -> Mat3 {
 /// Rotation by `angle` about the unit `axis`.
 #[inline]
 pub fn axis_angle(axis: &Vec3, angle: f64) -> Mat3 {
-    // Rodrigues, written out so the hot path does no normalisation or allocation.
+    // Rodrigues as c·1 + s·[a]× + (1 − c)·a aᵀ: no normalisation, no allocation, few products.
     let (s, c) = angle.sin_cos();
-    let k = Mat3::new(0.0, -axis.z, axis.y, axis.z, 0.0, -axis.x, -axis.y, axis.x, 0.0);
-    Mat3::identity() + k * s + k * k * (1.0 - c)
+    let t = 1.0 - c;
+    let (x, y, z) = (axis.x, axis.y, axis.z);
+    Mat3::new(
+        c + t * x * x,
+        t * x * y - s * z,
+        t * x * z + s * y,
+        t * x * y + s * z,
+        c + t * y * y,
+        t * y * z - s * x,
+        t * x * z - s * y,
+        t * y * z + s * x,
+        c + t * z * z,
+    )
 }
 
 #[cfg(test)]

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::{self as core, BaseParameters as CoreBase, CoulombShape, Data, Model};
 use numpy::ndarray::{ArrayD, IxDyn};
-use numpy::{IntoPyArray, PyArrayDyn, PyReadonlyArrayDyn};
+use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
@@ -58,15 +58,48 @@ struct Scratch {
     regressor: Vec<f64>,
 }
 
-/// Evaluate `f(scratch, sample, out)` for every sample, on all cores when the batch is large.
-fn run_batched<F>(model: &Model, n: usize, width: usize, f: F) -> Vec<f64>
+/// Evaluate `f(scratch, sample, out)` for every sample into a new array of shape `(N,) + tail`,
+/// or `tail` for a single sample.
+fn batched<'py, F>(
+    py: Python<'py>,
+    model: &Model,
+    count: usize,
+    single: bool,
+    tail: &[usize],
+    f: F,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>>
+where
+    F: Fn(&mut Scratch, usize, &mut [f64]) + Sync + Send,
+{
+    let mut shape = if single { vec![] } else { vec![count] };
+    shape.extend_from_slice(tail);
+    // numpy's zeros come from calloc: fresh pages, zeroed lazily, so this costs no extra pass.
+    let array = PyArrayDyn::<f64>::zeros(py, IxDyn(&shape), false);
+    fill(py, model, &array, tail.iter().product(), f)?;
+    Ok(array)
+}
+
+/// Run `f` for every `width`-sized sample of a C-contiguous array, with the GIL released.
+fn fill<F>(py: Python<'_>, model: &Model, array: &Bound<'_, PyArrayDyn<f64>>, width: usize, f: F) -> PyResult<()>
+where
+    F: Fn(&mut Scratch, usize, &mut [f64]) + Sync + Send,
+{
+    let mut writable = array.try_readwrite().map_err(|e| PyValueError::new_err(format!("out: {e}")))?;
+    let slice = writable.as_slice_mut().map_err(|_| PyValueError::new_err("out must be C-contiguous float64"))?;
+    py.detach(|| run_batched_into(model, width, slice, f));
+    Ok(())
+}
+
+/// Evaluate `f(scratch, sample, out)` for every `width`-sized sample of `out`, on all cores when
+/// the batch is large.
+fn run_batched_into<F>(model: &Model, width: usize, out: &mut [f64], f: F)
 where
     F: Fn(&mut Scratch, usize, &mut [f64]) + Sync,
 {
-    let mut out = vec![0.0; n * width];
-    if width == 0 || n == 0 {
-        return out;
+    if width == 0 || out.is_empty() {
+        return;
     }
+    let n = out.len() / width;
     let threads = if n >= 2048 { std::thread::available_parallelism().map_or(1, |t| t.get()) } else { 1 };
     let per_thread = n.div_ceil(threads);
     std::thread::scope(|scope| {
@@ -81,7 +114,6 @@ where
             });
         }
     });
-    out
 }
 
 fn to_numpy<'py>(
@@ -192,23 +224,32 @@ impl Robot {
         to_numpy(py, self.model.coupling_matrix(), false, nb, &[self.model.dof()])
     }
 
-    /// Y(q, q̇, q̈): (N, dof) in, (N, dof, P) out.
+    /// Y(q, q̇, q̈): (N, dof) in, (N, dof, P) out. Pass a C-contiguous float64 `out` of that
+    /// shape to reuse its memory (large batches spend much of their time touching fresh pages).
+    #[pyo3(signature = (q, qd, qdd, *, out=None))]
     fn regressor<'py>(
         &self,
         py: Python<'py>,
         q: PyReadonlyArrayDyn<'py, f64>,
         qd: PyReadonlyArrayDyn<'py, f64>,
         qdd: PyReadonlyArrayDyn<'py, f64>,
+        out: Option<Bound<'py, PyArrayDyn<f64>>>,
     ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let (m, n, p) = (&*self.model, self.model.dof(), self.model.num_params());
         let (q, qd, qdd) = (batch("q", &q, n)?, batch("qd", &qd, n)?, batch("qdd", &qdd, n)?);
         let count = same_length(&[("q", &q), ("qd", &qd), ("qdd", &qdd)])?;
-        let out = py.detach(|| {
-            run_batched(m, count, n * p, |s, i, o| {
-                core::regressor(m, &mut s.data, row(&q, i, n), row(&qd, i, n), row(&qdd, i, n), o)
-            })
-        });
-        to_numpy(py, out, q.single, count, &[n, p])
+        let eval = |s: &mut Scratch, i: usize, o: &mut [f64]| {
+            core::regressor(m, &mut s.data, row(&q, i, n), row(&qd, i, n), row(&qdd, i, n), o)
+        };
+        let Some(array) = out else {
+            return batched(py, m, count, q.single, &[n, p], eval);
+        };
+        let expected: Vec<usize> = if q.single { vec![n, p] } else { vec![count, n, p] };
+        if array.shape() != expected.as_slice() {
+            return Err(PyValueError::new_err(format!("out must have shape {expected:?}, got {:?}", array.shape())));
+        }
+        fill(py, m, &array, n * p, eval)?;
+        Ok(array)
     }
 
     /// Y_S(q, q̇, q̇_r, q̈_r): (N, dof) each, (N, dof, P) out.
@@ -224,20 +265,17 @@ impl Robot {
         let (q, qd) = (batch("q", &q, n)?, batch("qd", &qd, n)?);
         let (qd_r, qdd_r) = (batch("qd_r", &qd_r, n)?, batch("qdd_r", &qdd_r, n)?);
         let count = same_length(&[("q", &q), ("qd", &qd), ("qd_r", &qd_r), ("qdd_r", &qdd_r)])?;
-        let out = py.detach(|| {
-            run_batched(m, count, n * p, |s, i, o| {
-                core::slotine_li_regressor(
-                    m,
-                    &mut s.data,
-                    row(&q, i, n),
-                    row(&qd, i, n),
-                    row(&qd_r, i, n),
-                    row(&qdd_r, i, n),
-                    o,
-                )
-            })
-        });
-        to_numpy(py, out, q.single, count, &[n, p])
+        batched(py, m, count, q.single, &[n, p], |s, i, o| {
+            core::slotine_li_regressor(
+                m,
+                &mut s.data,
+                row(&q, i, n),
+                row(&qd, i, n),
+                row(&qd_r, i, n),
+                row(&qdd_r, i, n),
+                o,
+            )
+        })
     }
 
     /// τ = Y(q, q̇, q̈) π: (N, dof) out. `params` defaults to the CAD values.
@@ -254,12 +292,9 @@ impl Robot {
         let pi = self.params_or_cad(params)?;
         let (q, qd, qdd) = (batch("q", &q, n)?, batch("qd", &qd, n)?, batch("qdd", &qdd, n)?);
         let count = same_length(&[("q", &q), ("qd", &qd), ("qdd", &qdd)])?;
-        let out = py.detach(|| {
-            run_batched(m, count, n, |s, i, o| {
-                core::inverse_dynamics(m, &mut s.data, row(&q, i, n), row(&qd, i, n), row(&qdd, i, n), &pi, o)
-            })
-        });
-        to_numpy(py, out, q.single, count, &[n])
+        batched(py, m, count, q.single, &[n], |s, i, o| {
+            core::inverse_dynamics(m, &mut s.data, row(&q, i, n), row(&qd, i, n), row(&qdd, i, n), &pi, o)
+        })
     }
 
     /// M(q): (N, dof, dof) out.
@@ -273,9 +308,7 @@ impl Robot {
         let (m, n) = (&*self.model, self.model.dof());
         let pi = self.params_or_cad(params)?;
         let q = batch("q", &q, n)?;
-        let out = py
-            .detach(|| run_batched(m, q.n, n * n, |s, i, o| core::mass_matrix(m, &mut s.data, row(&q, i, n), &pi, o)));
-        to_numpy(py, out, q.single, q.n, &[n, n])
+        batched(py, m, q.n, q.single, &[n, n], |s, i, o| core::mass_matrix(m, &mut s.data, row(&q, i, n), &pi, o))
     }
 
     /// C(q, q̇) from the Christoffel symbols: (N, dof, dof) out.
@@ -291,12 +324,9 @@ impl Robot {
         let pi = self.params_or_cad(params)?;
         let (q, qd) = (batch("q", &q, n)?, batch("qd", &qd, n)?);
         let count = same_length(&[("q", &q), ("qd", &qd)])?;
-        let out = py.detach(|| {
-            run_batched(m, count, n * n, |s, i, o| {
-                core::coriolis_matrix(m, &mut s.data, row(&q, i, n), row(&qd, i, n), &pi, o)
-            })
-        });
-        to_numpy(py, out, q.single, count, &[n, n])
+        batched(py, m, count, q.single, &[n, n], |s, i, o| {
+            core::coriolis_matrix(m, &mut s.data, row(&q, i, n), row(&qd, i, n), &pi, o)
+        })
     }
 
     /// g(q): (N, dof) out.
@@ -310,9 +340,7 @@ impl Robot {
         let (m, n) = (&*self.model, self.model.dof());
         let pi = self.params_or_cad(params)?;
         let q = batch("q", &q, n)?;
-        let out =
-            py.detach(|| run_batched(m, q.n, n, |s, i, o| core::gravity_torque(m, &mut s.data, row(&q, i, n), &pi, o)));
-        to_numpy(py, out, q.single, q.n, &[n])
+        batched(py, m, q.n, q.single, &[n], |s, i, o| core::gravity_torque(m, &mut s.data, row(&q, i, n), &pi, o))
     }
 
     /// q̈ = M⁻¹(τ − C q̇ − g − friction − elastic): (N, dof) out.
@@ -330,19 +358,17 @@ impl Robot {
         let (q, qd, tau) = (batch("q", &q, n)?, batch("qd", &qd, n)?, batch("tau", &tau, n)?);
         let count = same_length(&[("q", &q), ("qd", &qd), ("tau", &tau)])?;
         let failure = std::sync::Mutex::new(None);
-        let out = py.detach(|| {
-            run_batched(m, count, n, |s, i, o| {
-                if let Err(e) =
-                    core::forward_dynamics(m, &mut s.data, row(&q, i, n), row(&qd, i, n), row(&tau, i, n), &pi, o)
-                {
-                    failure.lock().expect("no panics hold this lock").get_or_insert(format!("sample {i}: {e}"));
-                }
-            })
-        });
+        let out = batched(py, m, count, q.single, &[n], |s, i, o| {
+            if let Err(e) =
+                core::forward_dynamics(m, &mut s.data, row(&q, i, n), row(&qd, i, n), row(&tau, i, n), &pi, o)
+            {
+                failure.lock().expect("no panics hold this lock").get_or_insert(format!("sample {i}: {e}"));
+            }
+        })?;
         if let Some(message) = failure.into_inner().expect("no panics hold this lock") {
             return Err(PyValueError::new_err(message));
         }
-        to_numpy(py, out, q.single, count, &[n])
+        Ok(out)
     }
 
     /// The base parameters (identifiable combinations), from `samples` random states.
@@ -442,13 +468,10 @@ impl BaseParameters {
         let (q, qd, qdd) = (batch("q", &q, n)?, batch("qd", &qd, n)?, batch("qdd", &qdd, n)?);
         let count = same_length(&[("q", &q), ("qd", &qd), ("qdd", &qdd)])?;
         let base = &self.base;
-        let out = py.detach(|| {
-            run_batched(m, count, n * rank, |s, i, o| {
-                core::regressor(m, &mut s.data, row(&q, i, n), row(&qd, i, n), row(&qdd, i, n), &mut s.regressor);
-                base.reduce(&s.regressor, o);
-            })
-        });
-        to_numpy(py, out, q.single, count, &[n, rank])
+        batched(py, m, count, q.single, &[n, rank], |s, i, o| {
+            core::regressor(m, &mut s.data, row(&q, i, n), row(&qd, i, n), row(&qdd, i, n), &mut s.regressor);
+            base.reduce(&s.regressor, o);
+        })
     }
 
     fn __repr__(&self) -> String {
