@@ -61,20 +61,13 @@ fn describe(model: &Model, base: &BaseParameters) -> String {
         );
     }
     s += "\nbodies (mass, driven by):\n";
-    for b in &model.bodies {
-        let driver = match b.coupling {
-            Some(c)
-                if c.multiplier == 1.0
-                    && c.offset == 0.0
-                    && model.joints[c.index].body
-                        == model.bodies.iter().position(|x| x.name == b.name).unwrap_or(usize::MAX) =>
-            {
-                model.joints[c.index].name.clone()
-            }
+    for (b, body) in model.bodies.iter().enumerate() {
+        let driver = match body.coupling {
+            Some(c) if model.joints[c.index].body == b => "actuated".to_string(),
             Some(c) => format!("mimic {} × {} + {}", model.joints[c.index].name, c.multiplier, c.offset),
             None => "fixed".into(),
         };
-        s += &format!("  {:<22} {:>7.4} kg  joint `{}` ({driver})\n", b.name, b.inertial[0], b.joint);
+        s += &format!("  {:<22} {:>7.4} kg  joint `{}` ({driver})\n", body.name, body.inertial[0], body.joint);
     }
     s += &format!(
         "\nstandard parameters: {} (10 × {} bodies + 3 × {} joints)\nbase parameters: p = {} (rank gap: kept ≥ {:.2e}, dropped ≤ {:.2e})\n",

@@ -1,0 +1,48 @@
+//! The `arash` binary end to end: real process, real files, real exit codes.
+
+use std::process::Command;
+
+fn arash(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_arash")).args(args).output().expect("the arash binary runs")
+}
+
+fn repo_file(path: &str) -> String {
+    format!("{}/../../{path}", env!("CARGO_MANIFEST_DIR"))
+}
+
+#[test]
+fn model_describes_the_bundled_robot() {
+    let out = arash(&["model", &repo_file("robots/arash_asist.urdf")]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("3 dof, 8 moving bodies"), "{text}");
+    assert!(text.contains("standard parameters: 89"), "{text}");
+    assert!(text.contains("base parameters: p = 23"), "{text}");
+    assert!(text.contains("β23 = insertion.ke"), "{text}");
+    assert!(text.contains("[ -14.00,   27.00] mm"), "limits are shown in mm at the edge: {text}");
+}
+
+#[test]
+fn model_reports_a_bad_file_by_name_and_fails() {
+    let out = arash(&["model", "/no/such/robot.urdf"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(err.contains("/no/such/robot.urdf"), "{err}");
+}
+
+#[test]
+fn model_reports_a_malformed_urdf_with_the_offending_element() {
+    let dir = std::env::temp_dir().join(format!("arash-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("bad.urdf");
+    std::fs::write(
+        &path,
+        r#"<robot name="bad"><link name="a"/><link name="b"><inertial><mass value="-2"/><inertia ixx="1" iyy="1" izz="1"/></inertial></link>
+           <joint name="j" type="revolute"><parent link="a"/><child link="b"/><limit lower="-1" upper="1" velocity="1" effort="1"/></joint></robot>"#,
+    )
+    .unwrap();
+    let out = arash(&["model", path.to_str().unwrap()]);
+    assert!(!out.status.success());
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(err.contains("link `b`") && err.contains("mass -2 kg is not positive"), "{err}");
+}
