@@ -43,19 +43,25 @@ pub fn slotine_li_regressor(
 ) {
     placements_and_jacobians(model, data, q);
     motion_sweep(model, data, qd, qd_r, qdd_r, true);
+    // ρ is bilinear, so the −½ I(v × v_r) term folds into the acceleration once per body rather
+    // than once per row: ρ(u, a_r) − ½ρ(u, v × v_r) = ρ(u, a_r − ½ v × v_r).
+    for b in 0..model.bodies.len() {
+        let fold = data.vel[b].cross(&data.vel_ref[b]);
+        data.acc[b].axpy(-0.5, &fold);
+    }
     fill_rigid_columns(model, data, out, slotine_li_row);
     fill_joint_columns(model, q, qd, qd_r, out);
 }
 
-/// `u · f` for the Christoffel-consistent wrench `f` above, as coefficients of π.
+/// `u · f` for the Christoffel-consistent wrench `f` above, as coefficients of π, given the folded
+/// acceleration `a_folded = a_r − ½ v × v_r`.
 #[inline]
-pub(crate) fn slotine_li_row(u: &Motion, v: &Motion, v_r: &Motion, a_r: &Motion) -> [f64; BODY_PARAMS] {
-    let mut row = inertia_coefficients(u, a_r);
+fn slotine_li_row(u: &Motion, v: &Motion, v_r: &Motion, a_folded: &Motion) -> [f64; BODY_PARAMS] {
+    let mut row = inertia_coefficients(u, a_folded);
     let t1 = inertia_coefficients(&v.cross(u), v_r);
-    let t2 = inertia_coefficients(u, &v.cross(v_r));
     let t3 = inertia_coefficients(&v_r.cross(u), v);
     for i in 0..BODY_PARAMS {
-        row[i] -= 0.5 * (t1[i] + t2[i] + t3[i]);
+        row[i] -= 0.5 * (t1[i] + t3[i]);
     }
     row
 }
