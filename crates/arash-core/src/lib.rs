@@ -10,6 +10,7 @@
 pub mod base_parameters;
 pub mod data;
 pub mod dynamics;
+pub mod identify;
 pub mod kinematics;
 pub mod model;
 pub mod regressor;

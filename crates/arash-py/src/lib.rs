@@ -5,6 +5,7 @@
 use std::sync::Arc;
 
 use arash_core::base_parameters::BaseParameterOptions;
+use arash_core::identify::filter::Butterworth;
 use arash_core::{self as core, BaseParameters as CoreBase, CoulombShape, Data, Model};
 use numpy::ndarray::{ArrayD, IxDyn};
 use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
@@ -479,8 +480,67 @@ impl BaseParameters {
     }
 }
 
+/// Butterworth low-pass coefficients `(b, a)`, as `scipy.signal.butter(order, cutoff_hz,
+/// fs=sample_rate_hz)`.
+#[pyfunction]
+#[pyo3(signature = (order, cutoff_hz, sample_rate_hz))]
+fn butter<'py>(
+    py: Python<'py>,
+    order: usize,
+    cutoff_hz: f64,
+    sample_rate_hz: f64,
+) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>)> {
+    let filter = Butterworth::lowpass(order, cutoff_hz, sample_rate_hz).map_err(value_error)?;
+    let (b, a) = filter.coefficients();
+    Ok((to_numpy(py, b.to_vec(), false, b.len(), &[])?, to_numpy(py, a.to_vec(), false, a.len(), &[])?))
+}
+
+/// Zero-phase Butterworth low-pass of each column of `x` (shape (N,) or (N, k)), as
+/// `scipy.signal.filtfilt(*butter(order, cutoff_hz, fs=sample_rate_hz), x, axis=0)`.
+#[pyfunction]
+#[pyo3(signature = (x, cutoff_hz, sample_rate_hz, order=5))]
+fn filtfilt<'py>(
+    py: Python<'py>,
+    x: PyReadonlyArrayDyn<'py, f64>,
+    cutoff_hz: f64,
+    sample_rate_hz: f64,
+    order: usize,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let filter = Butterworth::lowpass(order, cutoff_hz, sample_rate_hz).map_err(value_error)?;
+    let view = x.as_array();
+    let shape = view.shape().to_vec();
+    let (n, k) = match shape.as_slice() {
+        [n] => (*n, 1),
+        [n, k] => (*n, *k),
+        _ => return Err(PyValueError::new_err(format!("x must have shape (N,) or (N, k), got {shape:?}"))),
+    };
+    let values: Vec<f64> = view.iter().copied().collect();
+    if values.iter().any(|v| !v.is_finite()) {
+        return Err(PyValueError::new_err("x contains NaN or infinity"));
+    }
+    let mut out = vec![0.0; n * k];
+    let (mut column, mut filtered, mut scratch) = (vec![0.0; n], vec![0.0; n], Vec::new());
+    for j in 0..k {
+        for i in 0..n {
+            column[i] = values[i * k + j];
+        }
+        filter.filtfilt(&column, &mut filtered, &mut scratch).map_err(value_error)?;
+        for i in 0..n {
+            out[i * k + j] = filtered[i];
+        }
+    }
+    let array = ArrayD::from_shape_vec(IxDyn(&shape), out).map_err(value_error)?;
+    Ok(array.into_pyarray(py))
+}
+
+fn value_error(e: impl std::fmt::Display) -> PyErr {
+    PyValueError::new_err(e.to_string())
+}
+
 #[pymodule]
 fn _arash(module: &Bound<'_, PyModule>) -> PyResult<()> {
+    module.add_function(wrap_pyfunction!(butter, module)?)?;
+    module.add_function(wrap_pyfunction!(filtfilt, module)?)?;
     module.add_class::<Robot>()?;
     module.add_class::<BaseParameters>()?;
     module.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -9,6 +9,6 @@ array; a single ``(dof,)`` vector gives a result without the batch axis.
 23
 """
 
-from ._arash import BaseParameters, Robot, __version__
+from ._arash import BaseParameters, Robot, __version__, butter, filtfilt
 
-__all__ = ["BaseParameters", "Robot", "__version__"]
+__all__ = ["BaseParameters", "Robot", "__version__", "butter", "filtfilt"]

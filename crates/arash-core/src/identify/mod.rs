@@ -1,0 +1,4 @@
+//! Identification (paper sections III–IV): excitation design, preprocessing, least squares, and
+//! physically consistent estimation.
+
+pub mod filter;
