@@ -12,6 +12,9 @@ use numpy::{IntoPyArray, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntyp
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
+/// A float64 numpy array owned by Python.
+type NumpyArray<'py> = Bound<'py, PyArrayDyn<f64>>;
+
 /// A validated batch of vectors, copied row-major into `values` (`n × width`).
 struct Batch {
     n: usize,
@@ -489,7 +492,7 @@ fn butter<'py>(
     order: usize,
     cutoff_hz: f64,
     sample_rate_hz: f64,
-) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>)> {
+) -> PyResult<(NumpyArray<'py>, NumpyArray<'py>)> {
     let filter = Butterworth::lowpass(order, cutoff_hz, sample_rate_hz).map_err(value_error)?;
     let (b, a) = filter.coefficients();
     Ok((to_numpy(py, b.to_vec(), false, b.len(), &[])?, to_numpy(py, a.to_vec(), false, a.len(), &[])?))
