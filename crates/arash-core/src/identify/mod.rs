@@ -1,4 +1,6 @@
 //! Identification (paper sections III–IV): excitation design, preprocessing, least squares, and
 //! physically consistent estimation.
 
+pub mod estimate;
 pub mod filter;
+pub mod preprocess;

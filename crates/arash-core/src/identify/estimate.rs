@@ -1,0 +1,261 @@
+//! Least-squares estimation of the base parameters (paper eqs. 14–17, 21).
+//!
+//! The stacked reduced regressor `W` (one row per sample and joint) is solved by Householder QR
+//! (faer), not by the normal equations. QR's error grows with κ(W), the normal equations' with
+//! κ(W)²; a poorly exciting log can reach κ ≈ 10⁴, where squaring already costs 8 of 16 digits.
+//! The factor `R` also gives the covariance `σ²(WᵀW)⁻¹ = σ² R⁻¹R⁻ᵀ` without forming `WᵀW`.
+
+use faer::prelude::*;
+use faer::Mat;
+use nalgebra::DMatrix;
+
+use super::preprocess::Preprocessed;
+use crate::base_parameters::BaseParameters;
+use crate::data::Data;
+use crate::model::Model;
+use crate::regressor::regressor;
+
+/// Which least-squares problem to solve.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Ordinary least squares: every row weighted equally.
+    Ols,
+    /// Weighted least squares: each joint's rows divided by that joint's OLS residual standard
+    /// deviation, so that N·m and N residuals count in proportion to their noise.
+    Wls,
+}
+
+/// Why the data cannot give a meaningful estimate.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EstimateError {
+    #[error("the data does not excite {0}: these base parameters cannot be identified from it")]
+    NotExcited(String),
+    #[error("the data barely excites some directions (scaled condition number {condition:.3e} > {limit:.1e}); the weakest combination is {direction}")]
+    IllConditioned { condition: f64, limit: f64, direction: String },
+    #[error("{rows} equations cannot determine {params} parameters with an error estimate; record more samples")]
+    TooFewRows { rows: usize, params: usize },
+}
+
+/// Per-joint fit quality.
+#[derive(Clone, Debug, PartialEq)]
+pub struct JointMetrics {
+    /// `100(1 − ‖τ − τ̂‖ / ‖τ − mean τ‖)` (eq. 21), per joint.
+    pub fp_percent: Vec<f64>,
+    /// `‖τ − τ̂‖ / ‖τ‖`, per joint.
+    pub relative_error: Vec<f64>,
+    /// Root-mean-square residual (N·m or N), per joint.
+    pub rms: Vec<f64>,
+}
+
+/// A least-squares estimate of the base parameters.
+#[derive(Clone, Debug)]
+pub struct Fit {
+    pub method: Method,
+    /// β̂.
+    pub beta: Vec<f64>,
+    /// Standard deviation of each β̂ (eq. 16).
+    pub sigma_beta: Vec<f64>,
+    /// Relative standard deviation `100 σ_β / |β̂|` (eq. 15).
+    pub sigma_percent: Vec<f64>,
+    /// Residual variance of the (weighted) system (eq. 17).
+    pub sigma_p2: f64,
+    /// Row weight of each joint (1 for OLS).
+    pub joint_weights: Vec<f64>,
+    /// Condition number of `W` with unit-norm columns.
+    pub condition_number: f64,
+    /// Fit quality on the training data.
+    pub metrics: JointMetrics,
+}
+
+/// Scaled condition numbers above this are refused: such directions are set by round-off and
+/// noise. ARASH:ASiST itself sits near 10⁶ on good data, because `rocker_a.my_R` and
+/// `instrument_holder.my_R` differ only through small yaw-coupling terms; their σ% reports it.
+pub const CONDITION_LIMIT: f64 = 1e8;
+
+/// `W` (rows = samples × dof, p columns) and `τ` stacked in the same row order.
+///
+/// Coulomb friction columns step where a velocity changes sign, but the measured torque has been
+/// low-pass filtered, so its steps are smoothed. Left alone, that mismatch biases the whole fit
+/// (on ARASH:ASiST, 16 % of the yaw torque). Those columns are therefore filtered exactly like the
+/// torque ("parallel filtering"). The other columns are smooth functions of signals already
+/// filtered far below the cut-off, and the filter leaves them unchanged.
+pub fn stack(model: &Model, base: &BaseParameters, data: &Preprocessed) -> (Mat<f64>, Vec<f64>) {
+    let (n, big_p, p) = (model.dof(), model.num_params(), base.rank);
+    let samples = data.samples();
+    let mut w = Mat::<f64>::zeros(samples * n, p);
+    let mut ws = Data::new(model);
+    let (mut y, mut y_r) = (vec![0.0; n * big_p], vec![0.0; n * p]);
+    for s in 0..samples {
+        let at = |x: &[f64]| x[s * n..(s + 1) * n].to_vec();
+        regressor(model, &mut ws, &at(&data.q), &at(&data.qd), &at(&data.qdd), &mut y);
+        base.reduce(&y, &mut y_r);
+        for k in 0..n {
+            for c in 0..p {
+                w[(s * n + k, c)] = y_r[k * p + c];
+            }
+        }
+    }
+    for k in 0..n {
+        let coulomb = model.friction_offset() + 2 * k + 1;
+        let Some(c) = base.independent.iter().position(|&j| j == coulomb) else { continue };
+        let column: Vec<f64> = (0..samples).map(|s| w[(s * n + k, c)]).collect();
+        let filtered = data.filter_like_torque(&column, 1).expect("the torque was filtered with these settings");
+        for (s, v) in filtered.into_iter().enumerate() {
+            w[(s * n + k, c)] = v;
+        }
+    }
+    (w, data.tau.clone())
+}
+
+/// Fit β by OLS or WLS on preprocessed data.
+pub fn fit(model: &Model, base: &BaseParameters, data: &Preprocessed, method: Method) -> Result<Fit, EstimateError> {
+    let (w, tau) = stack(model, base, data);
+    fit_stacked(&w, &tau, model.dof(), base, method)
+}
+
+/// Fit β from an already stacked `W` and `τ` (rows ordered sample by sample, joint by joint).
+pub fn fit_stacked(
+    w: &Mat<f64>,
+    tau: &[f64],
+    dof: usize,
+    base: &BaseParameters,
+    method: Method,
+) -> Result<Fit, EstimateError> {
+    let (m, p) = (w.nrows(), w.ncols());
+    if m <= p {
+        return Err(EstimateError::TooFewRows { rows: m, params: p });
+    }
+    check_excitation(w, base)?;
+    let ols = solve(w, tau, &vec![1.0; dof], dof);
+    let weights = match method {
+        Method::Ols => vec![1.0; dof],
+        Method::Wls => {
+            let residual = residual(w, tau, &ols.0);
+            let per_joint = rms_per_joint(&residual, dof);
+            per_joint.iter().map(|r| if *r > 0.0 { 1.0 / r } else { 1.0 }).collect()
+        }
+    };
+    let (beta, r_factor, condition_number) = if method == Method::Ols { ols } else { solve(w, tau, &weights, dof) };
+    let weighted_residual: Vec<f64> =
+        residual(w, tau, &beta).iter().enumerate().map(|(i, e)| e * weights[i % dof]).collect();
+    let sigma_p2 = weighted_residual.iter().map(|e| e * e).sum::<f64>() / (m - p) as f64;
+    let r_inv = r_factor.try_inverse().expect("R is non-singular once excitation is checked");
+    let sigma_beta = match method {
+        // Weighted rows have unit noise in every joint: the classical σ²(WᵀW)⁻¹ holds (eq. 16).
+        Method::Wls => (0..p).map(|i| (sigma_p2 * r_inv.row(i).norm_squared()).sqrt()).collect(),
+        // Unweighted rows mix N·m and N noise, so one pooled σ² under-states the spread of the
+        // parameters that the noisiest joint carries. Use each joint's own residual variance:
+        // Cov = (WᵀW)⁻¹ (Σ_k s_k² W_kᵀ W_k) (WᵀW)⁻¹. With equal noise it is eq. 16 again.
+        Method::Ols => per_joint_sigma(w, &weighted_residual, dof, &r_inv),
+    };
+    let sigma_percent = sigma_beta.iter().zip(&beta).map(|(s, b)| 100.0 * s / b.abs()).collect();
+    let predicted = apply(w, &beta);
+    let metrics = joint_metrics(tau, &predicted, dof);
+    Ok(Fit { method, beta, sigma_beta, sigma_percent, sigma_p2, joint_weights: weights, condition_number, metrics })
+}
+
+/// Solve the row-weighted problem; return β, the triangular factor `R` (p × p) of the weighted
+/// `W`, and the condition number of `W` with unit-norm columns.
+fn solve(w: &Mat<f64>, tau: &[f64], weights: &[f64], dof: usize) -> (Vec<f64>, DMatrix<f64>, f64) {
+    let (m, p) = (w.nrows(), w.ncols());
+    let weighted = Mat::<f64>::from_fn(m, p, |i, j| w[(i, j)] * weights[i % dof]);
+    let rhs = Mat::<f64>::from_fn(m, 1, |i, _| tau[i] * weights[i % dof]);
+    let qr = weighted.qr();
+    let beta_mat = qr.solve_lstsq(&rhs);
+    let r = qr.thin_R();
+    let r_factor = DMatrix::from_fn(p, p, |i, j| if j >= i { r[(i, j)] } else { 0.0 });
+    let norms: Vec<f64> = (0..p).map(|j| r_factor.column(j).norm()).collect();
+    let scaled = DMatrix::from_fn(p, p, |i, j| r_factor[(i, j)] / norms[j]);
+    let sv = scaled.singular_values();
+    let condition = sv.max() / sv.min();
+    ((0..p).map(|i| beta_mat[(i, 0)]).collect(), r_factor, condition)
+}
+
+/// Standard deviations of β̂ from the per-joint residual variances (see [`fit_stacked`]).
+fn per_joint_sigma(w: &Mat<f64>, residual: &[f64], dof: usize, r_inv: &DMatrix<f64>) -> Vec<f64> {
+    let (m, p) = (w.nrows(), w.ncols());
+    let rows_per_joint = (m / dof) as f64;
+    let mut meat = DMatrix::<f64>::zeros(p, p);
+    for k in 0..dof {
+        let s2 =
+            residual.iter().skip(k).step_by(dof).map(|e| e * e).sum::<f64>() / (rows_per_joint - p as f64 / dof as f64);
+        for i in (k..m).step_by(dof) {
+            for a in 0..p {
+                let wa = w[(i, a)] * s2;
+                for b in 0..p {
+                    meat[(a, b)] += wa * w[(i, b)];
+                }
+            }
+        }
+    }
+    // (WᵀW)⁻¹ = R⁻¹R⁻ᵀ.
+    let gram_inv = r_inv * r_inv.transpose();
+    let cov = &gram_inv * meat * &gram_inv;
+    (0..p).map(|i| cov[(i, i)].max(0.0).sqrt()).collect()
+}
+
+/// Refuse data in which some base parameter never acts, or some combination is invisible.
+fn check_excitation(w: &Mat<f64>, base: &BaseParameters) -> Result<(), EstimateError> {
+    let (m, p) = (w.nrows(), w.ncols());
+    let norms: Vec<f64> = (0..p).map(|j| (0..m).map(|i| w[(i, j)] * w[(i, j)]).sum::<f64>().sqrt()).collect();
+    let largest = norms.iter().copied().fold(0.0, f64::max);
+    let dead: Vec<String> = norms
+        .iter()
+        .enumerate()
+        .filter(|(_, n)| **n <= 1e-12 * largest)
+        .map(|(j, _)| format!("β{} ({})", j + 1, base.names[j]))
+        .collect();
+    if !dead.is_empty() {
+        return Err(EstimateError::NotExcited(dead.join(", ")));
+    }
+    let gram =
+        DMatrix::from_fn(p, p, |i, j| (0..m).map(|r| w[(r, i)] * w[(r, j)]).sum::<f64>() / (norms[i] * norms[j]));
+    let eig = gram.symmetric_eigen();
+    let (imin, min) =
+        eig.eigenvalues.iter().enumerate().fold((0, f64::INFINITY), |a, (i, v)| if *v < a.1 { (i, *v) } else { a });
+    let max = eig.eigenvalues.max();
+    let condition = (max / min.max(0.0)).sqrt();
+    if condition > CONDITION_LIMIT {
+        let v = eig.eigenvectors.column(imin);
+        let mut terms: Vec<(usize, f64)> = v.iter().copied().enumerate().filter(|(_, c)| c.abs() > 0.1).collect();
+        terms.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+        let direction =
+            terms.iter().map(|(j, c)| format!("{c:+.2}·β{} ({})", j + 1, base.names[*j])).collect::<Vec<_>>().join(" ");
+        return Err(EstimateError::IllConditioned { condition, limit: CONDITION_LIMIT, direction });
+    }
+    Ok(())
+}
+
+fn apply(w: &Mat<f64>, beta: &[f64]) -> Vec<f64> {
+    (0..w.nrows()).map(|i| (0..w.ncols()).map(|j| w[(i, j)] * beta[j]).sum()).collect()
+}
+
+fn residual(w: &Mat<f64>, tau: &[f64], beta: &[f64]) -> Vec<f64> {
+    apply(w, beta).iter().zip(tau).map(|(p, t)| t - p).collect()
+}
+
+fn rms_per_joint(residual: &[f64], dof: usize) -> Vec<f64> {
+    let samples = residual.len() / dof;
+    (0..dof)
+        .map(|k| (residual.iter().skip(k).step_by(dof).map(|e| e * e).sum::<f64>() / samples as f64).sqrt())
+        .collect()
+}
+
+/// FP%, relative error and RMS per joint for measured `tau` and predicted `tau_hat` (row-major
+/// samples × dof).
+pub fn joint_metrics(tau: &[f64], tau_hat: &[f64], dof: usize) -> JointMetrics {
+    let samples = tau.len() / dof;
+    let mut metrics = JointMetrics { fp_percent: vec![], relative_error: vec![], rms: vec![] };
+    for k in 0..dof {
+        let column = |x: &[f64]| x.iter().skip(k).step_by(dof).copied().collect::<Vec<f64>>();
+        let (t, h) = (column(tau), column(tau_hat));
+        let mean = t.iter().sum::<f64>() / samples as f64;
+        let err = t.iter().zip(&h).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
+        let spread = t.iter().map(|a| (a - mean) * (a - mean)).sum::<f64>().sqrt();
+        let norm = t.iter().map(|a| a * a).sum::<f64>().sqrt();
+        metrics.fp_percent.push(100.0 * (1.0 - err / spread));
+        metrics.relative_error.push(err / norm);
+        metrics.rms.push(err / (samples as f64).sqrt());
+    }
+    metrics
+}

@@ -1,0 +1,201 @@
+//! Identification on simulated data with known truth: torques from the model plus noise.
+
+mod common;
+
+use arash_core::base_parameters::BaseParameterOptions;
+use arash_core::identify::estimate::{fit, fit_stacked, EstimateError, Method};
+use arash_core::identify::preprocess::{preprocess, PreprocessOptions, Preprocessed};
+use arash_core::*;
+use common::*;
+use faer::Mat;
+use rand::RngExt;
+
+/// A random 5-harmonic Fourier trajectory with period `period`, scaled into 80 % of the joint
+/// range and the speed limits: returns (q, q̇, q̈) at time t.
+struct Fourier {
+    w: f64,
+    centre: Vec<f64>,
+    a: Vec<[f64; 5]>,
+    b: Vec<[f64; 5]>,
+}
+
+impl Fourier {
+    fn random(model: &Model, period: f64, rng: &mut ChaCha8Rng) -> Self {
+        let w = 2.0 * std::f64::consts::PI / period;
+        let mut f = Fourier { w, centre: vec![], a: vec![], b: vec![] };
+        for joint in &model.joints {
+            let mut a = [0.0; 5];
+            let mut b = [0.0; 5];
+            for l in 0..5 {
+                a[l] = rng.random_range(-1.0..1.0) / (l + 1) as f64;
+                b[l] = rng.random_range(-1.0..1.0) / (l + 1) as f64;
+            }
+            // Worst-case amplitude and speed of the unscaled series bound the scale.
+            let amp: f64 = (0..5).map(|l| a[l].hypot(b[l])).sum();
+            let speed: f64 = (0..5).map(|l| a[l].hypot(b[l]) * w * (l + 1) as f64).sum();
+            let half_range = 0.4 * (joint.upper - joint.lower);
+            let scale = (half_range / amp).min(0.8 * joint.velocity / speed);
+            a.iter_mut().chain(b.iter_mut()).for_each(|c| *c *= scale);
+            f.centre.push(0.5 * (joint.upper + joint.lower));
+            f.a.push(a);
+            f.b.push(b);
+        }
+        f
+    }
+
+    fn at(&self, t: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let n = self.centre.len();
+        let (mut q, mut qd, mut qdd) = (self.centre.clone(), vec![0.0; n], vec![0.0; n]);
+        for j in 0..n {
+            for l in 0..5 {
+                let wl = self.w * (l + 1) as f64;
+                let (s, c) = (wl * t).sin_cos();
+                q[j] += self.a[j][l] * s + self.b[j][l] * c;
+                qd[j] += wl * (self.a[j][l] * c - self.b[j][l] * s);
+                qdd[j] += -wl * wl * (self.a[j][l] * s + self.b[j][l] * c);
+            }
+        }
+        (q, qd, qdd)
+    }
+}
+
+/// CAD parameters perturbed by ±30 %, with friction and cable stiffness: the "true" robot.
+fn true_parameters(model: &Model, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let mut pi = model.cad_parameters();
+    for v in pi.iter_mut().take(model.friction_offset()) {
+        *v *= 1.0 + rng.random_range(-0.3..0.3);
+    }
+    let fo = model.friction_offset();
+    pi[fo..fo + 6].copy_from_slice(&[0.02, 0.03, 0.015, 0.025, 3.0, 0.4]);
+    pi[model.elastic_offset()..].copy_from_slice(&[0.05, 0.08, 20.0]);
+    pi
+}
+
+const NOISE: [f64; 3] = [0.003, 0.003, 0.05];
+
+fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
+    // Box–Muller: enough for test noise.
+    let (u, v): (f64, f64) = (rng.random_range(1e-12..1.0), rng.random_range(0.0..1.0));
+    (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
+}
+
+#[test]
+fn ols_and_wls_recover_beta_within_three_sigma() {
+    let model = arash_asist();
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
+    let (mut within, mut total) = ([0usize; 2], 0usize);
+    for seed in 0..8 {
+        let counts = three_sigma_counts(&model, &base, seed);
+        within[0] += counts[0];
+        within[1] += counts[1];
+        total += base.rank;
+    }
+    for (method, count) in ["OLS", "WLS"].iter().zip(within) {
+        assert!(count as f64 >= 0.95 * total as f64, "{method}: only {count}/{total} within 3σ");
+    }
+}
+
+/// For one random truth and trajectory: how many β̂ lie within 3σ̂ of β, for OLS and WLS.
+fn three_sigma_counts(model: &Model, base: &BaseParameters, seed: u64) -> [usize; 2] {
+    let (model, base) = (model.clone(), base.clone());
+    let mut rng = rng(100 + seed);
+    let pi = true_parameters(&model, &mut rng);
+    let mut beta_true = vec![0.0; base.rank];
+    base.project(&pi, &mut beta_true);
+    let traj = Fourier::random(&model, 15.0, &mut rng);
+    // Exact states, white torque noise: the setting in which eq. 16's σ is the true spread.
+    let (samples, n, p) = (3000, model.dof(), base.rank);
+    let mut data = Data::new(&model);
+    let (mut y, mut y_r) = (vec![0.0; n * model.num_params()], vec![0.0; n * p]);
+    let mut w = Mat::<f64>::zeros(samples * n, p);
+    let mut tau = Vec::with_capacity(samples * n);
+    for s in 0..samples {
+        let (q, qd, qdd) = traj.at(s as f64 * 15.0 / samples as f64);
+        regressor(&model, &mut data, &q, &qd, &qdd, &mut y);
+        base.reduce(&y, &mut y_r);
+        for k in 0..n {
+            for c in 0..p {
+                w[(s * n + k, c)] = y_r[k * p + c];
+            }
+            let exact: f64 = (0..p).map(|c| y_r[k * p + c] * beta_true[c]).sum();
+            tau.push(exact + NOISE[k] * gaussian(&mut rng));
+        }
+    }
+    [Method::Ols, Method::Wls].map(|method| {
+        let fit = fit_stacked(&w, &tau, n, &base, method).unwrap();
+        assert!(fit.metrics.fp_percent.iter().all(|fp| *fp > 50.0), "{:?}", fit.metrics.fp_percent);
+        (0..p).filter(|&i| (fit.beta[i] - beta_true[i]).abs() <= 3.0 * fit.sigma_beta[i]).count()
+    })
+}
+
+fn simulated_log(
+    model: &Model,
+    pi: &[f64],
+    traj: &Fourier,
+    periods: usize,
+    rng: &mut ChaCha8Rng,
+) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let (fs, n) = (1000.0, model.dof());
+    let total = (15.0 * fs) as usize * periods;
+    let mut data = Data::new(model);
+    let (mut t, mut q_log, mut tau_log) = (Vec::new(), Vec::new(), Vec::new());
+    let mut tau = vec![0.0; n];
+    for i in 0..total {
+        let ti = i as f64 / fs;
+        let (q, qd, qdd) = traj.at(ti);
+        inverse_dynamics(model, &mut data, &q, &qd, &qdd, pi, &mut tau);
+        t.push(ti);
+        q_log.extend_from_slice(&q);
+        tau_log.extend(tau.iter().enumerate().map(|(k, v)| v + NOISE[k] * gaussian(rng)));
+    }
+    (t, q_log, tau_log)
+}
+
+#[test]
+fn the_preprocessing_pipeline_and_ols_recover_the_model() {
+    let model = arash_asist();
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
+    let mut rng = rng(22);
+    let pi = true_parameters(&model, &mut rng);
+    let traj = Fourier::random(&model, 15.0, &mut rng);
+    let (t, q, tau) = simulated_log(&model, &pi, &traj, 4, &mut rng);
+    let options = PreprocessOptions { periods: Some(4), ..Default::default() };
+    let pre: Preprocessed = preprocess(&t, &q, &tau, 3, &options).unwrap();
+    let fit = fit(&model, &base, &pre, Method::Ols).unwrap();
+    // Predict the noise-free torque on the true (unfiltered) states of one period.
+    let mut data = Data::new(&model);
+    let (mut y, mut y_r, mut exact) = (vec![0.0; 3 * model.num_params()], vec![0.0; 3 * base.rank], vec![0.0; 3]);
+    let (mut worst, mut scale) = ([0.0f64; 3], [0.0f64; 3]);
+    for i in (0..15_000).step_by(7) {
+        let (q, qd, qdd) = traj.at(i as f64 / 1000.0);
+        regressor(&model, &mut data, &q, &qd, &qdd, &mut y);
+        base.reduce(&y, &mut y_r);
+        inverse_dynamics(&model, &mut data, &q, &qd, &qdd, &pi, &mut exact);
+        for k in 0..3 {
+            let predicted: f64 = (0..base.rank).map(|c| y_r[k * base.rank + c] * fit.beta[c]).sum();
+            worst[k] = worst[k].max((predicted - exact[k]).abs());
+            scale[k] = scale[k].max(exact[k].abs());
+        }
+    }
+    for k in 0..3 {
+        assert!(worst[k] < 0.02 * scale[k], "joint {k}: prediction off by {} of peak {}", worst[k], scale[k]);
+    }
+    assert!(fit.metrics.fp_percent.iter().all(|fp| *fp > 90.0), "FP% {:?}", fit.metrics.fp_percent);
+}
+
+#[test]
+fn data_that_does_not_move_a_joint_is_refused_naming_the_parameters() {
+    let model = arash_asist();
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
+    let mut rng = rng(23);
+    let mut traj = Fourier::random(&model, 15.0, &mut rng);
+    traj.a[2] = [0.0; 5]; // the insertion never moves
+    traj.b[2] = [0.0; 5];
+    let pi = true_parameters(&model, &mut rng);
+    let (t, q, tau) = simulated_log(&model, &pi, &traj, 2, &mut rng);
+    let pre = preprocess(&t, &q, &tau, 3, &PreprocessOptions { periods: Some(2), ..Default::default() }).unwrap();
+    let err = fit(&model, &base, &pre, Method::Ols).unwrap_err();
+    let text = err.to_string();
+    assert!(matches!(err, EstimateError::NotExcited(_) | EstimateError::IllConditioned { .. }), "{text}");
+    assert!(text.contains("insertion"), "the message should name the insertion parameters: {text}");
+}
