@@ -59,11 +59,24 @@ impl Fourier {
     }
 }
 
-/// CAD parameters perturbed by ±30 %, with friction and cable stiffness: the "true" robot.
+/// The "true" robot: each CAD body with its mass and rotational inertia scaled by up to ±30 % and
+/// its centre of mass moved by up to 1 cm (so it stays physically consistent), plus friction and
+/// cable stiffness.
 fn true_parameters(model: &Model, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    use arash_core::spatial::{params_from_com, rotational_inertia, Mat3, Vec3};
     let mut pi = model.cad_parameters();
-    for v in pi.iter_mut().take(model.friction_offset()) {
-        *v *= 1.0 + rng.random_range(-0.3..0.3);
+    for b in 0..model.bodies.len() {
+        let p = &pi[10 * b..10 * b + 10];
+        let m = p[0];
+        let c = Vec3::new(p[1], p[2], p[3]) / m;
+        let i_com = rotational_inertia(p) - (Mat3::identity() * c.dot(&c) - c * c.transpose()) * m;
+        let shift = Vec3::new(rng.random_range(-0.01..0.01), rng.random_range(-0.01..0.01), rng.random_range(-0.01..0.01));
+        let new = params_from_com(
+            m * (1.0 + rng.random_range(-0.3..0.3)),
+            &(c + shift),
+            &(i_com * (1.0 + rng.random_range(-0.3..0.3))),
+        );
+        pi[10 * b..10 * b + 10].copy_from_slice(&new);
     }
     let fo = model.friction_offset();
     pi[fo..fo + 6].copy_from_slice(&[0.02, 0.03, 0.015, 0.025, 3.0, 0.4]);
@@ -198,4 +211,40 @@ fn data_that_does_not_move_a_joint_is_refused_naming_the_parameters() {
     let text = err.to_string();
     assert!(matches!(err, EstimateError::NotExcited(_) | EstimateError::IllConditioned { .. }), "{text}");
     assert!(text.contains("insertion"), "the message should name the insertion parameters: {text}");
+}
+
+#[test]
+fn consistent_identification_is_physical_and_fits_like_ols() {
+    use arash_core::identify::consistent::{identify_consistent, min_pseudo_inertia_eigenvalues, ConsistentOptions};
+    use arash_core::identify::estimate::{joint_metrics, stack_full};
+    let model = arash_asist();
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
+    let mut rng = rng(24);
+    let pi = true_parameters(&model, &mut rng);
+    let traj = Fourier::random(&model, 15.0, &mut rng);
+    let (t, q, tau) = simulated_log(&model, &pi, &traj, 2, &mut rng);
+    let pre = preprocess(&t, &q, &tau, 3, &PreprocessOptions { periods: Some(2), decimate: 5, ..Default::default() })
+        .unwrap();
+    let ols = fit(&model, &base, &pre, Method::Ols).unwrap();
+    let (w, tau_f) = stack_full(&model, &pre);
+    let consistent = identify_consistent(&model, &w, &tau_f, &ConsistentOptions::default()).unwrap();
+    // Checked independently of Clarabel's status: our own eigen-decomposition of each body.
+    for (b, e) in min_pseudo_inertia_eigenvalues(&model, &consistent.params).iter().enumerate() {
+        assert!(*e >= -1e-9, "body {} pseudo-inertia eigenvalue {e}", model.bodies[b].name);
+    }
+    let fo = model.friction_offset();
+    assert!(consistent.params[fo..model.elastic_offset()].iter().all(|f| *f >= -1e-9));
+    // Consistency costs almost nothing here: the truth is consistent.
+    let predicted: Vec<f64> =
+        (0..w.nrows()).map(|i| (0..w.ncols()).map(|j| w[(i, j)] * consistent.params[j]).sum()).collect();
+    let metrics = joint_metrics(&tau_f, &predicted, 3);
+    for k in 0..3 {
+        assert!(metrics.fp_percent[k] > ols.metrics.fp_percent[k] - 1.0, "joint {k}: {metrics:?} vs {:?}", ols.metrics);
+    }
+    // And its base parameters agree with the truth about as well as OLS's do.
+    let (mut beta_c, mut beta_true) = (vec![0.0; base.rank], vec![0.0; base.rank]);
+    base.project(&consistent.params, &mut beta_c);
+    base.project(&pi, &mut beta_true);
+    let err = |b: &[f64]| b.iter().zip(&beta_true).map(|(x, y)| (x - y).powi(2)).sum::<f64>().sqrt();
+    assert!(err(&beta_c) < 2.0 * err(&ols.beta) + 1e-6, "consistent {} vs OLS {}", err(&beta_c), err(&ols.beta));
 }

@@ -72,7 +72,8 @@ pub struct Fit {
 /// `instrument_holder.my_R` differ only through small yaw-coupling terms; their σ% reports it.
 pub const CONDITION_LIMIT: f64 = 1e8;
 
-/// `W` (rows = samples × dof, p columns) and `τ` stacked in the same row order.
+/// `W` (rows = samples × dof, one column per base parameter) and `τ`, stacked in the same row
+/// order.
 ///
 /// Coulomb friction columns step where a velocity changes sign, but the measured torque has been
 /// low-pass filtered, so its steps are smoothed. Left alone, that mismatch biases the whole fit
@@ -80,31 +81,40 @@ pub const CONDITION_LIMIT: f64 = 1e8;
 /// torque ("parallel filtering"). The other columns are smooth functions of signals already
 /// filtered far below the cut-off, and the filter leaves them unchanged.
 pub fn stack(model: &Model, base: &BaseParameters, data: &Preprocessed) -> (Mat<f64>, Vec<f64>) {
-    let (n, big_p, p) = (model.dof(), model.num_params(), base.rank);
+    (stack_columns(model, data, &base.independent), data.tau.clone())
+}
+
+/// The full regressor (all P standard parameters) stacked like [`stack`].
+pub fn stack_full(model: &Model, data: &Preprocessed) -> (Mat<f64>, Vec<f64>) {
+    let all: Vec<usize> = (0..model.num_params()).collect();
+    (stack_columns(model, data, &all), data.tau.clone())
+}
+
+fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f64> {
+    let (n, big_p) = (model.dof(), model.num_params());
     let samples = data.samples();
-    let mut w = Mat::<f64>::zeros(samples * n, p);
+    let mut w = Mat::<f64>::zeros(samples * n, columns.len());
     let mut ws = Data::new(model);
-    let (mut y, mut y_r) = (vec![0.0; n * big_p], vec![0.0; n * p]);
+    let mut y = vec![0.0; n * big_p];
     for s in 0..samples {
         let at = |x: &[f64]| x[s * n..(s + 1) * n].to_vec();
         regressor(model, &mut ws, &at(&data.q), &at(&data.qd), &at(&data.qdd), &mut y);
-        base.reduce(&y, &mut y_r);
         for k in 0..n {
-            for c in 0..p {
-                w[(s * n + k, c)] = y_r[k * p + c];
+            for (c, &j) in columns.iter().enumerate() {
+                w[(s * n + k, c)] = y[k * big_p + j];
             }
         }
     }
     for k in 0..n {
         let coulomb = model.friction_offset() + 2 * k + 1;
-        let Some(c) = base.independent.iter().position(|&j| j == coulomb) else { continue };
+        let Some(c) = columns.iter().position(|&j| j == coulomb) else { continue };
         let column: Vec<f64> = (0..samples).map(|s| w[(s * n + k, c)]).collect();
         let filtered = data.filter_like_torque(&column, 1).expect("the torque was filtered with these settings");
         for (s, v) in filtered.into_iter().enumerate() {
             w[(s * n + k, c)] = v;
         }
     }
-    (w, data.tau.clone())
+    w
 }
 
 /// Fit β by OLS or WLS on preprocessed data.

@@ -1,0 +1,197 @@
+//! Physically consistent identification: least squares over the full standard parameter vector π
+//! with every body's pseudo-inertia positive semidefinite (Wensing, Kim and Slotine 2017),
+//! non-negative friction and bounded cable stiffness, solved as a semidefinite program by Clarabel.
+//!
+//! Problem (π ∈ R^P):
+//!
+//!   minimise  (1/m)‖W π − τ‖² + (1/m)·λ Σᵢ ((πᵢ − π_CAD,ᵢ) / sᵢ)²
+//!   subject to  J_b(π) ⪰ 0 for every body,  fv, fc ≥ 0,  ke_lo ≤ ke ≤ ke_hi
+//!
+//! W is the full stacked regressor (m rows). The second term is a weak pull toward CAD. Data fix
+//! only the base parameters, so it picks one π among the many that fit equally well. Each
+//! parameter is pulled in proportion to how strongly the data sees it on its own:
+//!
+//!   λᵢ = pull · (‖wᵢ‖² + 10⁻³ · c̄ / sᵢ²)
+//!
+//! So `pull = 1e-4` keeps CAD ten thousand times weaker than the data along every column. The floor
+//! term, with c̄ the mean of ‖wᵢ‖²sᵢ², still pulls parameters the data never sees. `sᵢ` is the
+//! parameter's natural scale: body mass m_b, m_b·ℓ for first moments, m_b·ℓ² for inertias, with
+//! ℓ = 0.1 m; 1 for friction and stiffness.
+
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
+use faer::Mat;
+
+use crate::model::Model;
+use crate::spatial::{pseudo_inertia, BODY_PARAMS};
+
+/// Settings for [`identify_consistent`].
+#[derive(Clone, Debug)]
+pub struct ConsistentOptions {
+    /// Strength of the pull toward CAD, relative to the data (0 disables it).
+    pub pull: f64,
+    /// Bounds on each joint's cable stiffness `ke` (N·m/rad or N/m).
+    pub stiffness_bounds: (f64, f64),
+    /// Length scale ℓ used to scale first moments and inertias (m).
+    pub length_scale: f64,
+}
+
+impl Default for ConsistentOptions {
+    fn default() -> Self {
+        Self { pull: 1e-4, stiffness_bounds: (0.0, f64::INFINITY), length_scale: 0.1 }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ConsistentError {
+    #[error("the consistent problem has no solution: {0:?} (check the stiffness bounds)")]
+    Infeasible(SolverStatus),
+    #[error("Clarabel stopped with {0:?}; the consistent estimate is not reliable")]
+    SolverFailed(SolverStatus),
+    #[error("W has {cols} columns but the model has {params} parameters")]
+    Shape { cols: usize, params: usize },
+}
+
+/// The physically consistent estimate.
+#[derive(Clone, Debug)]
+pub struct ConsistentFit {
+    /// The full standard parameter vector.
+    pub params: Vec<f64>,
+    /// Smallest eigenvalue of each body's pseudo-inertia (≥ 0 up to solver tolerance).
+    pub min_pseudo_inertia_eigenvalue: Vec<f64>,
+    pub status: SolverStatus,
+    pub iterations: u32,
+    pub solve_time_s: f64,
+}
+
+/// Per-parameter scales `s` (see the module documentation).
+pub fn parameter_scales(model: &Model, length_scale: f64) -> Vec<f64> {
+    let mut s = Vec::with_capacity(model.num_params());
+    for body in &model.bodies {
+        let m = body.inertial[0];
+        let l = length_scale;
+        s.extend_from_slice(&[m, m * l, m * l, m * l, m * l * l, m * l * l, m * l * l, m * l * l, m * l * l, m * l * l]);
+    }
+    s.extend(std::iter::repeat_n(1.0, 3 * model.dof()));
+    s
+}
+
+/// Smallest eigenvalue of each body's 4×4 pseudo-inertia for parameters `params`.
+pub fn min_pseudo_inertia_eigenvalues(model: &Model, params: &[f64]) -> Vec<f64> {
+    (0..model.bodies.len())
+        .map(|b| pseudo_inertia(&params[b * BODY_PARAMS..(b + 1) * BODY_PARAMS]).symmetric_eigenvalues().min())
+        .collect()
+}
+
+/// Solve the consistent problem for a stacked full regressor `w` (m × P) and torques `tau`.
+pub fn identify_consistent(
+    model: &Model,
+    w: &Mat<f64>,
+    tau: &[f64],
+    options: &ConsistentOptions,
+) -> Result<ConsistentFit, ConsistentError> {
+    let p = model.num_params();
+    if w.ncols() != p {
+        return Err(ConsistentError::Shape { cols: w.ncols(), params: p });
+    }
+    let m = w.nrows() as f64;
+    let gram = w.transpose() * w;
+    let tau_mat = Mat::<f64>::from_fn(tau.len(), 1, |i, _| tau[i]);
+    let wt_tau = w.transpose() * &tau_mat;
+    let cad = model.cad_parameters();
+    let scales = parameter_scales(model, options.length_scale);
+    let mean_curvature = (0..p).map(|i| gram[(i, i)] * scales[i] * scales[i]).sum::<f64>() / p as f64;
+    // ½ πᵀPπ + qᵀπ with P = 2(WᵀW + Λ)/m and q = −2(Wᵀτ + Λ π_CAD)/m.
+    let reg = |i: usize| options.pull * (gram[(i, i)] + 1e-3 * mean_curvature / (scales[i] * scales[i]));
+    let mut p_triplets = (Vec::new(), Vec::new(), Vec::new());
+    for j in 0..p {
+        for i in 0..=j {
+            let v = 2.0 * (gram[(i, j)] + if i == j { reg(i) } else { 0.0 }) / m;
+            if v != 0.0 {
+                p_triplets.0.push(i);
+                p_triplets.1.push(j);
+                p_triplets.2.push(v);
+            }
+        }
+    }
+    let p_mat = CscMatrix::new_from_triplets(p, p, p_triplets.0, p_triplets.1, p_triplets.2);
+    let q: Vec<f64> = (0..p).map(|i| -2.0 * (wt_tau[(i, 0)] + reg(i) * cad[i]) / m).collect();
+    let (a_mat, b, cones) = constraints(model, options.stiffness_bounds);
+    let settings = DefaultSettingsBuilder::default().verbose(false).max_iter(200).build().expect("valid settings");
+    let mut solver = DefaultSolver::new(&p_mat, &q, &a_mat, &b, &cones, settings).expect("well-formed problem");
+    solver.solve();
+    let status = solver.solution.status;
+    match status {
+        SolverStatus::Solved | SolverStatus::AlmostSolved => {}
+        SolverStatus::PrimalInfeasible | SolverStatus::AlmostPrimalInfeasible => {
+            return Err(ConsistentError::Infeasible(status))
+        }
+        other => return Err(ConsistentError::SolverFailed(other)),
+    }
+    let params = solver.solution.x.clone();
+    Ok(ConsistentFit {
+        min_pseudo_inertia_eigenvalue: min_pseudo_inertia_eigenvalues(model, &params),
+        params,
+        status,
+        iterations: solver.solution.iterations,
+        solve_time_s: solver.solution.solve_time,
+    })
+}
+
+/// `A π + s = b`, `s ∈ K`: non-negative friction, stiffness bounds, then one 4×4 PSD cone per body.
+fn constraints(model: &Model, (ke_lo, ke_hi): (f64, f64)) -> (CscMatrix<f64>, Vec<f64>, Vec<SupportedConeT<f64>>) {
+    let p = model.num_params();
+    let (mut rows, mut cols, mut vals, mut b) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut push = |row: usize, col: usize, val: f64, rows: &mut Vec<usize>, cols: &mut Vec<usize>| {
+        rows.push(row);
+        cols.push(col);
+        vals.push(val);
+    };
+    // Non-negative orthant: s = π_i − lo ≥ 0 (A = −e_i, b = −lo) or s = hi − π_i ≥ 0 (A = e_i).
+    let mut row = 0;
+    for i in model.friction_offset()..model.elastic_offset() {
+        push(row, i, -1.0, &mut rows, &mut cols);
+        b.push(0.0);
+        row += 1;
+    }
+    for i in model.elastic_offset()..p {
+        if ke_lo.is_finite() {
+            push(row, i, -1.0, &mut rows, &mut cols);
+            b.push(-ke_lo);
+            row += 1;
+        }
+        if ke_hi.is_finite() {
+            push(row, i, 1.0, &mut rows, &mut cols);
+            b.push(ke_hi);
+            row += 1;
+        }
+    }
+    let mut cones = vec![SupportedConeT::NonnegativeConeT(row)];
+    // svec of J(π_b), upper triangle column by column, off-diagonals × √2; s = svec(J) = −Aπ.
+    let r2 = std::f64::consts::SQRT_2;
+    // (entry, [(body parameter index, coefficient)]) with indices m 0, mx 1, my 2, mz 3, Ixx 4,
+    // Iyy 5, Izz 6, Ixy 7, Ixz 8, Iyz 9; Σ = ½ tr(I)·1 − I.
+    let svec: [&[(usize, f64)]; 10] = [
+        &[(4, -0.5), (5, 0.5), (6, 0.5)],
+        &[(7, -r2)],
+        &[(4, 0.5), (5, -0.5), (6, 0.5)],
+        &[(8, -r2)],
+        &[(9, -r2)],
+        &[(4, 0.5), (5, 0.5), (6, -0.5)],
+        &[(1, r2)],
+        &[(2, r2)],
+        &[(3, r2)],
+        &[(0, 1.0)],
+    ];
+    for body in 0..model.bodies.len() {
+        for entry in svec {
+            for &(k, c) in entry {
+                push(row, body * BODY_PARAMS + k, -c, &mut rows, &mut cols);
+            }
+            b.push(0.0);
+            row += 1;
+        }
+        cones.push(SupportedConeT::PSDTriangleConeT(4));
+    }
+    (CscMatrix::new_from_triplets(row, p, rows, cols, vals), b, cones)
+}
