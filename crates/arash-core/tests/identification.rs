@@ -70,7 +70,8 @@ fn true_parameters(model: &Model, rng: &mut ChaCha8Rng) -> Vec<f64> {
         let m = p[0];
         let c = Vec3::new(p[1], p[2], p[3]) / m;
         let i_com = rotational_inertia(p) - (Mat3::identity() * c.dot(&c) - c * c.transpose()) * m;
-        let shift = Vec3::new(rng.random_range(-0.01..0.01), rng.random_range(-0.01..0.01), rng.random_range(-0.01..0.01));
+        let shift =
+            Vec3::new(rng.random_range(-0.01..0.01), rng.random_range(-0.01..0.01), rng.random_range(-0.01..0.01));
         let new = params_from_com(
             m * (1.0 + rng.random_range(-0.3..0.3)),
             &(c + shift),
@@ -135,7 +136,7 @@ fn three_sigma_counts(model: &Model, base: &BaseParameters, seed: u64) -> [usize
         }
     }
     [Method::Ols, Method::Wls].map(|method| {
-        let fit = fit_stacked(&w, &tau, n, &base, method).unwrap();
+        let fit = fit_stacked(&w, &tau, n, &base, method, 1).unwrap();
         assert!(fit.metrics.fp_percent.iter().all(|fp| *fp > 50.0), "{:?}", fit.metrics.fp_percent);
         (0..p).filter(|&i| (fit.beta[i] - beta_true[i]).abs() <= 3.0 * fit.sigma_beta[i]).count()
     })

@@ -16,13 +16,13 @@ use pyo3::prelude::*;
 type NumpyArray<'py> = Bound<'py, PyArrayDyn<f64>>;
 
 /// A validated batch of vectors, copied row-major into `values` (`n × width`).
-struct Batch {
-    n: usize,
-    single: bool,
-    values: Vec<f64>,
+pub(crate) struct Batch {
+    pub(crate) n: usize,
+    pub(crate) single: bool,
+    pub(crate) values: Vec<f64>,
 }
 
-fn batch(name: &str, array: &PyReadonlyArrayDyn<'_, f64>, width: usize) -> PyResult<Batch> {
+pub(crate) fn batch(name: &str, array: &PyReadonlyArrayDyn<'_, f64>, width: usize) -> PyResult<Batch> {
     let view = array.as_array();
     let shape = view.shape().to_vec();
     let (n, single) = match shape.as_slice() {
@@ -46,7 +46,20 @@ fn batch(name: &str, array: &PyReadonlyArrayDyn<'_, f64>, width: usize) -> PyRes
     Ok(Batch { n, single, values })
 }
 
-fn same_length(batches: &[(&str, &Batch)]) -> PyResult<usize> {
+/// A finite 1-D array of any length.
+pub(crate) fn vector(name: &str, array: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Vec<f64>> {
+    let view = array.as_array();
+    if view.ndim() != 1 {
+        return Err(PyValueError::new_err(format!("{name} must be one-dimensional, got shape {:?}", view.shape())));
+    }
+    let values: Vec<f64> = view.iter().copied().collect();
+    if let Some(i) = values.iter().position(|x| !x.is_finite()) {
+        return Err(PyValueError::new_err(format!("{name} is not finite at sample {i}: {}", values[i])));
+    }
+    Ok(values)
+}
+
+pub(crate) fn same_length(batches: &[(&str, &Batch)]) -> PyResult<usize> {
     let (first_name, first) = batches[0];
     for (name, b) in &batches[1..] {
         if b.n != first.n || b.single != first.single {
@@ -120,7 +133,7 @@ where
     });
 }
 
-fn to_numpy<'py>(
+pub(crate) fn to_numpy<'py>(
     py: Python<'py>,
     values: Vec<f64>,
     single: bool,
@@ -139,8 +152,10 @@ fn row(b: &Batch, i: usize, width: usize) -> &[f64] {
 
 /// A robot model: kinematic tree, mimic couplings, CAD parameters.
 #[pyclass(module = "arash._arash", frozen)]
-struct Robot {
-    model: Arc<Model>,
+pub(crate) struct Robot {
+    pub(crate) model: Arc<Model>,
+    /// The URDF text the model was built from (identified models embed it).
+    pub(crate) urdf: Arc<str>,
 }
 
 impl Robot {
@@ -168,15 +183,17 @@ impl Robot {
     #[staticmethod]
     #[pyo3(signature = (path, coulomb_epsilon=None))]
     fn from_urdf(path: std::path::PathBuf, coulomb_epsilon: Option<f64>) -> PyResult<Self> {
-        let model = core::load_urdf(&path).map_err(|e| PyValueError::new_err(e.to_string()))?;
-        Self::with_shape(model, coulomb_epsilon)
+        let text = std::fs::read_to_string(&path)
+            .map_err(|source| core::UrdfError::Io { path: path.display().to_string(), source })
+            .map_err(value_error)?;
+        Self::from_text(&text, coulomb_epsilon)
     }
 
     /// The bundled ARASH:ASiST reconstruction.
     #[staticmethod]
     #[pyo3(signature = (coulomb_epsilon=None))]
     fn arash_asist(coulomb_epsilon: Option<f64>) -> PyResult<Self> {
-        Self::with_shape(core::arash_asist(), coulomb_epsilon)
+        Self::from_text(core::ARASH_ASIST_URDF, coulomb_epsilon)
     }
 
     #[getter]
@@ -395,7 +412,8 @@ impl Robot {
 }
 
 impl Robot {
-    fn with_shape(mut model: Model, coulomb_epsilon: Option<f64>) -> PyResult<Self> {
+    pub(crate) fn from_text(urdf: &str, coulomb_epsilon: Option<f64>) -> PyResult<Self> {
+        let mut model = core::parse_urdf(urdf).map_err(value_error)?;
         if let Some(epsilon) = coulomb_epsilon {
             if !(epsilon.is_finite() && epsilon > 0.0) {
                 return Err(PyValueError::new_err(format!(
@@ -404,15 +422,15 @@ impl Robot {
             }
             model.coulomb_shape = CoulombShape::Tanh { epsilon };
         }
-        Ok(Self { model: Arc::new(model) })
+        Ok(Self { model: Arc::new(model), urdf: Arc::from(urdf) })
     }
 }
 
 /// β = B π: the identifiable combinations of the standard parameters.
 #[pyclass(module = "arash._arash", frozen)]
-struct BaseParameters {
-    model: Arc<Model>,
-    base: CoreBase,
+pub(crate) struct BaseParameters {
+    pub(crate) model: Arc<Model>,
+    pub(crate) base: CoreBase,
 }
 
 #[pymethods]
@@ -536,12 +554,15 @@ fn filtfilt<'py>(
     Ok(array.into_pyarray(py))
 }
 
-fn value_error(e: impl std::fmt::Display) -> PyErr {
+pub(crate) fn value_error(e: impl std::fmt::Display) -> PyErr {
     PyValueError::new_err(e.to_string())
 }
 
+mod identify;
+
 #[pymodule]
 fn _arash(module: &Bound<'_, PyModule>) -> PyResult<()> {
+    identify::register(module)?;
     module.add_function(wrap_pyfunction!(butter, module)?)?;
     module.add_function(wrap_pyfunction!(filtfilt, module)?)?;
     module.add_class::<Robot>()?;

@@ -70,7 +70,18 @@ pub fn parameter_scales(model: &Model, length_scale: f64) -> Vec<f64> {
     for body in &model.bodies {
         let m = body.inertial[0];
         let l = length_scale;
-        s.extend_from_slice(&[m, m * l, m * l, m * l, m * l * l, m * l * l, m * l * l, m * l * l, m * l * l, m * l * l]);
+        s.extend_from_slice(&[
+            m,
+            m * l,
+            m * l,
+            m * l,
+            m * l * l,
+            m * l * l,
+            m * l * l,
+            m * l * l,
+            m * l * l,
+            m * l * l,
+        ]);
     }
     s.extend(std::iter::repeat_n(1.0, 3 * model.dof()));
     s

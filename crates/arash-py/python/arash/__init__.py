@@ -9,6 +9,28 @@ array; a single ``(dof,)`` vector gives a result without the batch axis.
 23
 """
 
-from ._arash import BaseParameters, Robot, __version__, butter, filtfilt
+from ._arash import (
+    BaseParameters,
+    Identification,
+    Robot,
+    __version__,
+    butter,
+    consistent_least_squares,
+    filtfilt,
+    identify,
+    load_model,
+    paper_validation_trajectory,
+)
 
-__all__ = ["BaseParameters", "Robot", "__version__", "butter", "filtfilt"]
+__all__ = [
+    "BaseParameters",
+    "Identification",
+    "Robot",
+    "__version__",
+    "butter",
+    "consistent_least_squares",
+    "filtfilt",
+    "identify",
+    "load_model",
+    "paper_validation_trajectory",
+]

@@ -1,0 +1,275 @@
+//! `arash.identify`, `Identification`, `arash.load_model`, `arash.consistent_least_squares` and
+//! the paper's validation trajectory.
+
+use std::sync::Arc;
+
+use arash_core::base_parameters::{BaseParameterOptions, BaseParameters as CoreBase};
+use arash_core::identify::consistent::{identify_consistent, ConsistentOptions};
+use arash_core::identify::preprocess::PreprocessOptions;
+use arash_core::identify::{
+    identify as core_identify, paper_validation_state, validate, Identification as CoreIdentification, IdentifyMethod,
+    IdentifyOptions,
+};
+use arash_core::Model;
+use faer::Mat;
+use numpy::PyReadonlyArrayDyn;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::{batch, same_length, to_numpy, value_error, vector, BaseParameters, NumpyArray, Robot};
+
+/// Validated log arrays: t (N,), q and tau (N, dof).
+fn log_arrays(
+    t: &PyReadonlyArrayDyn<'_, f64>,
+    q: &PyReadonlyArrayDyn<'_, f64>,
+    tau: &PyReadonlyArrayDyn<'_, f64>,
+    dof: usize,
+) -> PyResult<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+    let t = vector("t", t)?;
+    let (q, tau) = (batch("q", q, dof)?, batch("tau", tau, dof)?);
+    if q.single || tau.single {
+        return Err(PyValueError::new_err(format!("q and tau must have shape (N, {dof})")));
+    }
+    let n = t.len();
+    if q.n != n || tau.n != n {
+        return Err(PyValueError::new_err(format!("t has {n} samples, q has {} and tau has {}", q.n, tau.n)));
+    }
+    Ok((t, q.values, tau.values))
+}
+
+/// An identified model. Arrays are numpy; `params` is None unless the method was "consistent".
+#[pyclass(module = "arash._arash", frozen)]
+pub(crate) struct Identification {
+    model: Arc<Model>,
+    inner: CoreIdentification,
+}
+
+#[pymethods]
+impl Identification {
+    #[getter]
+    fn method(&self) -> String {
+        format!("{:?}", self.inner.settings.method).to_lowercase()
+    }
+    #[getter]
+    fn beta<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
+        to_numpy(py, self.inner.beta.clone(), false, self.inner.beta.len(), &[])
+    }
+    #[getter]
+    fn sigma_percent<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
+        to_numpy(py, self.inner.sigma_percent.clone(), false, self.inner.sigma_percent.len(), &[])
+    }
+    /// FP% per joint on the training data.
+    #[getter]
+    fn fp_percent<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
+        let v = self.inner.training.fp_percent.clone();
+        to_numpy(py, v.clone(), false, v.len(), &[])
+    }
+    /// FP% per joint of plain OLS on the same data.
+    #[getter]
+    fn fp_percent_ols<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
+        let v = self.inner.training_ols.fp_percent.clone();
+        to_numpy(py, v.clone(), false, v.len(), &[])
+    }
+    #[getter]
+    fn relative_error<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
+        let v = self.inner.training.relative_error.clone();
+        to_numpy(py, v.clone(), false, v.len(), &[])
+    }
+    #[getter]
+    fn rms<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
+        let v = self.inner.training.rms.clone();
+        to_numpy(py, v.clone(), false, v.len(), &[])
+    }
+    #[getter]
+    fn params<'py>(&self, py: Python<'py>) -> PyResult<Option<NumpyArray<'py>>> {
+        self.inner.params.as_ref().map(|p| to_numpy(py, p.clone(), false, p.len(), &[])).transpose()
+    }
+    #[getter]
+    fn min_pseudo_inertia_eigenvalue<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
+        let v = self.inner.min_pseudo_inertia_eigenvalue.clone();
+        to_numpy(py, v.clone(), false, v.len(), &[])
+    }
+    #[getter]
+    fn cutoff_hz(&self) -> f64 {
+        self.inner.settings.cutoff_hz
+    }
+    #[getter]
+    fn condition_number(&self) -> f64 {
+        self.inner.condition_number
+    }
+    /// The base parameters the β refer to.
+    #[getter]
+    fn base(&self) -> PyResult<BaseParameters> {
+        let base = CoreBase::compute(&self.model, &BaseParameterOptions::default()).map_err(value_error)?;
+        Ok(BaseParameters { model: Arc::clone(&self.model), base })
+    }
+    /// The robot the model belongs to.
+    #[getter]
+    fn robot(&self) -> PyResult<Robot> {
+        Robot::from_text(&self.inner.urdf, None)
+    }
+
+    /// Predicted torques for (N, dof) states.
+    fn predict<'py>(
+        &self,
+        py: Python<'py>,
+        q: PyReadonlyArrayDyn<'py, f64>,
+        qd: PyReadonlyArrayDyn<'py, f64>,
+        qdd: PyReadonlyArrayDyn<'py, f64>,
+    ) -> PyResult<NumpyArray<'py>> {
+        let n = self.model.dof();
+        let (q, qd, qdd) = (batch("q", &q, n)?, batch("qd", &qd, n)?, batch("qdd", &qdd, n)?);
+        let count = same_length(&[("q", &q), ("qd", &qd), ("qdd", &qdd)])?;
+        let out = py.detach(|| self.inner.predict(&self.model, &q.values, &qd.values, &qdd.values));
+        to_numpy(py, out, q.single, count, &[n])
+    }
+
+    /// FP%, relative error and RMS per joint on another log, preprocessed like the training data.
+    #[pyo3(signature = (t, q, tau, *, periods=None))]
+    fn validate<'py>(
+        &self,
+        py: Python<'py>,
+        t: PyReadonlyArrayDyn<'py, f64>,
+        q: PyReadonlyArrayDyn<'py, f64>,
+        tau: PyReadonlyArrayDyn<'py, f64>,
+        periods: Option<usize>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let (t, q, tau) = log_arrays(&t, &q, &tau, self.model.dof())?;
+        let options = PreprocessOptions { periods, order: self.inner.settings.order, ..Default::default() };
+        let m = py.detach(|| validate(&self.model, &self.inner, &t, &q, &tau, &options)).map_err(value_error)?;
+        let dict = PyDict::new(py);
+        let dof = self.model.dof();
+        dict.set_item("fp_percent", to_numpy(py, m.fp_percent, false, dof, &[])?)?;
+        dict.set_item("rel", to_numpy(py, m.relative_error, false, dof, &[])?)?;
+        dict.set_item("rms", to_numpy(py, m.rms, false, dof, &[])?)?;
+        Ok(dict)
+    }
+
+    /// Text table in the shape of the paper's Table I.
+    fn table(&self) -> String {
+        self.inner.table()
+    }
+
+    fn to_json(&self) -> String {
+        self.inner.to_json()
+    }
+
+    /// Write the model file (JSON, with the URDF embedded).
+    fn save(&self, path: std::path::PathBuf) -> PyResult<()> {
+        write_atomically(&path, &self.inner.to_json()).map_err(value_error)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Identification(method='{}', p={}, fp_percent={:?})",
+            self.method(),
+            self.inner.beta.len(),
+            self.inner.training.fp_percent.iter().map(|v| (v * 100.0).round() / 100.0).collect::<Vec<_>>()
+        )
+    }
+}
+
+/// Write via a temporary file and rename, so a crash never leaves half a model file.
+fn write_atomically(path: &std::path::Path, text: &str) -> std::io::Result<()> {
+    let tmp = path.with_extension("json.partial");
+    std::fs::write(&tmp, text)?;
+    std::fs::rename(&tmp, path)
+}
+
+/// Identify the robot's parameters from a log.
+#[pyfunction]
+#[pyo3(signature = (robot, t, q, tau, *, method="ols", periods=None, cutoff_hz=None, order=5, decimate=1,
+                    pull=1e-4, stiffness_bounds=(0.0, f64::INFINITY)))]
+#[allow(clippy::too_many_arguments)]
+fn identify<'py>(
+    py: Python<'py>,
+    robot: &Robot,
+    t: PyReadonlyArrayDyn<'py, f64>,
+    q: PyReadonlyArrayDyn<'py, f64>,
+    tau: PyReadonlyArrayDyn<'py, f64>,
+    method: &str,
+    periods: Option<usize>,
+    cutoff_hz: Option<f64>,
+    order: usize,
+    decimate: usize,
+    pull: f64,
+    stiffness_bounds: (f64, f64),
+) -> PyResult<Identification> {
+    let method: IdentifyMethod = method.parse().map_err(PyValueError::new_err)?;
+    if !(pull >= 0.0 && pull.is_finite()) {
+        return Err(PyValueError::new_err(format!("pull must be a non-negative number, got {pull}")));
+    }
+    let (t, q, tau) = log_arrays(&t, &q, &tau, robot.model.dof())?;
+    let options = IdentifyOptions {
+        preprocess: PreprocessOptions { periods, cutoff_hz, order, decimate },
+        consistent: ConsistentOptions { pull, stiffness_bounds, ..Default::default() },
+        base: BaseParameterOptions::default(),
+    };
+    let model = Arc::clone(&robot.model);
+    let inner =
+        py.detach(|| core_identify(&model, &robot.urdf, &t, &q, &tau, method, &options)).map_err(value_error)?;
+    Ok(Identification { model, inner })
+}
+
+/// Read a model file written by `Identification.save` or `arash identify`.
+#[pyfunction]
+fn load_model(path: std::path::PathBuf) -> PyResult<Identification> {
+    let text = std::fs::read_to_string(&path)
+        .map_err(|e| PyValueError::new_err(format!("cannot read model file {}: {e}", path.display())))?;
+    let inner = CoreIdentification::from_json(&text).map_err(value_error)?;
+    let robot = Robot::from_text(&inner.urdf, None)?;
+    Ok(Identification { model: robot.model, inner })
+}
+
+/// The physically consistent least-squares problem on a given stacked full regressor W (m, P)
+/// and torque vector tau (m,): returns π.
+#[pyfunction]
+#[pyo3(signature = (robot, w, tau, *, pull=1e-4, stiffness_bounds=(0.0, f64::INFINITY)))]
+fn consistent_least_squares<'py>(
+    py: Python<'py>,
+    robot: &Robot,
+    w: PyReadonlyArrayDyn<'py, f64>,
+    tau: PyReadonlyArrayDyn<'py, f64>,
+    pull: f64,
+    stiffness_bounds: (f64, f64),
+) -> PyResult<NumpyArray<'py>> {
+    let p = robot.model.num_params();
+    let w = batch("w", &w, p)?;
+    let tau = vector("tau", &tau)?;
+    if w.n != tau.len() {
+        return Err(PyValueError::new_err(format!("w has {} rows but tau has {}", w.n, tau.len())));
+    }
+    let mat = Mat::<f64>::from_fn(w.n, p, |i, j| w.values[i * p + j]);
+    let options = ConsistentOptions { pull, stiffness_bounds, ..Default::default() };
+    let fit = py.detach(|| identify_consistent(&robot.model, &mat, &tau, &options)).map_err(value_error)?;
+    to_numpy(py, fit.params, false, p, &[])
+}
+
+/// The paper's validation trajectory at ω (rad/s), sampled at times t: (q, qd, qdd), each (N, 3).
+#[pyfunction]
+fn paper_validation_trajectory<'py>(
+    py: Python<'py>,
+    omega: f64,
+    t: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<(NumpyArray<'py>, NumpyArray<'py>, NumpyArray<'py>)> {
+    let t = vector("t", &t)?;
+    let (mut q, mut qd, mut qdd) = (Vec::new(), Vec::new(), Vec::new());
+    for &ti in &t {
+        let (a, b, c) = paper_validation_state(omega, ti);
+        q.extend(a);
+        qd.extend(b);
+        qdd.extend(c);
+    }
+    let n = t.len();
+    Ok((to_numpy(py, q, false, n, &[3])?, to_numpy(py, qd, false, n, &[3])?, to_numpy(py, qdd, false, n, &[3])?))
+}
+
+pub(crate) fn register(module: &Bound<'_, PyModule>) -> PyResult<()> {
+    module.add_class::<Identification>()?;
+    module.add_function(wrap_pyfunction!(identify, module)?)?;
+    module.add_function(wrap_pyfunction!(load_model, module)?)?;
+    module.add_function(wrap_pyfunction!(consistent_least_squares, module)?)?;
+    module.add_function(wrap_pyfunction!(paper_validation_trajectory, module)?)?;
+    Ok(())
+}

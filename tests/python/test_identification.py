@@ -1,0 +1,153 @@
+"""Identification end to end on simulated data with known truth, and the SDP against cvxpy."""
+
+import math
+
+import numpy as np
+import pytest
+
+import arash
+from simulated import fourier_trajectory, log, pseudo_inertia, true_parameters
+
+FS = 1000.0
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return arash.Robot.arash_asist()
+
+
+@pytest.fixture(scope="module")
+def truth(robot):
+    return true_parameters(robot, np.random.default_rng(1))
+
+
+@pytest.fixture(scope="module")
+def training(robot, truth):
+    rng = np.random.default_rng(2)
+    traj = fourier_trajectory(robot, rng)
+    t = np.arange(0, 4 * 15.0, 1 / FS)
+    return log(robot, truth, traj, t, rng)
+
+
+def test_ols_recovers_the_truth_and_reports_tables(robot, truth, training, tmp_path):
+    ident = arash.identify(robot, *training, method="ols", periods=4)
+    base = robot.base_parameters()
+    beta_true = base.project(truth)
+    assert ident.beta.shape == (23,) and ident.sigma_percent.shape == (23,)
+    assert ident.params is None
+    assert np.all(ident.fp_percent > 90), ident.fp_percent
+    # Predictions on fresh states match the true model to within 2 % of the torque range.
+    q, qd, qdd = fourier_trajectory(robot, np.random.default_rng(3))(np.linspace(0, 15, 3000))
+    exact = robot.inverse_dynamics(q, qd, qdd, truth)
+    err = np.abs(ident.predict(q, qd, qdd) - exact).max(axis=0) / np.abs(exact).max(axis=0)
+    assert np.all(err < 0.05), err
+    # σ% is honest on filtered data: the truth lies within 3σ for nearly every parameter.
+    sigma = ident.sigma_percent / 100 * np.abs(ident.beta)
+    within = np.abs(ident.beta - beta_true) <= 3 * sigma
+    assert within.mean() >= 0.9, (within, ident.sigma_percent)
+    table = ident.table()
+    assert "β23" in table and "FP%" in table
+    path = tmp_path / "model.json"
+    ident.save(path)
+    again = arash.load_model(path)
+    np.testing.assert_array_equal(again.beta, ident.beta)
+    np.testing.assert_array_equal(again.predict(q, qd, qdd), ident.predict(q, qd, qdd))
+    assert again.robot.parameter_names() == robot.parameter_names()
+
+
+def test_consistent_identification_is_physical(robot, training):
+    ident = arash.identify(robot, *training, method="consistent", periods=4, decimate=5)
+    params = ident.params
+    assert params is not None and params.shape == (89,)
+    for b in range(8):  # independent of Clarabel's status: numpy's eigenvalues
+        assert np.linalg.eigvalsh(pseudo_inertia(params[10 * b : 10 * b + 10])).min() > -1e-9
+    assert np.all(params[80:86] >= -1e-9)
+    assert np.all(ident.fp_percent > ident.fp_percent_ols - 1.0)
+    np.testing.assert_allclose(ident.beta, ident.base.project(params), rtol=1e-12)
+
+
+def test_table_ii_cross_validation_on_the_papers_trajectories(robot, truth, training):
+    ident = arash.identify(robot, *training, method="wls", periods=4)
+    rng = np.random.default_rng(4)
+    rows = []
+    for omega in (0.3, 0.5, 0.7, 0.9):
+        period = 2 * math.pi / omega
+        t = np.arange(0, 3 * period, 1 / FS)
+        t = t[: int(3 * round(period * FS))]
+        states = arash.paper_validation_trajectory(omega, t)
+        fp = ident.validate(*log(robot, truth, states, t, rng), periods=3)["fp_percent"]
+        rows.append(fp)
+    rows = np.array(rows)
+    # The model is right, so only noise limits FP%; every cell is high.
+    assert np.all(rows > 80), rows
+
+
+def test_bad_logs_are_refused(robot, training):
+    t, q, tau = training
+    with pytest.raises(ValueError, match="q is not finite at sample 5"):
+        bad = q.copy()
+        bad[5, 1] = np.nan
+        arash.identify(robot, t, bad, tau)
+    with pytest.raises(ValueError, match="t has 60000 samples, q has 59999"):
+        arash.identify(robot, t, q[:-1], tau)
+    with pytest.raises(ValueError, match="at least 2 whole periods"):
+        arash.identify(robot, t, q, tau, periods=1)
+    with pytest.raises(ValueError, match="not uniformly sampled"):
+        t2 = t.copy()
+        t2[1000:] += 0.5
+        arash.identify(robot, t2, q, tau)
+    with pytest.raises(ValueError, match="unknown method `lasso`"):
+        arash.identify(robot, t, q, tau, method="lasso")
+    still = np.tile(q[:1], (len(t), 1))  # the robot never moves
+    with pytest.raises(ValueError, match="does not excite"):
+        arash.identify(robot, t, still, tau)
+
+
+def cvxpy_consistent(cp, robot, W, tau, pull):
+    """The consistent problem written independently in cvxpy (see identify/consistent.rs)."""
+    m = W.shape[0]
+    cad = robot.cad_parameters()
+    ell = 0.1
+    scales = []
+    for b in range(8):
+        mass = cad[10 * b]
+        scales += [mass] + [mass * ell] * 3 + [mass * ell**2] * 6
+    scales = np.array(scales + [1.0] * 9)
+    gram_diag = (W**2).sum(axis=0)
+    mean_curv = np.mean(gram_diag * scales**2)
+    lam = pull * (gram_diag + 1e-3 * mean_curv / scales**2)
+    x = cp.Variable(89)
+    objective = (cp.sum_squares(W @ x - tau) + cp.sum(cp.multiply(lam, cp.square(x - cad)))) / m
+    constraints = [x[80:86] >= 0, x[86:89] >= 0]
+    for b in range(8):
+        m_, hx, hy, hz, ixx, iyy, izz, ixy, ixz, iyz = [x[10 * b + i] for i in range(10)]
+        J = cp.bmat([
+            [0.5 * (-ixx + iyy + izz), -ixy, -ixz, hx],
+            [-ixy, 0.5 * (ixx - iyy + izz), -iyz, hy],
+            [-ixz, -iyz, 0.5 * (ixx + iyy - izz), hz],
+            [hx, hy, hz, m_],
+        ])
+        constraints.append(J >> 0)
+    problem = cp.Problem(cp.Minimize(objective), constraints)
+    problem.solve(solver=cp.CLARABEL)
+    assert problem.status == "optimal"
+    value = lambda v: (((W @ v - tau) ** 2).sum() + (lam * (v - cad) ** 2).sum()) / m
+    return x.value, problem.value, value
+
+
+@pytest.mark.parametrize("pull", [1e-4, 1e-1])
+def test_consistent_solve_matches_cvxpy(robot, truth, pull):
+    cp = pytest.importorskip("cvxpy")
+    rng = np.random.default_rng(5)
+    q, qd, qdd = fourier_trajectory(robot, rng)(np.linspace(0, 15, 400))
+    W = robot.regressor(q, qd, qdd).reshape(-1, 89)
+    noise = np.tile([0.003, 0.003, 0.05], 400) * rng.normal(size=1200)
+    tau = W @ truth + noise
+    ours = arash.consistent_least_squares(robot, W, tau, pull=pull)
+    theirs, optimum, value = cvxpy_consistent(cp, robot, W, tau, pull)
+    # Same optimum value to solver tolerance, and the same torques.
+    assert value(ours) == pytest.approx(optimum, rel=1e-6, abs=1e-10)
+    np.testing.assert_allclose(W @ ours, W @ theirs, rtol=0, atol=1e-4 * np.abs(W @ theirs).max())
+    if pull >= 1e-1:
+        # Pulled hard enough toward CAD, the minimiser is unique and well conditioned: compare π.
+        np.testing.assert_allclose(ours, theirs, rtol=1e-3, atol=1e-5 * np.abs(theirs).max())
