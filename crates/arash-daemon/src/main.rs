@@ -1,10 +1,9 @@
-//! `arash`: the command-line front of the ARASH:ASiST software.
+//! `arash`: the command-line front of the ARASH:ASiST software. Each subcommand lives in
+//! `commands/`; this file only parses arguments and reports errors.
 
-use std::path::PathBuf;
+mod commands;
+mod csvlog;
 
-use anyhow::Context;
-use arash_core::base_parameters::BaseParameterOptions;
-use arash_core::{load_urdf, BaseParameters, JointKind, Model};
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
@@ -17,69 +16,17 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Describe a robot: bodies, joints, parameter count and base parameters.
-    Model {
-        /// The robot's URDF (mimic joints describe closed chains).
-        urdf: PathBuf,
-        /// Random states stacked to find the base parameters.
-        #[arg(long, default_value_t = 400)]
-        samples: usize,
-        /// Seed of the state sampler.
-        #[arg(long, default_value_t = 0x5eed)]
-        seed: u64,
-    },
+    Model(commands::model::Args),
+    /// Design a persistently exciting Fourier trajectory and write it as JSON.
+    Excite(commands::excite::Args),
+    /// Identify the dynamic parameters from logged runs and write a model file.
+    Identify(commands::identify::Args),
 }
 
 fn main() -> anyhow::Result<()> {
     match Cli::parse().command {
-        Command::Model { urdf, samples, seed } => {
-            let model = load_urdf(&urdf).with_context(|| format!("loading {}", urdf.display()))?;
-            let options = BaseParameterOptions { samples, seed, ..Default::default() };
-            let base = BaseParameters::compute(&model, &options).context("computing base parameters")?;
-            print!("{}", describe(&model, &base));
-            Ok(())
-        }
+        Command::Model(args) => commands::model::run(args),
+        Command::Excite(args) => commands::excite::run(args),
+        Command::Identify(args) => commands::identify::run(args),
     }
-}
-
-fn describe(model: &Model, base: &BaseParameters) -> String {
-    let mut s = format!(
-        "robot `{}`: {} dof, {} moving bodies\n\njoints (SI: rad, m; limits shown in degrees and mm):\n",
-        model.name,
-        model.dof(),
-        model.bodies.len()
-    );
-    for j in &model.joints {
-        let (scale, unit) =
-            if j.kind == JointKind::Prismatic { (1e3, "mm") } else { (180.0 / std::f64::consts::PI, "°") };
-        s += &format!(
-            "  {:<12} {:<9} [{:>7.2}, {:>7.2}] {unit}  |q̇| ≤ {:.1} {unit}/s\n",
-            j.name,
-            format!("{:?}", j.kind).to_lowercase(),
-            j.lower * scale,
-            j.upper * scale,
-            j.velocity * scale
-        );
-    }
-    s += "\nbodies (mass, driven by):\n";
-    for (b, body) in model.bodies.iter().enumerate() {
-        let driver = match body.coupling {
-            Some(c) if model.joints[c.index].body == b => "actuated".to_string(),
-            Some(c) => format!("mimic {} × {} + {}", model.joints[c.index].name, c.multiplier, c.offset),
-            None => "fixed".into(),
-        };
-        s += &format!("  {:<22} {:>7.4} kg  joint `{}` ({driver})\n", body.name, body.inertial[0], body.joint);
-    }
-    s += &format!(
-        "\nstandard parameters: {} (10 × {} bodies + 3 × {} joints)\nbase parameters: p = {} (rank gap: kept ≥ {:.2e}, dropped ≤ {:.2e})\n",
-        model.num_params(),
-        model.bodies.len(),
-        model.dof(),
-        base.rank,
-        base.rank_gap.0,
-        base.rank_gap.1
-    );
-    for e in &base.expressions {
-        s += &format!("  {e}\n");
-    }
-    s
 }

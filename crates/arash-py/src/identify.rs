@@ -267,9 +267,107 @@ fn paper_validation_trajectory<'py>(
 
 pub(crate) fn register(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_class::<Identification>()?;
+    module.add_class::<Excitation>()?;
+    module.add_function(wrap_pyfunction!(design_excitation, module)?)?;
     module.add_function(wrap_pyfunction!(identify, module)?)?;
     module.add_function(wrap_pyfunction!(load_model, module)?)?;
     module.add_function(wrap_pyfunction!(consistent_least_squares, module)?)?;
     module.add_function(wrap_pyfunction!(paper_validation_trajectory, module)?)?;
     Ok(())
+}
+
+/// A designed excitation trajectory (Fourier coefficients and the condition number achieved).
+#[pyclass(module = "arash._arash", frozen)]
+pub(crate) struct Excitation {
+    inner: arash_core::identify::excitation::Excitation,
+}
+
+#[pymethods]
+impl Excitation {
+    #[getter]
+    fn condition_number(&self) -> f64 {
+        self.inner.condition_number
+    }
+    #[getter]
+    fn period_s(&self) -> f64 {
+        self.inner.period_s
+    }
+    #[getter]
+    fn harmonics(&self) -> usize {
+        self.inner.harmonics
+    }
+    /// (t, q, qd, qdd) over `periods` periods at `rate_hz`; q and its rates are (N, dof).
+    #[pyo3(signature = (rate_hz=1000.0, periods=1))]
+    fn sample<'py>(
+        &self,
+        py: Python<'py>,
+        rate_hz: f64,
+        periods: usize,
+    ) -> PyResult<(NumpyArray<'py>, NumpyArray<'py>, NumpyArray<'py>, NumpyArray<'py>)> {
+        if !(rate_hz.is_finite() && rate_hz > 0.0) {
+            return Err(PyValueError::new_err(format!("rate_hz must be positive, got {rate_hz}")));
+        }
+        let (t, q, qd, qdd) = self.inner.sample(rate_hz, periods);
+        let (n, dof) = (t.len(), self.inner.q0.len());
+        Ok((
+            to_numpy(py, t, false, n, &[])?,
+            to_numpy(py, q, false, n, &[dof])?,
+            to_numpy(py, qd, false, n, &[dof])?,
+            to_numpy(py, qdd, false, n, &[dof])?,
+        ))
+    }
+    /// The coefficients as JSON.
+    fn to_json(&self) -> String {
+        serde_json::to_string_pretty(&self.inner).expect("serialisable")
+    }
+    fn __repr__(&self) -> String {
+        format!(
+            "Excitation(L={}, T={} s, κ={:.3})",
+            self.inner.harmonics, self.inner.period_s, self.inner.condition_number
+        )
+    }
+}
+
+/// Design a persistently exciting Fourier trajectory (minimum normalised condition number within
+/// the limits, at rest at both ends). Progress goes to stderr unless `quiet`.
+#[pyfunction]
+#[pyo3(signature = (robot, *, harmonics=5, period_s=15.0, restarts=6, seed=1, iterations=4000,
+                    acceleration_limits=None, quiet=false))]
+#[allow(clippy::too_many_arguments)]
+fn design_excitation(
+    py: Python<'_>,
+    robot: &Robot,
+    harmonics: usize,
+    period_s: f64,
+    restarts: usize,
+    seed: u64,
+    iterations: u64,
+    acceleration_limits: Option<Vec<f64>>,
+    quiet: bool,
+) -> PyResult<Excitation> {
+    use arash_core::identify::excitation::{design_excitation as design, ExcitationOptions};
+    let base = CoreBase::compute(&robot.model, &BaseParameterOptions::default()).map_err(value_error)?;
+    let options = ExcitationOptions {
+        harmonics,
+        period_s,
+        restarts,
+        seed,
+        iterations,
+        acceleration_limits,
+        ..Default::default()
+    };
+    let model = Arc::clone(&robot.model);
+    let inner = py
+        .detach(|| {
+            design(&model, &base, &options, &mut |p| {
+                if !quiet {
+                    eprintln!(
+                        "excitation restart {}/{}: best κ = {:.3}",
+                        p.restart, p.restarts, p.best_condition_number
+                    );
+                }
+            })
+        })
+        .map_err(value_error)?;
+    Ok(Excitation { inner })
 }

@@ -4,6 +4,7 @@
 
 pub mod consistent;
 pub mod estimate;
+pub mod excitation;
 pub mod filter;
 pub mod preprocess;
 

@@ -11,11 +11,13 @@ array; a single ``(dof,)`` vector gives a result without the batch axis.
 
 from ._arash import (
     BaseParameters,
+    Excitation,
     Identification,
     Robot,
     __version__,
     butter,
     consistent_least_squares,
+    design_excitation,
     filtfilt,
     identify,
     load_model,
@@ -24,11 +26,13 @@ from ._arash import (
 
 __all__ = [
     "BaseParameters",
+    "Excitation",
     "Identification",
     "Robot",
     "__version__",
     "butter",
     "consistent_least_squares",
+    "design_excitation",
     "filtfilt",
     "identify",
     "load_model",

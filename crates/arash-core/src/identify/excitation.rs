@@ -1,0 +1,399 @@
+//! Excitation trajectory design (paper eqs. 18–20): a finite Fourier series per joint,
+//!
+//!   q(t) = q₀ + Σₗ [aₗ/(ω l) sin(ω l t) − bₗ/(ω l) cos(ω l t)],   ω = 2π/T,
+//!
+//! whose coefficients minimise the condition number of the normalised, stacked reduced regressor
+//! over one period, within the position, speed and acceleration limits.
+//!
+//! **Normalisation.** `W` stacks `Y_r` at `samples` evenly spaced instants of one period. Each
+//! column of `W` is divided by its Euclidean norm, and the condition number is that of the result,
+//! σ_max/σ_min. This makes κ independent of the units of the base parameters (kg against kg·m²
+//! against N·m·s/rad). Without the scaling, κ measures mostly those units.
+//!
+//! **Starting and ending at rest.** q̇(t) = Σ aₗ cos(ωlt) + bₗ sin(ωlt), so q̇(0) = Σ aₗ and
+//! q̈(0) = ω Σ l·bₗ. Fixing a₁ = −Σₗ₍≥₂₎ aₗ and b₁ = −Σₗ₍≥₂₎ l·bₗ makes both zero. The series is
+//! T-periodic, so it also ends at rest. The optimiser sees only the free coefficients.
+//!
+//! **Optimiser.** Nelder–Mead from the `argmin` crate on log κ plus a quadratic penalty on limit
+//! violations. It runs several seeded restarts and keeps the best feasible result, so a given seed
+//! always gives the same trajectory.
+
+use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
+use argmin::solver::neldermead::NelderMead;
+use nalgebra::DMatrix;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::base_parameters::BaseParameters;
+use crate::data::Data;
+use crate::model::{JointKind, Model};
+use crate::regressor::regressor;
+
+/// Settings for [`design_excitation`]; `Default` is the paper's L = 5, T = 15 s.
+#[derive(Clone, Debug)]
+pub struct ExcitationOptions {
+    pub harmonics: usize,
+    pub period_s: f64,
+    /// Seeded restarts of the optimiser.
+    pub restarts: usize,
+    pub seed: u64,
+    /// Instants per period in the condition-number objective.
+    pub samples: usize,
+    /// Acceleration limit per joint (rad/s² or m/s²); `None` uses 5 × the speed limit per second.
+    pub acceleration_limits: Option<Vec<f64>>,
+    /// Fraction of each position range kept clear at both ends.
+    pub margin: f64,
+    /// Nelder–Mead iterations per restart.
+    pub iterations: u64,
+}
+
+impl Default for ExcitationOptions {
+    fn default() -> Self {
+        Self {
+            harmonics: 5,
+            period_s: 15.0,
+            restarts: 6,
+            seed: 1,
+            samples: 150,
+            acceleration_limits: None,
+            margin: 0.05,
+            iterations: 4000,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ExcitationError {
+    #[error("{0}")]
+    BadOptions(String),
+    #[error("no restart found a trajectory within the limits (best violation {0:.3e}); widen the limits or use fewer harmonics")]
+    Infeasible(f64),
+}
+
+/// A designed excitation: the Fourier coefficients and what they achieve.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Excitation {
+    pub harmonics: usize,
+    pub period_s: f64,
+    /// Offsets q₀ per joint (rad or m).
+    pub q0: Vec<f64>,
+    /// `a[j][l]`, `b[j][l]` for joint j and harmonic l + 1 (rad/s or m/s).
+    pub a: Vec<Vec<f64>>,
+    pub b: Vec<Vec<f64>>,
+    /// Normalised condition number achieved (see the module documentation).
+    pub condition_number: f64,
+}
+
+impl Excitation {
+    fn omega(&self) -> f64 {
+        2.0 * std::f64::consts::PI / self.period_s
+    }
+
+    /// Position, velocity and acceleration at time `t` (SI).
+    pub fn state(&self, t: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let (n, w) = (self.q0.len(), self.omega());
+        let (mut q, mut qd, mut qdd) = (self.q0.clone(), vec![0.0; n], vec![0.0; n]);
+        for j in 0..n {
+            for l in 0..self.harmonics {
+                let wl = w * (l + 1) as f64;
+                let (s, c) = (wl * t).sin_cos();
+                let (a, b) = (self.a[j][l], self.b[j][l]);
+                q[j] += a / wl * s - b / wl * c;
+                qd[j] += a * c + b * s;
+                qdd[j] += wl * (-a * s + b * c);
+            }
+        }
+        (q, qd, qdd)
+    }
+
+    /// Sampled at `rate_hz` over `periods` periods: (t, q, q̇, q̈), the latter row-major N × dof.
+    pub fn sample(&self, rate_hz: f64, periods: usize) -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
+        let count = (self.period_s * rate_hz).round() as usize * periods;
+        let (mut t, mut q, mut qd, mut qdd) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for i in 0..count {
+            let ti = i as f64 / rate_hz;
+            let (a, b, c) = self.state(ti);
+            t.push(ti);
+            q.extend(a);
+            qd.extend(b);
+            qdd.extend(c);
+        }
+        (t, q, qd, qdd)
+    }
+
+    /// Sum of limit violations (each relative to its limit) over a fine grid; 0 when feasible.
+    pub fn limit_violation(&self, limits: &Limits) -> f64 {
+        let mut violation = 0.0;
+        for i in 0..400 {
+            let (q, qd, qdd) = self.state(self.period_s * i as f64 / 400.0);
+            for j in 0..q.len() {
+                let range = limits.upper[j] - limits.lower[j];
+                violation += ((limits.lower[j] - q[j]).max(0.0) + (q[j] - limits.upper[j]).max(0.0)) / range;
+                violation += (qd[j].abs() - limits.velocity[j]).max(0.0) / limits.velocity[j];
+                violation += (qdd[j].abs() - limits.acceleration[j]).max(0.0) / limits.acceleration[j];
+            }
+        }
+        violation
+    }
+}
+
+/// The limits a trajectory must respect (margins already applied).
+#[derive(Clone, Debug)]
+pub struct Limits {
+    pub lower: Vec<f64>,
+    pub upper: Vec<f64>,
+    pub velocity: Vec<f64>,
+    pub acceleration: Vec<f64>,
+}
+
+impl Limits {
+    pub fn from_model(model: &Model, options: &ExcitationOptions) -> Result<Self, ExcitationError> {
+        let n = model.dof();
+        let (mut lower, mut upper, mut velocity) = (vec![], vec![], vec![]);
+        for joint in &model.joints {
+            let (lo, hi) = if joint.lower.is_finite() && joint.upper.is_finite() {
+                (joint.lower, joint.upper)
+            } else if joint.kind == JointKind::Prismatic {
+                (-0.1, 0.1)
+            } else {
+                (-std::f64::consts::PI, std::f64::consts::PI)
+            };
+            let m = options.margin * (hi - lo);
+            lower.push(lo + m);
+            upper.push(hi - m);
+            velocity.push(if joint.velocity.is_finite() { joint.velocity } else { 2.0 });
+        }
+        let acceleration = match &options.acceleration_limits {
+            Some(a) if a.len() != n => {
+                return Err(ExcitationError::BadOptions(format!(
+                    "acceleration_limits has {} entries, the robot {n} joints",
+                    a.len()
+                )))
+            }
+            Some(a) if a.iter().any(|x| !(x.is_finite() && *x > 0.0)) => {
+                return Err(ExcitationError::BadOptions("acceleration limits must be positive and finite".into()))
+            }
+            Some(a) => a.clone(),
+            None => velocity.iter().map(|v| 5.0 * v).collect(),
+        };
+        Ok(Self { lower, upper, velocity, acceleration })
+    }
+}
+
+/// Progress of [`design_excitation`], for a progress display.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    pub restart: usize,
+    pub restarts: usize,
+    /// Best feasible κ so far (∞ before the first).
+    pub best_condition_number: f64,
+}
+
+/// The normalised condition number of the stacked reduced regressor over one period.
+pub fn normalised_condition_number(
+    model: &Model,
+    base: &BaseParameters,
+    excitation: &Excitation,
+    samples: usize,
+) -> f64 {
+    let w = stacked(model, base, excitation, samples);
+    let scaled = normalise_columns(w);
+    let sv = scaled.singular_values();
+    sv.max() / sv.min()
+}
+
+fn stacked(model: &Model, base: &BaseParameters, excitation: &Excitation, samples: usize) -> DMatrix<f64> {
+    let (n, big_p, p) = (model.dof(), model.num_params(), base.rank);
+    let mut data = Data::new(model);
+    let (mut y, mut y_r) = (vec![0.0; n * big_p], vec![0.0; n * p]);
+    let mut w = DMatrix::zeros(samples * n, p);
+    for s in 0..samples {
+        let (q, qd, qdd) = excitation.state(excitation.period_s * s as f64 / samples as f64);
+        regressor(model, &mut data, &q, &qd, &qdd, &mut y);
+        base.reduce(&y, &mut y_r);
+        for k in 0..n {
+            for c in 0..p {
+                w[(s * n + k, c)] = y_r[k * p + c];
+            }
+        }
+    }
+    w
+}
+
+fn normalise_columns(mut w: DMatrix<f64>) -> DMatrix<f64> {
+    for mut column in w.column_iter_mut() {
+        let norm = column.norm();
+        if norm > 0.0 {
+            column /= norm;
+        }
+    }
+    w
+}
+
+/// The optimisation problem seen by Nelder–Mead.
+#[derive(Clone, Copy)]
+struct Problem<'a> {
+    model: &'a Model,
+    base: &'a BaseParameters,
+    limits: &'a Limits,
+    options: &'a ExcitationOptions,
+}
+
+impl Problem<'_> {
+    /// Free coefficients → excitation (a₁, b₁ fixed by the rest-at-start conditions).
+    fn excitation(&self, x: &[f64]) -> Excitation {
+        let (n, l) = (self.model.dof(), self.options.harmonics);
+        let per_joint = 1 + 2 * (l - 1);
+        let (mut q0, mut a, mut b) = (Vec::new(), Vec::new(), Vec::new());
+        for j in 0..n {
+            let xj = &x[j * per_joint..(j + 1) * per_joint];
+            q0.push(xj[0]);
+            let mut aj = vec![0.0; l];
+            let mut bj = vec![0.0; l];
+            for h in 1..l {
+                aj[h] = xj[h];
+                bj[h] = xj[l - 1 + h];
+            }
+            aj[0] = -aj[1..].iter().sum::<f64>();
+            bj[0] = -(1..l).map(|h| (h + 1) as f64 * bj[h]).sum::<f64>();
+            a.push(aj);
+            b.push(bj);
+        }
+        Excitation { harmonics: l, period_s: self.options.period_s, q0, a, b, condition_number: f64::NAN }
+    }
+
+    fn condition(&self, excitation: &Excitation) -> f64 {
+        // Gram of the column-normalised W: κ = √(λmax/λmin). Cheaper than an SVD per evaluation.
+        let w = normalise_columns(stacked(self.model, self.base, excitation, self.options.samples));
+        let gram = w.transpose() * &w;
+        let eig = gram.symmetric_eigenvalues();
+        (eig.max() / eig.min().max(1e-300)).sqrt()
+    }
+}
+
+impl CostFunction for Problem<'_> {
+    type Param = Vec<f64>;
+    type Output = f64;
+
+    fn cost(&self, x: &Vec<f64>) -> Result<f64, ArgminError> {
+        let excitation = self.excitation(x);
+        let violation = excitation.limit_violation(self.limits);
+        if violation > 0.0 {
+            // Outside the limits the condition number is irrelevant; steer back first.
+            return Ok(100.0 + 1e3 * violation);
+        }
+        Ok(self.condition(&excitation).ln())
+    }
+}
+
+/// Design an excitation trajectory for `model`. `progress` is called after every restart.
+pub fn design_excitation(
+    model: &Model,
+    base: &BaseParameters,
+    options: &ExcitationOptions,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Excitation, ExcitationError> {
+    if options.harmonics < 2 {
+        return Err(ExcitationError::BadOptions("at least 2 harmonics are needed to start and end at rest".into()));
+    }
+    if !(options.period_s.is_finite() && options.period_s > 0.0)
+        || options.restarts == 0
+        || options.samples < 2 * base.rank
+    {
+        return Err(ExcitationError::BadOptions(format!(
+            "need a positive period, at least one restart and at least {} samples",
+            2 * base.rank
+        )));
+    }
+    let limits = Limits::from_model(model, options)?;
+    let problem = Problem { model, base, limits: &limits, options };
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(options.restarts);
+    let mut best: Option<(f64, Vec<f64>)> = None;
+    let mut least_violation = f64::INFINITY;
+    // Restarts run in parallel batches; each has its own seed, so results do not depend on the
+    // number of threads, and progress is reported in restart order.
+    for batch_start in (0..options.restarts).step_by(threads) {
+        let batch: Vec<usize> = (batch_start..(batch_start + threads).min(options.restarts)).collect();
+        let outcomes: Vec<(f64, Option<f64>, Vec<f64>)> = std::thread::scope(|scope| {
+            let (problem, limits) = (&problem, &limits);
+            let handles: Vec<_> = batch.iter().map(|&r| scope.spawn(move || run_restart(problem, limits, r))).collect();
+            handles.into_iter().map(|h| h.join().expect("a restart never panics")).collect()
+        });
+        for (restart, (violation, kappa, x)) in batch.into_iter().zip(outcomes) {
+            least_violation = least_violation.min(violation);
+            if let Some(kappa) = kappa {
+                if best.as_ref().is_none_or(|(k, _)| kappa < *k) {
+                    best = Some((kappa, x));
+                }
+            }
+            progress(Progress {
+                restart: restart + 1,
+                restarts: options.restarts,
+                best_condition_number: best.as_ref().map_or(f64::INFINITY, |b| b.0),
+            });
+        }
+    }
+    let (_, x) = best.ok_or(ExcitationError::Infeasible(least_violation))?;
+    let mut excitation = problem.excitation(&x);
+    excitation.condition_number = normalised_condition_number(model, base, &excitation, options.samples);
+    Ok(excitation)
+}
+
+/// One Nelder–Mead run from a random start seeded by (seed, restart): returns the limit violation,
+/// κ when feasible, and the free coefficients.
+fn run_restart(problem: &Problem, limits: &Limits, restart: usize) -> (f64, Option<f64>, Vec<f64>) {
+    let options = problem.options;
+    let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+    rng.set_stream(restart as u64);
+    let x0 = feasible_start(problem, limits, &mut rng);
+    let simplex = initial_simplex(&x0, limits, options.harmonics);
+    let solver = NelderMead::new(simplex).with_sd_tolerance(1e-6).expect("valid tolerance");
+    let result = Executor::new(*problem, solver)
+        .configure(|state| state.max_iters(options.iterations))
+        .run()
+        .expect("the cost function cannot fail");
+    let x = result.state().get_best_param().cloned().unwrap_or(x0);
+    let excitation = problem.excitation(&x);
+    let violation = excitation.limit_violation(limits);
+    let kappa = (violation == 0.0).then(|| problem.condition(&excitation));
+    (violation, kappa, x)
+}
+
+/// A random start well inside the limits: small coefficients around mid-range offsets.
+fn feasible_start(problem: &Problem, limits: &Limits, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let l = problem.options.harmonics;
+    let w = 2.0 * std::f64::consts::PI / problem.options.period_s;
+    let mut x = Vec::new();
+    for j in 0..problem.model.dof() {
+        let mid = 0.5 * (limits.lower[j] + limits.upper[j]);
+        let half = 0.5 * (limits.upper[j] - limits.lower[j]);
+        // Coefficient scale such that 2(L−1) terms of this size stay within range, speed and
+        // acceleration even with the dependent first harmonic.
+        let scale = (half * w / (4.0 * l as f64))
+            .min(limits.velocity[j] / (4.0 * l as f64))
+            .min(limits.acceleration[j] / (4.0 * (l * l) as f64 * w));
+        x.push(mid);
+        for _ in 0..2 * (l - 1) {
+            x.push(scale * rng.random_range(-1.0..1.0));
+        }
+    }
+    x
+}
+
+fn initial_simplex(x0: &[f64], limits: &Limits, harmonics: usize) -> Vec<Vec<f64>> {
+    let per_joint = 1 + 2 * (harmonics - 1);
+    let mut simplex = vec![x0.to_vec()];
+    for i in 0..x0.len() {
+        let j = i / per_joint;
+        let step = if i % per_joint == 0 {
+            0.05 * (limits.upper[j] - limits.lower[j])
+        } else {
+            0.05 * limits.velocity[j] / harmonics as f64
+        };
+        let mut x = x0.to_vec();
+        x[i] += step;
+        simplex.push(x);
+    }
+    simplex
+}

@@ -1,0 +1,85 @@
+//! `arash identify LOG... --robot ROBOT.urdf`: preprocess, fit, print Tables I and II, write the
+//! model file.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use arash_core::identify::consistent::ConsistentOptions;
+use arash_core::identify::preprocess::PreprocessOptions;
+use arash_core::identify::{identify, validate, validation_table, IdentifyMethod, IdentifyOptions};
+
+use crate::csvlog;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Logged runs (CSV with columns t, q.<joint>, tau.<joint>), concatenated in order.
+    #[arg(required = true)]
+    logs: Vec<PathBuf>,
+    /// The robot's URDF.
+    #[arg(long, default_value = "robots/arash_asist.urdf")]
+    robot: PathBuf,
+    /// ols, wls or consistent.
+    #[arg(long, default_value = "ols")]
+    method: IdentifyMethod,
+    /// Whole excitation periods in the training data (averaged); omit for non-periodic data.
+    #[arg(long)]
+    periods: Option<usize>,
+    /// Low-pass cut-off (Hz); default from the trajectory's bandwidth.
+    #[arg(long)]
+    cutoff: Option<f64>,
+    /// Butterworth order (applied forward and backward).
+    #[arg(long, default_value_t = 5)]
+    order: usize,
+    /// Keep every k-th sample after filtering.
+    #[arg(long, default_value_t = 1)]
+    decimate: usize,
+    /// Pull toward CAD in the consistent fit, relative to the data.
+    #[arg(long, default_value_t = 1e-4)]
+    pull: f64,
+    /// Validation runs (CSV), each cross-validated like the paper's Table II.
+    #[arg(long, num_args = 1..)]
+    validate: Vec<PathBuf>,
+    /// Whole periods in each validation run (averaged); omit for none.
+    #[arg(long)]
+    validate_periods: Option<usize>,
+    /// Model file to write.
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let (model, urdf) = super::load_robot(&args.robot)?;
+    let logs = args.logs.iter().map(|p| csvlog::read(p, &model)).collect::<anyhow::Result<Vec<_>>>()?;
+    let log = csvlog::concatenate(logs);
+    let options = IdentifyOptions {
+        preprocess: PreprocessOptions {
+            periods: args.periods,
+            cutoff_hz: args.cutoff,
+            order: args.order,
+            decimate: args.decimate,
+        },
+        consistent: ConsistentOptions { pull: args.pull, ..Default::default() },
+        ..Default::default()
+    };
+    eprintln!("identifying from {} samples ({} file(s)) with {:?} ...", log.t.len(), args.logs.len(), args.method);
+    let mut identification =
+        identify(&model, &urdf, &log.t, &log.q, &log.tau, args.method, &options).context("identification failed")?;
+    identification.data.sources = args.logs.iter().map(|p| p.display().to_string()).collect();
+    println!("{}", identification.table());
+    if !args.validate.is_empty() {
+        let mut labels = Vec::new();
+        let mut fp = Vec::new();
+        for path in &args.validate {
+            let v = csvlog::read(path, &model)?;
+            let pre = PreprocessOptions { periods: args.validate_periods, order: args.order, ..Default::default() };
+            let metrics = validate(&model, &identification, &v.t, &v.q, &v.tau, &pre)
+                .with_context(|| format!("validating on {}", path.display()))?;
+            labels.push(path.file_stem().map_or("run".into(), |s| s.to_string_lossy().into_owned()));
+            fp.push(metrics.fp_percent);
+        }
+        println!("Cross-validation (FP% per joint, one column per run):\n{}", validation_table(&labels, &fp));
+    }
+    super::write_atomically(&args.output, &identification.to_json())?;
+    println!("wrote {}", args.output.display());
+    Ok(())
+}
