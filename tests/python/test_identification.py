@@ -151,3 +151,36 @@ def test_consistent_solve_matches_cvxpy(robot, truth, pull):
     if pull >= 1e-1:
         # Pulled hard enough toward CAD, the minimiser is unique and well conditioned: compare π.
         np.testing.assert_allclose(ours, theirs, rtol=1e-3, atol=1e-5 * np.abs(theirs).max())
+
+
+def test_design_excitation_from_python(robot):
+    exc = arash.design_excitation(robot, restarts=1, iterations=300, quiet=True)
+    t, q, qd, qdd = exc.sample(500.0, 1)
+    assert q.shape == (int(exc.period_s * 500), 3) and np.isfinite(exc.condition_number)
+    lo, hi = np.array(robot.position_limits()).T
+    assert np.all(q >= lo) and np.all(q <= hi)
+    assert np.all(np.abs(qd) <= np.array(robot.velocity_limits()))
+    np.testing.assert_allclose(qd[0], 0, atol=1e-12)
+    np.testing.assert_allclose(qdd[0], 0, atol=1e-12)
+    again = arash.design_excitation(robot, restarts=1, iterations=300, quiet=True)
+    assert again.to_json() == exc.to_json()  # deterministic for a seed
+    with pytest.raises(ValueError, match="at least 2 harmonics"):
+        arash.design_excitation(robot, harmonics=1, quiet=True)
+
+
+def test_cli_calibration_run_prints_tables_i_and_ii():
+    """The whole CLI path on simulated logs: excitation, CSV logs, `arash identify` with validation."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    out = subprocess.run([sys.executable, str(root / "scripts" / "simulated_calibration.py"), "--quick"],
+                         cwd=root, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    text = out.stdout
+    assert "Identified base parameters (Ols" in text and "Identified base parameters (Consistent" in text
+    assert text.count("Cross-validation (FP% per joint") == 2 and "omega_0.9" in text
+    assert "(physical)" in text  # the consistent model
+    inside = int(text.split("== truth check: ")[1].split("/")[0])
+    assert inside >= 21, text[-500:]

@@ -91,20 +91,32 @@ pub fn stack_full(model: &Model, data: &Preprocessed) -> (Mat<f64>, Vec<f64>) {
 }
 
 fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f64> {
-    let (n, big_p) = (model.dof(), model.num_params());
+    let (n, big_p, c_count) = (model.dof(), model.num_params(), columns.len());
     let samples = data.samples();
-    let mut w = Mat::<f64>::zeros(samples * n, columns.len());
-    let mut ws = Data::new(model);
-    let mut y = vec![0.0; n * big_p];
-    for s in 0..samples {
-        let at = |x: &[f64]| x[s * n..(s + 1) * n].to_vec();
-        regressor(model, &mut ws, &at(&data.q), &at(&data.qd), &at(&data.qdd), &mut y);
-        for k in 0..n {
-            for (c, &j) in columns.iter().enumerate() {
-                w[(s * n + k, c)] = y[k * big_p + j];
-            }
+    // Row-major rows, filled on all cores: each sample's dof rows depend only on that sample.
+    let mut rows = vec![0.0; samples * n * c_count];
+    let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+    let per_thread = samples.div_ceil(threads).max(1);
+    std::thread::scope(|scope| {
+        for (chunk_index, chunk) in rows.chunks_mut(per_thread * n * c_count).enumerate() {
+            scope.spawn(move || {
+                let mut ws = Data::new(model);
+                let mut y = vec![0.0; n * big_p];
+                for (i, block) in chunk.chunks_mut(n * c_count).enumerate() {
+                    let s = chunk_index * per_thread + i;
+                    let range = s * n..(s + 1) * n;
+                    let (q, qd, qdd) = (&data.q[range.clone()], &data.qd[range.clone()], &data.qdd[range]);
+                    regressor(model, &mut ws, q, qd, qdd, &mut y);
+                    for k in 0..n {
+                        for (c, &j) in columns.iter().enumerate() {
+                            block[k * c_count + c] = y[k * big_p + j];
+                        }
+                    }
+                }
+            });
         }
-    }
+    });
+    let mut w = Mat::<f64>::from_fn(samples * n, c_count, |i, c| rows[i * c_count + c]);
     for k in 0..n {
         let coulomb = model.friction_offset() + 2 * k + 1;
         let Some(c) = columns.iter().position(|&j| j == coulomb) else { continue };
@@ -175,9 +187,12 @@ pub fn fit_stacked(
 /// `W`, and the condition number of `W` with unit-norm columns.
 fn solve(w: &Mat<f64>, tau: &[f64], weights: &[f64], dof: usize) -> (Vec<f64>, DMatrix<f64>, f64) {
     let (m, p) = (w.nrows(), w.ncols());
-    let weighted = Mat::<f64>::from_fn(m, p, |i, j| w[(i, j)] * weights[i % dof]);
     let rhs = Mat::<f64>::from_fn(m, 1, |i, _| tau[i] * weights[i % dof]);
-    let qr = weighted.qr();
+    let qr = if weights.iter().all(|w| *w == 1.0) {
+        w.qr()
+    } else {
+        Mat::<f64>::from_fn(m, p, |i, j| w[(i, j)] * weights[i % dof]).qr()
+    };
     let beta_mat = qr.solve_lstsq(&rhs);
     let r = qr.thin_R();
     let r_factor = DMatrix::from_fn(p, p, |i, j| if j >= i { r[(i, j)] } else { 0.0 });
@@ -220,8 +235,8 @@ fn block_sandwich_sigma(
 
 /// Refuse data in which some base parameter never acts, or some combination is invisible.
 fn check_excitation(w: &Mat<f64>, base: &BaseParameters) -> Result<(), EstimateError> {
-    let (m, p) = (w.nrows(), w.ncols());
-    let norms: Vec<f64> = (0..p).map(|j| (0..m).map(|i| w[(i, j)] * w[(i, j)]).sum::<f64>().sqrt()).collect();
+    let p = w.ncols();
+    let norms: Vec<f64> = (0..p).map(|j| w.col(j).norm_l2()).collect();
     let largest = norms.iter().copied().fold(0.0, f64::max);
     let dead: Vec<String> = norms
         .iter()
@@ -232,8 +247,8 @@ fn check_excitation(w: &Mat<f64>, base: &BaseParameters) -> Result<(), EstimateE
     if !dead.is_empty() {
         return Err(EstimateError::NotExcited(dead.join(", ")));
     }
-    let gram =
-        DMatrix::from_fn(p, p, |i, j| (0..m).map(|r| w[(r, i)] * w[(r, j)]).sum::<f64>() / (norms[i] * norms[j]));
+    let raw = w.transpose() * w;
+    let gram = DMatrix::from_fn(p, p, |i, j| raw[(i, j)] / (norms[i] * norms[j]));
     let eig = gram.symmetric_eigen();
     let (imin, min) =
         eig.eigenvalues.iter().enumerate().fold((0, f64::INFINITY), |a, (i, v)| if *v < a.1 { (i, *v) } else { a });
@@ -251,7 +266,9 @@ fn check_excitation(w: &Mat<f64>, base: &BaseParameters) -> Result<(), EstimateE
 }
 
 fn apply(w: &Mat<f64>, beta: &[f64]) -> Vec<f64> {
-    (0..w.nrows()).map(|i| (0..w.ncols()).map(|j| w[(i, j)] * beta[j]).sum()).collect()
+    let b = Mat::<f64>::from_fn(beta.len(), 1, |i, _| beta[i]);
+    let product = w * &b;
+    (0..w.nrows()).map(|i| product[(i, 0)]).collect()
 }
 
 fn residual(w: &Mat<f64>, tau: &[f64], beta: &[f64]) -> Vec<f64> {

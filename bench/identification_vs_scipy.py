@@ -1,0 +1,98 @@
+"""Preprocessing + OLS against numpy/scipy doing the same steps, and the consistent SDP against cvxpy.
+
+Run from the repository root with the test venv:
+    .venv/bin/python bench/identification_vs_scipy.py
+Medians of repeated runs; the machine is shared.
+"""
+
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy import signal
+
+import arash
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
+from simulated import fourier_trajectory, log, true_parameters  # noqa: E402
+from test_identification import cvxpy_consistent  # noqa: E402
+
+FS = 1000.0
+
+
+def median_seconds(fn, repeats=5):
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def scipy_pipeline(robot, base, t, q, tau, periods, cutoff):
+    """The same steps in numpy/scipy: average, filter (sections, filtfilt padding), central
+    differences, filter, regressor (arash's: there is no scipy one), Coulomb parallel filtering,
+    least squares."""
+    sos = signal.butter(5, cutoff, fs=FS, output="sos")
+
+    def filt(x, periodic):
+        if periodic:
+            n = len(x)
+            return signal.sosfiltfilt(sos, np.concatenate([x, x, x]), axis=0, padtype="odd", padlen=18)[n:2 * n]
+        return signal.sosfiltfilt(sos, x, axis=0, padtype="odd", padlen=18)
+
+    periodic = periods is not None
+    if periodic:
+        per = len(t) // periods
+        q = q[: per * periods].reshape(periods, per, -1).mean(axis=0)
+        tau = tau[: per * periods].reshape(periods, per, -1).mean(axis=0)
+    h = 1 / FS
+    diff = (lambda x: (np.roll(x, -1, 0) - np.roll(x, 1, 0)) / (2 * h)) if periodic else (lambda x: np.gradient(x, h, axis=0))
+    qf = filt(q, periodic)
+    qd = filt(diff(qf), periodic)
+    qdd = filt(diff(qd), periodic)
+    tauf = filt(tau, periodic)
+    Yr = base.reduced_regressor(qf, qd, qdd)
+    names = robot.parameter_names()
+    for k, joint in enumerate(robot.joint_names()):
+        c = base.independent.index(names.index(f"{joint}.fc"))
+        Yr[:, k, c] = filt(Yr[:, k, c], periodic)
+    beta, *_ = np.linalg.lstsq(Yr.reshape(-1, base.p), tauf.reshape(-1), rcond=None)
+    return beta
+
+
+def main():
+    robot = arash.Robot.arash_asist()
+    base = robot.base_parameters()
+    rng = np.random.default_rng(0)
+    truth = true_parameters(robot, rng)
+    traj = fourier_trajectory(robot, rng)
+    t = np.arange(300_000) / FS
+    t, q, tau = log(robot, truth, traj, t, rng)
+    cutoff = 1.6667
+
+    for periods, label in ((20, "20 periods averaged (paper)"), (None, "no averaging: all 300,000 samples")):
+        ours = median_seconds(lambda: arash.identify(robot, t, q, tau, method="ols", periods=periods, cutoff_hz=cutoff))
+        peer = median_seconds(lambda: scipy_pipeline(robot, base, t, q, tau, periods, cutoff))
+        a = arash.identify(robot, t, q, tau, method="ols", periods=periods, cutoff_hz=cutoff).beta
+        b = scipy_pipeline(robot, base, t, q, tau, periods, cutoff)
+        agree = np.abs(a - b).max() / np.abs(b).max()
+        print(f"preprocess + OLS, {label}: arash {ours * 1e3:.0f} ms, numpy/scipy {peer * 1e3:.0f} ms, "
+              f"ratio {peer / ours:.1f}×; β agree to {agree:.1e} (max rel.)")
+
+    import cvxpy as cp
+
+    for samples in (1000, 3000):
+        q_s, qd_s, qdd_s = traj(np.linspace(0, 15, samples, endpoint=False))
+        W = robot.regressor(q_s, qd_s, qdd_s).reshape(-1, robot.num_params)
+        tau_s = W @ truth + np.tile([0.003, 0.003, 0.05], samples) * rng.normal(size=3 * samples)
+        ours = median_seconds(lambda: arash.consistent_least_squares(robot, W, tau_s), 7)
+        peer = median_seconds(lambda: cvxpy_consistent(cp, robot, W, tau_s, 1e-4), 3)
+        print(f"consistent SDP, {samples} samples ({3 * samples}×89 W): arash {ours * 1e3:.1f} ms "
+              f"(including forming WᵀW), cvxpy+Clarabel {peer * 1e3:.0f} ms (including modelling), ratio {peer / ours:.0f}×")
+
+
+if __name__ == "__main__":
+    main()
