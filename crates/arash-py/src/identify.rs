@@ -7,7 +7,7 @@ use arash_core::base_parameters::{BaseParameterOptions, BaseParameters as CoreBa
 use arash_core::identify::consistent::{identify_consistent, ConsistentOptions};
 use arash_core::identify::preprocess::PreprocessOptions;
 use arash_core::identify::{
-    identify as core_identify, paper_validation_state, validate, Identification as CoreIdentification, IdentifyMethod,
+    identify_with_base, paper_validation_state, validate, Identification as CoreIdentification, IdentifyMethod,
     IdentifyOptions,
 };
 use arash_core::Model;
@@ -207,8 +207,10 @@ fn identify<'py>(
         base: BaseParameterOptions::default(),
     };
     let model = Arc::clone(&robot.model);
-    let inner =
-        py.detach(|| core_identify(&model, &robot.urdf, &t, &q, &tau, method, &options)).map_err(value_error)?;
+    let base = robot.default_base()?;
+    let inner = py
+        .detach(|| identify_with_base(&model, base, &robot.urdf, &t, &q, &tau, method, &options))
+        .map_err(value_error)?;
     Ok(Identification { model, inner })
 }
 
@@ -346,7 +348,7 @@ fn design_excitation(
     quiet: bool,
 ) -> PyResult<Excitation> {
     use arash_core::identify::excitation::{design_excitation as design, ExcitationOptions};
-    let base = CoreBase::compute(&robot.model, &BaseParameterOptions::default()).map_err(value_error)?;
+    let base = robot.default_base()?;
     let options = ExcitationOptions {
         harmonics,
         period_s,
@@ -359,7 +361,7 @@ fn design_excitation(
     let model = Arc::clone(&robot.model);
     let inner = py
         .detach(|| {
-            design(&model, &base, &options, &mut |p| {
+            design(&model, base, &options, &mut |p| {
                 if !quiet {
                     eprintln!(
                         "excitation restart {}/{}: best κ = {:.3}",

@@ -156,6 +156,8 @@ pub(crate) struct Robot {
     pub(crate) model: Arc<Model>,
     /// The URDF text the model was built from (identified models embed it).
     pub(crate) urdf: Arc<str>,
+    /// Base parameters with default options, computed on first use.
+    pub(crate) default_base: std::sync::OnceLock<CoreBase>,
 }
 
 impl Robot {
@@ -412,6 +414,15 @@ impl Robot {
 }
 
 impl Robot {
+    /// Base parameters with the default sampling, cached: they depend only on the model.
+    pub(crate) fn default_base(&self) -> PyResult<&CoreBase> {
+        if let Some(base) = self.default_base.get() {
+            return Ok(base);
+        }
+        let base = CoreBase::compute(&self.model, &BaseParameterOptions::default()).map_err(value_error)?;
+        Ok(self.default_base.get_or_init(|| base))
+    }
+
     pub(crate) fn from_text(urdf: &str, coulomb_epsilon: Option<f64>) -> PyResult<Self> {
         let mut model = core::parse_urdf(urdf).map_err(value_error)?;
         if let Some(epsilon) = coulomb_epsilon {
@@ -422,7 +433,7 @@ impl Robot {
             }
             model.coulomb_shape = CoulombShape::Tanh { epsilon };
         }
-        Ok(Self { model: Arc::new(model), urdf: Arc::from(urdf) })
+        Ok(Self { model: Arc::new(model), urdf: Arc::from(urdf), default_base: std::sync::OnceLock::new() })
     }
 }
 

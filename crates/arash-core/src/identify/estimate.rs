@@ -163,6 +163,14 @@ pub fn fit_stacked(
     }
     check_excitation(w, base)?;
     let ols = solve(w, tau, &vec![1.0; dof], dof);
+    // κ of the column-scaled W from its R factor, accurate far beyond what a Gram matrix resolves.
+    if ols.2.is_nan() || ols.2 > CONDITION_LIMIT {
+        return Err(EstimateError::IllConditioned {
+            condition: ols.2,
+            limit: CONDITION_LIMIT,
+            direction: weakest_direction(&ols.1, base),
+        });
+    }
     let weights = match method {
         Method::Ols => vec![1.0; dof],
         Method::Wls => {
@@ -175,7 +183,11 @@ pub fn fit_stacked(
     let weighted_residual: Vec<f64> =
         residual(w, tau, &beta).iter().enumerate().map(|(i, e)| e * weights[i % dof]).collect();
     let sigma_p2 = weighted_residual.iter().map(|e| e * e).sum::<f64>() / (m - p) as f64;
-    let r_inv = r_factor.try_inverse().expect("R is non-singular once excitation is checked");
+    let r_inv = r_factor.try_inverse().ok_or_else(|| EstimateError::IllConditioned {
+        condition: f64::INFINITY,
+        limit: CONDITION_LIMIT,
+        direction: "a combination the QR factor found exactly singular".into(),
+    })?;
     let sigma_beta = block_sandwich_sigma(w, &weighted_residual, &weights, dof, block_samples.max(1), &r_inv);
     let sigma_percent = sigma_beta.iter().zip(&beta).map(|(s, b)| 100.0 * s / b.abs()).collect();
     let predicted = apply(w, &beta);
@@ -233,7 +245,7 @@ fn block_sandwich_sigma(
     (0..p).map(|i| cov[(i, i)].max(0.0).sqrt()).collect()
 }
 
-/// Refuse data in which some base parameter never acts, or some combination is invisible.
+/// Refuse data in which some base parameter never acts.
 fn check_excitation(w: &Mat<f64>, base: &BaseParameters) -> Result<(), EstimateError> {
     let p = w.ncols();
     let norms: Vec<f64> = (0..p).map(|j| w.col(j).norm_l2()).collect();
@@ -247,22 +259,21 @@ fn check_excitation(w: &Mat<f64>, base: &BaseParameters) -> Result<(), EstimateE
     if !dead.is_empty() {
         return Err(EstimateError::NotExcited(dead.join(", ")));
     }
-    let raw = w.transpose() * w;
-    let gram = DMatrix::from_fn(p, p, |i, j| raw[(i, j)] / (norms[i] * norms[j]));
-    let eig = gram.symmetric_eigen();
-    let (imin, min) =
-        eig.eigenvalues.iter().enumerate().fold((0, f64::INFINITY), |a, (i, v)| if *v < a.1 { (i, *v) } else { a });
-    let max = eig.eigenvalues.max();
-    let condition = (max / min.max(0.0)).sqrt();
-    if condition > CONDITION_LIMIT {
-        let v = eig.eigenvectors.column(imin);
-        let mut terms: Vec<(usize, f64)> = v.iter().copied().enumerate().filter(|(_, c)| c.abs() > 0.1).collect();
-        terms.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
-        let direction =
-            terms.iter().map(|(j, c)| format!("{c:+.2}·β{} ({})", j + 1, base.names[*j])).collect::<Vec<_>>().join(" ");
-        return Err(EstimateError::IllConditioned { condition, limit: CONDITION_LIMIT, direction });
-    }
     Ok(())
+}
+
+/// The combination of base parameters that the data sees least: the right singular vector of the
+/// column-scaled R for its smallest singular value, as readable terms.
+fn weakest_direction(r_factor: &DMatrix<f64>, base: &BaseParameters) -> String {
+    let p = r_factor.ncols();
+    let scaled = DMatrix::from_fn(p, p, |i, j| r_factor[(i, j)] / r_factor.column(j).norm().max(f64::MIN_POSITIVE));
+    let svd = scaled.svd(false, true);
+    let Some(v_t) = svd.v_t else { return "unknown".into() };
+    let weakest = svd.singular_values.imin();
+    let mut terms: Vec<(usize, f64)> =
+        v_t.row(weakest).iter().copied().enumerate().filter(|(_, c)| c.abs() > 0.1).collect();
+    terms.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+    terms.iter().map(|(j, c)| format!("{c:+.2}·β{} ({})", j + 1, base.names[*j])).collect::<Vec<_>>().join(" ")
 }
 
 fn apply(w: &Mat<f64>, beta: &[f64]) -> Vec<f64> {

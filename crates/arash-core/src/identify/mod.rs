@@ -147,9 +147,24 @@ pub fn identify(
     options: &IdentifyOptions,
 ) -> Result<Identification, IdentifyError> {
     let base = BaseParameters::compute(model, &options.base)?;
+    identify_with_base(model, &base, urdf, t, q, tau, method, options)
+}
+
+/// [`identify`] with base parameters computed beforehand (they depend only on the model).
+#[allow(clippy::too_many_arguments)]
+pub fn identify_with_base(
+    model: &Model,
+    base: &BaseParameters,
+    urdf: &str,
+    t: &[f64],
+    q: &[f64],
+    tau: &[f64],
+    method: IdentifyMethod,
+    options: &IdentifyOptions,
+) -> Result<Identification, IdentifyError> {
     let pre = preprocess(t, q, tau, model.dof(), &options.preprocess)?;
     let ls_method = if method == IdentifyMethod::Wls { Method::Wls } else { Method::Ols };
-    let ls = fit(model, &base, &pre, ls_method)?;
+    let ls = fit(model, base, &pre, ls_method)?;
     let ols_metrics: Metrics = if ls_method == Method::Ols {
         ls.metrics.clone().into()
     } else {
@@ -165,7 +180,7 @@ pub fn identify(
         let metrics = joint_metrics(&tau_f, &predicted, model.dof()).into();
         (beta, Some(c.params), metrics, c.min_pseudo_inertia_eigenvalue)
     } else {
-        let nearest = nearest_standard_parameters(model, &base, &ls.beta);
+        let nearest = nearest_standard_parameters(model, base, &ls.beta);
         let min_eig = min_pseudo_inertia_eigenvalues(model, &nearest);
         (ls.beta.clone(), None, ls.metrics.clone().into(), min_eig)
     };
