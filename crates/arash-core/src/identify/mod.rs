@@ -168,7 +168,7 @@ pub fn identify_with_base(
     let ols_metrics: Metrics = if ls_method == Method::Ols {
         ls.metrics.clone().into()
     } else {
-        fit(model, &base, &pre, Method::Ols)?.metrics.into()
+        fit(model, base, &pre, Method::Ols)?.metrics.into()
     };
     let (beta, params, training, min_eig) = if method == IdentifyMethod::Consistent {
         let (w, tau_f) = stack_full(model, &pre);
