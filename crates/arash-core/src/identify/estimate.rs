@@ -235,14 +235,14 @@ fn corrected_semi_normal(w: &Mat<f64>, b: &Mat<f64>) -> Option<(Vec<f64>, DMatri
     let p = w.ncols();
     let gram = w.transpose() * w;
     let norms: Vec<f64> = (0..p).map(|j| gram[(j, j)].sqrt()).collect();
-    if norms.iter().any(|n| *n == 0.0) {
+    if norms.contains(&0.0) {
         return None;
     }
     let scaled_gram = DMatrix::from_fn(p, p, |i, j| gram[(i, j)] / (norms[i] * norms[j]));
     let r_scaled = scaled_gram.cholesky()?.l().transpose();
     let sv = r_scaled.singular_values();
     let condition = sv.max() / sv.min();
-    if !(condition <= 1e7) {
+    if condition.is_nan() || condition > 1e7 {
         return None;
     }
     // R for the unscaled W: RᵀR = WᵀW.
