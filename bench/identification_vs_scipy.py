@@ -5,9 +5,7 @@ Run from the repository root with the test venv:
 Medians of repeated runs; the machine is shared.
 """
 
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -16,19 +14,12 @@ from scipy import signal
 import arash
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 from simulated import fourier_trajectory, log, true_parameters  # noqa: E402
+from timing import median_seconds  # noqa: E402
 from test_identification import cvxpy_consistent  # noqa: E402
 
 FS = 1000.0
-
-
-def median_seconds(fn, repeats=5):
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
 
 
 def scipy_pipeline(robot, base, t, q, tau, periods, cutoff):
@@ -74,8 +65,8 @@ def main():
     cutoff = 1.6667
 
     for periods, label in ((20, "20 periods averaged (paper)"), (None, "no averaging: all 300,000 samples")):
-        ours = median_seconds(lambda: arash.identify(robot, t, q, tau, method="ols", periods=periods, cutoff_hz=cutoff))
-        peer = median_seconds(lambda: scipy_pipeline(robot, base, t, q, tau, periods, cutoff))
+        ours = median_seconds(lambda: arash.identify(robot, t, q, tau, method="ols", periods=periods, cutoff_hz=cutoff), 5)
+        peer = median_seconds(lambda: scipy_pipeline(robot, base, t, q, tau, periods, cutoff), 5)
         a = arash.identify(robot, t, q, tau, method="ols", periods=periods, cutoff_hz=cutoff).beta
         b = scipy_pipeline(robot, base, t, q, tau, periods, cutoff)
         agree = np.abs(a - b).max() / np.abs(b).max()

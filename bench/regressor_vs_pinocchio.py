@@ -5,9 +5,7 @@ Run from the repository root, with the venv that .ci/run builds:
 Prints medians over repeated runs; the machine is shared, so medians, not means.
 """
 
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -16,17 +14,10 @@ import pinocchio as pin
 import arash
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 from conftest import ROBOT_FILES, random_states  # noqa: E402
+from timing import median_seconds  # noqa: E402
 from test_against_pinocchio import Expanded  # noqa: E402
-
-
-def median_seconds(fn, repeats):
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
 
 
 def main():

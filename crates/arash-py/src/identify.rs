@@ -38,6 +38,11 @@ fn log_arrays(
     Ok((t, q.values, tau.values))
 }
 
+/// A 1-D numpy copy of `values`.
+fn vector_out<'py>(py: Python<'py>, values: &[f64]) -> PyResult<NumpyArray<'py>> {
+    to_numpy(py, values.to_vec(), false, values.len(), &[])
+}
+
 /// An identified model. Arrays are numpy; `params` is None unless the method was "consistent".
 #[pyclass(module = "arash._arash", frozen)]
 pub(crate) struct Identification {
@@ -53,33 +58,29 @@ impl Identification {
     }
     #[getter]
     fn beta<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
-        to_numpy(py, self.inner.beta.clone(), false, self.inner.beta.len(), &[])
+        vector_out(py, &self.inner.beta)
     }
     #[getter]
     fn sigma_percent<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
-        to_numpy(py, self.inner.sigma_percent.clone(), false, self.inner.sigma_percent.len(), &[])
+        vector_out(py, &self.inner.sigma_percent)
     }
     /// FP% per joint on the training data.
     #[getter]
     fn fp_percent<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
-        let v = self.inner.training.fp_percent.clone();
-        to_numpy(py, v.clone(), false, v.len(), &[])
+        vector_out(py, &self.inner.training.fp_percent)
     }
     /// FP% per joint of plain OLS on the same data.
     #[getter]
     fn fp_percent_ols<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
-        let v = self.inner.training_ols.fp_percent.clone();
-        to_numpy(py, v.clone(), false, v.len(), &[])
+        vector_out(py, &self.inner.training_ols.fp_percent)
     }
     #[getter]
     fn relative_error<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
-        let v = self.inner.training.relative_error.clone();
-        to_numpy(py, v.clone(), false, v.len(), &[])
+        vector_out(py, &self.inner.training.relative_error)
     }
     #[getter]
     fn rms<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
-        let v = self.inner.training.rms.clone();
-        to_numpy(py, v.clone(), false, v.len(), &[])
+        vector_out(py, &self.inner.training.rms)
     }
     #[getter]
     fn params<'py>(&self, py: Python<'py>) -> PyResult<Option<NumpyArray<'py>>> {
@@ -87,8 +88,7 @@ impl Identification {
     }
     #[getter]
     fn min_pseudo_inertia_eigenvalue<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
-        let v = self.inner.min_pseudo_inertia_eigenvalue.clone();
-        to_numpy(py, v.clone(), false, v.len(), &[])
+        vector_out(py, &self.inner.min_pseudo_inertia_eigenvalue)
     }
     #[getter]
     fn cutoff_hz(&self) -> f64 {
