@@ -249,8 +249,7 @@ fn consistent_identification_is_physical_and_fits_like_ols() {
     let fo = model.friction_offset();
     assert!(consistent.params[fo..model.elastic_offset()].iter().all(|f| *f >= -1e-9));
     // Consistency costs almost nothing here: the truth is consistent.
-    let predicted: Vec<f64> =
-        (0..w.nrows()).map(|i| (0..w.ncols()).map(|j| w[(i, j)] * consistent.params[j]).sum()).collect();
+    let predicted: Vec<f64> = arash_core::identify::estimate::apply(&w, &consistent.params);
     let metrics = joint_metrics(&tau_f, &predicted, 3);
     for k in 0..3 {
         assert!(metrics.fp_percent[k] > ols.metrics.fp_percent[k] - 1.0, "joint {k}: {metrics:?} vs {:?}", ols.metrics);

@@ -337,7 +337,8 @@ fn weakest_direction(r_factor: &DMatrix<f64>, base: &BaseParameters) -> String {
     terms.iter().map(|(j, c)| format!("{c:+.2}·β{} ({})", j + 1, base.names[*j])).collect::<Vec<_>>().join(" ")
 }
 
-fn apply(w: &Mat<f64>, beta: &[f64]) -> Vec<f64> {
+/// `W x` for a stacked regressor `W` (any number of columns matching `x`).
+pub fn apply(w: &Mat<f64>, beta: &[f64]) -> Vec<f64> {
     let b = Mat::<f64>::from_fn(beta.len(), 1, |i, _| beta[i]);
     let product = w * &b;
     (0..w.nrows()).map(|i| product[(i, 0)]).collect()

@@ -173,8 +173,7 @@ pub fn identify_with_base(
     let (beta, params, training, min_eig) = if method == IdentifyMethod::Consistent {
         let (w, tau_f) = stack_full(model, &pre);
         let c = identify_consistent(model, &w, &tau_f, &options.consistent)?;
-        let predicted: Vec<f64> =
-            (0..w.nrows()).map(|i| (0..w.ncols()).map(|j| w[(i, j)] * c.params[j]).sum()).collect();
+        let predicted: Vec<f64> = estimate::apply(&w, &c.params);
         let mut beta = vec![0.0; base.rank];
         base.project(&c.params, &mut beta);
         let metrics = joint_metrics(&tau_f, &predicted, model.dof()).into();
@@ -359,6 +358,6 @@ pub fn validate(
     // Through the stacked regressor, so that the Coulomb columns are filtered like the torque.
     let (w, tau_f) = stack_full(model, &pre);
     let full = identification.full_or_base_vector();
-    let predicted: Vec<f64> = (0..w.nrows()).map(|i| (0..w.ncols()).map(|j| w[(i, j)] * full[j]).sum()).collect();
+    let predicted: Vec<f64> = estimate::apply(&w, &full);
     Ok(joint_metrics(&tau_f, &predicted, model.dof()).into())
 }
