@@ -46,3 +46,71 @@ fn model_reports_a_malformed_urdf_with_the_offending_element() {
     let err = String::from_utf8(out.stderr).unwrap();
     assert!(err.contains("link `b`") && err.contains("mass -2 kg is not positive"), "{err}");
 }
+
+fn temp_file(name: &str, text: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("arash-cli-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn identify_names_a_missing_column_and_a_bad_cell() {
+    let robot = repo_file("robots/arash_asist.urdf");
+    let missing = temp_file("missing.csv", "t,q.yaw,q.pitch,tau.yaw,tau.pitch,tau.insertion\n0,0,0,0,0,0\n");
+    let out = arash(&["identify", missing.to_str().unwrap(), "--robot", &robot, "-o", "/tmp/never.json"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(err.contains("has no column `q.insertion`"), "{err}");
+
+    let bad = temp_file(
+        "bad.csv",
+        "t,q.yaw,q.pitch,q.insertion,tau.yaw,tau.pitch,tau.insertion\n0,0,0,0,0,0,0\n0.001,0,abc,0,0,0,0\n",
+    );
+    let out = arash(&["identify", bad.to_str().unwrap(), "--robot", &robot, "-o", "/tmp/never.json"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(err.contains("row 3 column `q.pitch` is `abc`"), "{err}");
+}
+
+#[test]
+fn identify_refuses_a_log_that_does_not_move() {
+    let robot = repo_file("robots/arash_asist.urdf");
+    let mut text = String::from("t,q.yaw,q.pitch,q.insertion,tau.yaw,tau.pitch,tau.insertion\n");
+    for i in 0..2000 {
+        text += &format!("{},0.1,0.2,0.003,0.01,0.02,0.3\n", i as f64 * 1e-3);
+    }
+    let still = temp_file("still.csv", &text);
+    let out = arash(&["identify", still.to_str().unwrap(), "--robot", &robot, "-o", "/tmp/never.json"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(err.contains("does not excite"), "{err}");
+}
+
+#[test]
+fn excite_refuses_bad_options_by_name() {
+    let out = arash(&[
+        "excite",
+        "--robot",
+        &repo_file("robots/arash_asist.urdf"),
+        "--harmonics",
+        "1",
+        "-o",
+        "/tmp/never.json",
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(err.contains("at least 2 harmonics"), "{err}");
+    let out = arash(&[
+        "excite",
+        "--robot",
+        &repo_file("robots/arash_asist.urdf"),
+        "--acceleration-limits",
+        "1,2",
+        "-o",
+        "/tmp/never.json",
+    ]);
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(!out.status.success() && err.contains("acceleration_limits has 2 entries"), "{err}");
+}
