@@ -170,11 +170,6 @@ impl Model {
         g
     }
 
-    /// Tree joint positions for actuated positions `q` (`multiplier · q + offset`; 0 for fixed).
-    pub fn tree_positions(&self, q: &[f64]) -> Vec<f64> {
-        self.bodies.iter().map(|b| b.coupling.map_or(0.0, |c| c.multiplier * q[c.index] + c.offset)).collect()
-    }
-
     /// Position limits as `(lower, upper)` per actuated joint.
     pub fn position_limits(&self) -> Vec<(f64, f64)> {
         self.joints.iter().map(|j| (j.lower, j.upper)).collect()

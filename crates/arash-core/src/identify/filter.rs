@@ -10,7 +10,7 @@
 //! comes from the `sci-rs` crate, a port of scipy's.
 
 use sci_rs::signal::filter::design::{butter_dyn, DigitalFilter, FilterBandType, FilterOutputType, Sos};
-use sci_rs::signal::filter::{lfilter_zi_dyn, sosfilt_zi_dyn};
+use sci_rs::signal::filter::sosfilt_zi_dyn;
 
 /// Why a filter could not be designed or applied.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -64,11 +64,6 @@ impl Butterworth {
         b.truncate(order + 1);
         a.truncate(order + 1);
         Ok(Self { order, sections, b, a })
-    }
-
-    /// Steady-state initial conditions of the single transfer function (`lfilter_zi`).
-    pub fn lfilter_zi(&self) -> Vec<f64> {
-        lfilter_zi_dyn(&self.b, &self.a)
     }
 
     /// Numerator and denominator coefficients, as `scipy.signal.butter(..., output="ba")`.
