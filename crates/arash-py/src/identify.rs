@@ -7,7 +7,7 @@ use arash_core::base_parameters::{BaseParameterOptions, BaseParameters as CoreBa
 use arash_core::identify::consistent::{identify_consistent, ConsistentOptions};
 use arash_core::identify::preprocess::PreprocessOptions;
 use arash_core::identify::{
-    identify_with_base, paper_validation_state, validate, Identification as CoreIdentification, IdentifyMethod,
+    identify as core_identify, paper_validation_state, validate, Identification as CoreIdentification, IdentifyMethod,
     IdentifyOptions,
 };
 use arash_core::Model;
@@ -157,7 +157,7 @@ impl Identification {
 
     /// Write the model file (JSON, with the URDF embedded).
     fn save(&self, path: std::path::PathBuf) -> PyResult<()> {
-        write_atomically(&path, &self.inner.to_json()).map_err(value_error)
+        self.inner.save(&path).map_err(|e| PyValueError::new_err(format!("cannot write {}: {e}", path.display())))
     }
 
     fn __repr__(&self) -> String {
@@ -168,13 +168,6 @@ impl Identification {
             self.inner.training.fp_percent.iter().map(|v| (v * 100.0).round() / 100.0).collect::<Vec<_>>()
         )
     }
-}
-
-/// Write via a temporary file and rename, so a crash never leaves half a model file.
-fn write_atomically(path: &std::path::Path, text: &str) -> std::io::Result<()> {
-    let tmp = path.with_extension("json.partial");
-    std::fs::write(&tmp, text)?;
-    std::fs::rename(&tmp, path)
 }
 
 /// Identify the robot's parameters from a log.
@@ -204,13 +197,11 @@ fn identify<'py>(
     let options = IdentifyOptions {
         preprocess: PreprocessOptions { periods, cutoff_hz, order, decimate },
         consistent: ConsistentOptions { pull, stiffness_bounds, ..Default::default() },
-        base: BaseParameterOptions::default(),
     };
     let model = Arc::clone(&robot.model);
     let base = robot.default_base()?;
-    let inner = py
-        .detach(|| identify_with_base(&model, base, &robot.urdf, &t, &q, &tau, method, &options))
-        .map_err(value_error)?;
+    let inner =
+        py.detach(|| core_identify(&model, base, &robot.urdf, &t, &q, &tau, method, &options)).map_err(value_error)?;
     Ok(Identification { model, inner })
 }
 

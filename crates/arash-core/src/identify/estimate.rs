@@ -147,8 +147,7 @@ fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f
 /// of `2·fs/cutoff` samples (see [`fit_stacked`]).
 pub fn fit(model: &Model, base: &BaseParameters, data: &Preprocessed, method: Method) -> Result<Fit, EstimateError> {
     let (w, tau) = stack(model, base, data);
-    let rate = data.t.get(1).map_or(data.sample_rate_hz, |t1| 1.0 / (t1 - data.t[0]));
-    let block = ((2.0 * rate / data.cutoff_hz).ceil() as usize).max(1);
+    let block = ((2.0 * data.rate_hz() / data.cutoff_hz).ceil() as usize).max(1);
     fit_stacked(&w, &tau, model.dof(), base, method, block)
 }
 

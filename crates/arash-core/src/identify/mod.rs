@@ -10,7 +10,7 @@ pub mod preprocess;
 
 use serde::{Deserialize, Serialize};
 
-use crate::base_parameters::{BaseParameterOptions, BaseParameters};
+use crate::base_parameters::BaseParameters;
 use crate::data::Data;
 use crate::model::Model;
 use crate::regressor::regressor;
@@ -47,7 +47,6 @@ impl std::str::FromStr for IdentifyMethod {
 pub struct IdentifyOptions {
     pub preprocess: PreprocessOptions,
     pub consistent: ConsistentOptions,
-    pub base: BaseParameterOptions,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -136,23 +135,10 @@ pub struct Identification {
     pub data: DataSummary,
 }
 
-/// Identify `model` from a log: `t` (N), `q` and `tau` (N × dof, row-major, SI).
-pub fn identify(
-    model: &Model,
-    urdf: &str,
-    t: &[f64],
-    q: &[f64],
-    tau: &[f64],
-    method: IdentifyMethod,
-    options: &IdentifyOptions,
-) -> Result<Identification, IdentifyError> {
-    let base = BaseParameters::compute(model, &options.base)?;
-    identify_with_base(model, &base, urdf, t, q, tau, method, options)
-}
-
-/// [`identify`] with base parameters computed beforehand (they depend only on the model).
+/// Identify `model` from a log: `t` (N), `q` and `tau` (N × dof, row-major, SI). `base` is the
+/// model's [`BaseParameters`], computed once by the caller: they depend only on the model.
 #[allow(clippy::too_many_arguments)]
-pub fn identify_with_base(
+pub fn identify(
     model: &Model,
     base: &BaseParameters,
     urdf: &str,
@@ -221,6 +207,15 @@ pub fn identify_with_base(
     })
 }
 
+/// Write `text` to `path` through a temporary file and a rename, so that a crash never leaves half
+/// a model or trajectory file behind.
+pub fn write_atomically(path: &std::path::Path, text: &str) -> std::io::Result<()> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".partial");
+    std::fs::write(&tmp, text)?;
+    std::fs::rename(&tmp, path)
+}
+
 /// The standard parameters closest to CAD (in the scaled norm of [`consistent::parameter_scales`])
 /// whose base parameters are exactly `beta`: `π = π_CAD + S²Bᵀ(B S² Bᵀ)⁻¹(β − B π_CAD)`.
 pub fn nearest_standard_parameters(model: &Model, base: &BaseParameters, beta: &[f64]) -> Vec<f64> {
@@ -243,6 +238,11 @@ impl Identification {
         serde_json::to_string_pretty(self).expect("an identification always serialises")
     }
 
+    /// Write the model file (JSON, URDF embedded), atomically.
+    pub fn save(&self, path: &std::path::Path) -> std::io::Result<()> {
+        write_atomically(path, &self.to_json())
+    }
+
     pub fn from_json(text: &str) -> Result<Self, IdentifyError> {
         let id: Self = serde_json::from_str(text).map_err(|e| IdentifyError::File(e.to_string()))?;
         if id.format != "arash-model/1" {
@@ -260,8 +260,8 @@ impl Identification {
         let full = self.full_or_base_vector();
         let mut out = Vec::with_capacity(q.len());
         for s in 0..q.len() / n {
-            let at = |x: &[f64]| x[s * n..(s + 1) * n].to_vec();
-            regressor(model, &mut data, &at(q), &at(qd), &at(qdd), &mut y);
+            let range = s * n..(s + 1) * n;
+            regressor(model, &mut data, &q[range.clone()], &qd[range.clone()], &qdd[range], &mut y);
             out.extend(y.chunks(big_p).map(|row| row.iter().zip(&full).map(|(a, b)| a * b).sum::<f64>()));
         }
         out

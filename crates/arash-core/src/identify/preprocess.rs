@@ -70,6 +70,8 @@ pub struct Preprocessed {
     pub order: usize,
     /// Whether the signals are one period of a periodic average (filtered circularly).
     pub periodic: bool,
+    /// Decimation factor applied after filtering.
+    pub decimate: usize,
 }
 
 impl Preprocessed {
@@ -77,11 +79,15 @@ impl Preprocessed {
         self.t.len()
     }
 
+    /// Rate of the preprocessed samples (Hz): the input rate over the decimation factor.
+    pub fn rate_hz(&self) -> f64 {
+        self.sample_rate_hz / self.decimate as f64
+    }
+
     /// Filter an extra `samples × width` signal exactly as the torque was filtered (circularly for
     /// a periodic average). Decimated data cannot be filtered again at the original rate.
     pub fn filter_like_torque(&self, x: &[f64], width: usize) -> Result<Vec<f64>, FilterError> {
-        let decimation = (self.sample_rate_hz * (self.t.get(1).map_or(0.0, |t1| t1 - self.t[0]))).round().max(1.0);
-        let filter = Butterworth::lowpass(self.order, self.cutoff_hz, self.sample_rate_hz / decimation)?;
+        let filter = Butterworth::lowpass(self.order, self.cutoff_hz, self.rate_hz())?;
         filter_columns(&filter, x, width, self.periodic)
     }
 }
@@ -169,6 +175,7 @@ pub fn preprocess(
         periods_averaged: periods,
         order: options.order,
         periodic,
+        decimate: options.decimate,
     })
 }
 

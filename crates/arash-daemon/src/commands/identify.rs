@@ -4,9 +4,12 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::identify::consistent::ConsistentOptions;
 use arash_core::identify::preprocess::PreprocessOptions;
 use arash_core::identify::{identify, validate, validation_table, IdentifyMethod, IdentifyOptions};
+
+use arash_core::BaseParameters;
 
 use crate::csvlog;
 
@@ -59,11 +62,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             decimate: args.decimate,
         },
         consistent: ConsistentOptions { pull: args.pull, ..Default::default() },
-        ..Default::default()
     };
     eprintln!("identifying from {} samples ({} file(s)) with {:?} ...", log.t.len(), args.logs.len(), args.method);
-    let mut identification =
-        identify(&model, &urdf, &log.t, &log.q, &log.tau, args.method, &options).context("identification failed")?;
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::default())?;
+    let mut identification = identify(&model, &base, &urdf, &log.t, &log.q, &log.tau, args.method, &options)
+        .context("identification failed")?;
     identification.data.sources = args.logs.iter().map(|p| p.display().to_string()).collect();
     println!("{}", identification.table());
     if !args.validate.is_empty() {

@@ -13,9 +13,7 @@ pub fn load_robot(path: &Path) -> anyhow::Result<(arash_core::Model, String)> {
     Ok((model, text))
 }
 
-/// Write a file through a temporary name and a rename, so that a crash never leaves half a file.
+/// Write a file atomically (see [`arash_core::identify::write_atomically`]), naming it on failure.
 pub fn write_atomically(path: &Path, text: &str) -> anyhow::Result<()> {
-    let tmp = path.with_extension("partial");
-    std::fs::write(&tmp, text).with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))
+    arash_core::identify::write_atomically(path, text).with_context(|| format!("writing {}", path.display()))
 }
