@@ -164,6 +164,22 @@ pub fn forward_dynamics(
     params: &[f64],
     qdd: &mut [f64],
 ) -> Result<(), DynamicsError> {
+    forward_dynamics_with_armature(model, data, q, qd, tau, params, None, qdd)
+}
+
+/// Forward dynamics with a diagonal `armature` added to `M` (reflected rotor inertia, kg·m² or
+/// kg per joint): `q̈ = (M + diag(armature))⁻¹ (τ − C q̇ − g − friction − elastic)`.
+#[allow(clippy::too_many_arguments)]
+pub fn forward_dynamics_with_armature(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    qd: &[f64],
+    tau: &[f64],
+    params: &[f64],
+    armature: Option<&[f64]>,
+    qdd: &mut [f64],
+) -> Result<(), DynamicsError> {
     let n = model.dof();
     assert!(tau.len() == n && qdd.len() == n, "τ and q̈ must have {n} entries");
     let zeros = std::mem::take(&mut data.zeros);
@@ -176,6 +192,11 @@ pub fn forward_dynamics(
     data.rhs = bias;
     let mut mass = std::mem::take(&mut data.mass);
     fill_mass_matrix(model, data, params, &mut mass);
+    if let Some(armature) = armature {
+        for (k, j) in armature.iter().enumerate() {
+            mass[k * n + k] += j;
+        }
+    }
     let result = cholesky_solve_in_place(&mut mass, n, qdd);
     data.mass = mass;
     result

@@ -8,12 +8,17 @@
 //! Units are SI throughout: rad, m, s, kg, N·m, N.
 
 pub mod base_parameters;
+pub mod control;
 pub mod data;
 pub mod dynamics;
+#[cfg(feature = "flightlog")]
+pub mod flightlog;
 pub mod identify;
 pub mod kinematics;
 pub mod model;
+pub mod record;
 pub mod regressor;
+pub mod sim;
 pub mod spatial;
 pub mod urdf;
 

@@ -21,6 +21,8 @@ enum Command {
     Excite(commands::excite::Args),
     /// Identify the dynamic parameters from logged runs and write a model file.
     Identify(commands::identify::Args),
+    /// Run the simulated rig with a controller on a trajectory and write the flight log (MCAP).
+    Simulate(commands::simulate::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -28,5 +30,6 @@ fn main() -> anyhow::Result<()> {
         Command::Model(args) => commands::model::run(args),
         Command::Excite(args) => commands::excite::run(args),
         Command::Identify(args) => commands::identify::run(args),
+        Command::Simulate(args) => commands::simulate::run(args),
     }
 }

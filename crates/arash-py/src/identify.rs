@@ -50,6 +50,12 @@ pub(crate) struct Identification {
     inner: CoreIdentification,
 }
 
+impl Identification {
+    pub(crate) fn inner(&self) -> &CoreIdentification {
+        &self.inner
+    }
+}
+
 #[pymethods]
 impl Identification {
     #[getter]

@@ -570,10 +570,12 @@ pub(crate) fn value_error(e: impl std::fmt::Display) -> PyErr {
 }
 
 mod identify;
+mod simulate;
 
 #[pymodule]
 fn _arash(module: &Bound<'_, PyModule>) -> PyResult<()> {
     identify::register(module)?;
+    simulate::register(module)?;
     module.add_function(wrap_pyfunction!(butter, module)?)?;
     module.add_function(wrap_pyfunction!(filtfilt, module)?)?;
     module.add_class::<Robot>()?;

@@ -92,9 +92,17 @@ impl Excitation {
 
     /// Position, velocity and acceleration at time `t` (SI).
     pub fn state(&self, t: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-        let (n, w) = (self.q0.len(), self.omega());
-        let (mut q, mut qd, mut qdd) = (self.q0.clone(), vec![0.0; n], vec![0.0; n]);
-        for j in 0..n {
+        let n = self.q0.len();
+        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        self.state_into(t, &mut q, &mut qd, &mut qdd);
+        (q, qd, qdd)
+    }
+
+    /// [`Excitation::state`] into caller buffers, without allocating.
+    pub fn state_into(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
+        let w = self.omega();
+        for j in 0..self.q0.len() {
+            (q[j], qd[j], qdd[j]) = (self.q0[j], 0.0, 0.0);
             for l in 0..self.harmonics {
                 let wl = w * (l + 1) as f64;
                 let (s, c) = (wl * t).sin_cos();
@@ -104,7 +112,6 @@ impl Excitation {
                 qdd[j] += wl * (-a * s + b * c);
             }
         }
-        (q, qd, qdd)
     }
 
     /// Sampled at `rate_hz` over `periods` periods: (t, q, q̇, q̈), the latter row-major N × dof.

@@ -267,9 +267,24 @@ impl Identification {
         out
     }
 
+    /// The parameter vector a model-based controller needs for `model`: π̂, or β̂ on the
+    /// independent columns. Refused when the file was identified for a different robot.
+    pub fn controller_parameters(&self, model: &Model) -> Result<Vec<f64>, IdentifyError> {
+        if self.parameter_names != model.parameter_names() {
+            return Err(IdentifyError::File(format!(
+                "the model was identified for robot `{}` with {} parameters; this robot (`{}`) has {} with other names",
+                self.robot_name,
+                self.parameter_names.len(),
+                model.name,
+                model.num_params()
+            )));
+        }
+        Ok(self.full_or_base_vector())
+    }
+
     /// A P-vector whose product with the full regressor is the prediction: π̂, or β̂ placed on the
     /// independent columns (zeros elsewhere).
-    fn full_or_base_vector(&self) -> Vec<f64> {
+    pub fn full_or_base_vector(&self) -> Vec<f64> {
         self.params.clone().unwrap_or_else(|| {
             let mut v = vec![0.0; self.parameter_names.len()];
             for (&j, b) in self.base_independent.iter().zip(&self.beta) {
@@ -332,12 +347,16 @@ pub fn validation_table(labels: &[String], fp_percent: &[Vec<f64>]) -> String {
 }
 
 /// The paper's validation trajectory at `omega` (rad/s): φ = 35° sin ωt, ψ = 40° cos ωt + 15°,
-/// d = −1.8 cm sin ωt − 0.4 cm. Returns (q, q̇, q̈) in SI units.
+/// d = 1.8 cm sin ωt + 0.4 cm. Returns (q, q̇, q̈) in SI units.
+///
+/// The paper prints d = −1.8 cm sin ωt − 0.4 cm, which spans −22…14 mm and leaves its own
+/// insertion range of −14…27 mm. Its d must be counted the other way: reversed, it spans
+/// −14…22 mm and touches the lower limit exactly as ψ touches both of its limits.
 pub fn paper_validation_state(omega: f64, t: f64) -> ([f64; 3], [f64; 3], [f64; 3]) {
     let deg = std::f64::consts::PI / 180.0;
     let (s, c) = (omega * t).sin_cos();
-    let amp = [35.0 * deg, 40.0 * deg, -0.018];
-    let q = [amp[0] * s, amp[1] * c + 15.0 * deg, amp[2] * s - 0.004];
+    let amp = [35.0 * deg, 40.0 * deg, 0.018];
+    let q = [amp[0] * s, amp[1] * c + 15.0 * deg, amp[2] * s + 0.004];
     let qd = [amp[0] * omega * c, -amp[1] * omega * s, amp[2] * omega * c];
     let qdd = [-amp[0] * omega * omega * s, -amp[1] * omega * omega * c, -amp[2] * omega * omega * s];
     (q, qd, qdd)

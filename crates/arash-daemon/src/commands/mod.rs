@@ -1,6 +1,7 @@
 pub mod excite;
 pub mod identify;
 pub mod model;
+pub mod simulate;
 
 use std::path::Path;
 

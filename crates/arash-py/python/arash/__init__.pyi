@@ -11,4 +11,21 @@ from ._arash import (
     identify as identify,
     load_model as load_model,
     paper_validation_trajectory as paper_validation_trajectory,
+    read_log as read_log,
 )
+
+import os
+from typing import Any, Optional, Union
+
+def simulate(
+    scenario: Optional[Union[str, os.PathLike]] = None,
+    trajectory: Optional[Union[str, os.PathLike, dict]] = None,
+    *,
+    controller: str = "robust",
+    params: Any = None,
+    duration: Optional[float] = None,
+    seed: Optional[int] = None,
+    robot: Optional[Robot] = None,
+    gain_units: str = "si",
+    log: Optional[Union[str, os.PathLike]] = None,
+) -> dict[str, Any]: ...

@@ -1,5 +1,6 @@
 from os import PathLike
-from typing import Optional
+from typing import Any, Optional, Union
+import os
 
 import numpy as np
 import numpy.typing as npt
@@ -141,3 +142,10 @@ def design_excitation(
     robot: Robot, *, harmonics: int = 5, period_s: float = 15.0, restarts: int = 6, seed: int = 1,
     iterations: int = 4000, acceleration_limits: Optional[list[float]] = None, quiet: bool = False,
 ) -> Excitation: ...
+
+def read_log(path: Union[str, os.PathLike]) -> dict[str, Any]: ...
+def _simulate(
+    robot: Robot, scenario_toml: str, scenario_name: str, trajectory_json: str, controller: str,
+    params: Any, duration: Optional[float], seed: Optional[int], gain_units: str,
+    log: Optional[str],
+) -> dict[str, Any]: ...

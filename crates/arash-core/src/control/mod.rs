@@ -1,0 +1,79 @@
+//! Joint-space controllers of the paper's section V, the safety gate in front of the motors, the
+//! velocity estimator and reference trajectories.
+//!
+//! Every controller is a struct built once (it owns its scratch buffers) whose [`Controller::step`]
+//! computes one torque command without allocating, so that the daemon's 1 kHz cycle and the
+//! simulator share the exact same code.
+
+pub mod estimator;
+pub mod gains;
+mod laws;
+pub mod safety;
+pub mod trajectory;
+
+pub use estimator::VelocityEstimator;
+pub use gains::{IdcGains, PdGains, RobustGains};
+pub use laws::{InverseDynamicsControl, PdGravity, RobustController};
+pub use safety::{Faults, SafetyGate, SafetyLimits};
+pub use trajectory::{Trajectory, TrajectoryError};
+
+/// Desired joint state at one instant (rad or m, and their rates).
+#[derive(Clone, Copy, Debug)]
+pub struct Desired<'a> {
+    pub q: &'a [f64],
+    pub qd: &'a [f64],
+    pub qdd: &'a [f64],
+}
+
+/// Which control law produced a command; logged as a number in every cycle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+#[repr(u32)]
+pub enum ControllerKind {
+    /// No controller: zero torque (motors disabled).
+    None = 0,
+    /// PD with gravity compensation.
+    Pd = 1,
+    /// Inverse dynamics (computed torque) control.
+    Idc = 2,
+    /// The paper's robust model-based controller, eq. 22.
+    Robust = 3,
+}
+
+/// One control law: `step` turns the estimated state and the reference into a torque command.
+pub trait Controller: Send {
+    fn kind(&self) -> ControllerKind;
+    /// Forget any internal state (integrators), e.g. when the motors are re-enabled.
+    fn reset(&mut self);
+    /// One cycle of `dt` seconds. `q`, `qd` are the estimated joint state; `tau` receives the
+    /// command (N·m or N). Never allocates.
+    fn step(&mut self, dt: f64, q: &[f64], qd: &[f64], desired: &Desired, tau: &mut [f64]);
+}
+
+/// The controllers with their standard gains for `model` with parameter vector `params`:
+/// - PD with gravity compensation, critically damped at 5 Hz on `M(q_home)`;
+/// - inverse dynamics control with the poles of the robust controller ([`IdcGains::matching`]);
+/// - the robust controller with `robust` gains.
+///
+/// `q_home` is the middle of the joint ranges.
+pub fn standard_controller(
+    kind: ControllerKind,
+    model: &crate::Model,
+    params: &[f64],
+    robust: &RobustGains,
+) -> Option<Box<dyn Controller>> {
+    let q_home: Vec<f64> = model.joints.iter().map(|j| 0.5 * (j.lower + j.upper)).collect();
+    let q_home: Vec<f64> = q_home.into_iter().map(|q| if q.is_finite() { q } else { 0.0 }).collect();
+    match kind {
+        ControllerKind::None => None,
+        ControllerKind::Pd => {
+            Some(Box::new(PdGravity::new(model, params, PdGains::critically_damped(model, params, &q_home, 5.0))))
+        }
+        ControllerKind::Idc => Some(Box::new(InverseDynamicsControl::new(
+            model,
+            params,
+            IdcGains::matching(model, robust, params, &q_home),
+        ))),
+        ControllerKind::Robust => Some(Box::new(RobustController::new(model, params, robust.clone()))),
+    }
+}

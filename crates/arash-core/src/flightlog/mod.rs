@@ -1,0 +1,38 @@
+//! The flight log: one MCAP file per run, written by the simulator and the daemon, read by
+//! identification and by `arash.read_log`. `docs/flightlog.md` documents the format.
+//!
+//! - one protobuf message per control cycle on `/arash/cycle` (and, from the simulator, the
+//!   ground truth on `/arash/truth`), zstd-compressed chunks;
+//! - the robot URDF and the run's configuration as attachments, and an `arash` metadata record
+//!   (format, software version, scenario, seed, controller, joint names);
+//! - a chunk is closed and flushed to disk every second of log, so a file cut off by a crash reads
+//!   back up to its last flushed second.
+
+mod reader;
+pub mod schema;
+mod writer;
+
+pub use reader::{read_log, FlightLog};
+pub use writer::{LogHeader, LogWriter};
+
+/// The value of the `format` metadata key.
+pub const FORMAT: &str = "arash-log/1";
+pub const CYCLE_TOPIC: &str = "/arash/cycle";
+pub const TRUTH_TOPIC: &str = "/arash/truth";
+/// Name of the metadata record.
+pub const METADATA_NAME: &str = "arash";
+
+/// Why a log could not be written or read.
+#[derive(Debug, thiserror::Error)]
+pub enum LogError {
+    #[error("{path}: {source}")]
+    Io { path: String, source: std::io::Error },
+    #[error("{path}: not an MCAP file, or cut off before its first record ({source})")]
+    NotMcap { path: String, source: mcap::McapError },
+    #[error("{path}: MCAP error: {source}")]
+    Mcap { path: String, source: mcap::McapError },
+    #[error("{path}: message {index} on {topic} does not decode: {source}")]
+    Decode { path: String, topic: String, index: usize, source: prost::DecodeError },
+    #[error("{path}: not an arash flight log: {problem}")]
+    NotFlightLog { path: String, problem: String },
+}

@@ -1,0 +1,200 @@
+//! Reading a flight log into columns, tolerating a file cut off by a crash.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use mcap::read::{LinearReader, Options, RawMessageStream};
+use mcap::records::Record;
+use prost::Message;
+
+use super::schema::{Cycle, Truth};
+use super::{LogError, CYCLE_TOPIC, FORMAT, METADATA_NAME, TRUTH_TOPIC};
+use crate::control::{ControllerKind, Faults};
+use crate::record::{Columns, CycleRecord, Mode, TruthColumns, TruthRecord};
+
+/// A whole log.
+#[derive(Clone, Debug, Default)]
+pub struct FlightLog {
+    pub metadata: BTreeMap<String, String>,
+    /// (name, media type, content).
+    pub attachments: Vec<(String, String, Vec<u8>)>,
+    pub joint_names: Vec<String>,
+    pub cycles: Columns,
+    pub truth: Option<TruthColumns>,
+    /// The file ended without its footer (a crash or a run still being written); everything up
+    /// to the last complete chunk was read.
+    pub truncated: bool,
+}
+
+impl FlightLog {
+    pub fn dof(&self) -> usize {
+        self.joint_names.len()
+    }
+
+    pub fn len(&self) -> usize {
+        self.cycles.t.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.cycles.t.is_empty()
+    }
+
+    /// The attachment called `name`, as text.
+    pub fn attachment_text(&self, name: &str) -> Option<String> {
+        self.attachments.iter().find(|a| a.0 == name).map(|a| String::from_utf8_lossy(&a.2).into_owned())
+    }
+}
+
+/// Read `path`. A file cut off mid-chunk reads up to its last complete chunk and is marked
+/// [`FlightLog::truncated`].
+pub fn read_log(path: &Path) -> Result<FlightLog, LogError> {
+    let name = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|source| LogError::Io { path: name.clone(), source })?;
+    let mut log = FlightLog::default();
+    read_records(&bytes, &name, &mut log)?;
+    if log.metadata.get("format").map(String::as_str) != Some(FORMAT) {
+        return Err(LogError::NotFlightLog {
+            path: name,
+            problem: format!("no `{METADATA_NAME}` metadata with format {FORMAT}"),
+        });
+    }
+    log.joint_names = log.metadata["joint_names"].split(',').filter(|s| !s.is_empty()).map(str::to_string).collect();
+    read_messages(&bytes, &name, &mut log)?;
+    check_shapes(&log, &name)?;
+    Ok(log)
+}
+
+/// Metadata and attachments, which the writer puts before the first cycle.
+fn read_records(bytes: &[u8], name: &str, log: &mut FlightLog) -> Result<(), LogError> {
+    let reader = LinearReader::new_with_options(bytes, Options::IgnoreEndMagic.into())
+        .map_err(|source| LogError::NotMcap { path: name.into(), source })?;
+    let mut complete = false;
+    for record in reader {
+        match record {
+            Ok(Record::Metadata(m)) if m.name == METADATA_NAME => log.metadata = m.metadata,
+            Ok(Record::Attachment { header, data, .. }) => {
+                log.attachments.push((header.name, header.media_type, data.into_owned()))
+            }
+            Ok(Record::Footer(_)) => complete = true,
+            Ok(_) => {}
+            Err(_) => break,
+        }
+    }
+    log.truncated = !complete;
+    Ok(())
+}
+
+fn read_messages(bytes: &[u8], name: &str, log: &mut FlightLog) -> Result<(), LogError> {
+    let stream = RawMessageStream::new_with_options(bytes, Options::IgnoreEndMagic.into())
+        .map_err(|source| LogError::NotMcap { path: name.into(), source })?;
+    let mut stream = stream;
+    let mut truth = TruthColumns::default();
+    let (mut cycle_channel, mut truth_channel) = (None, None);
+    let mut cycle = Cycle::default();
+    let mut truth_msg = Truth::default();
+    let mut record = CycleRecord::new(0);
+    let mut truth_record = TruthRecord::new(0);
+    while let Some(item) = stream.next() {
+        let Ok(message) = item else {
+            // A cut-off chunk: keep what came before it.
+            log.truncated = true;
+            break;
+        };
+        let id = message.header.channel_id;
+        if cycle_channel.is_none() || truth_channel.is_none() {
+            match stream.get_channel(id).map(|c| c.topic.clone()).as_deref() {
+                Some(CYCLE_TOPIC) => cycle_channel = Some(id),
+                Some(TRUTH_TOPIC) => truth_channel = Some(id),
+                _ => {}
+            }
+        }
+        let decode_error = |topic: &str, index: usize, source| LogError::Decode {
+            path: name.into(),
+            topic: topic.into(),
+            index,
+            source,
+        };
+        if Some(id) == cycle_channel {
+            cycle.clear();
+            cycle.merge(&*message.data).map_err(|e| decode_error(CYCLE_TOPIC, log.cycles.t.len(), e))?;
+            cycle_record(&cycle, &mut record).map_err(|problem| LogError::NotFlightLog {
+                path: name.into(),
+                problem: format!("message {} on {CYCLE_TOPIC}: {problem}", log.cycles.t.len()),
+            })?;
+            log.cycles.push(&record);
+        } else if Some(id) == truth_channel {
+            truth_msg.clear();
+            truth_msg.merge(&*message.data).map_err(|e| decode_error(TRUTH_TOPIC, truth.t.len(), e))?;
+            truth_record_from(&truth_msg, &mut truth_record);
+            truth.push(truth_msg.cycle, &truth_record);
+        }
+    }
+    if truth_channel.is_some() {
+        log.truth = Some(truth);
+    }
+    Ok(())
+}
+
+fn cycle_record(m: &Cycle, r: &mut CycleRecord) -> Result<(), String> {
+    r.cycle = m.cycle;
+    r.t = m.t;
+    for (dst, src) in [
+        (&mut r.q, &m.q),
+        (&mut r.qd, &m.qd),
+        (&mut r.qdd, &m.qdd),
+        (&mut r.tau_cmd, &m.tau_cmd),
+        (&mut r.tau_meas, &m.tau_meas),
+        (&mut r.q_des, &m.q_des),
+        (&mut r.qd_des, &m.qd_des),
+        (&mut r.qdd_des, &m.qdd_des),
+    ] {
+        dst.clear();
+        dst.extend_from_slice(src);
+    }
+    r.controller = ControllerKind::from_u32(m.controller).ok_or(format!("unknown controller id {}", m.controller))?;
+    r.mode = Mode::from_u32(m.mode).ok_or(format!("unknown mode {}", m.mode))?;
+    r.faults = Faults(m.faults);
+    Ok(())
+}
+
+fn truth_record_from(m: &Truth, r: &mut TruthRecord) {
+    r.t = m.t;
+    for (dst, src) in [
+        (&mut r.q, &m.q),
+        (&mut r.qd, &m.qd),
+        (&mut r.qdd, &m.qdd),
+        (&mut r.tau_motor, &m.tau_motor),
+        (&mut r.motor_q, &m.motor_q),
+        (&mut r.motor_qd, &m.motor_qd),
+    ] {
+        dst.clear();
+        dst.extend_from_slice(src);
+    }
+}
+
+/// Every joint vector must have dof entries per cycle (qdd: all or none).
+fn check_shapes(log: &FlightLog, name: &str) -> Result<(), LogError> {
+    let (n, dof) = (log.cycles.t.len(), log.dof());
+    let c = &log.cycles;
+    let vectors = [
+        ("q", &c.q),
+        ("qd", &c.qd),
+        ("tau_cmd", &c.tau_cmd),
+        ("tau_meas", &c.tau_meas),
+        ("q_des", &c.q_des),
+        ("qd_des", &c.qd_des),
+        ("qdd_des", &c.qdd_des),
+    ];
+    for (field, v) in vectors {
+        if v.len() != n * dof {
+            return Err(LogError::NotFlightLog {
+                path: name.into(),
+                problem: format!("field {field} holds {} values for {n} cycles of {dof} joints", v.len()),
+            });
+        }
+    }
+    if !c.qdd.is_empty() && c.qdd.len() != n * dof {
+        return Err(LogError::NotFlightLog { path: name.into(), problem: "qdd is present in some cycles only".into() });
+    }
+    Ok(())
+}

@@ -1,0 +1,136 @@
+//! The flight-log message schema (protobuf, package `arash`), with its descriptor written into
+//! each file so that Foxglove and the `mcap-protobuf-support` Python decoder read the messages
+//! without any `.proto` file.
+//!
+//! Fields are flat numbers: scalars, or one repeated double per joint vector (index k is
+//! joint k, in the order of the `joint_names` metadata).
+
+use prost_types::field_descriptor_proto::{Label, Type};
+use prost_types::{DescriptorProto, FieldDescriptorProto, FileDescriptorProto, FileDescriptorSet};
+
+/// One control cycle on topic `/arash/cycle`.
+#[derive(Clone, PartialEq, prost::Message)]
+pub struct Cycle {
+    #[prost(uint64, tag = "1")]
+    pub cycle: u64,
+    /// Seconds since the start of the run.
+    #[prost(double, tag = "2")]
+    pub t: f64,
+    #[prost(double, repeated, tag = "3")]
+    pub q: Vec<f64>,
+    #[prost(double, repeated, tag = "4")]
+    pub qd: Vec<f64>,
+    /// Empty when the acceleration is not estimated.
+    #[prost(double, repeated, tag = "5")]
+    pub qdd: Vec<f64>,
+    #[prost(double, repeated, tag = "6")]
+    pub tau_cmd: Vec<f64>,
+    #[prost(double, repeated, tag = "7")]
+    pub tau_meas: Vec<f64>,
+    #[prost(double, repeated, tag = "8")]
+    pub q_des: Vec<f64>,
+    #[prost(double, repeated, tag = "9")]
+    pub qd_des: Vec<f64>,
+    #[prost(double, repeated, tag = "10")]
+    pub qdd_des: Vec<f64>,
+    /// 0 none, 1 PD, 2 inverse dynamics, 3 robust.
+    #[prost(uint32, tag = "11")]
+    pub controller: u32,
+    /// 0 disabled, 1 enabled, 2 faulted.
+    #[prost(uint32, tag = "12")]
+    pub mode: u32,
+    /// Fault bits (see `docs/flightlog.md`).
+    #[prost(uint32, tag = "13")]
+    pub faults: u32,
+}
+
+/// The simulator's ground truth on topic `/arash/truth`.
+#[derive(Clone, PartialEq, prost::Message)]
+pub struct Truth {
+    #[prost(uint64, tag = "1")]
+    pub cycle: u64,
+    #[prost(double, tag = "2")]
+    pub t: f64,
+    #[prost(double, repeated, tag = "3")]
+    pub q: Vec<f64>,
+    #[prost(double, repeated, tag = "4")]
+    pub qd: Vec<f64>,
+    #[prost(double, repeated, tag = "5")]
+    pub qdd: Vec<f64>,
+    #[prost(double, repeated, tag = "6")]
+    pub tau_motor: Vec<f64>,
+    #[prost(double, repeated, tag = "7")]
+    pub motor_q: Vec<f64>,
+    #[prost(double, repeated, tag = "8")]
+    pub motor_qd: Vec<f64>,
+}
+
+/// (name, tag, type, repeated) of each field of the structs above. Files carry the descriptor
+/// built from this table; the Python tests decode them with it and compare against the Rust
+/// reader (which uses the structs), so a mismatch between the two fails there.
+const CYCLE_FIELDS: &[(&str, i32, Type, bool)] = &[
+    ("cycle", 1, Type::Uint64, false),
+    ("t", 2, Type::Double, false),
+    ("q", 3, Type::Double, true),
+    ("qd", 4, Type::Double, true),
+    ("qdd", 5, Type::Double, true),
+    ("tau_cmd", 6, Type::Double, true),
+    ("tau_meas", 7, Type::Double, true),
+    ("q_des", 8, Type::Double, true),
+    ("qd_des", 9, Type::Double, true),
+    ("qdd_des", 10, Type::Double, true),
+    ("controller", 11, Type::Uint32, false),
+    ("mode", 12, Type::Uint32, false),
+    ("faults", 13, Type::Uint32, false),
+];
+
+const TRUTH_FIELDS: &[(&str, i32, Type, bool)] = &[
+    ("cycle", 1, Type::Uint64, false),
+    ("t", 2, Type::Double, false),
+    ("q", 3, Type::Double, true),
+    ("qd", 4, Type::Double, true),
+    ("qdd", 5, Type::Double, true),
+    ("tau_motor", 6, Type::Double, true),
+    ("motor_q", 7, Type::Double, true),
+    ("motor_qd", 8, Type::Double, true),
+];
+
+pub const CYCLE_SCHEMA: &str = "arash.Cycle";
+pub const TRUTH_SCHEMA: &str = "arash.Truth";
+
+fn message(name: &str, fields: &[(&str, i32, Type, bool)]) -> DescriptorProto {
+    DescriptorProto {
+        name: Some(name.into()),
+        field: fields
+            .iter()
+            .map(|&(field, number, kind, repeated)| FieldDescriptorProto {
+                name: Some(field.into()),
+                number: Some(number),
+                label: Some(if repeated { Label::Repeated } else { Label::Optional } as i32),
+                r#type: Some(kind as i32),
+                json_name: Some(field.into()),
+                ..Default::default()
+            })
+            .collect(),
+        ..Default::default()
+    }
+}
+
+/// The serialised `FileDescriptorSet` holding message `name` (`arash.Cycle` or `arash.Truth`),
+/// as MCAP's `protobuf` schema encoding requires.
+pub fn descriptor_set(name: &str) -> Vec<u8> {
+    use prost::Message;
+    let (short, fields) = match name {
+        CYCLE_SCHEMA => ("Cycle", CYCLE_FIELDS),
+        TRUTH_SCHEMA => ("Truth", TRUTH_FIELDS),
+        other => panic!("no schema {other}"),
+    };
+    let file = FileDescriptorProto {
+        name: Some(format!("arash/{}.proto", short.to_lowercase())),
+        package: Some("arash".into()),
+        message_type: vec![message(short, fields)],
+        syntax: Some("proto3".into()),
+        ..Default::default()
+    };
+    FileDescriptorSet { file: vec![file] }.encode_to_vec()
+}

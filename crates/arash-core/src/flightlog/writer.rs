@@ -1,0 +1,190 @@
+//! Streaming MCAP writer for control cycles.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use mcap::records::{MessageHeader, Metadata};
+use mcap::{Attachment, Compression, WriteOptions, Writer};
+use prost::Message;
+
+use super::schema::{descriptor_set, Cycle, Truth, CYCLE_SCHEMA, TRUTH_SCHEMA};
+use super::{LogError, CYCLE_TOPIC, FORMAT, METADATA_NAME, TRUTH_TOPIC};
+use crate::record::{CycleRecord, TruthRecord};
+
+/// What a log says about its run, written before the first cycle.
+#[derive(Clone, Debug, Default)]
+pub struct LogHeader {
+    /// The robot description (attached as `robot.urdf`).
+    pub urdf: String,
+    pub joint_names: Vec<String>,
+    /// Extra `arash` metadata (scenario, seed, controller, …); `format`, `software_version` and
+    /// `joint_names` are added.
+    pub metadata: BTreeMap<String, String>,
+    /// (name, media type, content) of further attachments, e.g. the run configuration.
+    pub attachments: Vec<(String, String, Vec<u8>)>,
+    /// Add the `/arash/truth` channel (simulator only).
+    pub with_truth: bool,
+    /// Unix time of the start of the run (ns); message log times are this plus `t`. Zero gives
+    /// log times relative to the start, which keeps simulated logs reproducible.
+    pub start_unix_ns: u64,
+}
+
+/// Writes one run. Cycles are encoded into reused buffers; a chunk is closed and flushed every
+/// `flush_every` cycles (default: one second of log at the cycle rate given to `create`).
+pub struct LogWriter {
+    path: PathBuf,
+    writer: Writer<BufWriter<File>>,
+    cycle_channel: u16,
+    truth_channel: Option<u16>,
+    start_ns: u64,
+    flush_every: u64,
+    written: u64,
+    buffer: Vec<u8>,
+    cycle: Cycle,
+    truth: Truth,
+}
+
+impl LogWriter {
+    /// Create `path` (replacing it) and write the header, attachments and metadata.
+    pub fn create(path: &Path, header: &LogHeader, rate_hz: f64) -> Result<Self, LogError> {
+        let io = |source| LogError::Io { path: path.display().to_string(), source };
+        let mcap_error = |source| LogError::Mcap { path: path.display().to_string(), source };
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent).map_err(io)?;
+        }
+        let file = File::create(path).map_err(io)?;
+        let options = WriteOptions::new()
+            .compression(Some(Compression::Zstd))
+            .profile("")
+            .library(format!("arash {}", env!("CARGO_PKG_VERSION")))
+            .chunk_size(None);
+        let mut writer = options.create(BufWriter::new(file)).map_err(mcap_error)?;
+        let schema = writer.add_schema(CYCLE_SCHEMA, "protobuf", &descriptor_set(CYCLE_SCHEMA)).map_err(mcap_error)?;
+        let cycle_channel =
+            writer.add_channel(schema, CYCLE_TOPIC, "protobuf", &BTreeMap::new()).map_err(mcap_error)?;
+        let truth_channel = if header.with_truth {
+            let schema =
+                writer.add_schema(TRUTH_SCHEMA, "protobuf", &descriptor_set(TRUTH_SCHEMA)).map_err(mcap_error)?;
+            Some(writer.add_channel(schema, TRUTH_TOPIC, "protobuf", &BTreeMap::new()).map_err(mcap_error)?)
+        } else {
+            None
+        };
+        // Schemas and channels in a closed chunk of their own: a truncated file still has them.
+        writer.flush().map_err(mcap_error)?;
+        let mut metadata = header.metadata.clone();
+        metadata.insert("format".into(), FORMAT.into());
+        metadata.insert("software_version".into(), env!("CARGO_PKG_VERSION").into());
+        metadata.insert("joint_names".into(), header.joint_names.join(","));
+        metadata.insert("start_unix_ns".into(), header.start_unix_ns.to_string());
+        writer.write_metadata(&Metadata { name: METADATA_NAME.into(), metadata }).map_err(mcap_error)?;
+        let mut attachments =
+            vec![("robot.urdf".to_string(), "application/xml".to_string(), header.urdf.as_bytes().to_vec())];
+        attachments.extend(header.attachments.iter().cloned());
+        for (name, media_type, data) in attachments {
+            let attachment = Attachment {
+                log_time: header.start_unix_ns,
+                create_time: header.start_unix_ns,
+                name,
+                media_type,
+                data: data.into(),
+            };
+            writer.attach(&attachment).map_err(mcap_error)?;
+        }
+        writer.flush().map_err(mcap_error)?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            writer,
+            cycle_channel,
+            truth_channel,
+            start_ns: header.start_unix_ns,
+            flush_every: rate_hz.round().max(1.0) as u64,
+            written: 0,
+            buffer: Vec::with_capacity(1024),
+            cycle: Cycle::default(),
+            truth: Truth::default(),
+        })
+    }
+
+    fn mcap_error(&self, source: mcap::McapError) -> LogError {
+        LogError::Mcap { path: self.path.display().to_string(), source }
+    }
+
+    fn log_time(&self, t: f64) -> u64 {
+        self.start_ns + (t * 1e9).round() as u64
+    }
+
+    /// Append one cycle. After the first cycle this allocates nothing but what zstd needs.
+    pub fn write_cycle(&mut self, r: &CycleRecord) -> Result<(), LogError> {
+        let c = &mut self.cycle;
+        c.cycle = r.cycle;
+        c.t = r.t;
+        for (dst, src) in [
+            (&mut c.q, &r.q),
+            (&mut c.qd, &r.qd),
+            (&mut c.qdd, &r.qdd),
+            (&mut c.tau_cmd, &r.tau_cmd),
+            (&mut c.tau_meas, &r.tau_meas),
+            (&mut c.q_des, &r.q_des),
+            (&mut c.qd_des, &r.qd_des),
+            (&mut c.qdd_des, &r.qdd_des),
+        ] {
+            dst.clear();
+            dst.extend_from_slice(src);
+        }
+        c.controller = r.controller as u32;
+        c.mode = r.mode as u32;
+        c.faults = r.faults.0;
+        self.buffer.clear();
+        self.cycle.encode(&mut self.buffer).expect("a Vec grows as needed");
+        let header = MessageHeader {
+            channel_id: self.cycle_channel,
+            sequence: r.cycle as u32,
+            log_time: self.log_time(r.t),
+            publish_time: self.log_time(r.t),
+        };
+        self.writer.write_to_known_channel(&header, &self.buffer).map_err(|e| self.mcap_error(e))?;
+        self.written += 1;
+        if self.written % self.flush_every == 0 {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Append the ground truth of cycle `cycle` (only for logs created `with_truth`).
+    pub fn write_truth(&mut self, cycle: u64, r: &TruthRecord) -> Result<(), LogError> {
+        let channel_id = self.truth_channel.expect("the log was created without the truth channel");
+        let m = &mut self.truth;
+        m.cycle = cycle;
+        m.t = r.t;
+        for (dst, src) in [
+            (&mut m.q, &r.q),
+            (&mut m.qd, &r.qd),
+            (&mut m.qdd, &r.qdd),
+            (&mut m.tau_motor, &r.tau_motor),
+            (&mut m.motor_q, &r.motor_q),
+            (&mut m.motor_qd, &r.motor_qd),
+        ] {
+            dst.clear();
+            dst.extend_from_slice(src);
+        }
+        self.buffer.clear();
+        self.truth.encode(&mut self.buffer).expect("a Vec grows as needed");
+        let time = self.log_time(r.t);
+        let header = MessageHeader { channel_id, sequence: cycle as u32, log_time: time, publish_time: time };
+        self.writer.write_to_known_channel(&header, &self.buffer).map_err(|e| self.mcap_error(e))
+    }
+
+    /// Close the current chunk and push it to the file.
+    pub fn flush(&mut self) -> Result<(), LogError> {
+        self.writer.flush().map_err(|e| self.mcap_error(e))
+    }
+
+    /// Write the summary and footer. A log that is never finished still reads up to its last
+    /// flush.
+    pub fn finish(mut self) -> Result<(), LogError> {
+        self.writer.finish().map_err(|e| self.mcap_error(e))?;
+        Ok(())
+    }
+}

@@ -1,0 +1,20 @@
+//! The simulated ARASH:ASiST rig: a stand-in for the hardware that produces "measured" data with
+//! declared and undeclared effects. `docs/simulator.md` documents every equation and default.
+//!
+//! - [`scenario`]: the TOML description of a rig and the effects switched on;
+//! - [`truth`]: the true parameters (CAD plus a seeded perturbation);
+//! - [`plant`]: the continuous-time robot and its fixed-step integrator;
+//! - [`rig`]: sensors, amplifiers and the control loop around the plant;
+//! - [`run`]: a whole run (what `arash simulate` and `arash.simulate` execute).
+
+pub mod plant;
+pub mod rig;
+pub mod run;
+pub mod scenario;
+pub mod truth;
+
+pub use plant::{Plant, PlantError};
+pub use rig::Rig;
+pub use run::RunSpec;
+pub use scenario::{Integrator, Scenario, ScenarioError};
+pub use truth::true_parameters;

@@ -1,0 +1,79 @@
+//! A whole simulated run: scenario, trajectory, controller and its parameters, duration. Shared
+//! by `arash simulate` and `arash.simulate` so both build the same rig and log the same header.
+
+use serde::Serialize;
+
+use super::plant::PlantError;
+use super::rig::Rig;
+use super::scenario::Scenario;
+use crate::control::{standard_controller, ControllerKind, RobustGains, Trajectory};
+use crate::model::Model;
+
+/// Everything that defines a simulated run.
+#[derive(Clone, Debug, Serialize)]
+pub struct RunSpec {
+    pub scenario: Scenario,
+    pub trajectory: Trajectory,
+    pub controller: ControllerKind,
+    /// Where the controller's parameters came from: `cad`, `truth` or a model file.
+    pub params_source: String,
+    /// The controller's parameter vector (P entries).
+    pub params: Vec<f64>,
+    pub gains: RobustGains,
+    /// Seconds of rig time.
+    pub duration_s: f64,
+}
+
+impl RunSpec {
+    /// Number of control cycles in the run.
+    pub fn cycles(&self) -> usize {
+        (self.duration_s * self.scenario.physics.rate_hz).round() as usize
+    }
+
+    /// The rig for this run, on its trajectory at `t = 0`.
+    pub fn rig(&self, model: &Model) -> Result<Rig, PlantError> {
+        if self.params.len() != model.num_params() {
+            return Err(PlantError::Parameters(format!(
+                "the controller's parameter vector has {} entries, the robot needs {}",
+                self.params.len(),
+                model.num_params()
+            )));
+        }
+        if !(self.duration_s.is_finite() && self.duration_s > 0.0) {
+            return Err(PlantError::Parameters(format!("the duration must be positive, not {} s", self.duration_s)));
+        }
+        let controller = standard_controller(self.controller, model, &self.params, &self.gains)
+            .ok_or_else(|| PlantError::Parameters("a simulated run needs a controller".into()))?;
+        Rig::new(model, &self.scenario, self.trajectory.clone(), controller)
+    }
+
+    /// The run's configuration as JSON, for the log's `run.json` attachment.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("run specs serialise")
+    }
+
+    /// The flight-log header for this run of `model` described by `urdf`.
+    #[cfg(feature = "flightlog")]
+    pub fn log_header(&self, model: &Model, urdf: &str) -> crate::flightlog::LogHeader {
+        let mut metadata = std::collections::BTreeMap::new();
+        metadata.insert("source".into(), "simulator".into());
+        metadata.insert("robot".into(), model.name.clone());
+        metadata.insert("scenario".into(), self.scenario.name.clone());
+        metadata.insert("effects".into(), self.scenario.effects.enabled().join(","));
+        metadata.insert("seed".into(), self.scenario.seed.to_string());
+        metadata.insert("controller".into(), serde_json::to_value(self.controller).unwrap().as_str().unwrap().into());
+        metadata.insert("params".into(), self.params_source.clone());
+        metadata.insert("rate_hz".into(), self.scenario.physics.rate_hz.to_string());
+        crate::flightlog::LogHeader {
+            urdf: urdf.into(),
+            joint_names: model.joints.iter().map(|j| j.name.clone()).collect(),
+            metadata,
+            attachments: vec![
+                ("scenario.toml".into(), "application/toml".into(), self.scenario.to_toml().into_bytes()),
+                ("run.json".into(), "application/json".into(), self.to_json().into_bytes()),
+            ],
+            with_truth: true,
+            start_unix_ns: 0,
+        }
+    }
+}

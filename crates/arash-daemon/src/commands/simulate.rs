@@ -1,0 +1,155 @@
+//! `arash simulate`: run the simulated rig with a controller on a trajectory and write the
+//! flight log.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use arash_core::control::gains::PaperUnits;
+use arash_core::control::{ControllerKind, RobustGains, Trajectory};
+use arash_core::flightlog::LogWriter;
+use arash_core::identify::Identification;
+use arash_core::sim::{true_parameters, RunSpec, Scenario};
+use arash_core::Model;
+use indicatif::{ProgressBar, ProgressStyle};
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum ControllerArg {
+    /// PD with gravity compensation (CAD gravity unless --params says otherwise).
+    Pd,
+    /// Inverse dynamics control with the CAD parameters: the paper's baseline.
+    IdcCad,
+    /// Inverse dynamics control with the parameters of --params.
+    Idc,
+    /// The paper's robust controller (eq. 22) with the parameters of --params (default: truth).
+    Robust,
+}
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Scenario file (TOML); see scenarios/ and docs/simulator.md.
+    #[arg(long)]
+    scenario: PathBuf,
+    /// Trajectory file (arash-trajectory/1 JSON): `arash excite` output or trajectories/*.json.
+    #[arg(long)]
+    trajectory: PathBuf,
+    #[arg(long, value_enum)]
+    controller: ControllerArg,
+    /// The controller's parameters: `cad`, `truth` (the simulated robot's own) or a model file
+    /// written by `arash identify`.
+    #[arg(long)]
+    params: Option<String>,
+    /// Reading of the paper's K_d: si, deg-mm or deg-cm (see docs/simulator.md).
+    #[arg(long, default_value = "si")]
+    gain_units: String,
+    /// Seconds of rig time; default: 20 periods of an excitation, one of a validation trajectory.
+    #[arg(long)]
+    duration: Option<f64>,
+    /// Override the scenario's seed.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// The robot's URDF (the CAD model; the truth is derived from it).
+    #[arg(long, default_value = "robots/arash_asist.urdf")]
+    robot: PathBuf,
+    /// Flight log to write (MCAP).
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+fn controller_parameters(
+    args: &Args,
+    model: &Model,
+    scenario: &Scenario,
+) -> anyhow::Result<(ControllerKind, String, Vec<f64>)> {
+    let default = match args.controller {
+        ControllerArg::Pd | ControllerArg::IdcCad => "cad",
+        ControllerArg::Robust => "truth",
+        ControllerArg::Idc => bail!("--controller idc needs --params cad|truth|MODEL.json"),
+    };
+    let source = args.params.clone().unwrap_or_else(|| default.into());
+    if matches!(args.controller, ControllerArg::IdcCad) && source != "cad" {
+        bail!("--controller idc-cad uses the CAD parameters; use --controller idc --params {source}");
+    }
+    let params = match source.as_str() {
+        "cad" => model.cad_parameters(),
+        "truth" => true_parameters(model, scenario),
+        path => {
+            let text = std::fs::read_to_string(path).with_context(|| format!("reading model file {path}"))?;
+            let identification = Identification::from_json(&text).with_context(|| format!("loading {path}"))?;
+            identification.controller_parameters(model).with_context(|| format!("using {path}"))?
+        }
+    };
+    let kind = match args.controller {
+        ControllerArg::Pd => ControllerKind::Pd,
+        ControllerArg::IdcCad | ControllerArg::Idc => ControllerKind::Idc,
+        ControllerArg::Robust => ControllerKind::Robust,
+    };
+    Ok((kind, source, params))
+}
+
+fn gain_units(text: &str) -> anyhow::Result<PaperUnits> {
+    serde_json::from_value(serde_json::Value::String(text.into()))
+        .map_err(|_| anyhow::anyhow!("--gain-units must be si, deg-mm or deg-cm, not `{text}`"))
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let (model, urdf) = super::load_robot(&args.robot)?;
+    let mut scenario =
+        Scenario::load(&args.scenario).with_context(|| format!("scenario {}", args.scenario.display()))?;
+    if let Some(seed) = args.seed {
+        scenario.seed = seed;
+    }
+    scenario.validate(model.dof()).with_context(|| format!("scenario {}", args.scenario.display()))?;
+    let text = std::fs::read_to_string(&args.trajectory)
+        .with_context(|| format!("reading trajectory {}", args.trajectory.display()))?;
+    let trajectory = Trajectory::from_json(&text, model.dof())
+        .with_context(|| format!("trajectory {}", args.trajectory.display()))?;
+    let (controller, params_source, params) = controller_parameters(&args, &model, &scenario)?;
+    let spec = RunSpec {
+        duration_s: args.duration.unwrap_or_else(|| trajectory.default_duration()),
+        scenario,
+        trajectory,
+        controller,
+        params_source,
+        params,
+        gains: RobustGains::from_paper(&model, gain_units(&args.gain_units)?),
+    };
+    simulate(&model, &urdf, &spec, &args.output)
+}
+
+fn simulate(model: &Model, urdf: &str, spec: &RunSpec, output: &Path) -> anyhow::Result<()> {
+    let mut rig = spec.rig(model)?;
+    let mut log = LogWriter::create(output, &spec.log_header(model, urdf), spec.scenario.physics.rate_hz)?;
+    let cycles = spec.cycles();
+    let bar = ProgressBar::new(cycles as u64).with_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {percent:>3}% rig time {pos}/{len} ms, eta {eta}")
+            .expect("a valid template")
+            .progress_chars("=> "),
+    );
+    bar.set_message(format!("simulating {}", spec.scenario.name));
+    let started = std::time::Instant::now();
+    let mut worst_faults = arash_core::control::Faults::NONE;
+    for i in 0..cycles {
+        rig.step().with_context(|| format!("cycle {i}"))?;
+        log.write_cycle(rig.record())?;
+        log.write_truth(rig.record().cycle, rig.truth())?;
+        worst_faults |= rig.record().faults;
+        if i % 1000 == 999 {
+            bar.set_position(i as u64 + 1);
+        }
+    }
+    bar.finish_and_clear();
+    log.finish()?;
+    let elapsed = started.elapsed().as_secs_f64();
+    eprintln!(
+        "simulated {:.1} s of rig time in {:.2} s ({:.0}× real time); wrote {} ({:.1} MB)",
+        spec.duration_s,
+        elapsed,
+        spec.duration_s / elapsed,
+        output.display(),
+        std::fs::metadata(output).map(|m| m.len() as f64 / 1e6).unwrap_or(0.0)
+    );
+    if !worst_faults.is_empty() {
+        eprintln!("warning: the safety gate latched a fault: {}", worst_faults.names().join(", "));
+    }
+    Ok(())
+}

@@ -1,0 +1,218 @@
+//! `arash.simulate` and `arash.read_log`: the simulated rig and the flight log, as dicts of
+//! numpy arrays. The Python wrapper in `arash/__init__.py` turns paths and dicts into the text
+//! these functions take.
+
+use std::path::PathBuf;
+
+use arash_core::control::gains::PaperUnits;
+use arash_core::control::{ControllerKind, RobustGains, Trajectory};
+use arash_core::flightlog::{read_log as core_read_log, FlightLog, LogWriter};
+use arash_core::record::{Columns, TruthColumns};
+use arash_core::sim::{true_parameters, RunSpec, Scenario};
+use numpy::PyReadonlyArrayDyn;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict};
+
+use crate::identify::Identification;
+use crate::{batch, to_numpy, value_error, Robot};
+
+fn matrix<'py>(py: Python<'py>, values: &[f64], dof: usize) -> PyResult<Bound<'py, PyAny>> {
+    let n = values.len().checked_div(dof).unwrap_or(0);
+    Ok(to_numpy(py, values.to_vec(), false, n, &[dof])?.into_any())
+}
+
+fn vector<'py>(py: Python<'py>, values: &[f64]) -> PyResult<Bound<'py, PyAny>> {
+    Ok(to_numpy(py, values.to_vec(), false, values.len(), &[])?.into_any())
+}
+
+fn integers<'py, T: numpy::Element + Copy>(py: Python<'py>, values: &[T]) -> Bound<'py, PyAny> {
+    numpy::PyArray1::from_slice(py, values).into_any()
+}
+
+fn cycles_dict<'py>(py: Python<'py>, c: &Columns, dof: usize) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("cycle", integers(py, &c.cycle))?;
+    d.set_item("t", vector(py, &c.t)?)?;
+    for (name, values) in [
+        ("q", &c.q),
+        ("qd", &c.qd),
+        ("tau_cmd", &c.tau_cmd),
+        ("tau_meas", &c.tau_meas),
+        ("q_des", &c.q_des),
+        ("qd_des", &c.qd_des),
+        ("qdd_des", &c.qdd_des),
+    ] {
+        d.set_item(name, matrix(py, values, dof)?)?;
+    }
+    if c.qdd.is_empty() {
+        d.set_item("qdd", py.None())?;
+    } else {
+        d.set_item("qdd", matrix(py, &c.qdd, dof)?)?;
+    }
+    d.set_item("controller", integers(py, &c.controller))?;
+    d.set_item("mode", integers(py, &c.mode))?;
+    d.set_item("faults", integers(py, &c.faults))?;
+    Ok(d)
+}
+
+fn truth_dict<'py>(py: Python<'py>, c: &TruthColumns, dof: usize) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("cycle", integers(py, &c.cycle))?;
+    d.set_item("t", vector(py, &c.t)?)?;
+    for (name, values) in [
+        ("q", &c.q),
+        ("qd", &c.qd),
+        ("qdd", &c.qdd),
+        ("tau_motor", &c.tau_motor),
+        ("motor_q", &c.motor_q),
+        ("motor_qd", &c.motor_qd),
+    ] {
+        d.set_item(name, matrix(py, values, dof)?)?;
+    }
+    Ok(d)
+}
+
+fn log_dict<'py>(py: Python<'py>, log: &FlightLog) -> PyResult<Bound<'py, PyDict>> {
+    let d = cycles_dict(py, &log.cycles, log.dof())?;
+    match &log.truth {
+        Some(truth) => d.set_item("truth", truth_dict(py, truth, log.dof())?)?,
+        None => d.set_item("truth", py.None())?,
+    }
+    d.set_item("joint_names", log.joint_names.clone())?;
+    d.set_item("metadata", log.metadata.clone())?;
+    let attachments = PyDict::new(py);
+    for (name, _, data) in &log.attachments {
+        attachments.set_item(name, PyBytes::new(py, data))?;
+    }
+    d.set_item("attachments", attachments)?;
+    d.set_item("urdf", log.attachment_text("robot.urdf"))?;
+    d.set_item("truncated", log.truncated)?;
+    Ok(d)
+}
+
+/// Read a flight log (MCAP) into a dict of numpy arrays; see `arash.read_log`.
+#[pyfunction]
+fn read_log<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
+    let log = py.detach(|| core_read_log(&path)).map_err(value_error)?;
+    log_dict(py, &log)
+}
+
+fn controller_kind(name: &str) -> PyResult<ControllerKind> {
+    match name {
+        "pd" => Ok(ControllerKind::Pd),
+        "idc" | "idc-cad" => Ok(ControllerKind::Idc),
+        "robust" => Ok(ControllerKind::Robust),
+        other => Err(PyValueError::new_err(format!("controller must be pd, idc-cad, idc or robust, not {other:?}"))),
+    }
+}
+
+/// The controller's parameters: "cad", "truth", an Identification or a (P,) array.
+fn controller_params(robot: &Robot, scenario: &Scenario, params: &Bound<'_, PyAny>) -> PyResult<(String, Vec<f64>)> {
+    let model = &robot.model;
+    if let Ok(name) = params.extract::<String>() {
+        return match name.as_str() {
+            "cad" => Ok(("cad".into(), model.cad_parameters())),
+            "truth" => Ok(("truth".into(), true_parameters(model, scenario))),
+            other => Err(PyValueError::new_err(format!(
+                "params must be \"cad\", \"truth\", an Identification or an array, not {other:?}"
+            ))),
+        };
+    }
+    if let Ok(identification) = params.cast::<Identification>() {
+        let values = identification.get().inner().controller_parameters(model).map_err(value_error)?;
+        return Ok(("identified".into(), values));
+    }
+    let array: PyReadonlyArrayDyn<'_, f64> = params
+        .extract()
+        .map_err(|_| PyValueError::new_err("params must be \"cad\", \"truth\", an Identification or a float array"))?;
+    let b = batch("params", &array, model.num_params())?;
+    if !b.single {
+        return Err(PyValueError::new_err(format!("params must have shape ({},)", model.num_params())));
+    }
+    Ok(("array".into(), b.values))
+}
+
+/// Run the simulated rig; see `arash.simulate`.
+#[pyfunction]
+#[pyo3(signature = (robot, scenario_toml, scenario_name, trajectory_json, controller, params, duration, seed, gain_units, log))]
+#[allow(clippy::too_many_arguments)]
+fn _simulate<'py>(
+    py: Python<'py>,
+    robot: &Robot,
+    scenario_toml: &str,
+    scenario_name: &str,
+    trajectory_json: &str,
+    controller: &str,
+    params: &Bound<'py, PyAny>,
+    duration: Option<f64>,
+    seed: Option<u64>,
+    gain_units: &str,
+    log: Option<PathBuf>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let model = &robot.model;
+    let mut scenario = Scenario::from_toml(scenario_toml).map_err(value_error)?;
+    if scenario.name.is_empty() {
+        scenario.name = scenario_name.into();
+    }
+    if let Some(seed) = seed {
+        scenario.seed = seed;
+    }
+    scenario.validate(model.dof()).map_err(value_error)?;
+    let trajectory = Trajectory::from_json(trajectory_json, model.dof()).map_err(value_error)?;
+    let units: PaperUnits = serde_json::from_value(serde_json::Value::String(gain_units.into()))
+        .map_err(|_| PyValueError::new_err(format!("gain_units must be si, deg-mm or deg-cm, not {gain_units:?}")))?;
+    let kind = controller_kind(controller)?;
+    if controller == "idc-cad" && params.extract::<String>().ok().as_deref() != Some("cad") {
+        return Err(PyValueError::new_err("controller \"idc-cad\" runs with params=\"cad\"; use \"idc\" for others"));
+    }
+    let (params_source, values) = controller_params(robot, &scenario, params)?;
+    let spec = RunSpec {
+        duration_s: duration.unwrap_or_else(|| trajectory.default_duration()),
+        scenario,
+        trajectory,
+        controller: kind,
+        params_source,
+        params: values,
+        gains: RobustGains::from_paper(model, units),
+    };
+    let mut rig = spec.rig(model).map_err(value_error)?;
+    let (columns, truth, true_params) = py
+        .detach(|| -> Result<_, String> {
+            let mut writer = match &log {
+                Some(path) => Some(
+                    LogWriter::create(path, &spec.log_header(model, &robot.urdf), spec.scenario.physics.rate_hz)
+                        .map_err(|e| e.to_string())?,
+                ),
+                None => None,
+            };
+            let (mut columns, mut truth) = (Columns::default(), TruthColumns::default());
+            for i in 0..spec.cycles() {
+                rig.step().map_err(|e| format!("cycle {i}: {e}"))?;
+                columns.push(rig.record());
+                truth.push(rig.record().cycle, rig.truth());
+                if let Some(w) = writer.as_mut() {
+                    w.write_cycle(rig.record()).map_err(|e| e.to_string())?;
+                    w.write_truth(rig.record().cycle, rig.truth()).map_err(|e| e.to_string())?;
+                }
+            }
+            if let Some(w) = writer {
+                w.finish().map_err(|e| e.to_string())?;
+            }
+            Ok((columns, truth, true_parameters(model, &spec.scenario)))
+        })
+        .map_err(PyValueError::new_err)?;
+    let dof = model.dof();
+    let d = cycles_dict(py, &columns, dof)?;
+    d.set_item("truth", truth_dict(py, &truth, dof)?)?;
+    d.set_item("true_params", vector(py, &true_params)?)?;
+    d.set_item("joint_names", model.joints.iter().map(|j| j.name.clone()).collect::<Vec<_>>())?;
+    d.set_item("scenario", spec.scenario.to_toml())?;
+    Ok(d)
+}
+
+pub(crate) fn register(module: &Bound<'_, PyModule>) -> PyResult<()> {
+    module.add_function(wrap_pyfunction!(read_log, module)?)?;
+    module.add_function(wrap_pyfunction!(_simulate, module)?)?;
+    Ok(())
+}
