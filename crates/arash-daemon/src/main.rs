@@ -2,7 +2,7 @@
 //! `commands/`; this file only parses arguments and reports errors.
 
 mod commands;
-mod csvlog;
+mod runlog;
 
 use clap::{Parser, Subcommand};
 

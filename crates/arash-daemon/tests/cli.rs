@@ -114,3 +114,86 @@ fn excite_refuses_bad_options_by_name() {
     let err = String::from_utf8(out.stderr).unwrap();
     assert!(!out.status.success() && err.contains("acceleration_limits has 2 entries"), "{err}");
 }
+
+#[test]
+fn simulate_writes_a_flight_log_that_identify_reads() {
+    let robot = repo_file("robots/arash_asist.urdf");
+    let dir = temp_file("sim.keep", "").parent().unwrap().to_path_buf();
+    let log = dir.join("run.mcap");
+    let out = arash(&[
+        "simulate",
+        "--scenario",
+        &repo_file("scenarios/nominal.toml"),
+        "--trajectory",
+        &repo_file("trajectories/paper_validation_0.9.json"),
+        "--controller",
+        "idc-cad",
+        "--robot",
+        &robot,
+        "--duration",
+        "7",
+        "-o",
+        log.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("simulated 7.0 s of rig time") && err.contains("real time"), "{err}");
+    let flight = arash_core::flightlog::read_log(&log).unwrap();
+    assert_eq!(flight.len(), 7000);
+    assert_eq!(flight.metadata["controller"], "idc");
+    assert_eq!(flight.metadata["params"], "cad");
+    assert!(flight.truth.is_none(), "the truth is logged only with --truth");
+    let model = dir.join("model.json");
+    let out = arash(&["identify", log.to_str().unwrap(), "--robot", &robot, "-o", model.to_str().unwrap()]);
+    let (text, err) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("from 7000 samples") && text.contains("Identified base parameters"), "{err}{text}");
+    assert!(model.exists());
+}
+
+#[test]
+fn simulate_refuses_bad_inputs_by_name() {
+    let traj = repo_file("trajectories/paper_validation_0.5.json");
+    let scenario = temp_file("bad.toml", "[effects.cogging]\namplitude = [0.1, 0.1]\n");
+    let out = arash(&[
+        "simulate",
+        "--scenario",
+        scenario.to_str().unwrap(),
+        "--trajectory",
+        &traj,
+        "--controller",
+        "pd",
+        "-o",
+        "/tmp/x.mcap",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("effects.cogging.amplitude") && err.contains("2 entries"), "{err}");
+    let scenario = repo_file("scenarios/nominal.toml");
+    let out = arash(&[
+        "simulate",
+        "--scenario",
+        &scenario,
+        "--trajectory",
+        &traj,
+        "--controller",
+        "idc",
+        "-o",
+        "/tmp/x.mcap",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--params"), "{err}");
+    let bad = temp_file("traj.json", r#"{"kind": "paper-validation", "omega": 0}"#);
+    let out = arash(&[
+        "simulate",
+        "--scenario",
+        &scenario,
+        "--trajectory",
+        bad.to_str().unwrap(),
+        "--controller",
+        "pd",
+        "-o",
+        "/tmp/x.mcap",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("omega") && err.contains("traj.json"), "{err}");
+}

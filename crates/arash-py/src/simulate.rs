@@ -135,7 +135,7 @@ fn controller_params(robot: &Robot, scenario: &Scenario, params: &Bound<'_, PyAn
 
 /// Run the simulated rig; see `arash.simulate`.
 #[pyfunction]
-#[pyo3(signature = (robot, scenario_toml, scenario_name, trajectory_json, controller, params, duration, seed, gain_units, log))]
+#[pyo3(signature = (robot, scenario_toml, scenario_name, trajectory_json, controller, params, duration, seed, gain_units, log, log_truth))]
 #[allow(clippy::too_many_arguments)]
 fn _simulate<'py>(
     py: Python<'py>,
@@ -149,6 +149,7 @@ fn _simulate<'py>(
     seed: Option<u64>,
     gain_units: &str,
     log: Option<PathBuf>,
+    log_truth: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let model = &robot.model;
     let mut scenario = Scenario::from_toml(scenario_toml).map_err(value_error)?;
@@ -181,8 +182,12 @@ fn _simulate<'py>(
         .detach(|| -> Result<_, String> {
             let mut writer = match &log {
                 Some(path) => Some(
-                    LogWriter::create(path, &spec.log_header(model, &robot.urdf), spec.scenario.physics.rate_hz)
-                        .map_err(|e| e.to_string())?,
+                    LogWriter::create(
+                        path,
+                        &spec.log_header(model, &robot.urdf, log_truth),
+                        spec.scenario.physics.rate_hz,
+                    )
+                    .map_err(|e| e.to_string())?,
                 ),
                 None => None,
             };
@@ -193,7 +198,9 @@ fn _simulate<'py>(
                 truth.push(rig.record().cycle, rig.truth());
                 if let Some(w) = writer.as_mut() {
                     w.write_cycle(rig.record()).map_err(|e| e.to_string())?;
-                    w.write_truth(rig.record().cycle, rig.truth()).map_err(|e| e.to_string())?;
+                    if log_truth {
+                        w.write_truth(rig.record().cycle, rig.truth()).map_err(|e| e.to_string())?;
+                    }
                 }
             }
             if let Some(w) = writer {

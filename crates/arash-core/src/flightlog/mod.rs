@@ -6,7 +6,8 @@
 //! - the robot URDF and the run's configuration as attachments, and an `arash` metadata record
 //!   (format, software version, scenario, seed, controller, joint names);
 //! - a chunk is closed and flushed to disk every second of log, so a file cut off by a crash reads
-//!   back up to its last flushed second.
+//!   back at least up to its last flushed second (and any whole messages after it that reached
+//!   the disk).
 
 mod reader;
 pub mod schema;

@@ -96,7 +96,8 @@ fn read_messages(bytes: &[u8], name: &str, log: &mut FlightLog) -> Result<(), Lo
     let mut truth_record = TruthRecord::new(0);
     while let Some(item) = stream.next() {
         let Ok(message) = item else {
-            // A cut-off chunk: keep what came before it.
+            // Cut off: keep what came before. zstd decodes a cut chunk up to the cut, so the
+            // messages of a partly written chunk that arrived whole are kept too.
             log.truncated = true;
             break;
         };

@@ -11,9 +11,9 @@ use serde::Serialize;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The robot's URDF.
-    #[arg(long, default_value = "robots/arash_asist.urdf")]
-    robot: PathBuf,
+    /// The robot's URDF; default: the bundled ARASH:ASiST.
+    #[arg(long)]
+    robot: Option<PathBuf>,
     /// Harmonics L.
     #[arg(long, default_value_t = 5)]
     harmonics: usize,
@@ -54,7 +54,7 @@ struct TrajectoryFile<'a> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (model, _) = super::load_robot(&args.robot)?;
+    let (model, _) = super::load_robot(args.robot.as_deref())?;
     let base = BaseParameters::compute(&model, &BaseParameterOptions::default())?;
     let options = ExcitationOptions {
         harmonics: args.harmonics,

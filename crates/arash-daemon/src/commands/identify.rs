@@ -11,16 +11,16 @@ use arash_core::identify::{identify, validate, validation_table, IdentifyMethod,
 
 use arash_core::BaseParameters;
 
-use crate::csvlog;
+use crate::runlog;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Logged runs (CSV with columns t, q.<joint>, tau.<joint>), concatenated in order.
+    /// Logged runs (MCAP flight logs, or CSV with columns t, q.<joint>, tau.<joint>), concatenated in order.
     #[arg(required = true)]
     logs: Vec<PathBuf>,
-    /// The robot's URDF.
-    #[arg(long, default_value = "robots/arash_asist.urdf")]
-    robot: PathBuf,
+    /// The robot's URDF; default: the bundled ARASH:ASiST.
+    #[arg(long)]
+    robot: Option<PathBuf>,
     /// ols, wls or consistent.
     #[arg(long, default_value = "ols")]
     method: IdentifyMethod,
@@ -39,7 +39,7 @@ pub struct Args {
     /// Pull toward CAD in the consistent fit, relative to the data.
     #[arg(long, default_value_t = 1e-4)]
     pull: f64,
-    /// Validation runs (CSV), each cross-validated like the paper's Table II.
+    /// Validation runs (MCAP or CSV), each cross-validated like the paper's Table II.
     #[arg(long, num_args = 1..)]
     validate: Vec<PathBuf>,
     /// Whole periods in each validation run (averaged); omit for none.
@@ -51,9 +51,9 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (model, urdf) = super::load_robot(&args.robot)?;
-    let logs = args.logs.iter().map(|p| csvlog::read(p, &model)).collect::<anyhow::Result<Vec<_>>>()?;
-    let log = csvlog::concatenate(logs);
+    let (model, urdf) = super::load_robot(args.robot.as_deref())?;
+    let logs = args.logs.iter().map(|p| runlog::read(p, &model)).collect::<anyhow::Result<Vec<_>>>()?;
+    let log = runlog::concatenate(logs);
     let options = IdentifyOptions {
         preprocess: PreprocessOptions {
             periods: args.periods,
@@ -73,7 +73,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mut labels = Vec::new();
         let mut fp = Vec::new();
         for path in &args.validate {
-            let v = csvlog::read(path, &model)?;
+            let v = runlog::read(path, &model)?;
             let pre = PreprocessOptions { periods: args.validate_periods, order: args.order, ..Default::default() };
             let metrics = validate(&model, &identification, &v.t, &v.q, &v.tau, &pre)
                 .with_context(|| format!("validating on {}", path.display()))?;

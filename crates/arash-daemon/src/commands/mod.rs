@@ -7,8 +7,12 @@ use std::path::Path;
 
 use anyhow::Context;
 
-/// Load a robot model and keep its URDF text (model files embed it).
-pub fn load_robot(path: &Path) -> anyhow::Result<(arash_core::Model, String)> {
+/// Load a robot model and keep its URDF text (model files and logs embed it). `None` is the
+/// ARASH:ASiST description built into the binary.
+pub fn load_robot(path: Option<&Path>) -> anyhow::Result<(arash_core::Model, String)> {
+    let Some(path) = path else {
+        return Ok((arash_core::arash_asist(), arash_core::ARASH_ASIST_URDF.to_string()));
+    };
     let text = std::fs::read_to_string(path).with_context(|| format!("reading URDF {}", path.display()))?;
     let model = arash_core::parse_urdf(&text).with_context(|| format!("loading {}", path.display()))?;
     Ok((model, text))

@@ -19,7 +19,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (model, _) = super::load_robot(&args.urdf)?;
+    let (model, _) = super::load_robot(Some(&args.urdf))?;
     let options = BaseParameterOptions { samples: args.samples, seed: args.seed, ..Default::default() };
     let base = BaseParameters::compute(&model, &options).context("computing base parameters")?;
     print!("{}", describe(&model, &base));

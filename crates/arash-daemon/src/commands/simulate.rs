@@ -44,12 +44,15 @@ pub struct Args {
     /// Seconds of rig time; default: 20 periods of an excitation, one of a validation trajectory.
     #[arg(long)]
     duration: Option<f64>,
+    /// Also log the simulator's ground truth (true q, q̇, q̈, applied torque) on /arash/truth.
+    #[arg(long)]
+    truth: bool,
     /// Override the scenario's seed.
     #[arg(long)]
     seed: Option<u64>,
-    /// The robot's URDF (the CAD model; the truth is derived from it).
-    #[arg(long, default_value = "robots/arash_asist.urdf")]
-    robot: PathBuf,
+    /// The robot's URDF (the CAD model; the truth derives from it); default: the bundled ARASH:ASiST.
+    #[arg(long)]
+    robot: Option<PathBuf>,
     /// Flight log to write (MCAP).
     #[arg(short, long)]
     output: PathBuf,
@@ -92,7 +95,7 @@ fn gain_units(text: &str) -> anyhow::Result<PaperUnits> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (model, urdf) = super::load_robot(&args.robot)?;
+    let (model, urdf) = super::load_robot(args.robot.as_deref())?;
     let mut scenario =
         Scenario::load(&args.scenario).with_context(|| format!("scenario {}", args.scenario.display()))?;
     if let Some(seed) = args.seed {
@@ -113,12 +116,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         params,
         gains: RobustGains::from_paper(&model, gain_units(&args.gain_units)?),
     };
-    simulate(&model, &urdf, &spec, &args.output)
+    simulate(&model, &urdf, &spec, &args.output, args.truth)
 }
 
-fn simulate(model: &Model, urdf: &str, spec: &RunSpec, output: &Path) -> anyhow::Result<()> {
+fn simulate(model: &Model, urdf: &str, spec: &RunSpec, output: &Path, with_truth: bool) -> anyhow::Result<()> {
     let mut rig = spec.rig(model)?;
-    let mut log = LogWriter::create(output, &spec.log_header(model, urdf), spec.scenario.physics.rate_hz)?;
+    let mut log = LogWriter::create(output, &spec.log_header(model, urdf, with_truth), spec.scenario.physics.rate_hz)?;
     let cycles = spec.cycles();
     let bar = ProgressBar::new(cycles as u64).with_style(
         ProgressStyle::with_template("{msg} [{bar:40}] {percent:>3}% rig time {pos}/{len} ms, eta {eta}")
@@ -131,7 +134,9 @@ fn simulate(model: &Model, urdf: &str, spec: &RunSpec, output: &Path) -> anyhow:
     for i in 0..cycles {
         rig.step().with_context(|| format!("cycle {i}"))?;
         log.write_cycle(rig.record())?;
-        log.write_truth(rig.record().cycle, rig.truth())?;
+        if with_truth {
+            log.write_truth(rig.record().cycle, rig.truth())?;
+        }
         worst_faults |= rig.record().faults;
         if i % 1000 == 999 {
             bar.set_position(i as u64 + 1);

@@ -59,6 +59,7 @@ def simulate(
     robot=None,
     gain_units="si",
     log=None,
+    log_truth=False,
 ):
     """Run the simulated rig and return the cycles as a dict of numpy arrays.
 
@@ -71,7 +72,7 @@ def simulate(
     duration: seconds of rig time; default 20 periods of an excitation, one of a validation run.
     seed: overrides the scenario's seed. robot: a ``Robot`` (default: ARASH:ASiST).
     gain_units: reading of the paper's K_d, "si", "deg-mm" or "deg-cm" (docs/simulator.md).
-    log: also write the flight log (MCAP) to this path.
+    log: also write the flight log (MCAP) to this path; log_truth adds the ground truth to it.
 
     The dict holds "t" (N,), "cycle", "q", "qd", "tau_cmd", "tau_meas", "q_des", "qd_des",
     "qdd_des" (N, dof), "controller", "mode", "faults" (N,), "truth" (a dict with "q", "qd",
@@ -95,4 +96,4 @@ def simulate(
         params = "truth" if controller == "robust" else "cad"
     log = None if log is None else _os.fspath(log)
     return _simulate(robot, scenario_text, scenario_name, trajectory_text, controller, params,
-                     duration, seed, gain_units, log)
+                     duration, seed, gain_units, log, log_truth)

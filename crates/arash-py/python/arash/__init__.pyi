@@ -28,4 +28,5 @@ def simulate(
     robot: Optional[Robot] = None,
     gain_units: str = "si",
     log: Optional[Union[str, os.PathLike]] = None,
+    log_truth: bool = False,
 ) -> dict[str, Any]: ...

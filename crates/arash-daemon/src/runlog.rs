@@ -1,5 +1,8 @@
-//! Logged runs as CSV: a header naming `t`, then `q.<joint>` and `tau.<joint>` for every actuated
-//! joint (SI units: s, rad or m, N·m or N). Other columns are ignored, and column order is free.
+//! Logged runs for identification, from either of two formats:
+//! - an MCAP flight log (`.mcap`) from `arash simulate` or the daemon: `t`, measured `q` and the
+//!   torque measured from motor current;
+//! - CSV: a header naming `t`, then `q.<joint>` and `tau.<joint>` for every actuated joint (SI
+//!   units: s, rad or m, N·m or N). Other columns are ignored, and column order is free.
 
 use std::path::Path;
 
@@ -13,7 +16,31 @@ pub struct Log {
     pub tau: Vec<f64>,
 }
 
+/// Read a run, by extension: `.mcap` is a flight log, anything else CSV.
 pub fn read(path: &Path, model: &Model) -> anyhow::Result<Log> {
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("mcap")) {
+        read_flight_log(path, model)
+    } else {
+        read_csv(path, model)
+    }
+}
+
+fn read_flight_log(path: &Path, model: &Model) -> anyhow::Result<Log> {
+    let log = arash_core::flightlog::read_log(path)?;
+    let expected: Vec<&str> = model.joints.iter().map(|j| j.name.as_str()).collect();
+    if log.joint_names != expected {
+        bail!("{} logs joints {:?}; the robot has {:?}", path.display(), log.joint_names, expected);
+    }
+    if log.truncated {
+        eprintln!("warning: {} was cut off (crash?); using its {} complete cycles", path.display(), log.len());
+    }
+    if log.is_empty() {
+        bail!("{} has no cycles", path.display());
+    }
+    Ok(Log { t: log.cycles.t, q: log.cycles.q, tau: log.cycles.tau_meas })
+}
+
+fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
     let mut reader = csv::Reader::from_path(path).with_context(|| format!("opening log {}", path.display()))?;
     let headers = reader.headers().with_context(|| format!("reading the header of {}", path.display()))?.clone();
     let find = |name: &str| -> anyhow::Result<usize> {
