@@ -38,15 +38,31 @@ fn write(spec: &RunSpec, path: &std::path::Path) -> (Columns, TruthColumns) {
     (cycles, truth)
 }
 
-fn temp(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("arash-flightlog-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A directory removed when the test ends, pass or fail.
+struct Scratch(std::path::PathBuf);
+
+impl Scratch {
+    fn new(test: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("arash-flightlog-{}-{test}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        Self(dir)
+    }
+
+    fn path(&self, name: &str) -> std::path::PathBuf {
+        self.0.join(name)
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
 }
 
 #[test]
 fn a_log_reads_back_exactly() {
-    let path = temp("roundtrip.mcap");
+    let scratch = Scratch::new("a_log_reads_back_exactly");
+    let path = scratch.path("roundtrip.mcap");
     let spec = spec(2.5);
     let (cycles, truth) = write(&spec, &path);
     let log = read_log(&path).unwrap();
@@ -64,11 +80,12 @@ fn a_log_reads_back_exactly() {
 
 #[test]
 fn a_truncated_log_reads_up_to_its_last_flushed_chunk() {
-    let path = temp("whole.mcap");
+    let scratch = Scratch::new("a_truncated_log_reads_up_to_its_last_flushed_chunk");
+    let path = scratch.path("whole.mcap");
     let (cycles, _) = write(&spec(5.0), &path);
     let bytes = std::fs::read(&path).unwrap();
     for fraction in [0.999, 0.75, 0.5, 0.3] {
-        let cut = temp(&format!("cut-{fraction}.mcap"));
+        let cut = scratch.path(&format!("cut-{fraction}.mcap"));
         let keep = (bytes.len() as f64 * fraction) as usize;
         std::fs::write(&cut, &bytes[..keep]).unwrap();
         let log = read_log(&cut).unwrap_or_else(|e| panic!("cut at {keep} bytes: {e}"));
@@ -83,7 +100,7 @@ fn a_truncated_log_reads_up_to_its_last_flushed_chunk() {
         assert!(truth.abs_diff(n) <= 1, "{truth} truth messages for {n} cycles");
     }
     // Cut inside the header: a clear error, not a panic.
-    let cut = temp("header.mcap");
+    let cut = scratch.path("header.mcap");
     std::fs::write(&cut, &bytes[..20]).unwrap();
     let e = read_log(&cut).unwrap_err().to_string();
     assert!(e.contains("header.mcap"), "{e}");
@@ -91,7 +108,8 @@ fn a_truncated_log_reads_up_to_its_last_flushed_chunk() {
 
 #[test]
 fn the_same_seed_writes_the_same_log() {
-    let (a, b) = (temp("a.mcap"), temp("b.mcap"));
+    let scratch = Scratch::new("the_same_seed_writes_the_same_log");
+    let (a, b) = (scratch.path("a.mcap"), scratch.path("b.mcap"));
     write(&spec(1.2), &a);
     write(&spec(1.2), &b);
     let (a, b) = (read_log(&a).unwrap(), read_log(&b).unwrap());
@@ -103,10 +121,11 @@ fn the_same_seed_writes_the_same_log() {
 
 #[test]
 fn other_files_are_refused_with_their_name() {
-    let path = temp("not-a-log.mcap");
+    let scratch = Scratch::new("other_files_are_refused_with_their_name");
+    let path = scratch.path("not-a-log.mcap");
     std::fs::write(&path, "t,q\n0,1\n").unwrap();
     let e = read_log(&path).unwrap_err().to_string();
     assert!(e.contains("not-a-log.mcap"), "{e}");
-    let e = read_log(&temp("missing.mcap")).unwrap_err().to_string();
+    let e = read_log(&scratch.path("missing.mcap")).unwrap_err().to_string();
     assert!(e.contains("missing.mcap"), "{e}");
 }

@@ -149,6 +149,7 @@ fn simulate_writes_a_flight_log_that_identify_reads() {
     assert!(out.status.success(), "{err}");
     assert!(err.contains("from 7000 samples") && text.contains("Identified base parameters"), "{err}{text}");
     assert!(model.exists());
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
