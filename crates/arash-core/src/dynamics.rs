@@ -23,7 +23,7 @@ fn body_params(params: &[f64], b: usize) -> &[f64] {
     &params[b * BODY_PARAMS..(b + 1) * BODY_PARAMS]
 }
 
-fn check_params(model: &Model, params: &[f64]) {
+pub(crate) fn check_params(model: &Model, params: &[f64]) {
     assert_eq!(
         params.len(),
         model.num_params(),

@@ -9,13 +9,7 @@ use crate::model::Model;
 use crate::regressor::slotine_li_regressor;
 
 fn check_lengths(model: &Model, params: &[f64], gains: &[&[f64]]) {
-    assert_eq!(
-        params.len(),
-        model.num_params(),
-        "π has {} entries, the model needs {}",
-        params.len(),
-        model.num_params()
-    );
+    crate::dynamics::check_params(model, params);
     for g in gains {
         assert_eq!(g.len(), model.dof(), "a gain vector has {} entries, the robot has {} joints", g.len(), model.dof());
     }
