@@ -275,3 +275,20 @@ fn runs_are_deterministic_for_a_seed() {
     let c = run(&scenario, 0.5);
     assert_ne!(a.cycles.tau_meas, c.cycles.tau_meas);
 }
+
+#[test]
+fn the_amplifiers_saturate_at_their_limit() {
+    let mut scenario = Scenario::default();
+    scenario.actuators.torque_limit = vec![0.02, 0.25, 0.9];
+    let run = run(&scenario, 2.0);
+    let mut saturated = [false; 3];
+    for i in 0..run.rows() {
+        for k in 0..3 {
+            let limit = scenario.actuators.torque_limit[k];
+            assert!(run.truth.tau_motor[i * 3 + k].abs() <= limit, "cycle {i} joint {k}");
+            saturated[k] |=
+                run.cycles.tau_cmd[i * 3 + k].abs() > limit && run.truth.tau_motor[i * 3 + k].abs() == limit;
+        }
+    }
+    assert!(saturated.iter().any(|s| *s), "no command reached the limits {saturated:?}");
+}

@@ -1,0 +1,64 @@
+//! A control cycle never touches the heap: the simulated rig (plant with every undeclared effect,
+//! encoders, estimator, controller, safety gate) runs 10^4 cycles per controller under a counting
+//! global allocator. This file holds one test so no other test allocates meanwhile.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use arash_core::control::{standard_controller, ControllerKind, RobustGains, Trajectory};
+use arash_core::sim::scenario::*;
+use arash_core::sim::{true_parameters, Rig, Scenario};
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn control_cycles_do_not_allocate() {
+    let model = arash_core::arash_asist();
+    let mut scenario = Scenario::default();
+    // Every effect but armature, which compliance replaces.
+    scenario.effects = Effects {
+        stribeck: Some(Stribeck::default()),
+        coulomb_asymmetry: Some(CoulombAsymmetry::default()),
+        torque_offset: Some(TorqueOffset::default()),
+        armature: None,
+        configuration_disturbance: Some(ConfigurationDisturbance::default()),
+        compliance: Some(Compliance::default()),
+        cogging: Some(Cogging::default()),
+        delay: Some(Delay::default()),
+        friction_drift: Some(FrictionDrift::default()),
+        payload: Some(Payload { at_s: 5.0, ..Payload::default() }),
+    };
+    let params = true_parameters(&model, &scenario);
+    for kind in [ControllerKind::Pd, ControllerKind::Idc, ControllerKind::Robust] {
+        let controller = standard_controller(kind, &model, &params, &RobustGains::paper(&model)).unwrap();
+        let mut rig = Rig::new(&model, &scenario, Trajectory::PaperValidation { omega: 0.9 }, controller).unwrap();
+        let cycles = 10_000;
+        let before = ALLOCATIONS.load(Ordering::SeqCst);
+        for _ in 0..cycles {
+            rig.step().unwrap();
+        }
+        let allocations = ALLOCATIONS.load(Ordering::SeqCst) - before;
+        assert_eq!(allocations, 0, "{kind:?}: {allocations} heap allocations in {cycles} cycles");
+        assert!(rig.record().faults.is_empty(), "{kind:?}: {:?}", rig.record().faults);
+        assert!(rig.record().tau_cmd.iter().any(|t| *t != 0.0));
+    }
+}
