@@ -33,9 +33,8 @@ static GLOBAL: Counting = Counting;
 #[test]
 fn control_cycles_do_not_allocate() {
     let model = arash_core::arash_asist();
-    let mut scenario = Scenario::default();
     // Every effect but armature, which compliance replaces.
-    scenario.effects = Effects {
+    let effects = Effects {
         stribeck: Some(Stribeck::default()),
         coulomb_asymmetry: Some(CoulombAsymmetry::default()),
         torque_offset: Some(TorqueOffset::default()),
@@ -47,6 +46,7 @@ fn control_cycles_do_not_allocate() {
         friction_drift: Some(FrictionDrift::default()),
         payload: Some(Payload { at_s: 5.0, ..Payload::default() }),
     };
+    let scenario = Scenario { effects, ..Scenario::default() };
     let params = true_parameters(&model, &scenario);
     for kind in [ControllerKind::Pd, ControllerKind::Idc, ControllerKind::Robust] {
         let controller = standard_controller(kind, &model, &params, &RobustGains::paper(&model)).unwrap();
