@@ -136,6 +136,20 @@ pub struct TruthColumns {
 }
 
 impl Columns {
+    /// The joint vectors every cycle carries (`N × dof`, row-major), by field name; `qdd`, which
+    /// may be absent, is not among them.
+    pub fn joint_vectors(&self) -> [(&'static str, &Vec<f64>); 7] {
+        [
+            ("q", &self.q),
+            ("qd", &self.qd),
+            ("tau_cmd", &self.tau_cmd),
+            ("tau_meas", &self.tau_meas),
+            ("q_des", &self.q_des),
+            ("qd_des", &self.qd_des),
+            ("qdd_des", &self.qdd_des),
+        ]
+    }
+
     /// Append one cycle.
     pub fn push(&mut self, r: &CycleRecord) {
         self.cycle.push(r.cycle);
@@ -155,6 +169,18 @@ impl Columns {
 }
 
 impl TruthColumns {
+    /// The joint vectors (`N × dof`, row-major), by field name.
+    pub fn joint_vectors(&self) -> [(&'static str, &Vec<f64>); 6] {
+        [
+            ("q", &self.q),
+            ("qd", &self.qd),
+            ("qdd", &self.qdd),
+            ("tau_motor", &self.tau_motor),
+            ("motor_q", &self.motor_q),
+            ("motor_qd", &self.motor_qd),
+        ]
+    }
+
     /// Append the truth of cycle `cycle`.
     pub fn push(&mut self, cycle: u64, r: &TruthRecord) {
         self.cycle.push(cycle);

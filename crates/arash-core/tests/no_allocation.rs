@@ -1,28 +1,10 @@
 //! Evaluating the model never touches the heap: a counting global allocator watches 10^5
 //! evaluations of each algorithm. This file holds one test so no other test allocates meanwhile.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+mod common;
 
 use arash_core::*;
-
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+use common::counting::{allocations, Counting};
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
@@ -37,7 +19,7 @@ fn evaluations_do_not_allocate() {
     let mut mat = vec![0.0; n * n];
     let mut vec3 = vec![0.0; n];
     let evaluations = 100_000;
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let before = allocations();
     for i in 0..evaluations {
         let t = i as f64 * 1e-3;
         let q = [0.3 * t.sin(), 0.2 + 0.4 * t.cos(), 0.01 * t.sin()];
@@ -52,7 +34,7 @@ fn evaluations_do_not_allocate() {
         let tau = [vec3[0], vec3[1], vec3[2]];
         forward_dynamics(&model, &mut data, &q, &qd, &tau, &pi, &mut vec3).unwrap();
     }
-    let allocations = ALLOCATIONS.load(Ordering::SeqCst) - before;
+    let allocations = allocations() - before;
     assert_eq!(allocations, 0, "{allocations} heap allocations in {evaluations} evaluations");
     assert!(y.iter().any(|v| *v != 0.0) && vec3.iter().all(|v| v.is_finite()));
 }

@@ -2,30 +2,12 @@
 //! encoders, estimator, controller, safety gate) runs 10^4 cycles per controller under a counting
 //! global allocator. This file holds one test so no other test allocates meanwhile.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+mod common;
 
 use arash_core::control::{standard_controller, ControllerKind, RobustGains, Trajectory};
 use arash_core::sim::scenario::*;
 use arash_core::sim::{true_parameters, Rig, Scenario};
-
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+use common::counting::{allocations, Counting};
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
@@ -52,11 +34,11 @@ fn control_cycles_do_not_allocate() {
         let controller = standard_controller(kind, &model, &params, &RobustGains::paper(&model)).unwrap();
         let mut rig = Rig::new(&model, &scenario, Trajectory::PaperValidation { omega: 0.9 }, controller).unwrap();
         let cycles = 10_000;
-        let before = ALLOCATIONS.load(Ordering::SeqCst);
+        let before = allocations();
         for _ in 0..cycles {
             rig.step().unwrap();
         }
-        let allocations = ALLOCATIONS.load(Ordering::SeqCst) - before;
+        let allocations = allocations() - before;
         assert_eq!(allocations, 0, "{kind:?}: {allocations} heap allocations in {cycles} cycles");
         assert!(rig.record().faults.is_empty(), "{kind:?}: {:?}", rig.record().faults);
         assert!(rig.record().tau_cmd.iter().any(|t| *t != 0.0));

@@ -34,15 +34,7 @@ fn cycles_dict<'py>(py: Python<'py>, c: &Columns, dof: usize) -> PyResult<Bound<
     let d = PyDict::new(py);
     d.set_item("cycle", integers(py, &c.cycle))?;
     d.set_item("t", vector(py, &c.t)?)?;
-    for (name, values) in [
-        ("q", &c.q),
-        ("qd", &c.qd),
-        ("tau_cmd", &c.tau_cmd),
-        ("tau_meas", &c.tau_meas),
-        ("q_des", &c.q_des),
-        ("qd_des", &c.qd_des),
-        ("qdd_des", &c.qdd_des),
-    ] {
+    for (name, values) in c.joint_vectors() {
         d.set_item(name, matrix(py, values, dof)?)?;
     }
     if c.qdd.is_empty() {
@@ -60,14 +52,7 @@ fn truth_dict<'py>(py: Python<'py>, c: &TruthColumns, dof: usize) -> PyResult<Bo
     let d = PyDict::new(py);
     d.set_item("cycle", integers(py, &c.cycle))?;
     d.set_item("t", vector(py, &c.t)?)?;
-    for (name, values) in [
-        ("q", &c.q),
-        ("qd", &c.qd),
-        ("qdd", &c.qdd),
-        ("tau_motor", &c.tau_motor),
-        ("motor_q", &c.motor_q),
-        ("motor_qd", &c.motor_qd),
-    ] {
+    for (name, values) in c.joint_vectors() {
         d.set_item(name, matrix(py, values, dof)?)?;
     }
     Ok(d)

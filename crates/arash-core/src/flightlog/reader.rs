@@ -177,16 +177,7 @@ fn truth_record_from(m: &Truth, r: &mut TruthRecord) {
 fn check_shapes(log: &FlightLog, name: &str) -> Result<(), LogError> {
     let (n, dof) = (log.cycles.t.len(), log.dof());
     let c = &log.cycles;
-    let vectors = [
-        ("q", &c.q),
-        ("qd", &c.qd),
-        ("tau_cmd", &c.tau_cmd),
-        ("tau_meas", &c.tau_meas),
-        ("q_des", &c.q_des),
-        ("qd_des", &c.qd_des),
-        ("qdd_des", &c.qdd_des),
-    ];
-    for (field, v) in vectors {
+    for (field, v) in c.joint_vectors() {
         if v.len() != n * dof {
             return Err(LogError::NotFlightLog {
                 path: name.into(),

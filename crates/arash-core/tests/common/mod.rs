@@ -2,6 +2,8 @@
 //! parameters.
 #![allow(dead_code)]
 
+pub mod counting;
+
 use arash_core::base_parameters::random_state;
 use arash_core::spatial::{params_from_com, Mat3, Vec3};
 use arash_core::{load_urdf, Model};
