@@ -5,10 +5,10 @@
 use std::path::PathBuf;
 
 use arash_core::control::gains::PaperUnits;
-use arash_core::control::{ControllerKind, RobustGains, Trajectory};
+use arash_core::control::{RobustGains, Trajectory};
 use arash_core::flightlog::{read_log as core_read_log, FlightLog, LogWriter};
 use arash_core::record::{Columns, TruthColumns};
-use arash_core::sim::{true_parameters, RunSpec, Scenario};
+use arash_core::sim::{named_parameters, true_parameters, ControllerChoice, RunSpec, Scenario};
 use numpy::PyReadonlyArrayDyn;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -83,31 +83,37 @@ fn read_log<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>>
     log_dict(py, &log)
 }
 
-fn controller_kind(name: &str) -> PyResult<ControllerKind> {
-    match name {
-        "pd" => Ok(ControllerKind::Pd),
-        "idc" | "idc-cad" => Ok(ControllerKind::Idc),
-        "robust" => Ok(ControllerKind::Robust),
-        other => Err(PyValueError::new_err(format!("controller must be pd, idc-cad, idc or robust, not {other:?}"))),
-    }
-}
-
-/// The controller's parameters: "cad", "truth", an Identification or a (P,) array.
-fn controller_params(robot: &Robot, scenario: &Scenario, params: &Bound<'_, PyAny>) -> PyResult<(String, Vec<f64>)> {
+/// The controller's parameters: None (the choice's default), "cad", "truth", an Identification
+/// or a (P,) array. Returns the source's label and the vector.
+fn controller_params(
+    robot: &Robot,
+    scenario: &Scenario,
+    choice: ControllerChoice,
+    params: Option<&Bound<'_, PyAny>>,
+) -> PyResult<(String, Vec<f64>)> {
     let model = &robot.model;
-    if let Ok(name) = params.extract::<String>() {
-        return match name.as_str() {
-            "cad" => Ok(("cad".into(), model.cad_parameters())),
-            "truth" => Ok(("truth".into(), true_parameters(model, scenario))),
-            other => Err(PyValueError::new_err(format!(
-                "params must be \"cad\", \"truth\", an Identification or an array, not {other:?}"
-            ))),
-        };
+    let named = match params {
+        None => Some(choice.default_params().map(str::to_string).ok_or_else(|| {
+            PyValueError::new_err("controller \"idc\" needs params: \"cad\", \"truth\", an Identification or an array")
+        })?),
+        Some(p) => p.extract::<String>().ok(),
+    };
+    if let Some(name) = named {
+        choice.check_params(&name).map_err(PyValueError::new_err)?;
+        let values = named_parameters(model, scenario, &name).ok_or_else(|| {
+            PyValueError::new_err(format!(
+                "params must be \"cad\", \"truth\", an Identification or an array, not {name:?}"
+            ))
+        })?;
+        return Ok((name, values));
     }
+    let params = params.expect("None is named above");
     if let Ok(identification) = params.cast::<Identification>() {
+        choice.check_params("an identified model").map_err(PyValueError::new_err)?;
         let values = identification.get().inner().controller_parameters(model).map_err(value_error)?;
         return Ok(("identified".into(), values));
     }
+    choice.check_params("an array").map_err(PyValueError::new_err)?;
     let array: PyReadonlyArrayDyn<'_, f64> = params
         .extract()
         .map_err(|_| PyValueError::new_err("params must be \"cad\", \"truth\", an Identification or a float array"))?;
@@ -129,7 +135,7 @@ fn _simulate<'py>(
     scenario_name: &str,
     trajectory_json: &str,
     controller: &str,
-    params: &Bound<'py, PyAny>,
+    params: Option<&Bound<'py, PyAny>>,
     duration: Option<f64>,
     seed: Option<u64>,
     gain_units: &str,
@@ -146,18 +152,14 @@ fn _simulate<'py>(
     }
     scenario.validate(model.dof()).map_err(value_error)?;
     let trajectory = Trajectory::from_json(trajectory_json, model.dof()).map_err(value_error)?;
-    let units: PaperUnits = serde_json::from_value(serde_json::Value::String(gain_units.into()))
-        .map_err(|_| PyValueError::new_err(format!("gain_units must be si, deg-mm or deg-cm, not {gain_units:?}")))?;
-    let kind = controller_kind(controller)?;
-    if controller == "idc-cad" && params.extract::<String>().ok().as_deref() != Some("cad") {
-        return Err(PyValueError::new_err("controller \"idc-cad\" runs with params=\"cad\"; use \"idc\" for others"));
-    }
-    let (params_source, values) = controller_params(robot, &scenario, params)?;
+    let units: PaperUnits = gain_units.parse().map_err(PyValueError::new_err)?;
+    let choice: ControllerChoice = controller.parse().map_err(PyValueError::new_err)?;
+    let (params_source, values) = controller_params(robot, &scenario, choice, params)?;
     let spec = RunSpec {
         duration_s: duration.unwrap_or_else(|| trajectory.default_duration()),
         scenario,
         trajectory,
-        controller: kind,
+        controller: choice.kind(),
         params_source,
         params: values,
         gains: RobustGains::from_paper(model, units),

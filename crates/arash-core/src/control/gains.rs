@@ -26,6 +26,19 @@ pub enum PaperUnits {
     DegCm,
 }
 
+impl std::str::FromStr for PaperUnits {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, String> {
+        match text {
+            "si" => Ok(PaperUnits::Si),
+            "deg-mm" => Ok(PaperUnits::DegMm),
+            "deg-cm" => Ok(PaperUnits::DegCm),
+            other => Err(format!("gain units must be si, deg-mm or deg-cm, not `{other}`")),
+        }
+    }
+}
+
 impl PaperUnits {
     /// SI gain per published gain: (velocity unit per rad/s or m/s).
     pub fn factor(self, kind: JointKind) -> f64 {

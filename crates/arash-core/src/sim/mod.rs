@@ -15,6 +15,6 @@ pub mod truth;
 
 pub use plant::{Plant, PlantError};
 pub use rig::Rig;
-pub use run::RunSpec;
+pub use run::{named_parameters, ControllerChoice, RunSpec};
 pub use scenario::{Integrator, Scenario, ScenarioError};
 pub use truth::true_parameters;

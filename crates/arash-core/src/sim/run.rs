@@ -6,8 +6,74 @@ use serde::Serialize;
 use super::plant::PlantError;
 use super::rig::Rig;
 use super::scenario::Scenario;
+use super::truth::true_parameters;
 use crate::control::{standard_controller, ControllerKind, RobustGains, Trajectory};
 use crate::model::Model;
+
+/// A controller as `arash simulate` and `arash.simulate` name it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ControllerChoice {
+    /// PD with gravity compensation.
+    Pd,
+    /// Inverse dynamics control with the CAD parameters: the paper's baseline.
+    IdcCad,
+    /// Inverse dynamics control with parameters the caller names.
+    Idc,
+    /// The robust controller (eq. 22).
+    Robust,
+}
+
+impl std::str::FromStr for ControllerChoice {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, String> {
+        match text {
+            "pd" => Ok(Self::Pd),
+            "idc-cad" => Ok(Self::IdcCad),
+            "idc" => Ok(Self::Idc),
+            "robust" => Ok(Self::Robust),
+            other => Err(format!("controller must be pd, idc-cad, idc or robust, not `{other}`")),
+        }
+    }
+}
+
+impl ControllerChoice {
+    pub fn kind(self) -> ControllerKind {
+        match self {
+            Self::Pd => ControllerKind::Pd,
+            Self::IdcCad | Self::Idc => ControllerKind::Idc,
+            Self::Robust => ControllerKind::Robust,
+        }
+    }
+
+    /// The parameter source used when the caller names none: `cad` for PD and the baseline,
+    /// `truth` for the robust controller; plain `idc` needs one named.
+    pub fn default_params(self) -> Option<&'static str> {
+        match self {
+            Self::Pd | Self::IdcCad => Some("cad"),
+            Self::Robust => Some("truth"),
+            Self::Idc => None,
+        }
+    }
+
+    /// Refuse a parameter source this choice cannot run with: `idc-cad` runs on CAD only.
+    pub fn check_params(self, source: &str) -> Result<(), String> {
+        if self == Self::IdcCad && source != "cad" {
+            return Err(format!("idc-cad runs with the CAD parameters, not {source}; use idc for others"));
+        }
+        Ok(())
+    }
+}
+
+/// The parameter vectors the simulator itself can name: `cad` and `truth` (the simulated robot's
+/// own, for `scenario`). `None` for any other name.
+pub fn named_parameters(model: &Model, scenario: &Scenario, name: &str) -> Option<Vec<f64>> {
+    match name {
+        "cad" => Some(model.cad_parameters()),
+        "truth" => Some(true_parameters(model, scenario)),
+        _ => None,
+    }
+}
 
 /// Everything that defines a simulated run.
 #[derive(Clone, Debug, Serialize)]

@@ -5,24 +5,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use arash_core::control::gains::PaperUnits;
-use arash_core::control::{ControllerKind, RobustGains, Trajectory};
+use arash_core::control::{RobustGains, Trajectory};
 use arash_core::flightlog::LogWriter;
 use arash_core::identify::Identification;
-use arash_core::sim::{true_parameters, RunSpec, Scenario};
+use arash_core::sim::{named_parameters, ControllerChoice, RunSpec, Scenario};
 use arash_core::Model;
 use indicatif::{ProgressBar, ProgressStyle};
-
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum ControllerArg {
-    /// PD with gravity compensation (CAD gravity unless --params says otherwise).
-    Pd,
-    /// Inverse dynamics control with the CAD parameters: the paper's baseline.
-    IdcCad,
-    /// Inverse dynamics control with the parameters of --params.
-    Idc,
-    /// The paper's robust controller (eq. 22) with the parameters of --params (default: truth).
-    Robust,
-}
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -32,15 +20,18 @@ pub struct Args {
     /// Trajectory file (arash-trajectory/1 JSON): `arash excite` output or trajectories/*.json.
     #[arg(long)]
     trajectory: PathBuf,
-    #[arg(long, value_enum)]
-    controller: ControllerArg,
+    /// pd (PD plus gravity; CAD unless --params), idc-cad (inverse dynamics with CAD: the
+    /// paper's baseline), idc (inverse dynamics with --params) or robust (eq. 22; default
+    /// parameters: truth).
+    #[arg(long)]
+    controller: ControllerChoice,
     /// The controller's parameters: `cad`, `truth` (the simulated robot's own) or a model file
     /// written by `arash identify`.
     #[arg(long)]
     params: Option<String>,
     /// Reading of the paper's K_d: si, deg-mm or deg-cm (see docs/simulator.md).
     #[arg(long, default_value = "si")]
-    gain_units: String,
+    gain_units: PaperUnits,
     /// Seconds of rig time; default: 20 periods of an excitation, one of a validation trajectory.
     #[arg(long)]
     duration: Option<f64>,
@@ -58,40 +49,20 @@ pub struct Args {
     output: PathBuf,
 }
 
-fn controller_parameters(
-    args: &Args,
-    model: &Model,
-    scenario: &Scenario,
-) -> anyhow::Result<(ControllerKind, String, Vec<f64>)> {
-    let default = match args.controller {
-        ControllerArg::Pd | ControllerArg::IdcCad => "cad",
-        ControllerArg::Robust => "truth",
-        ControllerArg::Idc => bail!("--controller idc needs --params cad|truth|MODEL.json"),
+fn controller_parameters(args: &Args, model: &Model, scenario: &Scenario) -> anyhow::Result<(String, Vec<f64>)> {
+    let Some(source) = args.params.as_deref().or(args.controller.default_params()) else {
+        bail!("--controller idc needs --params cad|truth|MODEL.json");
     };
-    let source = args.params.clone().unwrap_or_else(|| default.into());
-    if matches!(args.controller, ControllerArg::IdcCad) && source != "cad" {
-        bail!("--controller idc-cad uses the CAD parameters; use --controller idc --params {source}");
-    }
-    let params = match source.as_str() {
-        "cad" => model.cad_parameters(),
-        "truth" => true_parameters(model, scenario),
-        path => {
-            let text = std::fs::read_to_string(path).with_context(|| format!("reading model file {path}"))?;
-            let identification = Identification::from_json(&text).with_context(|| format!("loading {path}"))?;
-            identification.controller_parameters(model).with_context(|| format!("using {path}"))?
+    args.controller.check_params(source).map_err(anyhow::Error::msg)?;
+    let params = match named_parameters(model, scenario, source) {
+        Some(params) => params,
+        None => {
+            let text = std::fs::read_to_string(source).with_context(|| format!("reading model file {source}"))?;
+            let identification = Identification::from_json(&text).with_context(|| format!("loading {source}"))?;
+            identification.controller_parameters(model).with_context(|| format!("using {source}"))?
         }
     };
-    let kind = match args.controller {
-        ControllerArg::Pd => ControllerKind::Pd,
-        ControllerArg::IdcCad | ControllerArg::Idc => ControllerKind::Idc,
-        ControllerArg::Robust => ControllerKind::Robust,
-    };
-    Ok((kind, source, params))
-}
-
-fn gain_units(text: &str) -> anyhow::Result<PaperUnits> {
-    serde_json::from_value(serde_json::Value::String(text.into()))
-        .map_err(|_| anyhow::anyhow!("--gain-units must be si, deg-mm or deg-cm, not `{text}`"))
+    Ok((source.to_string(), params))
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -106,15 +77,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| format!("reading trajectory {}", args.trajectory.display()))?;
     let trajectory = Trajectory::from_json(&text, model.dof())
         .with_context(|| format!("trajectory {}", args.trajectory.display()))?;
-    let (controller, params_source, params) = controller_parameters(&args, &model, &scenario)?;
+    let (params_source, params) = controller_parameters(&args, &model, &scenario)?;
     let spec = RunSpec {
         duration_s: args.duration.unwrap_or_else(|| trajectory.default_duration()),
         scenario,
         trajectory,
-        controller,
+        controller: args.controller.kind(),
         params_source,
         params,
-        gains: RobustGains::from_paper(&model, gain_units(&args.gain_units)?),
+        gains: RobustGains::from_paper(&model, args.gain_units),
     };
     simulate(&model, &urdf, &spec, &args.output, args.truth)
 }

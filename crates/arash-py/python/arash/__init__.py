@@ -92,8 +92,6 @@ def simulate(
         trajectory_text = _json.dumps({"format": "arash-trajectory/1", **trajectory})
     else:
         trajectory_text = _Path(_os.fspath(trajectory)).read_text()
-    if params is None:
-        params = "truth" if controller == "robust" else "cad"
     log = None if log is None else _os.fspath(log)
     return _simulate(robot, scenario_text, scenario_name, trajectory_text, controller, params,
                      duration, seed, gain_units, log, log_truth)

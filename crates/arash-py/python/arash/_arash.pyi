@@ -146,6 +146,6 @@ def design_excitation(
 def read_log(path: Union[str, os.PathLike]) -> dict[str, Any]: ...
 def _simulate(
     robot: Robot, scenario_toml: str, scenario_name: str, trajectory_json: str, controller: str,
-    params: Any, duration: Optional[float], seed: Optional[int], gain_units: str,
+    params: Optional[Any], duration: Optional[float], seed: Optional[int], gain_units: str,
     log: Optional[str], log_truth: bool,
 ) -> dict[str, Any]: ...
