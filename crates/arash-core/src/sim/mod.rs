@@ -4,15 +4,18 @@
 //! - [`scenario`]: the TOML description of a rig and the effects switched on;
 //! - [`truth`]: the true parameters (CAD plus a seeded perturbation);
 //! - [`plant`]: the continuous-time robot and its fixed-step integrator;
-//! - [`rig`]: sensors, amplifiers and the control loop around the plant;
+//! - [`drive`]: amplifiers, encoders and current sensing around the plant;
+//! - [`rig`]: the drive, amplifiers and the control loop around the plant;
 //! - [`run`]: a whole run (what `arash simulate` and `arash.simulate` execute).
 
+pub mod drive;
 pub mod plant;
 pub mod rig;
 pub mod run;
 pub mod scenario;
 pub mod truth;
 
+pub use drive::Drive;
 pub use plant::{Plant, PlantError};
 pub use rig::Rig;
 pub use run::{named_parameters, ControllerChoice, RunSpec};
