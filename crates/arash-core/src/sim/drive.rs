@@ -113,15 +113,14 @@ impl Drive {
     /// One cycle of `dt` seconds with `tau` commanded: the amplifiers saturate it, the current
     /// sensors measure it, and the plant integrates with it held. Never allocates.
     pub fn apply(&mut self, dt: f64, tau: &[f64]) -> Result<(), PlantError> {
-        let n = self.tau_meas.len();
         let tr = &mut self.truth;
         tr.t = self.plant.time();
         tr.q.copy_from_slice(self.plant.q());
         tr.qd.copy_from_slice(self.plant.qd());
         tr.motor_q.copy_from_slice(self.plant.motor_position());
         tr.motor_qd.copy_from_slice(self.plant.motor_velocity());
-        for k in 0..n {
-            tr.tau_motor[k] = tau[k].clamp(-self.saturation[k], self.saturation[k]);
+        for ((out, &t), &limit) in tr.tau_motor.iter_mut().zip(tau).zip(&self.saturation) {
+            *out = t.clamp(-limit, limit);
         }
         self.measure_torque();
         self.plant.advance(dt, &self.truth.tau_motor)?;
