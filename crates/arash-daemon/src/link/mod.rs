@@ -1,0 +1,99 @@
+//! The motor link: how the daemon talks to the motor drives (docs/protocol.md).
+//!
+//! - [`frame`]: the serial protocol's frames (COBS, CRC-16, sequence numbers, time stamps);
+//! - [`serial`]: that protocol over a byte stream (a serial port, or a pseudo-terminal);
+//! - [`can`]: the same commands and telemetry as classic CAN frames.
+//!
+//! Both transports implement [`MotorLink`]; the control cycle sees only the trait. Neither
+//! blocks or allocates in `send` or `poll`.
+
+pub mod can;
+pub mod frame;
+pub mod serial;
+
+pub use frame::{Command, Telemetry, MAX_JOINTS};
+
+/// Counters of what went wrong on the link, logged once a second.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct LinkStats {
+    pub frames_sent: u64,
+    pub frames_received: u64,
+    /// Frames whose CRC did not match.
+    pub crc_errors: u64,
+    /// Byte runs that were not frames (COBS, length, type or body errors).
+    pub framing_errors: u64,
+    /// Telemetry frames missing between two received ones (sequence gaps).
+    pub lost: u64,
+    /// Telemetry frames that arrived out of order or twice, and were dropped.
+    pub stale: u64,
+    /// Sends that failed (e.g. a full output buffer).
+    pub send_errors: u64,
+}
+
+/// A transport to the motor drives.
+pub trait MotorLink: Send {
+    /// Queue one command frame. Never blocks: a frame that cannot be written now is counted in
+    /// `send_errors` and reported as an error.
+    fn send(&mut self, command: &Command) -> std::io::Result<()>;
+    /// Take everything that has arrived. Returns `true` when at least one new, valid telemetry
+    /// frame came, with the newest written to `out`.
+    fn poll(&mut self, out: &mut Telemetry) -> std::io::Result<bool>;
+    fn stats(&self) -> LinkStats;
+}
+
+/// Tracks the drive's telemetry sequence numbers (`bits` wide, wrapping): gaps are counted as
+/// lost frames, and a frame not newer than the last accepted one (within half the range) is
+/// stale.
+#[derive(Clone, Copy, Debug)]
+pub struct SequenceCheck {
+    mask: u16,
+    last: Option<u16>,
+}
+
+impl Default for SequenceCheck {
+    fn default() -> Self {
+        Self::new(16)
+    }
+}
+
+impl SequenceCheck {
+    pub fn new(bits: u32) -> Self {
+        Self { mask: (((1u32 << bits) - 1) & 0xFFFF) as u16, last: None }
+    }
+
+    /// `Some(gap)` (frames lost before this one) if `seq` is new, `None` if stale.
+    pub fn accept(&mut self, seq: u16) -> Option<u16> {
+        let seq = seq & self.mask;
+        let gap = match self.last {
+            None => 0,
+            Some(last) => {
+                let ahead = seq.wrapping_sub(last) & self.mask;
+                if ahead == 0 || ahead > self.mask / 2 {
+                    return None;
+                }
+                ahead - 1
+            }
+        };
+        self.last = Some(seq);
+        Some(gap)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::SequenceCheck;
+
+    #[test]
+    fn sequence_numbers_wrap_count_gaps_and_reject_stale_frames() {
+        let mut s = SequenceCheck::default();
+        assert_eq!(s.accept(65534), Some(0));
+        assert_eq!(s.accept(65535), Some(0));
+        assert_eq!(s.accept(2), Some(2), "0 and 1 were lost across the wrap");
+        assert_eq!(s.accept(2), None, "duplicate");
+        assert_eq!(s.accept(1), None, "reordered");
+        assert_eq!(s.accept(3), Some(0));
+        let mut s8 = SequenceCheck::new(8);
+        assert_eq!(s8.accept(255), Some(0));
+        assert_eq!(s8.accept(256 + 1), Some(1), "only the low 8 bits count");
+    }
+}
