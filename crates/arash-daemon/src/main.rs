@@ -23,6 +23,12 @@ enum Command {
     Identify(commands::identify::Args),
     /// Run the simulated rig with a controller on a trajectory and write the flight log (MCAP).
     Simulate(commands::simulate::Args),
+    /// Run the rig: the 1 kHz control loop over the motor link (starts with the motors disabled).
+    Daemon(commands::daemon::Args),
+    /// Command a running daemon: status, enable, disable, reset, hold, run, controller.
+    Ctl(commands::ctl::Args),
+    /// Serve the simulated rig behind the motor protocol on a pseudo-terminal.
+    MockMotor(commands::mock_motor::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -31,5 +37,8 @@ fn main() -> anyhow::Result<()> {
         Command::Excite(args) => commands::excite::run(args),
         Command::Identify(args) => commands::identify::run(args),
         Command::Simulate(args) => commands::simulate::run(args),
+        Command::Daemon(args) => commands::daemon::run(args),
+        Command::Ctl(args) => commands::ctl::run(args),
+        Command::MockMotor(args) => commands::mock_motor::run(args),
     }
 }

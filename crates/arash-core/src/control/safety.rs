@@ -29,6 +29,11 @@ impl Faults {
     pub const LINK_TIMEOUT: Faults = Faults(1 << 4);
     /// The motor side reported a fault (set by the daemon).
     pub const MOTOR: Faults = Faults(1 << 5);
+    /// A joint strayed further from its reference than the following-error limit (set by the
+    /// daemon; catches a stuck encoder or a blocked joint).
+    pub const FOLLOWING_ERROR: Faults = Faults(1 << 6);
+    /// The measured motor current disagreed with the command for too long (set by the daemon).
+    pub const CURRENT_MISMATCH: Faults = Faults(1 << 7);
 
     pub fn contains(self, other: Faults) -> bool {
         self.0 & other.0 == other.0
@@ -40,8 +45,16 @@ impl Faults {
 
     /// Names of the bits set, for reports.
     pub fn names(self) -> Vec<&'static str> {
-        const NAMES: [&str; 6] =
-            ["non-finite state", "non-finite command", "position limit", "velocity limit", "link timeout", "motor"];
+        const NAMES: [&str; 8] = [
+            "non-finite state",
+            "non-finite command",
+            "position limit",
+            "velocity limit",
+            "link timeout",
+            "motor",
+            "following error",
+            "current mismatch",
+        ];
         NAMES.iter().enumerate().filter(|(i, _)| self.0 & (1 << i) != 0).map(|(_, n)| *n).collect()
     }
 }

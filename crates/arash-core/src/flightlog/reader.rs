@@ -21,6 +21,9 @@ pub struct FlightLog {
     pub joint_names: Vec<String>,
     pub cycles: Columns,
     pub truth: Option<TruthColumns>,
+    /// Messages on JSON channels (the daemon's `/arash/timing` and `/arash/event`): topic →
+    /// (log time in ns since the start, document).
+    pub json: BTreeMap<String, Vec<(u64, String)>>,
     /// The file ended without its footer (a crash or a run still being written); everything up
     /// to the last complete chunk was read.
     pub truncated: bool,
@@ -123,6 +126,12 @@ fn read_messages(bytes: &[u8], name: &str, log: &mut FlightLog) -> Result<(), Lo
                 problem: format!("message {} on {CYCLE_TOPIC}: {problem}", log.cycles.t.len()),
             })?;
             log.cycles.push(&record);
+        } else if let Some(channel) = stream.get_channel(id).filter(|c| c.message_encoding == "json") {
+            let start = log.metadata.get("start_unix_ns").and_then(|s| s.parse::<u64>().ok()).unwrap_or(0);
+            log.json
+                .entry(channel.topic.clone())
+                .or_default()
+                .push((message.header.log_time.saturating_sub(start), String::from_utf8_lossy(&message.data).into_owned()));
         } else if Some(id) == truth_channel {
             truth_msg.clear();
             truth_msg.merge(&*message.data).map_err(|e| decode_error(TRUTH_TOPIC, truth.t.len(), e))?;

@@ -44,6 +44,8 @@ pub struct LogWriter {
     buffer: Vec<u8>,
     cycle: Cycle,
     truth: Truth,
+    /// Schemaless JSON channels by topic (timing statistics, events), added on first use.
+    json_channels: BTreeMap<String, u16>,
 }
 
 impl LogWriter {
@@ -104,6 +106,7 @@ impl LogWriter {
             buffer: Vec::with_capacity(1024),
             cycle: Cycle::default(),
             truth: Truth::default(),
+            json_channels: BTreeMap::new(),
         })
     }
 
@@ -174,6 +177,22 @@ impl LogWriter {
         let time = self.log_time(r.t);
         let header = MessageHeader { channel_id, sequence: cycle as u32, log_time: time, publish_time: time };
         self.writer.write_to_known_channel(&header, &self.buffer).map_err(|e| self.mcap_error(e))
+    }
+
+    /// Append a JSON document on `topic` (schemaless, `json` encoding) at run time `t`: the
+    /// daemon's timing statistics and events.
+    pub fn write_json(&mut self, topic: &str, t: f64, json: &str) -> Result<(), LogError> {
+        let channel_id = match self.json_channels.get(topic) {
+            Some(&id) => id,
+            None => {
+                let id = self.writer.add_channel(0, topic, "json", &BTreeMap::new()).map_err(|e| self.mcap_error(e))?;
+                self.json_channels.insert(topic.to_string(), id);
+                id
+            }
+        };
+        let time = self.log_time(t.max(0.0));
+        let header = MessageHeader { channel_id, sequence: 0, log_time: time, publish_time: time };
+        self.writer.write_to_known_channel(&header, json.as_bytes()).map_err(|e| self.mcap_error(e))
     }
 
     /// Close the current chunk and push it to the file.

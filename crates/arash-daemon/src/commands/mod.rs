@@ -1,5 +1,8 @@
+pub mod ctl;
+pub mod daemon;
 pub mod excite;
 pub mod identify;
+pub mod mock_motor;
 pub mod model;
 pub mod simulate;
 

@@ -1,0 +1,59 @@
+//! `arash mock-motor`: the simulated rig behind the motor protocol, on a pseudo-terminal.
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+
+use anyhow::Context;
+use arash_core::sim::Scenario;
+use arash_daemon::drive_config::DriveConfig;
+use arash_daemon::mock::{FaultPlan, MockMotor};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Scenario of the simulated rig (TOML); default: the nominal rig.
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+    /// Fault plan (TOML, the fields of `FaultPlan`; see docs/daemon.md).
+    #[arg(long)]
+    faults: Option<PathBuf>,
+    /// Override the scenario's seed.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Also make this path a symbolic link to the pseudo-terminal.
+    #[arg(long)]
+    link: Option<PathBuf>,
+    /// The robot's URDF; default: the bundled ARASH:ASiST.
+    #[arg(long)]
+    robot: Option<PathBuf>,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let (model, _) = super::load_robot(args.robot.as_deref())?;
+    let mut scenario = match &args.scenario {
+        Some(p) => Scenario::load(p).with_context(|| format!("scenario {}", p.display()))?,
+        None => Scenario::default(),
+    };
+    if let Some(seed) = args.seed {
+        scenario.seed = seed;
+    }
+    let faults: FaultPlan = match &args.faults {
+        Some(p) => toml::from_str(&std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?)
+            .with_context(|| format!("fault plan {}", p.display()))?,
+        None => FaultPlan::default(),
+    };
+    let mut motor = MockMotor::new(&model, &scenario, DriveConfig::default(), faults)?;
+    let (mut master, slave) = serialport::TTYPort::pair().context("opening a pseudo-terminal")?;
+    serialport::SerialPort::set_timeout(&mut master, std::time::Duration::ZERO)?;
+    let path = serialport::SerialPort::name(&slave).context("the pseudo-terminal has no name")?;
+    if let Some(link) = &args.link {
+        let _ = std::fs::remove_file(link);
+        std::os::unix::fs::symlink(&path, link).with_context(|| format!("linking {}", link.display()))?;
+    }
+    // The slave stays open here so the master never sees a hang-up between daemon runs.
+    println!("{path}");
+    eprintln!("arash mock-motor: serving {path} (scenario seed {}); Ctrl-C to stop", scenario.seed);
+    let stop = AtomicBool::new(false);
+    let served = motor.serve(master, &stop);
+    drop(slave);
+    served
+}

@@ -1,0 +1,53 @@
+//! The operator interface: newline-delimited JSON over a Unix domain socket. Each request is one
+//! line, `{"cmd": "...", ...}`; each answer is one line, `{"ok": true, ...}` or
+//! `{"ok": false, "error": "..."}`. `arash ctl` is the client; docs/daemon.md lists the commands.
+
+use std::io::{BufRead, BufReader, Write};
+use std::os::unix::net::UnixStream;
+use std::path::Path;
+use std::time::Duration;
+
+/// A request to the daemon.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "cmd", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum CtlRequest {
+    Status,
+    Enable,
+    Disable,
+    /// Clear latched faults (the drive stays disabled).
+    Reset,
+    /// Hold the present reference, abandoning a run.
+    Hold,
+    /// Play a trajectory (an `arash-trajectory/1` document) after approaching its start.
+    Run {
+        trajectory: String,
+        #[serde(default)]
+        duration_s: Option<f64>,
+        #[serde(default)]
+        label: Option<String>,
+    },
+    /// Switch the control law, optionally with a model file from `arash identify`.
+    Controller {
+        kind: String,
+        #[serde(default)]
+        model: Option<String>,
+    },
+}
+
+/// Send one request and read the answer.
+pub fn call(socket: &Path, request: &CtlRequest) -> anyhow::Result<serde_json::Value> {
+    let mut stream = UnixStream::connect(socket)
+        .map_err(|e| anyhow::anyhow!("connecting to the daemon at {}: {e} (is it running?)", socket.display()))?;
+    stream.set_read_timeout(Some(Duration::from_secs(10)))?;
+    let mut line = serde_json::to_string(request)?;
+    line.push('\n');
+    stream.write_all(line.as_bytes())?;
+    let mut answer = String::new();
+    BufReader::new(stream).read_line(&mut answer)?;
+    let value: serde_json::Value = serde_json::from_str(&answer)
+        .map_err(|e| anyhow::anyhow!("the daemon's answer is not JSON ({e}): {answer:?}"))?;
+    if value["ok"] != serde_json::Value::Bool(true) {
+        anyhow::bail!("{}", value["error"].as_str().unwrap_or("the daemon refused without a reason"));
+    }
+    Ok(value)
+}

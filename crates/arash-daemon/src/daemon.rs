@@ -1,0 +1,413 @@
+//! The daemon: wires the motor link, the control thread, the logger thread and the operator
+//! interface together, and speaks to systemd.
+//!
+//! Threads: the control thread (real-time, [`crate::rt::runner`]); the logger thread; and the
+//! main thread running a single-threaded tokio runtime for the Unix socket, housekeeping
+//! (dropping what the control thread hands back), signals and the systemd notifications. tokio
+//! never touches the control cycle.
+
+use std::path::PathBuf;
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use arash_core::control::{standard_controller, Controller, ControllerKind, Faults, RobustGains, Trajectory};
+use arash_core::identify::Identification;
+use arash_core::record::Mode;
+use arash_core::Model;
+use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+use tokio::net::UnixListener;
+
+use crate::config::{DaemonConfig, LinkKind};
+use crate::ctl::CtlRequest;
+use crate::link::MotorLink;
+use crate::logger::{LogContext, Logger, RunInfo, RunRegistry};
+use crate::rt::clock::setup_realtime;
+use crate::rt::cycle::{ControlCycle, CycleConfig, Garbage, Request};
+use crate::rt::reference::RunRequest;
+use crate::rt::runner::{self, Queues, Shared};
+
+/// Everything the daemon needs, resolved from the configuration and the command line.
+pub struct DaemonOptions {
+    pub config: DaemonConfig,
+    pub config_text: String,
+    pub model: Model,
+    pub urdf: String,
+}
+
+/// The operator side's handles.
+struct Operator {
+    model: Model,
+    gains: RobustGains,
+    requests: Mutex<rtrb::Producer<Request>>,
+    shared: Arc<Shared>,
+    runs: RunRegistry,
+    next_run: Mutex<u32>,
+}
+
+/// Build a controller of `kind` for `model` with parameters from `model_file` (or CAD).
+pub fn build_controller(
+    model: &Model,
+    kind: ControllerKind,
+    model_file: Option<&std::path::Path>,
+    gains: &RobustGains,
+) -> anyhow::Result<Box<dyn Controller>> {
+    let params = match model_file {
+        None => model.cad_parameters(),
+        Some(path) => {
+            let text = std::fs::read_to_string(path).with_context(|| format!("reading model file {}", path.display()))?;
+            let id = Identification::from_json(&text).with_context(|| format!("loading {}", path.display()))?;
+            id.controller_parameters(model).with_context(|| format!("using {}", path.display()))?
+        }
+    };
+    standard_controller(kind, model, &params, gains).context("no controller for kind `none`")
+}
+
+fn open_link(config: &DaemonConfig, dof: usize) -> anyhow::Result<Box<dyn MotorLink>> {
+    match config.link.kind {
+        LinkKind::Serial => {
+            let port = crate::link::serial::open_port(&config.link.port, config.link.baud)?;
+            Ok(Box::new(crate::link::serial::SerialLink::new(port, dof)))
+        }
+        LinkKind::Can => {
+            #[cfg(target_os = "linux")]
+            {
+                let bus = crate::link::can::SocketCan::open(&config.link.interface)?;
+                Ok(Box::new(crate::link::can::CanLink::new(bus, dof)))
+            }
+            #[cfg(not(target_os = "linux"))]
+            anyhow::bail!("link.kind = \"can\" needs Linux SocketCAN")
+        }
+    }
+}
+
+/// Run the daemon until SIGTERM or SIGINT.
+pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
+    let DaemonOptions { config, config_text, model, urdf } = options;
+    config.validate(&model).map_err(anyhow::Error::msg).context("invalid configuration")?;
+    let dof = model.dof();
+
+    for (path, cycles) in crate::logger::recover(&config.log.dir) {
+        match cycles {
+            Ok(n) => eprintln!(
+                "arash-daemon: found an unfinished log from a crash; kept as {} ({n} cycles readable)",
+                path.display()
+            ),
+            Err(e) => eprintln!("arash-daemon: found an unfinished log {} that does not read: {e}", path.display()),
+        }
+    }
+
+    let units = config.control.gain_units.parse().map_err(anyhow::Error::msg)?;
+    let gains = RobustGains::from_paper(&model, units);
+    let kind = config.controller().map_err(anyhow::Error::msg)?;
+    let controller = build_controller(&model, kind, config.control.model.as_deref(), &gains)?;
+    let (link_timeout, ramp) = config.link_cycles();
+    let cycle = ControlCycle::new(
+        CycleConfig {
+            dt: 1.0 / config.control.rate_hz,
+            drive: config.drive.clone(),
+            limits: config.safety_limits(&model).map_err(anyhow::Error::msg)?,
+            link_timeout,
+            ramp,
+            following_error: config.following_error(&model).map_err(anyhow::Error::msg)?,
+            mismatch_fraction: config.safety.mismatch_fraction.unwrap_or(0.25),
+            mismatch_cycles: config.safety.mismatch_cycles.unwrap_or(50),
+            velocity_cutoff_hz: config.control.velocity_cutoff_hz,
+            approach_speed: model.joints.iter().map(|j| config.control.approach_fraction * j.velocity).collect(),
+        },
+        controller,
+    );
+    let mut link = open_link(&config, dof)?;
+
+    let (request_tx, request_rx) = rtrb::RingBuffer::new(64);
+    let (garbage_tx, mut garbage_rx) = rtrb::RingBuffer::new(64);
+    let (log_tx, log_rx) = rtrb::RingBuffer::new(config.log.queue);
+    let shared = Arc::new(Shared::default());
+    let runs: RunRegistry = Arc::default();
+
+    let mut metadata = std::collections::BTreeMap::new();
+    metadata.insert("controller_at_start".into(), config.control.controller.clone());
+    metadata.insert("rate_hz".into(), config.control.rate_hz.to_string());
+    let context = LogContext {
+        urdf,
+        joint_names: model.joints.iter().map(|j| j.name.clone()).collect(),
+        config_toml: config_text,
+        metadata,
+        rate_hz: config.control.rate_hz,
+    };
+    let logger = Logger::new(config.log.clone(), context, runs.clone(), shared.clone())?;
+    let logger_thread = std::thread::Builder::new().name("arash-logger".into()).spawn(move || logger.run(log_rx))?;
+
+    let (rt_tx, rt_rx) = std::sync::mpsc::channel();
+    let rt_shared = shared.clone();
+    let (priority, policy) = (config.rt.priority, config.rt.policy);
+    let period = Duration::from_secs_f64(1.0 / config.control.rate_hz);
+    let control_thread = std::thread::Builder::new().name("arash-control".into()).spawn(move || {
+        match setup_realtime(priority, policy) {
+            Ok(status) => {
+                let _ = rt_tx.send(Ok(status));
+            }
+            Err(e) => {
+                let _ = rt_tx.send(Err(e));
+                return;
+            }
+        }
+        let queues = Queues { requests: request_rx, garbage: garbage_tx, log: log_tx };
+        runner::run(cycle, link.as_mut(), queues, &rt_shared, period);
+    })?;
+    let rt_status = rt_rx.recv().context("the control thread died during set-up")?;
+    let rt_status = match rt_status {
+        Ok(s) => s,
+        Err(e) => {
+            let _ = control_thread.join();
+            let _ = logger_thread.join();
+            anyhow::bail!(e);
+        }
+    };
+    if rt_status.problems.is_empty() {
+        eprintln!("arash-daemon: control thread at SCHED_FIFO priority {priority}, memory locked");
+    } else {
+        eprintln!(
+            "arash-daemon: WARNING --rt=ignore: running without full real-time set-up ({})",
+            rt_status.problems.join("; ")
+        );
+    }
+
+    let operator = Arc::new(Operator {
+        model,
+        gains,
+        requests: Mutex::new(request_tx),
+        shared: shared.clone(),
+        runs,
+        next_run: Mutex::new(0),
+    });
+    let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
+    let served = runtime.block_on(serve(&config, operator, &mut garbage_rx, rt_status.problems.is_empty()));
+    shared.stop.store(true, Ordering::Release);
+    let _ = control_thread.join();
+    drop(garbage_rx);
+    let summary = logger_thread.join().map_err(|_| anyhow::anyhow!("the logger thread panicked"))??;
+    eprintln!("arash-daemon: stopped; timing {}", serde_json::to_string(&summary)?);
+    let _ = sd_notify::notify(&[sd_notify::NotifyState::Stopping]);
+    served
+}
+
+/// The tokio side: socket, housekeeping, signals, systemd.
+async fn serve(
+    config: &DaemonConfig,
+    operator: Arc<Operator>,
+    garbage: &mut rtrb::Consumer<Garbage>,
+    realtime: bool,
+) -> anyhow::Result<()> {
+    let socket = &config.socket.path;
+    if let Some(dir) = socket.parent() {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let _ = std::fs::remove_file(socket);
+    let listener = UnixListener::bind(socket).with_context(|| format!("binding {}", socket.display()))?;
+    let mode = u32::from_str_radix(config.socket.mode.trim_start_matches("0o"), 8).expect("validated");
+    std::fs::set_permissions(socket, std::os::unix::fs::PermissionsExt::from_mode(mode))?;
+    eprintln!("arash-daemon: listening on {} (mode {:o}); motors disabled", socket.display(), mode);
+
+    let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())?;
+    let mut interrupt = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::interrupt())?;
+    let mut tick = tokio::time::interval(Duration::from_millis(10));
+    let started = Instant::now();
+    let startup_timeout = Duration::from_secs_f64(config.link.startup_timeout_ms / 1000.0);
+    let watchdog = sd_notify::watchdog_enabled();
+    let mut ready = false;
+    let mut last_beat = (0u64, Instant::now());
+    let result = loop {
+        tokio::select! {
+            _ = term.recv() => { eprintln!("arash-daemon: SIGTERM, stopping"); break Ok(()) }
+            _ = interrupt.recv() => { eprintln!("arash-daemon: SIGINT, stopping"); break Ok(()) }
+            accepted = listener.accept() => {
+                if let Ok((stream, _)) = accepted {
+                    tokio::spawn(client(stream, operator.clone()));
+                }
+            }
+            _ = tick.tick() => {
+                while let Ok(g) = garbage.pop() { drop(g); }
+                let shared = &operator.shared;
+                if !shared.running.load(Ordering::Acquire) && ready {
+                    break Err(anyhow::anyhow!("the control thread stopped"));
+                }
+                if !ready {
+                    if shared.have_telemetry.load(Ordering::Relaxed) && shared.running.load(Ordering::Acquire) {
+                        ready = true;
+                        eprintln!("arash-daemon: first telemetry after {:.0} ms; ready{}",
+                            started.elapsed().as_secs_f64() * 1e3,
+                            if realtime { "" } else { " (without real-time scheduling)" });
+                        let _ = sd_notify::notify(&[sd_notify::NotifyState::Ready]);
+                    } else if started.elapsed() > startup_timeout {
+                        break Err(anyhow::anyhow!(
+                            "no valid telemetry from the motor link within link.startup_timeout_ms = {} ms \
+                             (link.port = {}); motors were never enabled",
+                            config.link.startup_timeout_ms, config.link.port));
+                    }
+                }
+                // The watchdog is fed only while the control loop's heartbeat advances.
+                if let Some(period) = watchdog {
+                    let beat = shared.cycle.load(Ordering::Acquire);
+                    if beat != last_beat.0 && last_beat.1.elapsed() >= period / 2 {
+                        let _ = sd_notify::notify(&[sd_notify::NotifyState::Watchdog]);
+                        last_beat = (beat, Instant::now());
+                    }
+                }
+            }
+        }
+    };
+    let _ = std::fs::remove_file(socket);
+    result
+}
+
+async fn client(stream: tokio::net::UnixStream, operator: Arc<Operator>) {
+    let (read, mut write) = stream.into_split();
+    let mut lines = BufReader::new(read).lines();
+    while let Ok(Some(line)) = lines.next_line().await {
+        let answer = match serde_json::from_str::<CtlRequest>(&line) {
+            Ok(request) => match handle(&operator, request).await {
+                Ok(mut value) => {
+                    value["ok"] = true.into();
+                    value
+                }
+                Err(e) => serde_json::json!({ "ok": false, "error": format!("{e:#}") }),
+            },
+            Err(e) => serde_json::json!({ "ok": false, "error": format!("bad request: {e}") }),
+        };
+        let mut text = answer.to_string();
+        text.push('\n');
+        if write.write_all(text.as_bytes()).await.is_err() {
+            return;
+        }
+    }
+}
+
+fn send(operator: &Operator, request: Request) -> anyhow::Result<()> {
+    let mut queue = operator.requests.lock().expect("request queue lock");
+    queue.push(request).map_err(|_| anyhow::anyhow!("the control thread is not taking requests"))
+}
+
+/// Wait up to 200 ms for `condition` on the shared state.
+async fn settle(operator: &Operator, condition: impl Fn(&Shared) -> bool) -> bool {
+    for _ in 0..40 {
+        if condition(&operator.shared) {
+            return true;
+        }
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    condition(&operator.shared)
+}
+
+async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::Result<serde_json::Value> {
+    let mode = |s: &Shared| Mode::from_u32(s.mode.load(Ordering::Relaxed));
+    match request {
+        CtlRequest::Status => Ok(status(operator)),
+        CtlRequest::Enable => {
+            send(operator, Request::Enable)?;
+            if !settle(operator, |s| mode(s) == Some(Mode::Enabled)).await {
+                let faults = Faults(operator.shared.faults.load(Ordering::Relaxed));
+                anyhow::bail!(
+                    "enable refused: mode {:?}, faults [{}], telemetry {}",
+                    mode(&operator.shared),
+                    faults.names().join(", "),
+                    if operator.shared.have_telemetry.load(Ordering::Relaxed) { "ok" } else { "none yet" }
+                );
+            }
+            Ok(status(operator))
+        }
+        CtlRequest::Disable => {
+            send(operator, Request::Disable)?;
+            settle(operator, |s| mode(s) != Some(Mode::Enabled)).await;
+            Ok(status(operator))
+        }
+        CtlRequest::Reset => {
+            send(operator, Request::ResetFault)?;
+            settle(operator, |s| mode(s) != Some(Mode::Faulted)).await;
+            Ok(status(operator))
+        }
+        CtlRequest::Hold => {
+            send(operator, Request::Hold)?;
+            Ok(status(operator))
+        }
+        CtlRequest::Run { trajectory, duration_s, label } => {
+            if mode(&operator.shared) != Some(Mode::Enabled) {
+                anyhow::bail!("enable the motors before running a trajectory");
+            }
+            let text = if trajectory.trim_start().starts_with('{') {
+                trajectory
+            } else {
+                std::fs::read_to_string(&trajectory).with_context(|| format!("reading trajectory {trajectory}"))?
+            };
+            let parsed = Trajectory::from_json(&text, operator.model.dof())?;
+            let duration_s = duration_s.unwrap_or_else(|| parsed.default_duration());
+            if !(duration_s.is_finite() && duration_s > 0.0) {
+                anyhow::bail!("duration_s must be positive, not {duration_s}");
+            }
+            let id = {
+                let mut next = operator.next_run.lock().expect("run counter lock");
+                *next += 1;
+                *next
+            };
+            let controller = ControllerKind::from_u32(operator.shared.controller.load(Ordering::Relaxed))
+                .map_or("unknown".to_string(), |k| format!("{k:?}").to_lowercase());
+            operator.runs.lock().expect("registry lock").insert(
+                id,
+                RunInfo {
+                    label: label.unwrap_or_else(|| "trajectory".into()),
+                    trajectory_json: text,
+                    controller,
+                    log: None,
+                    state: "approaching".into(),
+                },
+            );
+            send(operator, Request::Run(Box::new(RunRequest { id, trajectory: parsed, duration_s })))?;
+            Ok(serde_json::json!({ "run_id": id, "duration_s": duration_s }))
+        }
+        CtlRequest::Controller { kind, model } => {
+            let kind = match kind.as_str() {
+                "pd" => ControllerKind::Pd,
+                "idc" => ControllerKind::Idc,
+                "robust" => ControllerKind::Robust,
+                other => anyhow::bail!("controller kind must be pd, idc or robust, not {other:?}"),
+            };
+            let path = model.map(PathBuf::from);
+            let controller = build_controller(&operator.model, kind, path.as_deref(), &operator.gains)?;
+            send(operator, Request::Controller(controller))?;
+            settle(operator, |s| s.controller.load(Ordering::Relaxed) == kind as u32).await;
+            Ok(status(operator))
+        }
+    }
+}
+
+fn status(operator: &Operator) -> serde_json::Value {
+    let s = &operator.shared;
+    let load = |a: &std::sync::atomic::AtomicU64| a.load(Ordering::Relaxed);
+    let faults = Faults(s.faults.load(Ordering::Relaxed));
+    let q: Vec<f64> = s.q[..operator.model.dof()].iter().map(|a| f64::from_bits(a.load(Ordering::Relaxed))).collect();
+    let runs = operator.runs.lock().expect("registry lock").clone();
+    let phase = ["hold", "approach", "run"][s.phase.load(Ordering::Relaxed).min(2) as usize];
+    serde_json::json!({
+        "cycle": load(&s.cycle),
+        "mode": Mode::from_u32(s.mode.load(Ordering::Relaxed)),
+        "faults": faults.names(),
+        "controller": ControllerKind::from_u32(s.controller.load(Ordering::Relaxed)),
+        "phase": phase,
+        "run_id": s.run_id.load(Ordering::Relaxed),
+        "last_run_ended": s.last_run_ended.load(Ordering::Relaxed),
+        "telemetry": s.have_telemetry.load(Ordering::Relaxed),
+        "q": q,
+        "missed_cycles": load(&s.missed),
+        "log_dropped": load(&s.log_dropped),
+        "link": {
+            "frames_received": load(&s.frames_received),
+            "crc_errors": load(&s.crc_errors),
+            "framing_errors": load(&s.framing_errors),
+            "lost": load(&s.lost),
+            "stale": load(&s.stale),
+            "send_errors": load(&s.send_errors),
+        },
+        "runs": runs,
+    })
+}

@@ -1,0 +1,487 @@
+//! The logger thread: drains the control thread's queue into MCAP flight logs.
+//!
+//! - **Segments.** Idle time goes to `daemon-<n>.mcap`, rotated by size or age; each trajectory
+//!   run gets its own `run-<id>-<label>.mcap`, with time zero at the run's first cycle, so that
+//!   `arash identify` takes it as is.
+//! - **Crash safety.** A file is written as `<name>.mcap.part` and renamed when finished. A
+//!   `.part` file found at start-up was cut off by a crash: [`recover`] renames it to
+//!   `<name>.recovered.mcap`, which reads up to its last flushed second.
+//! - **Black box.** The last 2 s of cycles are kept in memory; a fault writes them, with the
+//!   faulted cycle, to `blackbox-<cycle>.mcap`.
+//! - **Timing.** Once a second, histograms of the period error and the execution time go to
+//!   `/arash/timing`; events (faults, enables, runs, link errors) go to `/arash/event`.
+
+use std::collections::{BTreeMap, VecDeque};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use arash_core::control::{ControllerKind, Faults};
+use arash_core::flightlog::{LogHeader, LogWriter};
+use arash_core::record::{CycleRecord, Mode};
+
+use crate::rt::cycle::Event;
+use crate::rt::runner::{CycleSample, LogItem, Shared};
+
+pub const TIMING_TOPIC: &str = "/arash/timing";
+pub const EVENT_TOPIC: &str = "/arash/event";
+
+/// Logger settings (the `[log]` table).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LogConfig {
+    /// Directory of the flight logs.
+    pub dir: PathBuf,
+    /// Start a new idle file after this many MiB …
+    pub rotate_mib: f64,
+    /// … or this many seconds.
+    pub rotate_s: f64,
+    /// Length of the black box (s).
+    pub blackbox_s: f64,
+    /// Capacity of the queue from the control thread (cycles).
+    pub queue: usize,
+}
+
+impl Default for LogConfig {
+    fn default() -> Self {
+        Self { dir: PathBuf::from("logs"), rotate_mib: 512.0, rotate_s: 3600.0, blackbox_s: 2.0, queue: 16_384 }
+    }
+}
+
+/// A run as the operator requested it; the logger names and annotates its file from this.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct RunInfo {
+    pub label: String,
+    pub trajectory_json: String,
+    pub controller: String,
+    /// The finished log file, once the run has ended.
+    pub log: Option<PathBuf>,
+    pub state: String,
+}
+
+/// Runs by id, shared between the operator interface and the logger.
+pub type RunRegistry = Arc<Mutex<BTreeMap<u32, RunInfo>>>;
+
+/// What every file's header carries.
+#[derive(Clone)]
+pub struct LogContext {
+    pub urdf: String,
+    pub joint_names: Vec<String>,
+    pub config_toml: String,
+    pub metadata: BTreeMap<String, String>,
+    pub rate_hz: f64,
+}
+
+/// Rename every `*.mcap.part` in `dir` (left by a crash) to `*.recovered.mcap`; returns the
+/// recovered files and how many cycles each still holds.
+pub fn recover(dir: &Path) -> Vec<(PathBuf, Result<usize, String>)> {
+    let Ok(entries) = std::fs::read_dir(dir) else { return Vec::new() };
+    let mut out = Vec::new();
+    for entry in entries.flatten() {
+        let path = entry.path();
+        let Some(name) = path.file_name().and_then(|n| n.to_str()) else { continue };
+        let Some(stem) = name.strip_suffix(".mcap.part") else { continue };
+        let target = path.with_file_name(format!("{stem}.recovered.mcap"));
+        if let Err(e) = std::fs::rename(&path, &target) {
+            out.push((path, Err(e.to_string())));
+            continue;
+        }
+        let cycles = arash_core::flightlog::read_log(&target).map(|l| l.len()).map_err(|e| e.to_string());
+        out.push((target, cycles));
+    }
+    out.sort_by(|a, b| a.0.cmp(&b.0));
+    out
+}
+
+/// The file being written: its final path, and when and at what time it began.
+struct Segment {
+    writer: LogWriter,
+    part: PathBuf,
+    path: PathBuf,
+    opened: Instant,
+    /// Cycle time of the first cycle (s); the file's times start at zero there.
+    t0: Option<f64>,
+    run: Option<u32>,
+}
+
+/// Period and execution-time histograms (µs bins, log-spaced upper edges).
+#[derive(Default)]
+struct Histograms {
+    period_error: [u64; EDGES_US.len() + 1],
+    exec: [u64; EDGES_US.len() + 1],
+    max_period_error_us: f64,
+    max_exec_us: f64,
+}
+
+const EDGES_US: [f64; 12] = [1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0, 5000.0];
+
+fn bin(x_us: f64) -> usize {
+    EDGES_US.iter().position(|&e| x_us < e).unwrap_or(EDGES_US.len())
+}
+
+pub struct Logger {
+    cfg: LogConfig,
+    ctx: LogContext,
+    runs: RunRegistry,
+    shared: Arc<Shared>,
+    segment: Option<Segment>,
+    idle_files: u32,
+    record: CycleRecord,
+    blackbox: VecDeque<CycleSample>,
+    blackbox_len: usize,
+    blackbox_pending: Option<Faults>,
+    histograms: Histograms,
+    /// Whole-run period errors and execution times (µs), for the closing summary.
+    period_errors_us: Vec<f32>,
+    exec_us: Vec<f32>,
+    last_link: crate::link::LinkStats,
+    last_dropped: u64,
+    nominal_ns: f64,
+}
+
+impl Logger {
+    pub fn new(cfg: LogConfig, ctx: LogContext, runs: RunRegistry, shared: Arc<Shared>) -> anyhow::Result<Self> {
+        std::fs::create_dir_all(&cfg.dir)
+            .map_err(|e| anyhow::anyhow!("creating the log directory {}: {e}", cfg.dir.display()))?;
+        let dof = ctx.joint_names.len();
+        let capacity = (cfg.blackbox_s * ctx.rate_hz).ceil() as usize;
+        Ok(Self {
+            nominal_ns: 1e9 / ctx.rate_hz,
+            blackbox: VecDeque::with_capacity(capacity + 1),
+            blackbox_len: capacity.max(1),
+            cfg,
+            ctx,
+            runs,
+            shared,
+            segment: None,
+            idle_files: 0,
+            record: CycleRecord::new(dof),
+            blackbox_pending: None,
+            histograms: Histograms::default(),
+            period_errors_us: Vec::new(),
+            exec_us: Vec::new(),
+            last_link: Default::default(),
+            last_dropped: 0,
+        })
+    }
+
+    /// Drain `queue` until the control thread is gone, then finish the file.
+    pub fn run(mut self, mut queue: rtrb::Consumer<LogItem>) -> anyhow::Result<TimingSummary> {
+        self.open_idle()?;
+        loop {
+            let mut any = false;
+            while let Ok(item) = queue.pop() {
+                any = true;
+                self.handle(item)?;
+            }
+            if !any {
+                if queue.is_abandoned() && queue.is_empty() {
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(2));
+            }
+        }
+        self.close()?;
+        Ok(self.summary())
+    }
+
+    fn handle(&mut self, item: LogItem) -> anyhow::Result<()> {
+        match item {
+            LogItem::Event { cycle, t, event } => self.event(cycle, t, event),
+            LogItem::Cycle(s) => self.cycle(&s),
+        }
+    }
+
+    fn event(&mut self, cycle: u64, t: f64, event: Event) -> anyhow::Result<()> {
+        let description = match event {
+            Event::Enabled => "motors enabled".to_string(),
+            Event::Disabled => "motors disabled".to_string(),
+            Event::EnableRefused => "enable refused (no telemetry yet, a latched fault, or already enabled)".into(),
+            Event::FaultLatched(f) => {
+                self.blackbox_pending = Some(f);
+                format!("fault latched: {}", f.names().join(", "))
+            }
+            Event::FaultsCleared => "faults cleared by the operator".into(),
+            Event::RunStarted(id) => format!("run {id} started"),
+            Event::RunEnded(id) => format!("run {id} ended"),
+            Event::ControllerSwitched => "controller switched".into(),
+        };
+        self.write_event(cycle, t, &description)?;
+        match event {
+            Event::RunStarted(id) => self.open_run(id)?,
+            Event::RunEnded(id) => {
+                if self.segment.as_ref().is_some_and(|s| s.run == Some(id)) {
+                    let path = self.finish_segment()?;
+                    if let Some(run) = self.runs.lock().expect("registry lock").get_mut(&id) {
+                        run.log = path;
+                        run.state = "done".into();
+                    }
+                    self.open_idle()?;
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// Log one line to the event channel and to stderr (the journal, under systemd).
+    pub fn write_event(&mut self, cycle: u64, t: f64, description: &str) -> anyhow::Result<()> {
+        eprintln!("arash-daemon: cycle {cycle}: {description}");
+        let json = serde_json::json!({ "cycle": cycle, "t": t, "event": description }).to_string();
+        if let Some(s) = self.segment.as_mut() {
+            let t = t - s.t0.unwrap_or(t);
+            s.writer.write_json(EVENT_TOPIC, t, &json)?;
+        }
+        Ok(())
+    }
+
+    fn cycle(&mut self, s: &CycleSample) -> anyhow::Result<()> {
+        let r = &mut self.record;
+        r.cycle = s.cycle;
+        for (dst, src) in [
+            (&mut r.q, &s.q),
+            (&mut r.qd, &s.qd),
+            (&mut r.tau_cmd, &s.tau_cmd),
+            (&mut r.tau_meas, &s.tau_meas),
+            (&mut r.q_des, &s.q_des),
+            (&mut r.qd_des, &s.qd_des),
+            (&mut r.qdd_des, &s.qdd_des),
+        ] {
+            dst.copy_from_slice(&src[..s.dof]);
+        }
+        r.controller = ControllerKind::from_u32(s.controller).unwrap_or(ControllerKind::None);
+        r.mode = Mode::from_u32(s.mode).unwrap_or(Mode::Faulted);
+        r.faults = Faults(s.faults);
+        let segment = self.segment.as_mut().expect("a segment is open");
+        let t0 = *segment.t0.get_or_insert(s.t);
+        r.t = s.t - t0;
+        segment.writer.write_cycle(r)?;
+        self.timing(s)?;
+        if self.blackbox.len() >= self.blackbox_len {
+            self.blackbox.pop_front();
+        }
+        self.blackbox.push_back(*s);
+        if let Some(faults) = self.blackbox_pending.take() {
+            self.write_blackbox(s.cycle, faults)?;
+        }
+        self.rotate_if_due()
+    }
+
+    fn timing(&mut self, s: &CycleSample) -> anyhow::Result<()> {
+        if s.cycle > 0 {
+            let error_us = (s.period_ns as f64 - self.nominal_ns) / 1e3;
+            let exec_us = s.exec_ns as f64 / 1e3;
+            let h = &mut self.histograms;
+            h.period_error[bin(error_us.abs())] += 1;
+            h.exec[bin(exec_us)] += 1;
+            h.max_period_error_us = h.max_period_error_us.max(error_us.abs());
+            h.max_exec_us = h.max_exec_us.max(exec_us);
+            self.period_errors_us.push(error_us as f32);
+            self.exec_us.push(exec_us as f32);
+        }
+        let per_second = self.ctx.rate_hz.round().max(1.0) as u64;
+        if s.cycle % per_second != per_second - 1 {
+            return Ok(());
+        }
+        let h = std::mem::take(&mut self.histograms);
+        let dropped = self.shared.log_dropped.load(Ordering::Relaxed);
+        let link = s.link;
+        let json = serde_json::json!({
+            "cycle": s.cycle,
+            "bin_upper_edges_us": EDGES_US,
+            "period_error_us": h.period_error,
+            "exec_us": h.exec,
+            "max_period_error_us": h.max_period_error_us,
+            "max_exec_us": h.max_exec_us,
+            "missed_cycles": s.missed,
+            "log_dropped": dropped,
+            "link": link,
+        })
+        .to_string();
+        let segment = self.segment.as_mut().expect("a segment is open");
+        let t = s.t - segment.t0.unwrap_or(s.t);
+        segment.writer.write_json(TIMING_TOPIC, t, &json)?;
+        let new_errors = link.crc_errors + link.framing_errors + link.lost + link.stale + link.send_errors
+            - (self.last_link.crc_errors
+                + self.last_link.framing_errors
+                + self.last_link.lost
+                + self.last_link.stale
+                + self.last_link.send_errors);
+        if new_errors > 0 || dropped > self.last_dropped {
+            let text = format!(
+                "link errors in the last second: {} CRC, {} framing, {} lost, {} stale, {} send; {} log items dropped",
+                link.crc_errors - self.last_link.crc_errors,
+                link.framing_errors - self.last_link.framing_errors,
+                link.lost - self.last_link.lost,
+                link.stale - self.last_link.stale,
+                link.send_errors - self.last_link.send_errors,
+                dropped - self.last_dropped,
+            );
+            self.write_event(s.cycle, s.t, &text)?;
+        }
+        self.last_link = link;
+        self.last_dropped = dropped;
+        Ok(())
+    }
+
+    fn write_blackbox(&mut self, cycle: u64, faults: Faults) -> anyhow::Result<()> {
+        let path = self.cfg.dir.join(format!("blackbox-{cycle}.mcap"));
+        let mut header = self.header("blackbox", None);
+        header.metadata.insert("faults".into(), faults.names().join(", "));
+        let mut writer = LogWriter::create(&path, &header, self.ctx.rate_hz)?;
+        let mut record = CycleRecord::new(self.ctx.joint_names.len());
+        let t0 = self.blackbox.front().map_or(0.0, |s| s.t);
+        for s in &self.blackbox {
+            record.cycle = s.cycle;
+            record.t = s.t - t0;
+            for (dst, src) in [
+                (&mut record.q, &s.q),
+                (&mut record.qd, &s.qd),
+                (&mut record.tau_cmd, &s.tau_cmd),
+                (&mut record.tau_meas, &s.tau_meas),
+                (&mut record.q_des, &s.q_des),
+                (&mut record.qd_des, &s.qd_des),
+                (&mut record.qdd_des, &s.qdd_des),
+            ] {
+                dst.copy_from_slice(&src[..s.dof]);
+            }
+            record.controller = ControllerKind::from_u32(s.controller).unwrap_or(ControllerKind::None);
+            record.mode = Mode::from_u32(s.mode).unwrap_or(Mode::Faulted);
+            record.faults = Faults(s.faults);
+            writer.write_cycle(&record)?;
+        }
+        writer.finish()?;
+        eprintln!("arash-daemon: black box of the last {} cycles written to {}", self.blackbox.len(), path.display());
+        Ok(())
+    }
+
+    fn header(&self, segment: &str, run: Option<(u32, &RunInfo)>) -> LogHeader {
+        let mut metadata = self.ctx.metadata.clone();
+        metadata.insert("source".into(), "arash-daemon".into());
+        metadata.insert("segment".into(), segment.into());
+        let mut attachments =
+            vec![("daemon.toml".to_string(), "application/toml".to_string(), self.ctx.config_toml.as_bytes().to_vec())];
+        if let Some((id, info)) = run {
+            metadata.insert("run_id".into(), id.to_string());
+            metadata.insert("run_label".into(), info.label.clone());
+            metadata.insert("controller".into(), info.controller.clone());
+            attachments.push((
+                "trajectory.json".to_string(),
+                "application/json".to_string(),
+                info.trajectory_json.as_bytes().to_vec(),
+            ));
+        }
+        let start_unix_ns =
+            std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64);
+        LogHeader {
+            urdf: self.ctx.urdf.clone(),
+            joint_names: self.ctx.joint_names.clone(),
+            metadata,
+            attachments,
+            with_truth: false,
+            start_unix_ns,
+        }
+    }
+
+    fn open(&mut self, name: &str, segment: &str, run: Option<u32>) -> anyhow::Result<()> {
+        let info = run.and_then(|id| self.runs.lock().expect("registry lock").get(&id).cloned());
+        let header = self.header(segment, run.zip(info.as_ref()));
+        let path = self.cfg.dir.join(format!("{name}.mcap"));
+        let part = self.cfg.dir.join(format!("{name}.mcap.part"));
+        let writer = LogWriter::create(&part, &header, self.ctx.rate_hz)?;
+        self.segment = Some(Segment { writer, part, path, opened: Instant::now(), t0: None, run });
+        Ok(())
+    }
+
+    fn open_idle(&mut self) -> anyhow::Result<()> {
+        self.idle_files += 1;
+        let stamp = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+        self.open(&format!("daemon-{stamp}-{}", self.idle_files), "idle", None)
+    }
+
+    fn open_run(&mut self, id: u32) -> anyhow::Result<()> {
+        self.finish_segment()?;
+        let label = self.runs.lock().expect("registry lock").get(&id).map(|r| r.label.clone()).unwrap_or_default();
+        let label: String = label.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' }).collect();
+        if let Some(run) = self.runs.lock().expect("registry lock").get_mut(&id) {
+            run.state = "running".into();
+        }
+        self.open(&format!("run-{id}-{label}"), "run", Some(id))
+    }
+
+    /// Finish the open file and give it its final name.
+    fn finish_segment(&mut self) -> anyhow::Result<Option<PathBuf>> {
+        let Some(s) = self.segment.take() else { return Ok(None) };
+        s.writer.finish()?;
+        std::fs::rename(&s.part, &s.path)
+            .map_err(|e| anyhow::anyhow!("renaming {} to {}: {e}", s.part.display(), s.path.display()))?;
+        Ok(Some(s.path))
+    }
+
+    fn rotate_if_due(&mut self) -> anyhow::Result<()> {
+        let Some(s) = &self.segment else { return Ok(()) };
+        if s.run.is_some() || s.opened.elapsed().as_secs() < 1 {
+            return Ok(());
+        }
+        let size_mib = std::fs::metadata(&s.part).map_or(0.0, |m| m.len() as f64 / (1024.0 * 1024.0));
+        if size_mib >= self.cfg.rotate_mib || s.opened.elapsed().as_secs_f64() >= self.cfg.rotate_s {
+            self.finish_segment()?;
+            self.open_idle()?;
+        }
+        Ok(())
+    }
+
+    fn close(&mut self) -> anyhow::Result<()> {
+        let summary = self.summary();
+        if let Some(s) = self.segment.as_mut() {
+            let json = serde_json::to_string(&summary).expect("the summary serialises");
+            s.writer.write_json(TIMING_TOPIC, 0.0, &json)?;
+        }
+        self.finish_segment()?;
+        Ok(())
+    }
+
+    fn summary(&self) -> TimingSummary {
+        TimingSummary::from_samples(&self.period_errors_us, &self.exec_us)
+    }
+}
+
+/// Whole-run timing: quantiles of the period error (actual − nominal period) and of the
+/// execution time, in µs.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct TimingSummary {
+    pub cycles: usize,
+    pub period_error_abs_p50_us: f64,
+    pub period_error_abs_p99_us: f64,
+    pub period_error_abs_max_us: f64,
+    pub exec_p50_us: f64,
+    pub exec_p99_us: f64,
+    pub exec_max_us: f64,
+}
+
+impl TimingSummary {
+    fn from_samples(period_error_us: &[f32], exec_us: &[f32]) -> Self {
+        let quantiles = |v: &[f32]| -> (f64, f64, f64) {
+            if v.is_empty() {
+                return (0.0, 0.0, 0.0);
+            }
+            let mut s: Vec<f32> = v.to_vec();
+            s.sort_by(f32::total_cmp);
+            let at = |p: f64| f64::from(s[((s.len() - 1) as f64 * p).round() as usize]);
+            (at(0.5), at(0.99), f64::from(s[s.len() - 1]))
+        };
+        let abs: Vec<f32> = period_error_us.iter().map(|x| x.abs()).collect();
+        let (p50, p99, max) = quantiles(&abs);
+        let (e50, e99, emax) = quantiles(exec_us);
+        Self {
+            cycles: exec_us.len(),
+            period_error_abs_p50_us: p50,
+            period_error_abs_p99_us: p99,
+            period_error_abs_max_us: max,
+            exec_p50_us: e50,
+            exec_p99_us: e99,
+            exec_max_us: emax,
+        }
+    }
+}

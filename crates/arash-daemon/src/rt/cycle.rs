@@ -1,0 +1,419 @@
+//! One control cycle of the daemon, free of threads and clocks so that tests can drive it cycle
+//! by cycle: read telemetry, estimate q and q̇, step the controller, pass the safety gate, write
+//! the motor currents. Never allocates.
+//!
+//! Safety rules beyond [`SafetyGate`] (each has a test at its boundary in `tests/safety.rs`):
+//! - **link timeout:** a cycle without new valid telemetry re-sends the last command; the
+//!   `link_timeout`-th such cycle in a row latches `LINK_TIMEOUT` and ramps the torque to zero
+//!   over `ramp` cycles, then disables the drive;
+//! - **drive faults:** any fault bit in the telemetry latches `MOTOR`;
+//! - **following error:** |q − q_d| beyond the limit latches `FOLLOWING_ERROR` (a stuck encoder);
+//! - **current mismatch:** measured torque differing from the command by more than a fraction of
+//!   the torque limit for `mismatch_cycles` cycles in a row latches `CURRENT_MISMATCH`;
+//! - **start-up:** the drive cannot be enabled before valid telemetry arrives;
+//! - faults latch until [`Request::ResetFault`], which leaves the drive disabled.
+
+use arash_core::control::{Controller, Desired, Faults, SafetyGate, SafetyLimits, VelocityEstimator};
+use arash_core::record::{CycleRecord, Mode};
+
+use super::reference::{Phase, PhaseChange, Reference, RunRequest};
+use crate::drive_config::DriveConfig;
+use crate::link::{Command, MotorLink, Telemetry, MAX_JOINTS};
+
+/// What the cycle is configured with (SI).
+#[derive(Clone, Debug)]
+pub struct CycleConfig {
+    /// Nominal period (s).
+    pub dt: f64,
+    pub drive: DriveConfig,
+    pub limits: SafetyLimits,
+    /// Consecutive cycles without telemetry that latch a link timeout.
+    pub link_timeout: u32,
+    /// Cycles over which the torque ramps to zero after a link timeout.
+    pub ramp: u32,
+    /// Per-joint following-error limit (rad or m).
+    pub following_error: Vec<f64>,
+    /// Current mismatch threshold, as a fraction of the torque limit.
+    pub mismatch_fraction: f64,
+    pub mismatch_cycles: u32,
+    pub velocity_cutoff_hz: f64,
+    /// Approach speed per joint (rad/s or m/s).
+    pub approach_speed: Vec<f64>,
+}
+
+/// An operator's request, applied at the start of a cycle.
+pub enum Request {
+    Enable,
+    Disable,
+    ResetFault,
+    /// Hold the present reference position (abandoning a run).
+    Hold,
+    Run(Box<RunRequest>),
+    Controller(Box<dyn Controller>),
+}
+
+/// Something that came back from the cycle and must be dropped off the real-time thread.
+pub enum Garbage {
+    Run(Box<RunRequest>),
+    Controller(Box<dyn Controller>),
+}
+
+/// A notable change in one cycle, for the event log.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Event {
+    Enabled,
+    Disabled,
+    /// Enabling was refused: no valid telemetry yet, a latched fault, or already enabled.
+    EnableRefused,
+    FaultLatched(Faults),
+    FaultsCleared,
+    RunStarted(u32),
+    RunEnded(u32),
+    ControllerSwitched,
+}
+
+pub struct ControlCycle {
+    cfg: CycleConfig,
+    dof: usize,
+    resolution: [f64; MAX_JOINTS],
+    estimator: VelocityEstimator,
+    controller: Box<dyn Controller>,
+    gate: SafetyGate,
+    reference: Reference,
+    mode: Mode,
+    /// A one-off command to send instead of the cycle's usual one.
+    pending: Option<Command>,
+    telemetry: Telemetry,
+    have_telemetry: bool,
+    missing: u32,
+    last_device_us: u32,
+    /// Device time of the last telemetry (s, unwrapped).
+    device_time: f64,
+    /// Torque sent last (N·m or N) and the ramp after a link timeout.
+    last_sent: [f64; MAX_JOINTS],
+    ramp_from: [f64; MAX_JOINTS],
+    ramp_left: u32,
+    mismatch_count: [u32; MAX_JOINTS],
+    tau_out: Vec<f64>,
+    record: CycleRecord,
+    events: [Option<Event>; 8],
+}
+
+impl ControlCycle {
+    pub fn new(cfg: CycleConfig, controller: Box<dyn Controller>) -> Self {
+        let dof = cfg.limits.torque.len();
+        assert!(dof <= MAX_JOINTS, "at most {MAX_JOINTS} joints");
+        let mut resolution = [0.0; MAX_JOINTS];
+        for (k, r) in resolution.iter_mut().enumerate().take(dof) {
+            *r = cfg.drive.resolution(k);
+        }
+        let mut record = CycleRecord::new(dof);
+        record.controller = controller.kind();
+        Self {
+            estimator: VelocityEstimator::new(dof, cfg.velocity_cutoff_hz),
+            gate: SafetyGate::new(cfg.limits.clone()),
+            reference: Reference::new(&vec![0.0; dof], &cfg.approach_speed),
+            cfg,
+            dof,
+            resolution,
+            controller,
+            mode: Mode::Disabled,
+            pending: None,
+            telemetry: Telemetry::new(dof),
+            have_telemetry: false,
+            missing: 0,
+            last_device_us: 0,
+            device_time: 0.0,
+            last_sent: [0.0; MAX_JOINTS],
+            ramp_from: [0.0; MAX_JOINTS],
+            ramp_left: 0,
+            mismatch_count: [0; MAX_JOINTS],
+            tau_out: vec![0.0; dof],
+            record,
+            events: [None; 8],
+        }
+    }
+
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    pub fn faults(&self) -> Faults {
+        self.gate.faults()
+    }
+
+    pub fn phase(&self) -> Phase {
+        self.reference.phase()
+    }
+
+    pub fn run_id(&self) -> Option<u32> {
+        self.reference.run_id()
+    }
+
+    pub fn has_telemetry(&self) -> bool {
+        self.have_telemetry
+    }
+
+    /// Consecutive cycles without new telemetry.
+    pub fn missing(&self) -> u32 {
+        self.missing
+    }
+
+    /// The last cycle.
+    pub fn record(&self) -> &CycleRecord {
+        &self.record
+    }
+
+    /// The torque sent in the last cycle (N·m or N).
+    pub fn sent(&self) -> &[f64] {
+        &self.last_sent[..self.dof]
+    }
+
+    /// Hand over the events since the last call (requests and cycles).
+    pub fn drain_events(&mut self, mut f: impl FnMut(Event)) {
+        for e in self.events.iter_mut() {
+            if let Some(e) = e.take() {
+                f(e);
+            }
+        }
+    }
+
+    fn event(&mut self, e: Event) {
+        if let Some(slot) = self.events.iter_mut().find(|s| s.is_none()) {
+            *slot = Some(e);
+        }
+    }
+
+    /// Apply an operator request; what it replaces comes back for dropping elsewhere. A run
+    /// that is abandoned (hold, re-enable, another run) ends with [`Event::RunEnded`].
+    pub fn request(&mut self, request: Request) -> Option<Garbage> {
+        let playing = self.reference.run_id().filter(|_| self.reference.phase() == Phase::Run);
+        let garbage = self.apply(request);
+        if let (Some(id), Some(Garbage::Run(_))) = (playing, &garbage) {
+            self.event(Event::RunEnded(id));
+        }
+        garbage
+    }
+
+    fn apply(&mut self, request: Request) -> Option<Garbage> {
+        match request {
+            Request::Enable => {
+                if self.mode == Mode::Disabled && self.have_telemetry && self.missing == 0 {
+                    self.mode = Mode::Enabled;
+                    self.pending = Some(Command::Enable);
+                    self.controller.reset();
+                    self.gate.clear();
+                    self.mismatch_count = [0; MAX_JOINTS];
+                    self.last_sent = [0.0; MAX_JOINTS];
+                    let q = fixed(&self.record.q);
+                    let old = self.reference.hold_at(&q[..self.dof]);
+                    self.event(Event::Enabled);
+                    return old.map(Garbage::Run);
+                }
+                self.event(Event::EnableRefused);
+                None
+            }
+            Request::Disable => {
+                if self.mode == Mode::Enabled {
+                    self.mode = Mode::Disabled;
+                    self.pending = Some(Command::Disable);
+                    self.event(Event::Disabled);
+                }
+                None
+            }
+            Request::ResetFault => {
+                if self.mode == Mode::Faulted {
+                    self.gate.clear();
+                    self.mode = Mode::Disabled;
+                    self.ramp_left = 0;
+                    self.pending = Some(Command::ClearFault);
+                    self.event(Event::FaultsCleared);
+                }
+                None
+            }
+            Request::Hold => {
+                let q = fixed(&self.record.q_des);
+                self.reference.hold_at(&q[..self.dof]).map(Garbage::Run)
+            }
+            Request::Run(run) => {
+                let q = fixed(&self.record.q_des);
+                let t = self.time();
+                self.reference.start(t, &q[..self.dof], run).map(Garbage::Run)
+            }
+            Request::Controller(mut c) => {
+                c.reset();
+                self.record.controller = c.kind();
+                self.event(Event::ControllerSwitched);
+                Some(Garbage::Controller(std::mem::replace(&mut self.controller, c)))
+            }
+        }
+    }
+
+    /// Time of the cycle (s): the drive's clock at the last telemetry, plus nominal periods
+    /// since.
+    fn time(&self) -> f64 {
+        self.device_time + f64::from(self.missing) * self.cfg.dt
+    }
+
+    /// Run one cycle against `link`.
+    pub fn step(&mut self, link: &mut dyn MotorLink, cycle: u64) {
+        let fresh = self.read(link);
+        let t = self.time();
+        let r = &mut self.record;
+        r.cycle = cycle;
+        r.t = t;
+        match self.reference.eval(t, &mut r.q_des, &mut r.qd_des, &mut r.qdd_des) {
+            Some(PhaseChange::RunStarted(id)) => self.event(Event::RunStarted(id)),
+            Some(PhaseChange::RunEnded(id)) => self.event(Event::RunEnded(id)),
+            None => {}
+        }
+        let r = &mut self.record;
+        let desired = Desired { q: &r.q_des, qd: &r.qd_des, qdd: &r.qdd_des };
+        self.controller.step(self.cfg.dt, &r.q, &r.qd, &desired, &mut r.tau_cmd);
+        if self.mode == Mode::Enabled {
+            self.check_link();
+            self.check_following();
+            if fresh {
+                self.check_current();
+            }
+        }
+        let r = &self.record;
+        let faults = self.gate.apply(self.cfg.dt, &r.q, &r.qd, &r.tau_cmd, &mut self.tau_out);
+        if !faults.is_empty() && self.mode != Mode::Faulted {
+            self.latch(faults);
+        }
+        let command = self.command();
+        let _ = link.send(&command); // a failed send is counted by the link, like a lost frame
+        let r = &mut self.record;
+        r.mode = self.mode;
+        r.faults = self.gate.faults();
+    }
+
+    /// Poll the link; on new telemetry update q, q̇, τ and the clock. Returns whether it was new.
+    fn read(&mut self, link: &mut dyn MotorLink) -> bool {
+        let fresh = link.poll(&mut self.telemetry).unwrap_or(false) && self.telemetry.joints == self.dof;
+        if !fresh {
+            self.missing = self.missing.saturating_add(1);
+            return false;
+        }
+        let t = &self.telemetry;
+        let dt = if self.have_telemetry {
+            let du = t.device_time_us.wrapping_sub(self.last_device_us);
+            (f64::from(du) * 1e-6).clamp(0.25 * self.cfg.dt, 20.0 * self.cfg.dt)
+        } else {
+            self.cfg.dt
+        };
+        self.last_device_us = t.device_time_us;
+        if self.have_telemetry {
+            self.device_time += dt;
+        }
+        self.missing = 0;
+        let r = &mut self.record;
+        for k in 0..self.dof {
+            r.q[k] = f64::from(t.counts[k]) * self.resolution[k];
+            r.tau_meas[k] = f64::from(t.amps[k]) * self.cfg.drive.torque_constant[k];
+        }
+        if self.have_telemetry {
+            r.qd.copy_from_slice(self.estimator.update(dt, &r.q));
+        } else {
+            self.estimator.prime(&r.q, &[0.0; MAX_JOINTS][..self.dof]);
+            let q = fixed(&r.q);
+            self.reference.hold_at(&q[..self.dof]);
+        }
+        self.have_telemetry = true;
+        if r.tau_meas.iter().any(|x| !x.is_finite()) {
+            self.gate.latch(Faults::NON_FINITE_STATE);
+        }
+        if t.faults != 0 {
+            self.gate.latch(Faults::MOTOR);
+        }
+        true
+    }
+
+    fn check_link(&mut self) {
+        if self.missing >= self.cfg.link_timeout {
+            self.gate.latch(Faults::LINK_TIMEOUT);
+        }
+    }
+
+    fn check_following(&mut self) {
+        let r = &self.record;
+        if (0..self.dof).any(|k| (r.q[k] - r.q_des[k]).abs() > self.cfg.following_error[k]) {
+            self.gate.latch(Faults::FOLLOWING_ERROR);
+        }
+    }
+
+    /// The telemetry answers the previous command: compare what was measured with what was sent.
+    fn check_current(&mut self) {
+        for k in 0..self.dof {
+            let limit = self.cfg.mismatch_fraction * self.cfg.limits.torque[k];
+            if (self.record.tau_meas[k] - self.last_sent[k]).abs() > limit {
+                self.mismatch_count[k] += 1;
+            } else {
+                self.mismatch_count[k] = 0;
+            }
+        }
+        if self.mismatch_count[..self.dof].iter().any(|&c| c >= self.cfg.mismatch_cycles) {
+            self.gate.latch(Faults::CURRENT_MISMATCH);
+        }
+    }
+
+    fn latch(&mut self, faults: Faults) {
+        let was_enabled = self.mode == Mode::Enabled;
+        self.mode = Mode::Faulted;
+        self.event(Event::FaultLatched(faults));
+        if was_enabled && faults.contains(Faults::LINK_TIMEOUT) {
+            // The drive may still hear us: bring the torque down gently rather than at once.
+            self.ramp_from = self.last_sent;
+            self.ramp_left = self.cfg.ramp;
+        } else {
+            self.ramp_left = 0;
+        }
+        self.pending = if self.ramp_left == 0 { Some(Command::Disable) } else { None };
+    }
+
+    /// The frame for this cycle.
+    fn command(&mut self) -> Command {
+        let n = self.dof;
+        let mut amps = [0f32; MAX_JOINTS];
+        let mut currents = |tau: &[f64]| {
+            for k in 0..n {
+                amps[k] = (tau[k] / self.cfg.drive.torque_constant[k]) as f32;
+            }
+            Command::Current { joints: n, amps }
+        };
+        match self.mode {
+            Mode::Enabled => {
+                if let Some(c) = self.pending.take() {
+                    return c;
+                }
+                if self.missing == 0 {
+                    self.last_sent[..n].copy_from_slice(&self.tau_out);
+                }
+                currents(&self.last_sent[..n])
+            }
+            Mode::Faulted if self.ramp_left > 0 => {
+                self.ramp_left -= 1;
+                let scale = f64::from(self.ramp_left) / f64::from(self.cfg.ramp);
+                for k in 0..n {
+                    self.last_sent[k] = self.ramp_from[k] * scale;
+                }
+                if self.ramp_left == 0 {
+                    self.pending = Some(Command::Disable);
+                }
+                currents(&self.last_sent[..n])
+            }
+            Mode::Faulted | Mode::Disabled => {
+                self.last_sent = [0.0; MAX_JOINTS];
+                self.pending.take().unwrap_or(Command::Heartbeat)
+            }
+        }
+    }
+}
+
+/// A joint vector copied into a fixed array (no allocation).
+fn fixed(v: &[f64]) -> [f64; MAX_JOINTS] {
+    let mut out = [0.0; MAX_JOINTS];
+    out[..v.len()].copy_from_slice(v);
+    out
+}

@@ -1,0 +1,206 @@
+//! The control thread: a [`ControlCycle`] on an absolute-deadline schedule, fed by an operator
+//! request queue, feeding the logger queue. Queues are wait-free and bounded (rtrb); the thread
+//! never blocks on them, never allocates, and counts what it had to drop.
+
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
+use std::time::Duration;
+
+use super::clock::{now_ns, sleep_until, Schedule};
+use super::cycle::{ControlCycle, Event, Garbage, Request};
+use super::reference::Phase;
+use crate::link::{LinkStats, MotorLink, MAX_JOINTS};
+
+/// One cycle as the logger receives it: fixed-size, so queuing it never allocates.
+#[derive(Clone, Copy, Debug)]
+pub struct CycleSample {
+    pub cycle: u64,
+    pub t: f64,
+    pub dof: usize,
+    pub q: [f64; MAX_JOINTS],
+    pub qd: [f64; MAX_JOINTS],
+    pub tau_cmd: [f64; MAX_JOINTS],
+    pub tau_meas: [f64; MAX_JOINTS],
+    pub q_des: [f64; MAX_JOINTS],
+    pub qd_des: [f64; MAX_JOINTS],
+    pub qdd_des: [f64; MAX_JOINTS],
+    pub controller: u32,
+    pub mode: u32,
+    pub faults: u32,
+    /// Wake-to-wake time (ns) and time spent in the cycle (ns).
+    pub period_ns: u64,
+    pub exec_ns: u64,
+    /// Cycles skipped so far after overruns.
+    pub missed: u64,
+    pub link: LinkStats,
+}
+
+/// What the control thread tells the logger.
+#[derive(Clone, Copy, Debug)]
+pub enum LogItem {
+    Event { cycle: u64, t: f64, event: Event },
+    Cycle(CycleSample),
+}
+
+/// State the control thread publishes for the operator interface and the watchdog.
+#[derive(Default)]
+pub struct Shared {
+    /// Incremented every cycle: the heartbeat the systemd watchdog follows.
+    pub cycle: AtomicU64,
+    pub mode: AtomicU32,
+    pub faults: AtomicU32,
+    pub controller: AtomicU32,
+    pub phase: AtomicU32,
+    /// Id of the run in progress (0: none) and of the last one that ended.
+    pub run_id: AtomicU32,
+    pub last_run_ended: AtomicU32,
+    pub have_telemetry: AtomicBool,
+    pub missed: AtomicU64,
+    pub log_dropped: AtomicU64,
+    pub garbage_leaked: AtomicU64,
+    pub crc_errors: AtomicU64,
+    pub framing_errors: AtomicU64,
+    pub lost: AtomicU64,
+    pub stale: AtomicU64,
+    pub send_errors: AtomicU64,
+    pub frames_received: AtomicU64,
+    /// Joint positions as f64 bits.
+    pub q: [AtomicU64; MAX_JOINTS],
+    /// Set by the daemon to stop the thread (it disables the drive first).
+    pub stop: AtomicBool,
+    /// Set by the thread when its loop is running.
+    pub running: AtomicBool,
+}
+
+/// The queues the control thread owns one end of.
+pub struct Queues {
+    pub requests: rtrb::Consumer<Request>,
+    pub garbage: rtrb::Producer<Garbage>,
+    pub log: rtrb::Producer<LogItem>,
+}
+
+/// Run the control loop until `shared.stop`; then disable the drive and return.
+pub fn run(mut cycle: ControlCycle, link: &mut dyn MotorLink, mut queues: Queues, shared: &Shared, period: Duration) {
+    let mut schedule = Schedule::new(period, now_ns());
+    let mut previous_wake = now_ns();
+    let mut missed = 0u64;
+    let mut stopping: Option<u32> = None;
+    shared.running.store(true, Ordering::Release);
+    for n in 0u64.. {
+        sleep_until(schedule.next_deadline());
+        let wake = now_ns();
+        if stopping.is_none() && shared.stop.load(Ordering::Acquire) {
+            let _ = cycle.request(Request::Disable);
+            stopping = Some(5); // a few cycles to get the disable frame out
+        }
+        while let Ok(request) = queues.requests.pop() {
+            if let Some(g) = cycle.request(request) {
+                hand_back(&mut queues.garbage, g, shared);
+            }
+        }
+        cycle.step(link, n);
+        let exec = now_ns() - wake;
+        let sample = sample(&cycle, link, n, wake - previous_wake, exec, missed);
+        previous_wake = wake;
+        let t = sample.t;
+        cycle.drain_events(|event| {
+            if let Event::RunEnded(id) = event {
+                shared.last_run_ended.store(id, Ordering::Release);
+            }
+            push(&mut queues.log, LogItem::Event { cycle: n, t, event }, shared)
+        });
+        publish(shared, &cycle, &sample.link);
+        push(&mut queues.log, LogItem::Cycle(sample), shared);
+        if let Some(left) = stopping.as_mut() {
+            *left -= 1;
+            if *left == 0 {
+                break;
+            }
+        }
+        missed += schedule.advance(now_ns());
+        shared.missed.store(missed, Ordering::Relaxed);
+    }
+    shared.running.store(false, Ordering::Release);
+}
+
+fn sample(cycle: &ControlCycle, link: &dyn MotorLink, n: u64, period_ns: u64, exec_ns: u64, missed: u64) -> CycleSample {
+    let r = cycle.record();
+    let dof = r.q.len();
+    let mut s = CycleSample {
+        cycle: n,
+        t: r.t,
+        dof,
+        q: [0.0; MAX_JOINTS],
+        qd: [0.0; MAX_JOINTS],
+        tau_cmd: [0.0; MAX_JOINTS],
+        tau_meas: [0.0; MAX_JOINTS],
+        q_des: [0.0; MAX_JOINTS],
+        qd_des: [0.0; MAX_JOINTS],
+        qdd_des: [0.0; MAX_JOINTS],
+        controller: r.controller as u32,
+        mode: r.mode as u32,
+        faults: r.faults.0,
+        period_ns,
+        exec_ns,
+        missed,
+        link: link.stats(),
+    };
+    for (dst, src) in [
+        (&mut s.q, &r.q),
+        (&mut s.qd, &r.qd),
+        (&mut s.tau_cmd, &r.tau_cmd),
+        (&mut s.tau_meas, &r.tau_meas),
+        (&mut s.q_des, &r.q_des),
+        (&mut s.qd_des, &r.qd_des),
+        (&mut s.qdd_des, &r.qdd_des),
+    ] {
+        dst[..dof].copy_from_slice(src);
+    }
+    s
+}
+
+/// Queue for the logger; a full queue drops the item and counts it.
+fn push(log: &mut rtrb::Producer<LogItem>, item: LogItem, shared: &Shared) {
+    if log.push(item).is_err() {
+        shared.log_dropped.fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+/// Return a replaced trajectory or controller for dropping off this thread. If that queue is
+/// full the object is leaked (counted) rather than freed here.
+fn hand_back(garbage: &mut rtrb::Producer<Garbage>, g: Garbage, shared: &Shared) {
+    if let Err(rtrb::PushError::Full(g)) = garbage.push(g) {
+        std::mem::forget(g);
+        shared.garbage_leaked.fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+fn publish(shared: &Shared, cycle: &ControlCycle, stats: &LinkStats) {
+    let r = cycle.record();
+    shared.cycle.fetch_add(1, Ordering::Release);
+    shared.mode.store(r.mode as u32, Ordering::Relaxed);
+    shared.faults.store(r.faults.0, Ordering::Relaxed);
+    shared.controller.store(r.controller as u32, Ordering::Relaxed);
+    shared.phase.store(
+        match cycle.phase() {
+            Phase::Hold => 0,
+            Phase::Approach => 1,
+            Phase::Run => 2,
+        },
+        Ordering::Relaxed,
+    );
+    shared.run_id.store(cycle.run_id().unwrap_or(0), Ordering::Relaxed);
+    shared.have_telemetry.store(cycle.has_telemetry(), Ordering::Relaxed);
+    for (a, &q) in shared.q.iter().zip(&r.q) {
+        a.store(q.to_bits(), Ordering::Relaxed);
+    }
+    for (a, v) in [
+        (&shared.crc_errors, stats.crc_errors),
+        (&shared.framing_errors, stats.framing_errors),
+        (&shared.lost, stats.lost),
+        (&shared.stale, stats.stale),
+        (&shared.send_errors, stats.send_errors),
+        (&shared.frames_received, stats.frames_received),
+    ] {
+        a.store(v, Ordering::Relaxed);
+    }
+}
