@@ -56,7 +56,8 @@ pub fn build_controller(
     let params = match model_file {
         None => model.cad_parameters(),
         Some(path) => {
-            let text = std::fs::read_to_string(path).with_context(|| format!("reading model file {}", path.display()))?;
+            let text =
+                std::fs::read_to_string(path).with_context(|| format!("reading model file {}", path.display()))?;
             let id = Identification::from_json(&text).with_context(|| format!("loading {}", path.display()))?;
             id.controller_parameters(model).with_context(|| format!("using {}", path.display()))?
         }

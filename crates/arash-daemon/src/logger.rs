@@ -210,15 +210,13 @@ impl Logger {
         self.write_event(cycle, t, &description)?;
         match event {
             Event::RunStarted(id) => self.open_run(id)?,
-            Event::RunEnded(id) => {
-                if self.segment.as_ref().is_some_and(|s| s.run == Some(id)) {
-                    let path = self.finish_segment()?;
-                    if let Some(run) = self.runs.lock().expect("registry lock").get_mut(&id) {
-                        run.log = path;
-                        run.state = "done".into();
-                    }
-                    self.open_idle()?;
+            Event::RunEnded(id) if self.segment.as_ref().is_some_and(|s| s.run == Some(id)) => {
+                let path = self.finish_segment()?;
+                if let Some(run) = self.runs.lock().expect("registry lock").get_mut(&id) {
+                    run.log = path;
+                    run.state = "done".into();
                 }
+                self.open_idle()?;
             }
             _ => {}
         }
@@ -403,7 +401,8 @@ impl Logger {
     fn open_run(&mut self, id: u32) -> anyhow::Result<()> {
         self.finish_segment()?;
         let label = self.runs.lock().expect("registry lock").get(&id).map(|r| r.label.clone()).unwrap_or_default();
-        let label: String = label.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' }).collect();
+        let label: String =
+            label.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' }).collect();
         if let Some(run) = self.runs.lock().expect("registry lock").get_mut(&id) {
             run.state = "running".into();
         }

@@ -14,7 +14,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::drive_config::DriveConfig;
-use crate::link::frame::{drive_fault, status, Command, Message, Telemetry, FrameError, MAX_JOINTS, MAX_WIRE};
+use crate::link::frame::{drive_fault, status, Command, FrameError, Message, Telemetry, MAX_JOINTS, MAX_WIRE};
 use crate::link::serial::Endpoint;
 
 /// Faults to inject, by probability per telemetry frame or from a simulated time on.
@@ -174,8 +174,8 @@ impl MockMotor {
                 self.setpoint = [0.0; MAX_JOINTS];
             }
             Command::Current { joints, amps } if *joints == self.dof => {
-                for k in 0..self.dof {
-                    self.setpoint[k] = f64::from(amps[k]);
+                for (s, &a) in self.setpoint.iter_mut().zip(&amps[..self.dof]) {
+                    *s = f64::from(a);
                 }
             }
             Command::Current { .. } => self.drive_faults |= drive_fault::ENCODER,
@@ -190,8 +190,8 @@ impl MockMotor {
         self.frames += 1;
         if self.enabled {
             let mut tau = [0.0; MAX_JOINTS];
-            for k in 0..self.dof {
-                tau[k] = self.setpoint[k] * self.config.torque_constant[k] * self.mismatch(k);
+            for (k, t) in tau.iter_mut().enumerate().take(self.dof) {
+                *t = self.setpoint[k] * self.config.torque_constant[k] * self.mismatch(k);
             }
             self.drive.apply(self.dt, &tau[..self.dof])?;
         }
@@ -220,8 +220,11 @@ impl MockMotor {
                 counts = *self.stuck_counts.get_or_insert(counts);
             }
             t.counts[k] = counts as i32;
-            t.amps[k] =
-                if self.enabled { (self.drive.measured_torque()[k] / self.config.torque_constant[k]) as f32 } else { 0.0 };
+            t.amps[k] = if self.enabled {
+                (self.drive.measured_torque()[k] / self.config.torque_constant[k]) as f32
+            } else {
+                0.0
+            };
         }
         t
     }

@@ -10,8 +10,8 @@ fn telemetry() -> impl Strategy<Value = Telemetry> {
             let mut t = Telemetry::new(joints);
             (t.seq, t.device_time_us, t.ack_seq, t.status, t.faults) = (seq, time, ack, status, faults);
             t.counts[..joints].copy_from_slice(&counts[..joints]);
-            for k in 0..joints {
-                t.amps[k] = counts[k] as f32 * 1e-6;
+            for (a, &c) in t.amps.iter_mut().zip(&counts[..joints]) {
+                *a = c as f32 * 1e-6;
             }
             t
         })
@@ -26,8 +26,8 @@ fn command() -> impl Strategy<Value = Command> {
         Just(Command::ClearFault),
         (1..=MAX_JOINTS, any::<[i16; MAX_JOINTS]>()).prop_map(|(joints, raw)| {
             let mut amps = [0f32; MAX_JOINTS];
-            for k in 0..joints {
-                amps[k] = f32::from(raw[k]) / 100.0;
+            for (a, &r) in amps.iter_mut().zip(&raw[..joints]) {
+                *a = f32::from(r) / 100.0;
             }
             Command::Current { joints, amps }
         }),

@@ -128,10 +128,10 @@ fn read_messages(bytes: &[u8], name: &str, log: &mut FlightLog) -> Result<(), Lo
             log.cycles.push(&record);
         } else if let Some(channel) = stream.get_channel(id).filter(|c| c.message_encoding == "json") {
             let start = log.metadata.get("start_unix_ns").and_then(|s| s.parse::<u64>().ok()).unwrap_or(0);
-            log.json
-                .entry(channel.topic.clone())
-                .or_default()
-                .push((message.header.log_time.saturating_sub(start), String::from_utf8_lossy(&message.data).into_owned()));
+            log.json.entry(channel.topic.clone()).or_default().push((
+                message.header.log_time.saturating_sub(start),
+                String::from_utf8_lossy(&message.data).into_owned(),
+            ));
         } else if Some(id) == truth_channel {
             truth_msg.clear();
             truth_msg.merge(&*message.data).map_err(|e| decode_error(TRUTH_TOPIC, truth.t.len(), e))?;

@@ -57,6 +57,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let (model, urdf) = super::load_robot(config.robot.as_deref())?;
     // The effective configuration goes into every log, overrides included.
-    let effective = format!("# as loaded{}\n{}", if text.is_empty() { " (defaults)" } else { "" }, toml::to_string(&config)?);
+    let effective =
+        format!("# as loaded{}\n{}", if text.is_empty() { " (defaults)" } else { "" }, toml::to_string(&config)?);
     run_daemon(DaemonOptions { config, config_text: effective, model, urdf })
 }

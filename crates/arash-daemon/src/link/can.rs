@@ -240,7 +240,8 @@ impl CanBus for SocketCan {
         raw.data = frame.data;
         let size = std::mem::size_of::<libc::can_frame>();
         // SAFETY: writes exactly one can_frame from a live stack value.
-        let n = unsafe { libc::write(self.fd.as_raw_fd(), &raw as *const libc::can_frame as *const libc::c_void, size) };
+        let n =
+            unsafe { libc::write(self.fd.as_raw_fd(), &raw as *const libc::can_frame as *const libc::c_void, size) };
         if n != size as isize {
             return Err(std::io::Error::last_os_error());
         }
@@ -292,10 +293,10 @@ mod tests {
         let mut amps = [0f32; MAX_JOINTS];
         amps[..3].copy_from_slice(&[0.5, -0.25, 2.0]);
         link.send(&Command::Current { joints: 3, amps }).unwrap();
-        for j in 0..3 {
+        for (j, &a) in amps[..3].iter().enumerate() {
             let f = drive.receive().unwrap().unwrap();
             assert_eq!(f.id, CURRENT_BASE + j as u32);
-            assert_eq!(f32::from_le_bytes(f.data[..4].try_into().unwrap()), amps[j]);
+            assert_eq!(f32::from_le_bytes(f.data[..4].try_into().unwrap()), a);
         }
         send_set(&mut drive, &telemetry(9), &[2, 0, 1]);
         let mut out = Telemetry::new(3);

@@ -34,7 +34,10 @@ pub enum Command {
     Enable,
     Disable,
     /// Motor current setpoints (A), one per joint.
-    Current { joints: usize, amps: [f32; MAX_JOINTS] },
+    Current {
+        joints: usize,
+        amps: [f32; MAX_JOINTS],
+    },
     ZeroEncoders,
     Heartbeat,
     ClearFault,
@@ -183,7 +186,8 @@ pub fn decode(encoded: &[u8]) -> Result<Message, FrameError> {
     let time_us = u32::from_le_bytes([data[3], data[4], data[5], data[6]]);
     let body = &data[HEADER_LEN..];
     let body_error = FrameError::Body { kind, len: body.len() };
-    let empty = |command| if body.is_empty() { Ok(Message::Command { seq, time_us, command }) } else { Err(body_error) };
+    let empty =
+        |command| if body.is_empty() { Ok(Message::Command { seq, time_us, command }) } else { Err(body_error) };
     match kind {
         kind::ENABLE => empty(Command::Enable),
         kind::DISABLE => empty(Command::Disable),

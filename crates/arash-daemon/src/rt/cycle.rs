@@ -385,6 +385,8 @@ impl ControlCycle {
         match self.mode {
             Mode::Enabled => {
                 if let Some(c) = self.pending.take() {
+                    // The drive gets no current this cycle: the rate limit starts from zero.
+                    self.gate.clear();
                     return c;
                 }
                 if self.missing == 0 {

@@ -95,9 +95,8 @@ impl Reference {
         run.trajectory.eval(0.0, &mut self.to[..n], &mut qd[..n], &mut qdd[..n]);
         self.from[..n].copy_from_slice(q_now);
         // The quintic peaks at 1.875 × the mean speed.
-        self.approach_s = (0..n)
-            .map(|k| 1.875 * (self.to[k] - self.from[k]).abs() / self.approach_speed[k])
-            .fold(1.0, f64::max);
+        self.approach_s =
+            (0..n).map(|k| 1.875 * (self.to[k] - self.from[k]).abs() / self.approach_speed[k]).fold(1.0, f64::max);
         self.t0 = t;
         self.phase = Phase::Approach;
         self.run.replace(run)
@@ -143,11 +142,6 @@ impl Reference {
         }
         change
     }
-
-    /// Time into the current run (s), when one is playing.
-    pub fn run_time(&self, t: f64) -> Option<f64> {
-        (self.phase == Phase::Run).then(|| t - self.t0)
-    }
 }
 
 #[cfg(test)]
@@ -171,7 +165,8 @@ mod tests {
     #[test]
     fn a_run_approaches_its_start_plays_and_holds_its_end() {
         let mut r = Reference::new(&[0.0, 0.0, 0.0], &[0.5, 0.5, 0.01]);
-        let run = Box::new(RunRequest { id: 7, trajectory: Trajectory::PaperValidation { omega: 0.5 }, duration_s: 2.0 });
+        let run =
+            Box::new(RunRequest { id: 7, trajectory: Trajectory::PaperValidation { omega: 0.5 }, duration_s: 2.0 });
         let (mut q, mut qd, mut qdd) = ([0.0; 3], [0.0; 3], [0.0; 3]);
         let mut start = Trajectory::PaperValidation { omega: 0.5 };
         let (mut q0, mut v0, mut a0) = ([0.0; 3], [0.0; 3], [0.0; 3]);
@@ -192,7 +187,10 @@ mod tests {
             }
             t += 1e-3;
         }
-        assert_eq!(changes.iter().map(|c| c.0).collect::<Vec<_>>(), vec![PhaseChange::RunStarted(7), PhaseChange::RunEnded(7)]);
+        assert_eq!(
+            changes.iter().map(|c| c.0).collect::<Vec<_>>(),
+            vec![PhaseChange::RunStarted(7), PhaseChange::RunEnded(7)]
+        );
         start = Trajectory::PaperValidation { omega: 0.5 };
         start.eval(2.0, &mut q0, &mut v0, &mut a0);
         assert_eq!(q, q0, "holds the end of the run");

@@ -34,8 +34,10 @@ pub struct CycleSample {
     pub link: LinkStats,
 }
 
-/// What the control thread tells the logger.
+/// What the control thread tells the logger. Cycles travel by value: boxing them would allocate
+/// on the real-time thread.
 #[derive(Clone, Copy, Debug)]
+#[allow(clippy::large_enum_variant)]
 pub enum LogItem {
     Event { cycle: u64, t: f64, event: Event },
     Cycle(CycleSample),
@@ -122,7 +124,14 @@ pub fn run(mut cycle: ControlCycle, link: &mut dyn MotorLink, mut queues: Queues
     shared.running.store(false, Ordering::Release);
 }
 
-fn sample(cycle: &ControlCycle, link: &dyn MotorLink, n: u64, period_ns: u64, exec_ns: u64, missed: u64) -> CycleSample {
+fn sample(
+    cycle: &ControlCycle,
+    link: &dyn MotorLink,
+    n: u64,
+    period_ns: u64,
+    exec_ns: u64,
+    missed: u64,
+) -> CycleSample {
     let r = cycle.record();
     let dof = r.q.len();
     let mut s = CycleSample {

@@ -1,0 +1,81 @@
+//! The control thread allocates nothing per cycle: 10^4 cycles of the real loop
+//! (`rt::runner::run`: request queue, control cycle, safety, log queue, status) against the mock
+//! motor in process, enabling and playing a trajectory inside the counted window.
+
+#[path = "../../arash-core/tests/common/counting.rs"]
+mod counting;
+
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::Duration;
+
+use arash_core::control::{standard_controller, ControllerKind, RobustGains, Trajectory};
+use arash_core::sim::Scenario;
+use arash_daemon::config::DaemonConfig;
+use arash_daemon::drive_config::DriveConfig;
+use arash_daemon::mock::{FaultPlan, InProcessLink, MockMotor};
+use arash_daemon::rt::cycle::{ControlCycle, CycleConfig, Request};
+use arash_daemon::rt::reference::RunRequest;
+use arash_daemon::rt::runner::{run, Queues, Shared};
+use counting::{allocations, Counting};
+
+#[global_allocator]
+static ALLOCATOR: Counting = Counting;
+
+#[test]
+fn ten_thousand_control_cycles_allocate_nothing() {
+    let model = arash_core::arash_asist();
+    let c = DaemonConfig::default();
+    let (link_timeout, ramp) = c.link_cycles();
+    let cfg = CycleConfig {
+        dt: 1e-3,
+        drive: c.drive.clone(),
+        limits: c.safety_limits(&model).unwrap(),
+        link_timeout,
+        ramp,
+        following_error: c.following_error(&model).unwrap(),
+        mismatch_fraction: 0.25,
+        mismatch_cycles: 50,
+        velocity_cutoff_hz: 50.0,
+        approach_speed: model.joints.iter().map(|j| 0.25 * j.velocity).collect(),
+    };
+    let controller =
+        standard_controller(ControllerKind::Robust, &model, &model.cad_parameters(), &RobustGains::paper(&model))
+            .unwrap();
+    let cycle = ControlCycle::new(cfg, controller);
+    let motor = MockMotor::new(&model, &Scenario::default(), DriveConfig::default(), FaultPlan::default()).unwrap();
+    let mut link = InProcessLink::new(motor);
+
+    let (mut requests, request_rx) = rtrb::RingBuffer::new(8);
+    let (garbage_tx, _garbage_rx) = rtrb::RingBuffer::new(8);
+    let (log_tx, mut log_rx) = rtrb::RingBuffer::new(4096);
+    let shared = Arc::new(Shared::default());
+    let run_request =
+        Box::new(RunRequest { id: 1, trajectory: Trajectory::PaperValidation { omega: 0.9 }, duration_s: 5.0 });
+    let thread_shared = shared.clone();
+    let control = std::thread::spawn(move || {
+        let queues = Queues { requests: request_rx, garbage: garbage_tx, log: log_tx };
+        // 0.2 ms periods: the loop is the real one, only faster than the rig's 1 kHz.
+        run(cycle, &mut link, queues, &thread_shared, Duration::from_micros(200));
+    });
+    let wait_for = |cycles: u64, log_rx: &mut rtrb::Consumer<_>| {
+        while shared.cycle.load(Ordering::Acquire) < cycles {
+            while log_rx.pop().is_ok() {}
+            std::thread::sleep(Duration::from_micros(500));
+        }
+    };
+    wait_for(100, &mut log_rx);
+    let before = allocations();
+    requests.push(Request::Enable).ok().unwrap();
+    wait_for(200, &mut log_rx);
+    requests.push(Request::Run(run_request)).ok().unwrap();
+    wait_for(10_200, &mut log_rx);
+    let during = allocations() - before;
+    let faults = shared.faults.load(Ordering::Relaxed);
+    shared.stop.store(true, Ordering::Release);
+    control.join().unwrap();
+    assert_eq!(shared.mode.load(Ordering::Relaxed), 0, "disabled after stopping");
+    assert!(shared.run_id.load(Ordering::Relaxed) == 1 || shared.last_run_ended.load(Ordering::Relaxed) == 1);
+    assert_eq!(faults, 0, "the run went without faults");
+    assert_eq!(during, 0, "{during} allocations in 10^4 control cycles");
+}

@@ -1,0 +1,336 @@
+//! The daemon's safety rules, each at its exact boundary, driving the control cycle one cycle at
+//! a time through a scripted motor link.
+
+use arash_core::control::{Controller, ControllerKind, Desired, Faults};
+use arash_core::record::Mode;
+use arash_daemon::config::DaemonConfig;
+use arash_daemon::link::{Command, LinkStats, MotorLink, Telemetry};
+use arash_daemon::rt::cycle::{ControlCycle, CycleConfig, Event, Request};
+
+/// A drive that echoes the current it was sent, unless told otherwise.
+struct Script {
+    telemetry: Telemetry,
+    deliver: bool,
+    echo: bool,
+    sent: Vec<Command>,
+}
+
+impl Script {
+    fn new() -> Self {
+        Self { telemetry: Telemetry::new(3), deliver: true, echo: true, sent: Vec::new() }
+    }
+
+    fn last(&self) -> Command {
+        *self.sent.last().expect("something was sent")
+    }
+}
+
+impl MotorLink for Script {
+    fn send(&mut self, command: &Command) -> std::io::Result<()> {
+        if let (true, Command::Current { amps, .. }) = (self.echo, command) {
+            self.telemetry.amps = *amps;
+        }
+        self.sent.push(*command);
+        Ok(())
+    }
+
+    fn poll(&mut self, out: &mut Telemetry) -> std::io::Result<bool> {
+        if !self.deliver {
+            return Ok(false);
+        }
+        self.telemetry.seq = self.telemetry.seq.wrapping_add(1);
+        self.telemetry.device_time_us = self.telemetry.device_time_us.wrapping_add(1000);
+        *out = self.telemetry;
+        Ok(true)
+    }
+
+    fn stats(&self) -> LinkStats {
+        LinkStats::default()
+    }
+}
+
+/// Commands a fixed torque.
+struct Constant(Vec<f64>);
+
+impl Controller for Constant {
+    fn kind(&self) -> ControllerKind {
+        ControllerKind::Pd
+    }
+    fn reset(&mut self) {}
+    fn step(&mut self, _: f64, _: &[f64], _: &[f64], _: &Desired, tau: &mut [f64]) {
+        tau.copy_from_slice(&self.0);
+    }
+}
+
+fn config(edit: impl FnOnce(&mut DaemonConfig)) -> CycleConfig {
+    let model = arash_core::arash_asist();
+    let mut c = DaemonConfig::default();
+    edit(&mut c);
+    let (link_timeout, ramp) = c.link_cycles();
+    CycleConfig {
+        dt: 1e-3,
+        drive: c.drive.clone(),
+        limits: c.safety_limits(&model).unwrap(),
+        link_timeout,
+        ramp,
+        following_error: c.following_error(&model).unwrap(),
+        mismatch_fraction: c.safety.mismatch_fraction.unwrap_or(0.25),
+        mismatch_cycles: c.safety.mismatch_cycles.unwrap_or(50),
+        velocity_cutoff_hz: 50.0,
+        approach_speed: vec![0.5, 0.5, 0.01],
+    }
+}
+
+struct Rig {
+    cycle: ControlCycle,
+    link: Script,
+    n: u64,
+    kt: Vec<f64>,
+}
+
+impl Rig {
+    fn new(torque: [f64; 3], edit: impl FnOnce(&mut DaemonConfig)) -> Self {
+        let cfg = config(edit);
+        let kt = cfg.drive.torque_constant.clone();
+        Self { cycle: ControlCycle::new(cfg, Box::new(Constant(torque.to_vec()))), link: Script::new(), n: 0, kt }
+    }
+
+    fn step(&mut self) -> Vec<Event> {
+        self.cycle.step(&mut self.link, self.n);
+        self.n += 1;
+        let mut events = Vec::new();
+        self.cycle.drain_events(|e| events.push(e));
+        events
+    }
+
+    fn steps(&mut self, n: usize) {
+        for _ in 0..n {
+            self.step();
+        }
+    }
+
+    fn enable(&mut self) {
+        self.cycle.request(Request::Enable);
+        self.step();
+        assert_eq!(self.cycle.mode(), Mode::Enabled);
+        assert_eq!(self.link.last(), Command::Enable);
+    }
+
+    /// Joint torque of the last current command (zero for other frames).
+    fn sent_torque(&self) -> [f64; 3] {
+        match self.link.last() {
+            Command::Current { amps, .. } => [0, 1, 2].map(|k| f64::from(amps[k]) * self.kt[k]),
+            _ => [0.0; 3],
+        }
+    }
+}
+
+#[test]
+fn enabling_needs_valid_telemetry_first() {
+    let mut rig = Rig::new([0.0; 3], |_| {});
+    rig.link.deliver = false;
+    rig.cycle.request(Request::Enable);
+    assert_eq!(rig.step(), vec![Event::EnableRefused]);
+    assert_eq!(rig.cycle.mode(), Mode::Disabled);
+    assert_eq!(rig.link.last(), Command::Heartbeat, "a disabled daemon sends only heartbeats");
+    rig.link.deliver = true;
+    rig.step();
+    rig.enable();
+}
+
+#[test]
+fn the_link_timeout_holds_for_n_minus_1_cycles_and_trips_at_n_then_ramps_to_zero() {
+    let mut rig = Rig::new([0.5, -0.5, 1.0], |_| {});
+    let n = rig.cycle.record().q.len(); // 3 joints
+    assert_eq!(n, 3);
+    rig.step();
+    rig.enable();
+    rig.steps(20);
+    let held = rig.sent_torque();
+    assert!((held[2] - 1.0).abs() < 1e-6, "{held:?}");
+    // A gap of N − 1 = 19 cycles: the last command is repeated and nothing latches.
+    rig.link.deliver = false;
+    for _ in 0..19 {
+        rig.step();
+        assert_eq!(rig.sent_torque(), held);
+    }
+    assert_eq!(rig.cycle.faults(), Faults::NONE);
+    rig.link.deliver = true;
+    rig.steps(5);
+    assert_eq!(rig.cycle.mode(), Mode::Enabled);
+    // A gap of N = 20 cycles latches on its 20th cycle.
+    rig.link.deliver = false;
+    for _ in 0..19 {
+        rig.step();
+    }
+    assert_eq!(rig.cycle.faults(), Faults::NONE);
+    let events = rig.step();
+    assert!(events.contains(&Event::FaultLatched(Faults::LINK_TIMEOUT)), "{events:?}");
+    assert_eq!(rig.cycle.mode(), Mode::Faulted);
+    // Ramp: 10 cycles (10 ms) of shrinking torque, the last at zero, then the drive is disabled.
+    let mut previous = held[2].abs();
+    let first = rig.sent_torque()[2];
+    assert!((first - 0.9).abs() < 1e-6, "the ramp starts one step down: {first}");
+    for _ in 0..9 {
+        rig.step();
+        let now = rig.sent_torque()[2].abs();
+        assert!(now < previous);
+        previous = now;
+    }
+    assert_eq!(rig.sent_torque(), [0.0; 3]);
+    rig.step();
+    assert_eq!(rig.link.last(), Command::Disable);
+    rig.link.deliver = true;
+    rig.steps(10);
+    assert_eq!(rig.cycle.mode(), Mode::Faulted, "faults latch after the link recovers");
+}
+
+#[test]
+fn non_finite_telemetry_faults_with_zero_torque_at_once() {
+    let mut rig = Rig::new([0.5, 0.5, 0.5], |_| {});
+    rig.step();
+    rig.enable();
+    rig.steps(10);
+    rig.link.echo = false;
+    rig.link.telemetry.amps[1] = f32::NAN;
+    let events = rig.step();
+    assert!(events.contains(&Event::FaultLatched(Faults::NON_FINITE_STATE)), "{events:?}");
+    assert_eq!(rig.link.last(), Command::Disable, "no current command in the faulting cycle");
+}
+
+#[test]
+fn a_non_finite_command_faults_with_zero_torque_at_once() {
+    for bad in [f64::NAN, f64::INFINITY] {
+        let mut rig = Rig::new([0.0, bad, 0.0], |_| {});
+        // Even a disabled daemon latches a controller that produces garbage.
+        let events = rig.step();
+        assert!(events.contains(&Event::FaultLatched(Faults::NON_FINITE_COMMAND)), "{events:?}");
+        rig.cycle.request(Request::Enable);
+        rig.steps(5);
+        assert_eq!(rig.cycle.mode(), Mode::Faulted);
+        assert!(rig.link.sent.iter().all(|c| !matches!(c, Command::Current { .. } | Command::Enable)));
+    }
+}
+
+#[test]
+fn torque_is_rate_limited_then_clamped_exactly_at_the_limit() {
+    let mut rig = Rig::new([100.0, -100.0, 3.0], |_| {});
+    rig.step();
+    rig.enable();
+    // Default rate: the full ±5 range in 10 ms, i.e. 1 N·m per 1 ms cycle.
+    rig.step();
+    let first = rig.sent_torque();
+    assert!((first[0] - 1.0).abs() < 1e-6 && (first[1] + 1.0).abs() < 1e-6 && (first[2] - 1.0).abs() < 1e-6);
+    rig.steps(10);
+    let settled = rig.sent_torque();
+    assert!((settled[0] - 5.0).abs() < 1e-6 && (settled[1] + 5.0).abs() < 1e-6, "clamped at ±5: {settled:?}");
+    assert!((settled[2] - 3.0).abs() < 1e-6, "inside the limit, untouched: {settled:?}");
+    assert_eq!(rig.cycle.faults(), Faults::NONE, "clamping is not a fault");
+}
+
+/// Counts that put joint `k` at `q`, rounding toward zero.
+fn counts(cfg: &DaemonConfig, k: usize, q: f64) -> i32 {
+    (q / cfg.drive.resolution(k)).trunc() as i32
+}
+
+#[test]
+fn the_position_guard_trips_one_count_beyond_limit_plus_margin() {
+    let relaxed = |c: &mut DaemonConfig| {
+        c.safety.following_error = Some(vec![10.0; 3]);
+        c.safety.velocity = Some(vec![1e6; 3]);
+    };
+    let mut c = DaemonConfig::default();
+    relaxed(&mut c);
+    let limits = c.safety_limits(&arash_core::arash_asist()).unwrap();
+    let bound = limits.upper[0] + limits.margin[0];
+    let inside = counts(&c, 0, bound);
+    assert!(f64::from(inside) * c.drive.resolution(0) <= bound);
+    assert!(f64::from(inside + 1) * c.drive.resolution(0) > bound);
+    let mut rig = Rig::new([0.0; 3], relaxed);
+    rig.step();
+    rig.enable();
+    rig.link.telemetry.counts[0] = inside;
+    rig.steps(3);
+    assert_eq!(rig.cycle.faults(), Faults::NONE);
+    rig.link.telemetry.counts[0] = inside + 1;
+    rig.step();
+    assert_eq!(rig.cycle.faults(), Faults::POSITION_LIMIT);
+}
+
+#[test]
+fn the_velocity_guard_trips_between_0_9_and_1_1_of_its_limit() {
+    // The exact floating-point boundary is tested on the gate itself (arash-core safety tests);
+    // here the estimated velocity from encoder counts brackets it.
+    for (factor, trips) in [(0.9, false), (1.1, true)] {
+        let mut rig = Rig::new([0.0; 3], |c| c.safety.following_error = Some(vec![10.0; 3]));
+        let c = DaemonConfig::default();
+        let limit = c.safety_limits(&arash_core::arash_asist()).unwrap().velocity[0];
+        let start = -0.6;
+        rig.link.telemetry.counts[0] = counts(&c, 0, start);
+        rig.step();
+        rig.enable();
+        for i in 0..300 {
+            let q = start + factor * limit * 1e-3 * f64::from(i);
+            rig.link.telemetry.counts[0] = counts(&c, 0, q.min(0.7));
+            rig.step();
+        }
+        assert_eq!(rig.cycle.faults().contains(Faults::VELOCITY_LIMIT), trips, "factor {factor}");
+    }
+}
+
+#[test]
+fn the_following_error_trips_one_count_beyond_its_limit() {
+    let mut c = DaemonConfig::default();
+    c.safety.velocity = Some(vec![1e6; 3]);
+    let limit = c.following_error(&arash_core::arash_asist()).unwrap()[2];
+    let inside = counts(&c, 2, limit);
+    let mut rig = Rig::new([0.0; 3], |c| c.safety.velocity = Some(vec![1e6; 3]));
+    rig.step();
+    rig.enable(); // holds q = 0
+    rig.link.telemetry.counts[2] = inside;
+    rig.steps(3);
+    assert_eq!(rig.cycle.faults(), Faults::NONE);
+    rig.link.telemetry.counts[2] = inside + 1;
+    rig.step();
+    assert_eq!(rig.cycle.faults(), Faults::FOLLOWING_ERROR);
+}
+
+#[test]
+fn a_current_mismatch_trips_after_exactly_its_cycle_count() {
+    let mut rig = Rig::new([2.0, 0.0, 0.0], |_| {});
+    rig.step();
+    rig.enable();
+    rig.steps(10);
+    // The drive stops producing current on joint 0: it reports zero against 2 N·m sent, more
+    // than 25 % of the 5 N·m limit.
+    rig.link.echo = false;
+    rig.link.telemetry.amps[0] = 0.0;
+    for _ in 0..49 {
+        rig.step();
+    }
+    assert_eq!(rig.cycle.faults(), Faults::NONE);
+    rig.step();
+    assert_eq!(rig.cycle.faults(), Faults::CURRENT_MISMATCH);
+}
+
+#[test]
+fn a_drive_fault_latches_until_reset_and_reset_leaves_the_motors_disabled() {
+    let mut rig = Rig::new([0.1; 3], |_| {});
+    rig.step();
+    rig.enable();
+    rig.link.telemetry.faults = arash_daemon::link::frame::drive_fault::OVERCURRENT;
+    rig.step();
+    assert_eq!(rig.cycle.faults(), Faults::MOTOR);
+    rig.link.telemetry.faults = 0;
+    rig.steps(5);
+    assert_eq!(rig.cycle.mode(), Mode::Faulted);
+    rig.cycle.request(Request::Enable);
+    assert_eq!(rig.step(), vec![Event::EnableRefused], "no enabling over a latched fault");
+    rig.cycle.request(Request::ResetFault);
+    rig.step();
+    assert_eq!(rig.cycle.mode(), Mode::Disabled);
+    assert_eq!(rig.link.last(), Command::ClearFault);
+    rig.step();
+    assert_eq!(rig.link.last(), Command::Heartbeat);
+    rig.enable();
+}
