@@ -263,6 +263,16 @@ mod tests {
     }
 
     #[test]
+    fn the_shipped_configuration_is_valid_and_states_the_defaults() {
+        let shipped = DaemonConfig::parse(include_str!("../../../deploy/daemon.toml")).unwrap();
+        shipped.validate(&arash_core::arash_asist()).unwrap();
+        let mut defaults = DaemonConfig::default();
+        // The file rounds the torque constants to four digits.
+        defaults.drive.torque_constant.clone_from(&shipped.drive.torque_constant);
+        assert_eq!(shipped, defaults);
+    }
+
+    #[test]
     fn the_defaults_are_valid_and_give_a_20_cycle_timeout() {
         let model = arash_core::arash_asist();
         let c = DaemonConfig::default();

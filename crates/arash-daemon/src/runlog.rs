@@ -7,6 +7,7 @@
 use std::path::Path;
 
 use anyhow::{bail, Context};
+use arash_core::control::Trajectory;
 use arash_core::Model;
 
 /// A log: `t` (N) and row-major `q`, `tau` (N × dof).
@@ -14,6 +15,9 @@ pub struct Log {
     pub t: Vec<f64>,
     pub q: Vec<f64>,
     pub tau: Vec<f64>,
+    /// The reference the run followed, when the log says (flight logs of `arash simulate` and
+    /// of daemon runs).
+    pub trajectory: Option<Trajectory>,
 }
 
 /// Read a run, by extension: `.mcap` is a flight log, anything else CSV.
@@ -37,7 +41,107 @@ fn read_flight_log(path: &Path, model: &Model) -> anyhow::Result<Log> {
     if log.is_empty() {
         bail!("{} has no cycles", path.display());
     }
-    Ok(Log { t: log.cycles.t, q: log.cycles.q, tau: log.cycles.tau_meas })
+    let dof = model.dof();
+    let trajectory = logged_trajectory(&log, dof);
+    let (mut log, repaired) =
+        regrid(Log { t: log.cycles.t, q: log.cycles.q, tau: log.cycles.tau_meas, trajectory: None }, dof);
+    log.trajectory = trajectory;
+    if repaired > 0 {
+        eprintln!(
+            "note: {}: {repaired} cycles repeated or skipped a measurement (link jitter); \
+             resampled onto a uniform grid by linear interpolation",
+            path.display()
+        );
+    }
+    Ok(log)
+}
+
+/// The trajectory a flight log followed: the daemon attaches `trajectory.json` to a run's log,
+/// `arash simulate` its whole run specification as `run.json`.
+fn logged_trajectory(log: &arash_core::flightlog::FlightLog, dof: usize) -> Option<Trajectory> {
+    if let Some(text) = log.attachment_text("trajectory.json") {
+        return Trajectory::from_json(&text, dof).ok();
+    }
+    let run: serde_json::Value = serde_json::from_str(&log.attachment_text("run.json")?).ok()?;
+    Trajectory::from_json(&run.get("trajectory")?.to_string(), dof).ok()
+}
+
+/// Measurements on a uniform time grid. The daemon logs each cycle with the drive's time of
+/// the measurement it used, so a cycle without new telemetry repeats a time, and telemetry
+/// superseded within one cycle leaves a gap. Repeats are dropped and gaps filled by linear
+/// interpolation at the median step, keeping one sample per logged cycle. Returns the log and
+/// how many samples were repaired.
+fn regrid(log: Log, dof: usize) -> (Log, usize) {
+    let keep: Vec<usize> = (0..log.t.len()).filter(|&i| i == 0 || log.t[i] > log.t[i - 1]).collect();
+    let mut steps: Vec<f64> = keep.windows(2).map(|w| log.t[w[1]] - log.t[w[0]]).collect();
+    if steps.is_empty() {
+        return (log, 0);
+    }
+    steps.sort_by(f64::total_cmp);
+    let h = steps[steps.len() / 2];
+    let uniform = keep.len() == log.t.len() && steps.iter().all(|s| (s - h).abs() < 1e-3 * h);
+    if uniform {
+        return (log, 0);
+    }
+    let (t0, t_end) = (log.t[keep[0]], log.t[*keep.last().expect("not empty")]);
+    // As many samples as cycles: the daemon logs one cycle per drive period, so the run's
+    // length (and with it the period averaging) is that of the log even when its last
+    // measurements arrived late; the end holds the last measurement.
+    let n = (((t_end - t0) / h).round() as usize + 1).max(log.t.len());
+    let mut out = Log {
+        t: Vec::with_capacity(n),
+        q: Vec::with_capacity(n * dof),
+        tau: Vec::with_capacity(n * dof),
+        trajectory: log.trajectory,
+    };
+    let mut repaired = log.t.len() - keep.len();
+    let mut j = 0;
+    for i in 0..n {
+        let t = t0 + i as f64 * h;
+        while j + 2 < keep.len() && log.t[keep[j + 1]] <= t {
+            j += 1;
+        }
+        let (a, b) = (keep[j], keep[(j + 1).min(keep.len() - 1)]);
+        let span = log.t[b] - log.t[a];
+        let w = if span > 0.0 { ((t - log.t[a]) / span).clamp(0.0, 1.0) } else { 0.0 };
+        if (t - log.t[a]).abs() > 0.1 * h && (t - log.t[b]).abs() > 0.1 * h {
+            repaired += 1;
+        }
+        out.t.push(t);
+        for k in 0..dof {
+            out.q.push(log.q[a * dof + k] * (1.0 - w) + log.q[b * dof + k] * w);
+            out.tau.push(log.tau[a * dof + k] * (1.0 - w) + log.tau[b * dof + k] * w);
+        }
+    }
+    (out, repaired)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn repeats_are_dropped_and_gaps_interpolated() {
+        // A ramp sampled at 1 ms with one repeat (t = 2 ms twice) and one gap (no 5 ms).
+        let t = [0.0, 0.001, 0.002, 0.002, 0.003, 0.004, 0.006, 0.007];
+        let q: Vec<f64> = t.iter().map(|t| 3.0 * t).collect();
+        let log = Log { t: t.to_vec(), q: q.clone(), tau: q, trajectory: None };
+        let (out, repaired) = regrid(log, 1);
+        assert_eq!(repaired, 2);
+        assert_eq!(out.t.len(), 8, "one sample per logged cycle");
+        for (i, (&t, &q)) in out.t.iter().zip(&out.q).enumerate() {
+            assert!((t - i as f64 * 1e-3).abs() < 1e-12);
+            assert!((q - 3.0 * t).abs() < 1e-12, "a ramp interpolates exactly");
+        }
+    }
+
+    #[test]
+    fn a_uniform_log_is_untouched() {
+        let t: Vec<f64> = (0..10).map(|i| i as f64 * 1e-3).collect();
+        let log = Log { t: t.clone(), q: t.clone(), tau: t.clone(), trajectory: None };
+        let (out, repaired) = regrid(log, 1);
+        assert_eq!((repaired, out.t), (0, t));
+    }
 }
 
 fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
@@ -56,7 +160,7 @@ fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
     let q_cols: Vec<usize> = model.joints.iter().map(|j| find(&format!("q.{}", j.name))).collect::<Result<_, _>>()?;
     let tau_cols: Vec<usize> =
         model.joints.iter().map(|j| find(&format!("tau.{}", j.name))).collect::<Result<_, _>>()?;
-    let mut log = Log { t: Vec::new(), q: Vec::new(), tau: Vec::new() };
+    let mut log = Log { t: Vec::new(), q: Vec::new(), tau: Vec::new(), trajectory: None };
     for (line, record) in reader.records().enumerate() {
         let record = record.with_context(|| format!("{}: record {}", path.display(), line + 1))?;
         let value = |col: usize| -> anyhow::Result<f64> {
@@ -87,7 +191,8 @@ fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
 
 /// Concatenate logs recorded back to back at the same rate (their time stamps are re-based).
 pub fn concatenate(logs: Vec<Log>) -> Log {
-    let mut out = Log { t: Vec::new(), q: Vec::new(), tau: Vec::new() };
+    let trajectory = logs.first().and_then(|l| l.trajectory.clone());
+    let mut out = Log { t: Vec::new(), q: Vec::new(), tau: Vec::new(), trajectory };
     for log in logs {
         let dt = if log.t.len() > 1 { log.t[1] - log.t[0] } else { 0.0 };
         let offset = out.t.last().map_or(0.0, |last| last + dt) - log.t[0];

@@ -109,6 +109,16 @@ impl Trajectory {
         }
     }
 
+    /// The highest frequency in the reference (Hz): the top harmonic of an excitation, the
+    /// single frequency of a validation run; `None` for a hold.
+    pub fn bandwidth_hz(&self) -> Option<f64> {
+        match self {
+            Trajectory::Fourier(e) => Some(e.harmonics as f64 / e.period_s),
+            Trajectory::PaperValidation { omega } => Some(omega / (2.0 * std::f64::consts::PI)),
+            Trajectory::Hold { .. } => None,
+        }
+    }
+
     /// `q_d`, `q̇_d`, `q̈_d` at `t` into the caller's buffers.
     pub fn eval(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
         match self {

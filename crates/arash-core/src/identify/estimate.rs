@@ -82,8 +82,9 @@ pub const CONDITION_LIMIT: f64 = 1e8;
 ///
 /// Coulomb friction columns step where a velocity changes sign, but the measured torque has been
 /// low-pass filtered, so its steps are smoothed. Left alone, that mismatch biases the whole fit
-/// (on ARASH:ASiST, 16 % of the yaw torque). Those columns are therefore filtered exactly like the
-/// torque ("parallel filtering"). The other columns are smooth functions of signals already
+/// (on ARASH:ASiST, 16 % of the yaw torque). Those columns are therefore built from the friction
+/// velocity (`Preprocessed::qd_friction`, which keeps the fast dither of a controlled joint around
+/// zero speed) and filtered exactly like the torque ("parallel filtering"). The other columns are smooth functions of signals already
 /// filtered far below the cut-off, and the filter leaves them unchanged.
 pub fn stack(model: &Model, base: &BaseParameters, data: &Preprocessed) -> (Mat<f64>, Vec<f64>) {
     (stack_columns(model, data, &base.independent), data.tau.clone())
@@ -132,7 +133,7 @@ fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f
     for k in 0..n {
         let coulomb = model.friction_offset() + 2 * k + 1;
         let Some(c) = columns.iter().position(|&j| j == coulomb) else { continue };
-        let column: Vec<f64> = (0..samples).map(|s| w[(s * n + k, c)]).collect();
+        let column: Vec<f64> = (0..samples).map(|s| model.coulomb_shape.eval(data.qd_friction[s * n + k])).collect();
         let filtered = data.filter_like_torque(&column, 1).expect("the torque was filtered with these settings");
         for (s, v) in filtered.into_iter().enumerate() {
             w[(s * n + k, c)] = v;

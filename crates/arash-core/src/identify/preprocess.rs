@@ -20,11 +20,20 @@ pub struct PreprocessOptions {
     pub order: usize,
     /// Keep every `decimate`-th sample after filtering (1 keeps all).
     pub decimate: usize,
+    /// Cut-off of the velocity that switches Coulomb friction (Hz); `None` gives
+    /// [`DEFAULT_FRICTION_CUTOFF_HZ`] (never below the main cut-off).
+    pub friction_cutoff_hz: Option<f64>,
 }
+
+/// Friction switches with the joint's actual velocity, which under closed-loop control dithers
+/// around zero far faster than the trajectory's bandwidth. A velocity filtered at the main
+/// cut-off (a few Hz) crosses zero cleanly and misses that, which on the simulated rig cost 10–30
+/// points of FP%. 20 Hz keeps the dither and still rejects most encoder quantisation noise.
+pub const DEFAULT_FRICTION_CUTOFF_HZ: f64 = 20.0;
 
 impl Default for PreprocessOptions {
     fn default() -> Self {
-        Self { periods: None, cutoff_hz: None, order: 5, decimate: 1 }
+        Self { periods: None, cutoff_hz: None, order: 5, decimate: 1, friction_cutoff_hz: None }
     }
 }
 
@@ -59,6 +68,8 @@ pub struct Preprocessed {
     pub q: Vec<f64>,
     pub qd: Vec<f64>,
     pub qdd: Vec<f64>,
+    /// The velocity that switches Coulomb friction: filtered at `friction_cutoff_hz`.
+    pub qd_friction: Vec<f64>,
     pub tau: Vec<f64>,
     /// The cut-off actually used (Hz).
     pub cutoff_hz: f64,
@@ -161,6 +172,10 @@ pub fn preprocess(
     let qd = filter_columns(&filter, &central_difference(&q_f, dof, dt, periodic), dof, periodic)?;
     let qdd = filter_columns(&filter, &central_difference(&qd, dof, dt, periodic), dof, periodic)?;
     let tau_f = filter_columns(&filter, &tau, dof, periodic)?;
+    let friction_cutoff_hz =
+        options.friction_cutoff_hz.unwrap_or(DEFAULT_FRICTION_CUTOFF_HZ).max(cutoff_hz).min(0.25 * fs);
+    let friction_filter = Butterworth::lowpass(options.order, friction_cutoff_hz, fs)?;
+    let qd_friction = filter_columns(&friction_filter, &central_difference(&q, dof, dt, periodic), dof, periodic)?;
     let keep = |x: &[f64]| -> Vec<f64> { x.chunks(dof).step_by(options.decimate).flatten().copied().collect() };
     let t_out: Vec<f64> = (0..n).step_by(options.decimate).map(|i| t[0] + i as f64 * dt).collect();
     Ok(Preprocessed {
@@ -169,6 +184,7 @@ pub fn preprocess(
         q: keep(&q_f),
         qd: keep(&qd),
         qdd: keep(&qdd),
+        qd_friction: keep(&qd_friction),
         tau: keep(&tau_f),
         cutoff_hz,
         sample_rate_hz: fs,

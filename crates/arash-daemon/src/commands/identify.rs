@@ -27,12 +27,20 @@ pub struct Args {
     /// Whole excitation periods in the training data (averaged); omit for non-periodic data.
     #[arg(long)]
     periods: Option<usize>,
-    /// Low-pass cut-off (Hz); default from the trajectory's bandwidth.
+    /// Low-pass cut-off (Hz); default 5 × the top frequency of the trajectory the log names, or
+    /// else read off the position spectrum.
     #[arg(long)]
     cutoff: Option<f64>,
     /// Butterworth order (applied forward and backward).
     #[arg(long, default_value_t = 5)]
     order: usize,
+    /// Cut-off of the velocity that switches Coulomb friction (Hz); default 20.
+    #[arg(long)]
+    friction_cutoff: Option<f64>,
+    /// Coulomb friction as tanh(q̇/ε) with this ε (rad/s or m/s) instead of sign(q̇); the
+    /// simulated rig's law is tanh with ε = 0.001.
+    #[arg(long)]
+    coulomb_epsilon: Option<f64>,
     /// Keep every k-th sample after filtering.
     #[arg(long, default_value_t = 1)]
     decimate: usize,
@@ -51,15 +59,28 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (model, urdf) = super::load_robot(args.robot.as_deref())?;
+    let (mut model, urdf) = super::load_robot(args.robot.as_deref())?;
+    if let Some(epsilon) = args.coulomb_epsilon {
+        anyhow::ensure!(epsilon.is_finite() && epsilon > 0.0, "--coulomb-epsilon must be positive, not {epsilon}");
+        model.coulomb_shape = arash_core::model::CoulombShape::Tanh { epsilon };
+    }
     let logs = args.logs.iter().map(|p| runlog::read(p, &model)).collect::<anyhow::Result<Vec<_>>>()?;
     let log = runlog::concatenate(logs);
+    let cutoff = args.cutoff.or_else(|| {
+        // Five times the reference's top frequency: closed-loop positions carry controller
+        // dither that fools a cut-off read off their spectrum.
+        let bandwidth = log.trajectory.as_ref()?.bandwidth_hz()?;
+        let cutoff = (5.0 * bandwidth).max(1.0);
+        eprintln!("cut-off {cutoff:.2} Hz: 5 × the logged trajectory's top frequency ({bandwidth:.3} Hz)");
+        Some(cutoff)
+    });
     let options = IdentifyOptions {
         preprocess: PreprocessOptions {
             periods: args.periods,
-            cutoff_hz: args.cutoff,
+            cutoff_hz: cutoff,
             order: args.order,
             decimate: args.decimate,
+            friction_cutoff_hz: args.friction_cutoff,
         },
         consistent: ConsistentOptions { pull: args.pull, ..Default::default() },
     };
@@ -74,7 +95,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mut fp = Vec::new();
         for path in &args.validate {
             let v = runlog::read(path, &model)?;
-            let pre = PreprocessOptions { periods: args.validate_periods, order: args.order, ..Default::default() };
+            let pre = PreprocessOptions {
+                periods: args.validate_periods,
+                order: args.order,
+                friction_cutoff_hz: args.friction_cutoff,
+                ..Default::default()
+            };
             let metrics = validate(&model, &identification, &v.t, &v.q, &v.tau, &pre)
                 .with_context(|| format!("validating on {}", path.display()))?;
             labels.push(path.file_stem().map_or("run".into(), |s| s.to_string_lossy().into_owned()));

@@ -87,8 +87,11 @@ pub struct ControlCycle {
     have_telemetry: bool,
     missing: u32,
     last_device_us: u32,
-    /// Device time of the last telemetry (s, unwrapped).
+    /// Device time of the last telemetry (s, unwrapped): the time of the logged measurement.
     device_time: f64,
+    /// Time of the reference (s): the device time extrapolated over cycles without telemetry,
+    /// never going back when late telemetry arrives.
+    reference_time: f64,
     /// Torque sent last (N·m or N) and the ramp after a link timeout.
     last_sent: [f64; MAX_JOINTS],
     ramp_from: [f64; MAX_JOINTS],
@@ -124,6 +127,7 @@ impl ControlCycle {
             missing: 0,
             last_device_us: 0,
             device_time: 0.0,
+            reference_time: 0.0,
             last_sent: [0.0; MAX_JOINTS],
             ramp_from: [0.0; MAX_JOINTS],
             ramp_left: 0,
@@ -198,7 +202,7 @@ impl ControlCycle {
     fn apply(&mut self, request: Request) -> Option<Garbage> {
         match request {
             Request::Enable => {
-                if self.mode == Mode::Disabled && self.have_telemetry && self.missing == 0 {
+                if self.mode == Mode::Disabled && self.have_telemetry && self.missing < self.cfg.link_timeout {
                     self.mode = Mode::Enabled;
                     self.pending = Some(Command::Enable);
                     self.controller.reset();
@@ -249,19 +253,21 @@ impl ControlCycle {
         }
     }
 
-    /// Time of the cycle (s): the drive's clock at the last telemetry, plus nominal periods
-    /// since.
+    /// Time of the reference (s): the drive's clock at the last telemetry plus nominal periods
+    /// since, kept monotonic.
     fn time(&self) -> f64 {
-        self.device_time + f64::from(self.missing) * self.cfg.dt
+        self.reference_time.max(self.device_time + f64::from(self.missing) * self.cfg.dt)
     }
 
     /// Run one cycle against `link`.
     pub fn step(&mut self, link: &mut dyn MotorLink, cycle: u64) {
         let fresh = self.read(link);
         let t = self.time();
+        self.reference_time = t;
         let r = &mut self.record;
         r.cycle = cycle;
-        r.t = t;
+        // The log's time is that of the measurement; a cycle without telemetry repeats it.
+        r.t = self.device_time;
         match self.reference.eval(t, &mut r.q_des, &mut r.qd_des, &mut r.qdd_des) {
             Some(PhaseChange::RunStarted(id)) => self.event(Event::RunStarted(id)),
             Some(PhaseChange::RunEnded(id)) => self.event(Event::RunEnded(id)),

@@ -1,0 +1,364 @@
+//! End to end: `arash mock-motor` on a pseudo-terminal, `arash daemon` against it, commanded
+//! with `arash ctl`. No hardware and no root (`--rt ignore`).
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use arash_core::flightlog::read_log;
+
+const ARASH: &str = env!("CARGO_BIN_EXE_arash");
+
+/// A child process killed when dropped.
+struct Proc(Child);
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("arash-e2e-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Start the mock motor with an optional fault plan; returns it and its pty.
+fn mock(dir: &Path, faults: Option<&str>) -> (Proc, String) {
+    let mut cmd = Command::new(ARASH);
+    cmd.arg("mock-motor").stdout(Stdio::piped()).stderr(Stdio::null());
+    if let Some(f) = faults {
+        let path = dir.join("faults.toml");
+        std::fs::write(&path, f).unwrap();
+        cmd.arg("--faults").arg(path);
+    }
+    let mut child = cmd.spawn().unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    (Proc(child), line.trim().to_string())
+}
+
+/// Start the daemon on `pty` and wait for its socket.
+fn daemon(dir: &Path, pty: &str, config: &str) -> Proc {
+    let config_path = dir.join("daemon.toml");
+    std::fs::write(&config_path, config).unwrap();
+    let err = std::fs::OpenOptions::new().create(true).append(true).open(dir.join("daemon.err")).unwrap();
+    let child = Command::new(ARASH)
+        .args(["daemon", "--rt", "ignore", "--port", pty, "--config"])
+        .arg(&config_path)
+        .arg("--socket")
+        .arg(dir.join("s.sock"))
+        .arg("--log-dir")
+        .arg(dir.join("logs"))
+        .stderr(err)
+        .spawn()
+        .unwrap();
+    let started = Instant::now();
+    while !dir.join("s.sock").exists() {
+        assert!(started.elapsed() < Duration::from_secs(10), "no socket; daemon.err:\n{}", stderr(dir));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    Proc(child)
+}
+
+fn stderr(dir: &Path) -> String {
+    std::fs::read_to_string(dir.join("daemon.err")).unwrap_or_default()
+}
+
+fn ctl(dir: &Path, args: &[&str]) -> Result<String, String> {
+    let out = Command::new(ARASH).arg("ctl").arg("--socket").arg(dir.join("s.sock")).args(args).output().unwrap();
+    if out.status.success() {
+        Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+    } else {
+        Err(String::from_utf8_lossy(&out.stderr).into_owned())
+    }
+}
+
+fn status(dir: &Path) -> serde_json::Value {
+    serde_json::from_str(&ctl(dir, &["status"]).unwrap()).unwrap()
+}
+
+/// Poll `status` until `condition` holds (or fail after `timeout`).
+fn wait_until(dir: &Path, timeout: Duration, what: &str, condition: impl Fn(&serde_json::Value) -> bool) {
+    let started = Instant::now();
+    loop {
+        let s = status(dir);
+        if condition(&s) {
+            return;
+        }
+        assert!(started.elapsed() < timeout, "timed out waiting for {what}; status {s}\n{}", stderr(dir));
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+fn terminate(p: &mut Proc) -> std::process::ExitStatus {
+    // SAFETY: sending SIGTERM to our own child.
+    unsafe { libc::kill(p.0.id() as i32, libc::SIGTERM) };
+    p.0.wait().unwrap()
+}
+
+fn logs(dir: &Path, prefix: &str) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> =
+        std::fs::read_dir(dir.join("logs")).map(|r| r.flatten().map(|e| e.path()).collect()).unwrap_or_default();
+    v.retain(|p| p.file_name().unwrap().to_string_lossy().starts_with(prefix));
+    v.sort();
+    v
+}
+
+#[test]
+fn an_excitation_run_through_the_daemon_identifies_the_mock() {
+    let dir = scratch("identify");
+    let excitation = dir.join("excitation.json");
+    let out = Command::new(ARASH)
+        .args(["excite", "--restarts", "1", "--rate", "10", "-o"])
+        .arg(&excitation)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (_mock, pty) = mock(&dir, None);
+    let mut d = daemon(&dir, &pty, "[control]\ncontroller = \"idc\"\n");
+    ctl(&dir, &["enable"]).unwrap();
+    let log = ctl(&dir, &["run", excitation.to_str().unwrap(), "--duration", "30", "--label", "excitation", "--wait"])
+        .unwrap_or_else(|e| panic!("{e}\n{}", stderr(&dir)));
+    let log = PathBuf::from(log.trim());
+    let flight = read_log(&log).unwrap();
+    assert!(!flight.truncated);
+    assert_eq!(flight.len(), 30_000, "one message per cycle of the 30 s run");
+    assert!(flight.cycles.cycle.windows(2).all(|w| w[1] == w[0] + 1), "consecutive cycles, none lost to the log");
+    assert!(flight.cycles.faults.iter().all(|&f| f == 0));
+    let timing = &flight.json["/arash/timing"];
+    assert!(timing.len() >= 29, "timing statistics once a second: {}", timing.len());
+    assert!(timing[0].1.contains("missed_cycles"));
+
+    let model = dir.join("model.json");
+    let out =
+        Command::new(ARASH).arg("identify").arg(&log).args(["--periods", "2", "-o"]).arg(&model).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let model: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    let fp: Vec<f64> = serde_json::from_value(model["training"]["fp_percent"].clone()).unwrap();
+    eprintln!("FP% on the daemon's excitation log: {fp:?}");
+    assert!(fp.iter().all(|&x| x >= 90.0), "FP% {fp:?}");
+    assert!(terminate(&mut d).success());
+}
+
+#[test]
+fn link_faults_are_counted_logged_and_ridden_through() {
+    let dir = scratch("linkfaults");
+    let (_mock, pty) =
+        mock(&dir, Some("seed = 3\ncorrupt = 0.02\ndrop = 0.01\nreorder = 0.01\ndelay = 0.01\ndelay_frames = 3\n"));
+    let mut d = daemon(&dir, &pty, "");
+    ctl(&dir, &["enable"]).unwrap();
+    std::thread::sleep(Duration::from_secs(3));
+    let s = status(&dir);
+    let link = &s["link"];
+    assert_eq!(s["mode"], "enabled", "sporadic errors must not trip the link timeout: {s}");
+    for key in ["crc_errors", "lost", "stale"] {
+        assert!(link[key].as_u64().unwrap() > 0, "{key} not counted: {link}");
+    }
+    assert!(terminate(&mut d).success());
+    let events: Vec<String> = logs(&dir, "daemon-")
+        .iter()
+        .flat_map(|p| read_log(p).unwrap().json.remove("/arash/event").unwrap_or_default())
+        .map(|e| e.1)
+        .collect();
+    assert!(events.iter().any(|e| e.contains("link errors") && e.contains("CRC")), "{events:?}");
+}
+
+#[test]
+fn silence_trips_the_link_timeout_ramps_down_and_writes_a_black_box() {
+    let dir = scratch("silence");
+    let (_mock, pty) = mock(&dir, Some("silent_at_s = 3.0\n"));
+    let mut d = daemon(&dir, &pty, "");
+    ctl(&dir, &["enable"]).unwrap();
+    wait_until(&dir, Duration::from_secs(5), "a fault", |s| s["mode"] == "faulted");
+    let s = status(&dir);
+    assert_eq!(s["faults"], serde_json::json!(["link timeout"]));
+    assert!(ctl(&dir, &["enable"]).is_err(), "enabling over a latched fault is refused");
+    std::thread::sleep(Duration::from_millis(300));
+    let boxes = logs(&dir, "blackbox-");
+    assert_eq!(boxes.len(), 1, "{boxes:?}");
+    let bb = read_log(&boxes[0]).unwrap();
+    assert!(bb.len() >= 1900 && bb.len() <= 2001, "about 2 s of cycles: {}", bb.len());
+    assert_eq!(*bb.cycles.faults.last().unwrap(), 16, "ends on the faulting cycle");
+    assert!(terminate(&mut d).success());
+}
+
+#[test]
+fn a_stuck_encoder_trips_the_following_error() {
+    let dir = scratch("stuck");
+    let (_mock, pty) = mock(&dir, Some("stuck_at_s = 4.0\nstuck_joint = 0\n"));
+    let _d = daemon(&dir, &pty, "");
+    ctl(&dir, &["enable"]).unwrap();
+    let trajectory = concat!(env!("CARGO_MANIFEST_DIR"), "/../../trajectories/paper_validation_0.5.json");
+    ctl(&dir, &["run", trajectory]).unwrap();
+    wait_until(&dir, Duration::from_secs(15), "a fault", |s| s["mode"] == "faulted");
+    assert_eq!(status(&dir)["faults"], serde_json::json!(["following error"]));
+}
+
+#[test]
+fn a_current_mismatch_trips() {
+    let dir = scratch("mismatch");
+    let (_mock, pty) = mock(&dir, Some("mismatch_at_s = 2.0\nmismatch_joint = 2\nmismatch_factor = 0.5\n"));
+    let _d = daemon(&dir, &pty, "[safety]\nmismatch_fraction = 0.05\n");
+    ctl(&dir, &["enable"]).unwrap();
+    let trajectory = concat!(env!("CARGO_MANIFEST_DIR"), "/../../trajectories/paper_validation_0.5.json");
+    ctl(&dir, &["run", trajectory]).unwrap();
+    wait_until(&dir, Duration::from_secs(15), "a fault", |s| s["mode"] == "faulted");
+    assert_eq!(status(&dir)["faults"], serde_json::json!(["current mismatch"]));
+}
+
+#[test]
+fn after_kill_9_the_log_is_recovered_and_the_daemon_comes_back_disabled() {
+    let dir = scratch("kill9");
+    let (_mock, pty) = mock(&dir, None);
+    let mut d = daemon(&dir, &pty, "");
+    ctl(&dir, &["enable"]).unwrap();
+    std::thread::sleep(Duration::from_millis(2500));
+    d.0.kill().unwrap(); // SIGKILL: no chance to finish the file
+    d.0.wait().unwrap();
+    assert_eq!(logs(&dir, "daemon-").iter().filter(|p| p.to_string_lossy().ends_with(".part")).count(), 1);
+    std::fs::remove_file(dir.join("s.sock")).unwrap();
+    let _d = daemon(&dir, &pty, "");
+    wait_until(&dir, Duration::from_secs(5), "telemetry", |s| s["telemetry"] == true);
+    let err = stderr(&dir);
+    assert!(err.contains("unfinished log from a crash"), "{err}");
+    let recovered: Vec<PathBuf> =
+        logs(&dir, "daemon-").into_iter().filter(|p| p.to_string_lossy().contains("recovered")).collect();
+    assert_eq!(recovered.len(), 1);
+    let log = read_log(&recovered[0]).unwrap();
+    assert!(log.truncated);
+    assert!(log.len() >= 1000, "at least its flushed seconds read back: {}", log.len());
+    // The drive's own watchdog disabled it while no host was talking; the daemon starts with no
+    // torque, and the drive's fault must be reset before enabling.
+    let s = status(&dir);
+    assert_ne!(s["mode"], "enabled");
+    if s["mode"] == "faulted" {
+        assert_eq!(s["faults"], serde_json::json!(["motor"]));
+        ctl(&dir, &["reset"]).unwrap();
+    }
+    wait_until(&dir, Duration::from_secs(2), "disabled", |s| s["mode"] == "disabled");
+    ctl(&dir, &["enable"]).unwrap();
+}
+
+#[test]
+fn systemd_hears_ready_after_telemetry_and_watchdog_while_running_and_sigterm_finishes_the_log() {
+    use std::os::unix::net::UnixDatagram;
+    let dir = scratch("systemd");
+    let notify = UnixDatagram::bind(dir.join("notify.sock")).unwrap();
+    notify.set_read_timeout(Some(Duration::from_millis(500))).unwrap();
+    // A pty nobody answers yet: no telemetry, so no READY.
+    let (master, slave) = serialport::TTYPort::pair().unwrap();
+    let pty = serialport::SerialPort::name(&slave).unwrap();
+    std::fs::write(dir.join("daemon.toml"), "[link]\nstartup_timeout_ms = 10000\n").unwrap();
+    let err = std::fs::File::create(dir.join("daemon.err")).unwrap();
+    let mut d = Proc(
+        Command::new(ARASH)
+            .args(["daemon", "--rt", "ignore", "--port", &pty, "--config"])
+            .arg(dir.join("daemon.toml"))
+            .arg("--socket")
+            .arg(dir.join("s.sock"))
+            .arg("--log-dir")
+            .arg(dir.join("logs"))
+            .env("NOTIFY_SOCKET", dir.join("notify.sock"))
+            .env("WATCHDOG_USEC", "200000")
+            .stderr(err)
+            .spawn()
+            .unwrap(),
+    );
+    let mut buf = [0u8; 256];
+    let mut received = Vec::new();
+    let started = Instant::now();
+    while started.elapsed() < Duration::from_millis(800) {
+        if let Ok(n) = notify.recv(&mut buf) {
+            received.push(String::from_utf8_lossy(&buf[..n]).into_owned());
+        }
+    }
+    assert!(!received.iter().any(|m| m.contains("READY=1")), "READY before telemetry: {received:?}");
+    // Now the drive answers.
+    let model = arash_core::arash_asist();
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let stop_mock = stop.clone();
+    let mock = std::thread::spawn(move || {
+        let mut motor = arash_daemon::mock::MockMotor::new(
+            &model,
+            &arash_core::sim::Scenario::default(),
+            Default::default(),
+            Default::default(),
+        )
+        .unwrap();
+        let mut master = master;
+        serialport::SerialPort::set_timeout(&mut master, Duration::ZERO).unwrap();
+        motor.serve(master, &stop_mock).unwrap();
+        drop(slave);
+    });
+    let started = Instant::now();
+    let mut ready_at = None;
+    let mut watchdogs = 0;
+    while started.elapsed() < Duration::from_secs(3) {
+        if let Ok(n) = notify.recv(&mut buf) {
+            let m = String::from_utf8_lossy(&buf[..n]).into_owned();
+            if m.contains("READY=1") {
+                ready_at.get_or_insert(started.elapsed());
+            }
+            if m.contains("WATCHDOG=1") && ready_at.is_some() {
+                watchdogs += 1;
+            }
+        }
+    }
+    assert!(ready_at.is_some(), "no READY=1 after telemetry; {}", stderr(&dir));
+    assert!(watchdogs >= 5, "WATCHDOG=1 about every 100 ms while the loop runs: {watchdogs}");
+    assert!(terminate(&mut d).success(), "{}", stderr(&dir));
+    let mut stopping = false;
+    while let Ok(n) = notify.recv(&mut buf) {
+        stopping |= String::from_utf8_lossy(&buf[..n]).contains("STOPPING=1");
+    }
+    assert!(stopping);
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    mock.join().unwrap();
+    let files = logs(&dir, "daemon-");
+    assert!(!files.is_empty() && files.iter().all(|p| p.extension().unwrap() == "mcap"), "{files:?}");
+    for f in files {
+        assert!(!read_log(&f).unwrap().truncated, "SIGTERM finishes {}", f.display());
+    }
+}
+
+#[test]
+fn no_telemetry_within_the_startup_timeout_is_an_error_that_names_it() {
+    let dir = scratch("startup");
+    let (_master, slave) = serialport::TTYPort::pair().unwrap();
+    let pty = serialport::SerialPort::name(&slave).unwrap();
+    std::fs::write(dir.join("daemon.toml"), "[link]\nstartup_timeout_ms = 300\n").unwrap();
+    let out = Command::new(ARASH)
+        .args(["daemon", "--rt", "ignore", "--port", &pty, "--config"])
+        .arg(dir.join("daemon.toml"))
+        .arg("--socket")
+        .arg(dir.join("s.sock"))
+        .arg("--log-dir")
+        .arg(dir.join("logs"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("startup_timeout_ms"), "{err}");
+}
+
+#[test]
+fn idle_logs_rotate_by_size() {
+    let dir = scratch("rotate");
+    let (_mock, pty) = mock(&dir, None);
+    let mut d = daemon(&dir, &pty, "[log]\nrotate_mib = 0.02\n");
+    std::thread::sleep(Duration::from_millis(3500));
+    assert!(terminate(&mut d).success());
+    let files = logs(&dir, "daemon-");
+    assert!(files.len() >= 2, "{files:?}");
+    let total: usize = files.iter().map(|f| read_log(f).unwrap().len()).sum();
+    let cycles: Vec<u64> = files.iter().flat_map(|f| read_log(f).unwrap().cycles.cycle).collect();
+    assert_eq!(total, cycles.len());
+    let mut sorted = cycles.clone();
+    sorted.sort();
+    assert!(sorted.windows(2).all(|w| w[1] == w[0] + 1), "rotation loses no cycle");
+}
