@@ -116,34 +116,6 @@ fn regrid(log: Log, dof: usize) -> (Log, usize) {
     (out, repaired)
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn repeats_are_dropped_and_gaps_interpolated() {
-        // A ramp sampled at 1 ms with one repeat (t = 2 ms twice) and one gap (no 5 ms).
-        let t = [0.0, 0.001, 0.002, 0.002, 0.003, 0.004, 0.006, 0.007];
-        let q: Vec<f64> = t.iter().map(|t| 3.0 * t).collect();
-        let log = Log { t: t.to_vec(), q: q.clone(), tau: q, trajectory: None };
-        let (out, repaired) = regrid(log, 1);
-        assert_eq!(repaired, 2);
-        assert_eq!(out.t.len(), 8, "one sample per logged cycle");
-        for (i, (&t, &q)) in out.t.iter().zip(&out.q).enumerate() {
-            assert!((t - i as f64 * 1e-3).abs() < 1e-12);
-            assert!((q - 3.0 * t).abs() < 1e-12, "a ramp interpolates exactly");
-        }
-    }
-
-    #[test]
-    fn a_uniform_log_is_untouched() {
-        let t: Vec<f64> = (0..10).map(|i| i as f64 * 1e-3).collect();
-        let log = Log { t: t.clone(), q: t.clone(), tau: t.clone(), trajectory: None };
-        let (out, repaired) = regrid(log, 1);
-        assert_eq!((repaired, out.t), (0, t));
-    }
-}
-
 fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
     let mut reader = csv::Reader::from_path(path).with_context(|| format!("opening log {}", path.display()))?;
     let headers = reader.headers().with_context(|| format!("reading the header of {}", path.display()))?.clone();
@@ -201,4 +173,32 @@ pub fn concatenate(logs: Vec<Log>) -> Log {
         out.tau.extend(log.tau);
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn repeats_are_dropped_and_gaps_interpolated() {
+        // A ramp sampled at 1 ms with one repeat (t = 2 ms twice) and one gap (no 5 ms).
+        let t = [0.0, 0.001, 0.002, 0.002, 0.003, 0.004, 0.006, 0.007];
+        let q: Vec<f64> = t.iter().map(|t| 3.0 * t).collect();
+        let log = Log { t: t.to_vec(), q: q.clone(), tau: q, trajectory: None };
+        let (out, repaired) = regrid(log, 1);
+        assert_eq!(repaired, 2);
+        assert_eq!(out.t.len(), 8, "one sample per logged cycle");
+        for (i, (&t, &q)) in out.t.iter().zip(&out.q).enumerate() {
+            assert!((t - i as f64 * 1e-3).abs() < 1e-12);
+            assert!((q - 3.0 * t).abs() < 1e-12, "a ramp interpolates exactly");
+        }
+    }
+
+    #[test]
+    fn a_uniform_log_is_untouched() {
+        let t: Vec<f64> = (0..10).map(|i| i as f64 * 1e-3).collect();
+        let log = Log { t: t.clone(), q: t.clone(), tau: t.clone(), trajectory: None };
+        let (out, repaired) = regrid(log, 1);
+        assert_eq!((repaired, out.t), (0, t));
+    }
 }
