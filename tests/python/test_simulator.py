@@ -134,8 +134,11 @@ def test_the_cli_log_identifies_like_the_python_arrays(tmp_path):
     t = np.array([m.t for m in cycles])
     q = np.array([list(m.q) for m in cycles])
     tau = np.array([list(m.tau_meas) for m in cycles])
-    ident = arash.identify(arash.Robot.arash_asist(), t, q, tau)
-    np.testing.assert_allclose(arash.load_model(model).beta, ident.beta, rtol=1e-9, atol=1e-12)
+    cli = arash.load_model(model)
+    # The CLI takes the cut-off from the logged trajectory: 5 × ω/2π, at least 1 Hz.
+    assert cli.cutoff_hz == pytest.approx(max(1.0, 5 * 0.5 / (2 * np.pi)))
+    ident = arash.identify(arash.Robot.arash_asist(), t, q, tau, cutoff_hz=cli.cutoff_hz)
+    np.testing.assert_allclose(cli.beta, ident.beta, rtol=1e-9, atol=1e-12)
 
 
 def test_the_main_job_calibrates_and_then_tracks_better_than_cad():
