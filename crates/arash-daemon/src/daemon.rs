@@ -174,6 +174,9 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
             rt_status.problems.join("; ")
         );
     }
+    if policy == crate::rt::clock::RtPolicy::Ignore {
+        eprintln!("arash-daemon: --rt=ignore in effect: a refused real-time set-up would not stop the daemon");
+    }
 
     let operator = Arc::new(Operator {
         model,

@@ -142,6 +142,24 @@ fn an_excitation_run_through_the_daemon_identifies_the_mock() {
     let fp: Vec<f64> = serde_json::from_value(model["training"]["fp_percent"].clone()).unwrap();
     eprintln!("FP% on the daemon's excitation log: {fp:?}");
     assert!(fp.iter().all(|&x| x >= 90.0), "FP% {fp:?}");
+
+    // Close the loop: switch to the robust controller with the identified model and track the
+    // paper's ω = 0.5 trajectory for 5 s.
+    let model_path = dir.join("model.json");
+    let s: serde_json::Value =
+        serde_json::from_str(&ctl(&dir, &["controller", "robust", "--model", model_path.to_str().unwrap()]).unwrap())
+            .unwrap();
+    assert_eq!(s["controller"], "robust");
+    let trajectory = concat!(env!("CARGO_MANIFEST_DIR"), "/../../trajectories/paper_validation_0.5.json");
+    let log = ctl(&dir, &["run", trajectory, "--duration", "5", "--wait"]).unwrap();
+    let tracked = read_log(Path::new(log.trim())).unwrap();
+    assert!(tracked.cycles.faults.iter().all(|&f| f == 0));
+    assert!(tracked.cycles.controller.iter().all(|&c| c == 3), "robust throughout");
+    let worst = (0..tracked.len())
+        .map(|i| (tracked.cycles.q[3 * i + 2] - tracked.cycles.q_des[3 * i + 2]).abs())
+        .fold(0.0, f64::max);
+    eprintln!("robust controller with the identified model: max insertion error {:.1} µm", worst * 1e6);
+    assert!(worst < 500e-6, "insertion error {worst} m");
     assert!(terminate(&mut d).success());
 }
 
@@ -350,7 +368,9 @@ fn no_telemetry_within_the_startup_timeout_is_an_error_that_names_it() {
 fn idle_logs_rotate_by_size() {
     let dir = scratch("rotate");
     let (_mock, pty) = mock(&dir, None);
-    let mut d = daemon(&dir, &pty, "[log]\nrotate_mib = 0.02\n");
+    let mut d = daemon(&dir, &pty, "[log]\nrotate_mib = 0.02\n\n[socket]\nmode = \"0600\"\n");
+    let mode = std::os::unix::fs::PermissionsExt::mode(&std::fs::metadata(dir.join("s.sock")).unwrap().permissions());
+    assert_eq!(mode & 0o777, 0o600, "the socket's mode is the access control");
     std::thread::sleep(Duration::from_millis(3500));
     assert!(terminate(&mut d).success());
     let files = logs(&dir, "daemon-");

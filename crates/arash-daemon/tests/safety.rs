@@ -334,3 +334,62 @@ fn a_drive_fault_latches_until_reset_and_reset_leaves_the_motors_disabled() {
     assert_eq!(rig.link.last(), Command::Heartbeat);
     rig.enable();
 }
+
+/// A CAN drive in the same process: answers every host frame with one telemetry set, until told
+/// to fall silent.
+struct CanDrive {
+    bus: arash_daemon::link::can::InProcessBus,
+    seq: u16,
+    silent: bool,
+}
+
+impl CanDrive {
+    fn answer(&mut self) {
+        use arash_daemon::link::can::{telemetry_frame, CanBus};
+        let mut frames = 0;
+        while let Ok(Some(_)) = self.bus.receive() {
+            frames += 1;
+        }
+        if frames == 0 || self.silent {
+            return;
+        }
+        let mut t = Telemetry::new(3);
+        t.seq = self.seq;
+        self.seq = self.seq.wrapping_add(1);
+        for j in 0..3 {
+            self.bus.send(&telemetry_frame(&t, j)).unwrap();
+        }
+    }
+}
+
+#[test]
+fn over_can_the_link_timeout_holds_for_n_minus_1_cycles_and_trips_at_n() {
+    use arash_daemon::link::can::{CanLink, InProcessBus};
+    for (gap, trips) in [(19, false), (20, true)] {
+        let (host, drive) = InProcessBus::pair(256);
+        let mut link = CanLink::new(host, 3);
+        let mut drive = CanDrive { bus: drive, seq: 0, silent: false };
+        let mut cycle = ControlCycle::new(config(|_| {}), Box::new(Constant(vec![0.2; 3])));
+        let mut n = 0;
+        let mut step = |cycle: &mut ControlCycle, link: &mut CanLink<InProcessBus>, drive: &mut CanDrive| {
+            cycle.step(link, n);
+            n += 1;
+            drive.answer();
+        };
+        for _ in 0..3 {
+            step(&mut cycle, &mut link, &mut drive);
+        }
+        cycle.request(Request::Enable);
+        for _ in 0..10 {
+            step(&mut cycle, &mut link, &mut drive);
+        }
+        assert_eq!(cycle.mode(), Mode::Enabled);
+        drive.silent = true;
+        // The last answered frame's telemetry is read in the next cycle; silence starts after it.
+        step(&mut cycle, &mut link, &mut drive);
+        for _ in 0..gap {
+            step(&mut cycle, &mut link, &mut drive);
+        }
+        assert_eq!(cycle.faults().contains(Faults::LINK_TIMEOUT), trips, "gap of {gap} cycles");
+    }
+}
