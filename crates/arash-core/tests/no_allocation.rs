@@ -4,7 +4,7 @@
 mod common;
 
 use arash_core::*;
-use common::counting::{allocations, Counting};
+use common::counting::{allocations, watch_this_thread, Counting};
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
@@ -19,6 +19,7 @@ fn evaluations_do_not_allocate() {
     let mut mat = vec![0.0; n * n];
     let mut vec3 = vec![0.0; n];
     let evaluations = 100_000;
+    watch_this_thread();
     let before = allocations();
     for i in 0..evaluations {
         let t = i as f64 * 1e-3;

@@ -7,7 +7,7 @@ mod common;
 use arash_core::control::{standard_controller, ControllerKind, RobustGains, Trajectory};
 use arash_core::sim::scenario::*;
 use arash_core::sim::{true_parameters, Rig, Scenario};
-use common::counting::{allocations, Counting};
+use common::counting::{allocations, watch_this_thread, Counting};
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
@@ -30,6 +30,7 @@ fn control_cycles_do_not_allocate() {
     };
     let scenario = Scenario { effects, ..Scenario::default() };
     let params = true_parameters(&model, &scenario);
+    watch_this_thread();
     for kind in [ControllerKind::Pd, ControllerKind::Idc, ControllerKind::Robust] {
         let controller = standard_controller(kind, &model, &params, &RobustGains::paper(&model)).unwrap();
         let mut rig = Rig::new(&model, &scenario, Trajectory::PaperValidation { omega: 0.9 }, controller).unwrap();

@@ -208,7 +208,10 @@ async fn serve(
     if let Some(dir) = socket.parent() {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    let _ = std::fs::remove_file(socket);
+    if std::os::unix::net::UnixStream::connect(socket).is_ok() {
+        anyhow::bail!("another daemon is already listening on {}", socket.display());
+    }
+    let _ = std::fs::remove_file(socket); // left by a crash
     let listener = UnixListener::bind(socket).with_context(|| format!("binding {}", socket.display()))?;
     let mode = u32::from_str_radix(config.socket.mode.trim_start_matches("0o"), 8).expect("validated");
     std::fs::set_permissions(socket, std::os::unix::fs::PermissionsExt::from_mode(mode))?;

@@ -17,9 +17,9 @@ use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use arash_core::control::{ControllerKind, Faults};
+use arash_core::control::Faults;
 use arash_core::flightlog::{LogHeader, LogWriter};
-use arash_core::record::{CycleRecord, Mode};
+use arash_core::record::CycleRecord;
 
 use crate::rt::cycle::Event;
 use crate::rt::runner::{CycleSample, LogItem, Shared};
@@ -132,9 +132,10 @@ pub struct Logger {
     blackbox_len: usize,
     blackbox_pending: Option<Faults>,
     histograms: Histograms,
-    /// Whole-run period errors and execution times (µs), for the closing summary.
-    period_errors_us: Vec<f32>,
-    exec_us: Vec<f32>,
+    /// Whole-run histograms at 1 µs resolution, for the closing summary's quantiles: bounded
+    /// memory however long the daemon runs.
+    period_errors_us: FineHistogram,
+    exec_us: FineHistogram,
     last_link: crate::link::LinkStats,
     last_dropped: u64,
     nominal_ns: f64,
@@ -159,8 +160,8 @@ impl Logger {
             record: CycleRecord::new(dof),
             blackbox_pending: None,
             histograms: Histograms::default(),
-            period_errors_us: Vec::new(),
-            exec_us: Vec::new(),
+            period_errors_us: FineHistogram::default(),
+            exec_us: FineHistogram::default(),
             last_link: Default::default(),
             last_dropped: 0,
         })
@@ -236,21 +237,7 @@ impl Logger {
 
     fn cycle(&mut self, s: &CycleSample) -> anyhow::Result<()> {
         let r = &mut self.record;
-        r.cycle = s.cycle;
-        for (dst, src) in [
-            (&mut r.q, &s.q),
-            (&mut r.qd, &s.qd),
-            (&mut r.tau_cmd, &s.tau_cmd),
-            (&mut r.tau_meas, &s.tau_meas),
-            (&mut r.q_des, &s.q_des),
-            (&mut r.qd_des, &s.qd_des),
-            (&mut r.qdd_des, &s.qdd_des),
-        ] {
-            dst.copy_from_slice(&src[..s.dof]);
-        }
-        r.controller = ControllerKind::from_u32(s.controller).unwrap_or(ControllerKind::None);
-        r.mode = Mode::from_u32(s.mode).unwrap_or(Mode::Faulted);
-        r.faults = Faults(s.faults);
+        s.write_into(r);
         let segment = self.segment.as_mut().expect("a segment is open");
         let t0 = *segment.t0.get_or_insert(s.t);
         r.t = s.t - t0;
@@ -275,8 +262,8 @@ impl Logger {
             h.exec[bin(exec_us)] += 1;
             h.max_period_error_us = h.max_period_error_us.max(error_us.abs());
             h.max_exec_us = h.max_exec_us.max(exec_us);
-            self.period_errors_us.push(error_us as f32);
-            self.exec_us.push(exec_us as f32);
+            self.period_errors_us.add(error_us.abs());
+            self.exec_us.add(exec_us);
         }
         let per_second = self.ctx.rate_hz.round().max(1.0) as u64;
         if s.cycle % per_second != per_second - 1 {
@@ -331,22 +318,8 @@ impl Logger {
         let mut record = CycleRecord::new(self.ctx.joint_names.len());
         let t0 = self.blackbox.front().map_or(0.0, |s| s.t);
         for s in &self.blackbox {
-            record.cycle = s.cycle;
+            s.write_into(&mut record);
             record.t = s.t - t0;
-            for (dst, src) in [
-                (&mut record.q, &s.q),
-                (&mut record.qd, &s.qd),
-                (&mut record.tau_cmd, &s.tau_cmd),
-                (&mut record.tau_meas, &s.tau_meas),
-                (&mut record.q_des, &s.q_des),
-                (&mut record.qd_des, &s.qd_des),
-                (&mut record.qdd_des, &s.qdd_des),
-            ] {
-                dst.copy_from_slice(&src[..s.dof]);
-            }
-            record.controller = ControllerKind::from_u32(s.controller).unwrap_or(ControllerKind::None);
-            record.mode = Mode::from_u32(s.mode).unwrap_or(Mode::Faulted);
-            record.faults = Faults(s.faults);
             writer.write_cycle(&record)?;
         }
         writer.finish()?;
@@ -442,7 +415,17 @@ impl Logger {
     }
 
     fn summary(&self) -> TimingSummary {
-        TimingSummary::from_samples(&self.period_errors_us, &self.exec_us)
+        let (p50, p99, max) = self.period_errors_us.quantiles();
+        let (e50, e99, emax) = self.exec_us.quantiles();
+        TimingSummary {
+            cycles: self.exec_us.count as usize,
+            period_error_abs_p50_us: p50,
+            period_error_abs_p99_us: p99,
+            period_error_abs_max_us: max,
+            exec_p50_us: e50,
+            exec_p99_us: e99,
+            exec_max_us: emax,
+        }
     }
 }
 
@@ -459,28 +442,59 @@ pub struct TimingSummary {
     pub exec_max_us: f64,
 }
 
-impl TimingSummary {
-    fn from_samples(period_error_us: &[f32], exec_us: &[f32]) -> Self {
-        let quantiles = |v: &[f32]| -> (f64, f64, f64) {
-            if v.is_empty() {
-                return (0.0, 0.0, 0.0);
+/// Counts in 1 µs bins up to 20 ms, one overflow bin, and the exact maximum.
+struct FineHistogram {
+    bins: Vec<u64>,
+    count: u64,
+    max: f64,
+}
+
+impl Default for FineHistogram {
+    fn default() -> Self {
+        Self { bins: vec![0; 20_001], count: 0, max: 0.0 }
+    }
+}
+
+impl FineHistogram {
+    fn add(&mut self, us: f64) {
+        let i = (us.max(0.0) as usize).min(self.bins.len() - 1);
+        self.bins[i] += 1;
+        self.count += 1;
+        self.max = self.max.max(us);
+    }
+
+    /// p50, p99 (upper edge of their 1 µs bin) and the maximum.
+    fn quantiles(&self) -> (f64, f64, f64) {
+        let at = |p: f64| -> f64 {
+            let target = (p * self.count as f64).ceil().max(1.0) as u64;
+            let mut seen = 0;
+            for (i, &c) in self.bins.iter().enumerate() {
+                seen += c;
+                if seen >= target {
+                    return if i + 1 == self.bins.len() { self.max } else { (i + 1) as f64 };
+                }
             }
-            let mut s: Vec<f32> = v.to_vec();
-            s.sort_by(f32::total_cmp);
-            let at = |p: f64| f64::from(s[((s.len() - 1) as f64 * p).round() as usize]);
-            (at(0.5), at(0.99), f64::from(s[s.len() - 1]))
+            self.max
         };
-        let abs: Vec<f32> = period_error_us.iter().map(|x| x.abs()).collect();
-        let (p50, p99, max) = quantiles(&abs);
-        let (e50, e99, emax) = quantiles(exec_us);
-        Self {
-            cycles: exec_us.len(),
-            period_error_abs_p50_us: p50,
-            period_error_abs_p99_us: p99,
-            period_error_abs_max_us: max,
-            exec_p50_us: e50,
-            exec_p99_us: e99,
-            exec_max_us: emax,
+        if self.count == 0 {
+            return (0.0, 0.0, 0.0);
         }
+        (at(0.5), at(0.99), self.max)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::FineHistogram;
+
+    #[test]
+    fn quantiles_come_from_1_us_bins_and_the_maximum_is_exact() {
+        let mut h = FineHistogram::default();
+        for i in 0..1000 {
+            h.add(f64::from(i) + 0.5);
+        }
+        h.add(123_456.7);
+        let (p50, p99, max) = h.quantiles();
+        assert_eq!((p50, p99, max), (501.0, 991.0, 123_456.7));
     }
 }

@@ -17,7 +17,7 @@ use arash_daemon::mock::{FaultPlan, InProcessLink, MockMotor};
 use arash_daemon::rt::cycle::{ControlCycle, CycleConfig, Request};
 use arash_daemon::rt::reference::RunRequest;
 use arash_daemon::rt::runner::{run, Queues, Shared};
-use counting::{allocations, Counting};
+use counting::{allocations, watch_this_thread, Counting};
 
 #[global_allocator]
 static ALLOCATOR: Counting = Counting;
@@ -55,6 +55,7 @@ fn ten_thousand_control_cycles_allocate_nothing() {
     let thread_shared = shared.clone();
     let control = std::thread::spawn(move || {
         let queues = Queues { requests: request_rx, garbage: garbage_tx, log: log_tx };
+        watch_this_thread();
         // 0.2 ms periods: the loop is the real one, only faster than the rig's 1 kHz.
         run(cycle, &mut link, queues, &thread_shared, Duration::from_micros(200));
     });

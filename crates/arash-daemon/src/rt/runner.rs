@@ -9,6 +9,8 @@ use super::clock::{now_ns, sleep_until, Schedule};
 use super::cycle::{ControlCycle, Event, Garbage, Request};
 use super::reference::Phase;
 use crate::link::{LinkStats, MotorLink, MAX_JOINTS};
+use arash_core::control::{ControllerKind, Faults};
+use arash_core::record::{CycleRecord, Mode};
 
 /// One cycle as the logger receives it: fixed-size, so queuing it never allocates.
 #[derive(Clone, Copy, Debug)]
@@ -122,6 +124,28 @@ pub fn run(mut cycle: ControlCycle, link: &mut dyn MotorLink, mut queues: Queues
         shared.missed.store(missed, Ordering::Relaxed);
     }
     shared.running.store(false, Ordering::Release);
+}
+
+impl CycleSample {
+    /// Fill a flight-log record (sized for `dof` joints) from this sample; `t` as sampled.
+    pub fn write_into(&self, r: &mut CycleRecord) {
+        r.cycle = self.cycle;
+        r.t = self.t;
+        for (dst, src) in [
+            (&mut r.q, &self.q),
+            (&mut r.qd, &self.qd),
+            (&mut r.tau_cmd, &self.tau_cmd),
+            (&mut r.tau_meas, &self.tau_meas),
+            (&mut r.q_des, &self.q_des),
+            (&mut r.qd_des, &self.qd_des),
+            (&mut r.qdd_des, &self.qdd_des),
+        ] {
+            dst.copy_from_slice(&src[..self.dof]);
+        }
+        r.controller = ControllerKind::from_u32(self.controller).unwrap_or(ControllerKind::None);
+        r.mode = Mode::from_u32(self.mode).unwrap_or(Mode::Faulted);
+        r.faults = Faults(self.faults);
+    }
 }
 
 fn sample(
