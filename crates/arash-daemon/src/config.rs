@@ -224,6 +224,23 @@ impl DaemonConfig {
         Ok(limits)
     }
 
+    /// What the control cycle runs with.
+    pub fn cycle_config(&self, model: &Model) -> Result<crate::rt::cycle::CycleConfig, String> {
+        let (link_timeout, ramp) = self.link_cycles();
+        Ok(crate::rt::cycle::CycleConfig {
+            dt: 1.0 / self.control.rate_hz,
+            drive: self.drive.clone(),
+            limits: self.safety_limits(model)?,
+            link_timeout,
+            ramp,
+            following_error: self.following_error(model)?,
+            mismatch_fraction: self.safety.mismatch_fraction.unwrap_or(0.25),
+            mismatch_cycles: self.safety.mismatch_cycles.unwrap_or(50),
+            velocity_cutoff_hz: self.control.velocity_cutoff_hz,
+            approach_speed: model.joints.iter().map(|j| self.control.approach_fraction * j.velocity).collect(),
+        })
+    }
+
     pub fn following_error(&self, model: &Model) -> Result<Vec<f64>, String> {
         let v = self.safety.following_error.clone().unwrap_or_else(|| {
             model

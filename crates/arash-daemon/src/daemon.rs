@@ -24,7 +24,7 @@ use crate::ctl::CtlRequest;
 use crate::link::MotorLink;
 use crate::logger::{LogContext, Logger, RunInfo, RunRegistry};
 use crate::rt::clock::setup_realtime;
-use crate::rt::cycle::{ControlCycle, CycleConfig, Garbage, Request};
+use crate::rt::cycle::{ControlCycle, Garbage, Request};
 use crate::rt::reference::RunRequest;
 use crate::rt::runner::{self, Queues, Shared};
 
@@ -103,22 +103,7 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     let gains = RobustGains::from_paper(&model, units);
     let kind = config.controller().map_err(anyhow::Error::msg)?;
     let controller = build_controller(&model, kind, config.control.model.as_deref(), &gains)?;
-    let (link_timeout, ramp) = config.link_cycles();
-    let cycle = ControlCycle::new(
-        CycleConfig {
-            dt: 1.0 / config.control.rate_hz,
-            drive: config.drive.clone(),
-            limits: config.safety_limits(&model).map_err(anyhow::Error::msg)?,
-            link_timeout,
-            ramp,
-            following_error: config.following_error(&model).map_err(anyhow::Error::msg)?,
-            mismatch_fraction: config.safety.mismatch_fraction.unwrap_or(0.25),
-            mismatch_cycles: config.safety.mismatch_cycles.unwrap_or(50),
-            velocity_cutoff_hz: config.control.velocity_cutoff_hz,
-            approach_speed: model.joints.iter().map(|j| config.control.approach_fraction * j.velocity).collect(),
-        },
-        controller,
-    );
+    let cycle = ControlCycle::new(config.cycle_config(&model).map_err(anyhow::Error::msg)?, controller);
     let mut link = open_link(&config, dof)?;
 
     let (request_tx, request_rx) = rtrb::RingBuffer::new(64);

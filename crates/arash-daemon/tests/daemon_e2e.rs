@@ -205,28 +205,30 @@ fn silence_trips_the_link_timeout_ramps_down_and_writes_a_black_box() {
     assert!(terminate(&mut d).success());
 }
 
-#[test]
-fn a_stuck_encoder_trips_the_following_error() {
-    let dir = scratch("stuck");
-    let (_mock, pty) = mock(&dir, Some("stuck_at_s = 4.0\nstuck_joint = 0\n"));
-    let _d = daemon(&dir, &pty, "");
+/// Play the ω = 0.5 validation trajectory with the mock's fault `plan` until the daemon faults;
+/// return the faults it names.
+fn faults_during_a_run(name: &str, plan: &str, config: &str) -> serde_json::Value {
+    let dir = scratch(name);
+    let (_mock, pty) = mock(&dir, Some(plan));
+    let _d = daemon(&dir, &pty, config);
     ctl(&dir, &["enable"]).unwrap();
     let trajectory = concat!(env!("CARGO_MANIFEST_DIR"), "/../../trajectories/paper_validation_0.5.json");
     ctl(&dir, &["run", trajectory]).unwrap();
     wait_until(&dir, Duration::from_secs(15), "a fault", |s| s["mode"] == "faulted");
-    assert_eq!(status(&dir)["faults"], serde_json::json!(["following error"]));
+    status(&dir)["faults"].clone()
+}
+
+#[test]
+fn a_stuck_encoder_trips_the_following_error() {
+    let faults = faults_during_a_run("stuck", "stuck_at_s = 4.0\nstuck_joint = 0\n", "");
+    assert_eq!(faults, serde_json::json!(["following error"]));
 }
 
 #[test]
 fn a_current_mismatch_trips() {
-    let dir = scratch("mismatch");
-    let (_mock, pty) = mock(&dir, Some("mismatch_at_s = 2.0\nmismatch_joint = 2\nmismatch_factor = 0.5\n"));
-    let _d = daemon(&dir, &pty, "[safety]\nmismatch_fraction = 0.05\n");
-    ctl(&dir, &["enable"]).unwrap();
-    let trajectory = concat!(env!("CARGO_MANIFEST_DIR"), "/../../trajectories/paper_validation_0.5.json");
-    ctl(&dir, &["run", trajectory]).unwrap();
-    wait_until(&dir, Duration::from_secs(15), "a fault", |s| s["mode"] == "faulted");
-    assert_eq!(status(&dir)["faults"], serde_json::json!(["current mismatch"]));
+    let plan = "mismatch_at_s = 2.0\nmismatch_joint = 2\nmismatch_factor = 0.5\n";
+    let faults = faults_during_a_run("mismatch", plan, "[safety]\nmismatch_fraction = 0.05\n");
+    assert_eq!(faults, serde_json::json!(["current mismatch"]));
 }
 
 #[test]

@@ -14,7 +14,7 @@ use arash_core::sim::Scenario;
 use arash_daemon::config::DaemonConfig;
 use arash_daemon::drive_config::DriveConfig;
 use arash_daemon::mock::{FaultPlan, InProcessLink, MockMotor};
-use arash_daemon::rt::cycle::{ControlCycle, CycleConfig, Request};
+use arash_daemon::rt::cycle::{ControlCycle, Request};
 use arash_daemon::rt::reference::RunRequest;
 use arash_daemon::rt::runner::{run, Queues, Shared};
 use counting::{allocations, watch_this_thread, Counting};
@@ -25,20 +25,7 @@ static ALLOCATOR: Counting = Counting;
 #[test]
 fn ten_thousand_control_cycles_allocate_nothing() {
     let model = arash_core::arash_asist();
-    let c = DaemonConfig::default();
-    let (link_timeout, ramp) = c.link_cycles();
-    let cfg = CycleConfig {
-        dt: 1e-3,
-        drive: c.drive.clone(),
-        limits: c.safety_limits(&model).unwrap(),
-        link_timeout,
-        ramp,
-        following_error: c.following_error(&model).unwrap(),
-        mismatch_fraction: 0.25,
-        mismatch_cycles: 50,
-        velocity_cutoff_hz: 50.0,
-        approach_speed: model.joints.iter().map(|j| 0.25 * j.velocity).collect(),
-    };
+    let cfg = DaemonConfig::default().cycle_config(&model).unwrap();
     let controller =
         standard_controller(ControllerKind::Robust, &model, &model.cad_parameters(), &RobustGains::paper(&model))
             .unwrap();

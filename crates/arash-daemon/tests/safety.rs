@@ -63,22 +63,11 @@ impl Controller for Constant {
 }
 
 fn config(edit: impl FnOnce(&mut DaemonConfig)) -> CycleConfig {
-    let model = arash_core::arash_asist();
     let mut c = DaemonConfig::default();
     edit(&mut c);
-    let (link_timeout, ramp) = c.link_cycles();
-    CycleConfig {
-        dt: 1e-3,
-        drive: c.drive.clone(),
-        limits: c.safety_limits(&model).unwrap(),
-        link_timeout,
-        ramp,
-        following_error: c.following_error(&model).unwrap(),
-        mismatch_fraction: c.safety.mismatch_fraction.unwrap_or(0.25),
-        mismatch_cycles: c.safety.mismatch_cycles.unwrap_or(50),
-        velocity_cutoff_hz: 50.0,
-        approach_speed: vec![0.5, 0.5, 0.01],
-    }
+    let mut cfg = c.cycle_config(&arash_core::arash_asist()).unwrap();
+    cfg.approach_speed = vec![0.5, 0.5, 0.01];
+    cfg
 }
 
 struct Rig {
