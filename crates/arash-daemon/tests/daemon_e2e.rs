@@ -42,21 +42,24 @@ fn mock(dir: &Path, faults: Option<&str>) -> (Proc, String) {
     (Proc(child), line.trim().to_string())
 }
 
-/// Start the daemon on `pty` and wait for its socket.
-fn daemon(dir: &Path, pty: &str, config: &str) -> Proc {
+/// `arash daemon` on `pty` with `config` (TOML text), its socket and logs in `dir`.
+fn daemon_command(dir: &Path, pty: &str, config: &str) -> Command {
     let config_path = dir.join("daemon.toml");
     std::fs::write(&config_path, config).unwrap();
-    let err = std::fs::OpenOptions::new().create(true).append(true).open(dir.join("daemon.err")).unwrap();
-    let child = Command::new(ARASH)
-        .args(["daemon", "--rt", "ignore", "--port", pty, "--config"])
+    let mut cmd = Command::new(ARASH);
+    cmd.args(["daemon", "--rt", "ignore", "--port", pty, "--config"])
         .arg(&config_path)
         .arg("--socket")
         .arg(dir.join("s.sock"))
         .arg("--log-dir")
-        .arg(dir.join("logs"))
-        .stderr(err)
-        .spawn()
-        .unwrap();
+        .arg(dir.join("logs"));
+    cmd
+}
+
+/// Start the daemon on `pty` and wait for its socket.
+fn daemon(dir: &Path, pty: &str, config: &str) -> Proc {
+    let err = std::fs::OpenOptions::new().create(true).append(true).open(dir.join("daemon.err")).unwrap();
+    let child = daemon_command(dir, pty, config).stderr(err).spawn().unwrap();
     let started = Instant::now();
     while !dir.join("s.sock").exists() {
         assert!(started.elapsed() < Duration::from_secs(10), "no socket; daemon.err:\n{}", stderr(dir));
@@ -273,16 +276,9 @@ fn systemd_hears_ready_after_telemetry_and_watchdog_while_running_and_sigterm_fi
     // A pty nobody answers yet: no telemetry, so no READY.
     let (master, slave) = serialport::TTYPort::pair().unwrap();
     let pty = serialport::SerialPort::name(&slave).unwrap();
-    std::fs::write(dir.join("daemon.toml"), "[link]\nstartup_timeout_ms = 10000\n").unwrap();
     let err = std::fs::File::create(dir.join("daemon.err")).unwrap();
     let mut d = Proc(
-        Command::new(ARASH)
-            .args(["daemon", "--rt", "ignore", "--port", &pty, "--config"])
-            .arg(dir.join("daemon.toml"))
-            .arg("--socket")
-            .arg(dir.join("s.sock"))
-            .arg("--log-dir")
-            .arg(dir.join("logs"))
+        daemon_command(&dir, &pty, "[link]\nstartup_timeout_ms = 10000\n")
             .env("NOTIFY_SOCKET", dir.join("notify.sock"))
             .env("WATCHDOG_USEC", "200000")
             .stderr(err)
@@ -351,16 +347,7 @@ fn no_telemetry_within_the_startup_timeout_is_an_error_that_names_it() {
     let dir = scratch("startup");
     let (_master, slave) = serialport::TTYPort::pair().unwrap();
     let pty = serialport::SerialPort::name(&slave).unwrap();
-    std::fs::write(dir.join("daemon.toml"), "[link]\nstartup_timeout_ms = 300\n").unwrap();
-    let out = Command::new(ARASH)
-        .args(["daemon", "--rt", "ignore", "--port", &pty, "--config"])
-        .arg(dir.join("daemon.toml"))
-        .arg("--socket")
-        .arg(dir.join("s.sock"))
-        .arg("--log-dir")
-        .arg(dir.join("logs"))
-        .output()
-        .unwrap();
+    let out = daemon_command(&dir, &pty, "[link]\nstartup_timeout_ms = 300\n").output().unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("startup_timeout_ms"), "{err}");
