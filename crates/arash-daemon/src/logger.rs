@@ -102,6 +102,8 @@ struct Segment {
     opened: Instant,
     /// Cycle time of the first cycle (s); the file's times start at zero there.
     t0: Option<f64>,
+    /// File time of the last cycle written (s).
+    last_t: f64,
     run: Option<u32>,
 }
 
@@ -241,6 +243,7 @@ impl Logger {
         let segment = self.segment.as_mut().expect("a segment is open");
         let t0 = *segment.t0.get_or_insert(s.t);
         r.t = s.t - t0;
+        segment.last_t = r.t;
         segment.writer.write_cycle(r)?;
         self.timing(s)?;
         if self.blackbox.len() >= self.blackbox_len {
@@ -361,7 +364,7 @@ impl Logger {
         let path = self.cfg.dir.join(format!("{name}.mcap"));
         let part = self.cfg.dir.join(format!("{name}.mcap.part"));
         let writer = LogWriter::create(&part, &header, self.ctx.rate_hz)?;
-        self.segment = Some(Segment { writer, part, path, opened: Instant::now(), t0: None, run });
+        self.segment = Some(Segment { writer, part, path, opened: Instant::now(), t0: None, last_t: 0.0, run });
         Ok(())
     }
 
@@ -408,7 +411,7 @@ impl Logger {
         let summary = self.summary();
         if let Some(s) = self.segment.as_mut() {
             let json = serde_json::to_string(&summary).expect("the summary serialises");
-            s.writer.write_json(TIMING_TOPIC, 0.0, &json)?;
+            s.writer.write_json(TIMING_TOPIC, s.last_t, &json)?;
         }
         self.finish_segment()?;
         Ok(())

@@ -73,6 +73,12 @@ fn log_dict<'py>(py: Python<'py>, log: &FlightLog) -> PyResult<Bound<'py, PyDict
     d.set_item("attachments", attachments)?;
     d.set_item("urdf", log.attachment_text("robot.urdf"))?;
     d.set_item("truncated", log.truncated)?;
+    // JSON channels (the daemon's /arash/timing and /arash/event): topic → [(t_ns, document)].
+    let json = PyDict::new(py);
+    for (topic, messages) in &log.json {
+        json.set_item(topic, messages.clone())?;
+    }
+    d.set_item("json", json)?;
     Ok(d)
 }
 

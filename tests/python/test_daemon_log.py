@@ -1,0 +1,72 @@
+"""The daemon's flight log as an analyst reads it: `arash.read_log` against the official MCAP
+reader on a short run of `arash daemon` against `arash mock-motor`."""
+
+import json
+import os
+import signal
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+import arash
+from conftest import ROOT
+
+mcap_reader = pytest.importorskip("mcap.reader")
+ARASH = ROOT / "target" / "release" / "arash"
+
+
+@pytest.fixture(scope="module")
+def daemon_logs(tmp_path_factory):
+    if not ARASH.exists():
+        pytest.skip(f"{ARASH} is not built")
+    d = tmp_path_factory.mktemp("daemon")
+    mock = subprocess.Popen([ARASH, "mock-motor"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        pty = mock.stdout.readline().strip()
+        daemon = subprocess.Popen([ARASH, "daemon", "--rt", "ignore", "--port", pty, "--socket", d / "s.sock",
+                                   "--log-dir", d / "logs"], stderr=subprocess.DEVNULL)
+        for _ in range(200):
+            if (d / "s.sock").exists():
+                break
+            time.sleep(0.05)
+        subprocess.run([ARASH, "ctl", "--socket", d / "s.sock", "enable"], check=True, capture_output=True)
+        time.sleep(3.2)
+        daemon.send_signal(signal.SIGTERM)
+        assert daemon.wait(timeout=10) == 0
+    finally:
+        mock.kill()
+        mock.wait()
+    return sorted((d / "logs").glob("daemon-*.mcap"))
+
+
+def official_json(path):
+    out = {}
+    with open(path, "rb") as f:
+        for _, channel, message in mcap_reader.make_reader(f).iter_messages():
+            if channel.message_encoding == "json":
+                out.setdefault(channel.topic, []).append(message.data.decode())
+    return out
+
+
+def test_the_json_channels_read_like_the_official_reader(daemon_logs):
+    assert len(daemon_logs) == 1
+    log = arash.read_log(daemon_logs[0])
+    assert not log["truncated"]
+    ours = {topic: [text for _, text in messages] for topic, messages in log["json"].items()}
+    assert ours == official_json(daemon_logs[0])
+    events = [json.loads(e)["event"] for e in ours["/arash/event"]]
+    assert "motors enabled" in events and "motors disabled" in events
+
+
+def test_timing_histograms_count_every_cycle_of_their_second(daemon_logs):
+    log = arash.read_log(daemon_logs[0])
+    seconds = [json.loads(t) for _, t in log["json"]["/arash/timing"] if "period_error_us" in t]
+    assert len(seconds) >= 3
+    for s in seconds[1:]:  # the first second lacks cycle 0's period
+        assert sum(s["period_error_us"]) == sum(s["exec_us"]) == 1000
+        assert len(s["period_error_us"]) == len(s["bin_upper_edges_us"]) + 1
+    # The cycles on /arash/cycle are consecutive: one message per cycle.
+    assert np.all(np.diff(log["cycle"]) == 1)
+    assert log["metadata"]["source"] == "arash-daemon"
