@@ -123,7 +123,17 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
         rate_hz: config.control.rate_hz,
     };
     let logger = Logger::new(config.log.clone(), context, runs.clone(), shared.clone())?;
-    let logger_thread = std::thread::Builder::new().name("arash-logger".into()).spawn(move || logger.run(log_rx))?;
+    let logger_shared = shared.clone();
+    let logger_thread = std::thread::Builder::new().name("arash-logger".into()).spawn(move || {
+        let result = logger.run(log_rx);
+        if let Err(e) = &result {
+            // The control loop goes on (stopping it could drop the robot); the operator sees this
+            // here, in `ctl status`, and in the growing log_dropped count.
+            eprintln!("arash-daemon: ERROR: logging stopped: {e:#}");
+            logger_shared.logging_failed.store(true, Ordering::Release);
+        }
+        result
+    })?;
 
     let (rt_tx, rt_rx) = std::sync::mpsc::channel();
     let rt_shared = shared.clone();
@@ -392,6 +402,7 @@ fn status(operator: &Operator) -> serde_json::Value {
         "q": q,
         "missed_cycles": load(&s.missed),
         "log_dropped": load(&s.log_dropped),
+        "logging": !s.logging_failed.load(Ordering::Acquire),
         "link": {
             "frames_received": load(&s.frames_received),
             "crc_errors": load(&s.crc_errors),

@@ -371,3 +371,22 @@ fn idle_logs_rotate_by_size() {
     sorted.sort();
     assert!(sorted.windows(2).all(|w| w[1] == w[0] + 1), "rotation loses no cycle");
 }
+
+#[test]
+fn a_logging_failure_is_reported_and_the_control_loop_goes_on() {
+    let dir = scratch("logfail");
+    let (_mock, pty) = mock(&dir, None);
+    let mut d = daemon(&dir, &pty, "[log]\nrotate_s = 1.0\n");
+    wait_until(&dir, Duration::from_secs(5), "telemetry", |s| s["telemetry"] == true);
+    // Pull the log directory away: the next rotation (every second) can neither finish nor
+    // open a file.
+    std::fs::rename(dir.join("logs"), dir.join("moved")).unwrap();
+    std::fs::write(dir.join("logs"), "not a directory").unwrap();
+    wait_until(&dir, Duration::from_secs(10), "the logging failure", |s| s["logging"] == false);
+    let before = status(&dir)["cycle"].as_u64().unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(status(&dir)["cycle"].as_u64().unwrap() > before + 100, "the control loop stopped");
+    assert!(stderr(&dir).contains("logging stopped"), "{}", stderr(&dir));
+    // The daemon still stops cleanly, and says the logger failed.
+    assert!(!terminate(&mut d).success());
+}

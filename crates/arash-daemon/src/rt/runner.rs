@@ -60,6 +60,8 @@ pub struct Shared {
     pub have_telemetry: AtomicBool,
     pub missed: AtomicU64,
     pub log_dropped: AtomicU64,
+    /// Set by the logger thread if it stopped on an error (e.g. a full disk).
+    pub logging_failed: AtomicBool,
     pub garbage_leaked: AtomicU64,
     pub crc_errors: AtomicU64,
     pub framing_errors: AtomicU64,
