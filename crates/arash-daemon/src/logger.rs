@@ -53,6 +53,8 @@ impl Default for LogConfig {
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct RunInfo {
     pub label: String,
+    /// Attached to the run's log; left out of `ctl status`, which polls often.
+    #[serde(skip)]
     pub trajectory_json: String,
     pub controller: String,
     /// The finished log file, once the run has ended.
