@@ -59,6 +59,15 @@ pub fn build_controller(
             let text =
                 std::fs::read_to_string(path).with_context(|| format!("reading model file {}", path.display()))?;
             let id = Identification::from_json(&text).with_context(|| format!("loading {}", path.display()))?;
+            // A model-based law inverts M(q): a body with an indefinite pseudo-inertia can make it
+            // indefinite and the loop unstable on the robot.
+            let worst = id.min_pseudo_inertia_eigenvalue.iter().copied().fold(f64::INFINITY, f64::min);
+            anyhow::ensure!(
+                kind == ControllerKind::Pd || worst >= -1e-9,
+                "{} is not physically consistent (smallest pseudo-inertia eigenvalue {worst:.3e}); \
+                 the {kind:?} controller needs a consistent model: identify with --method consistent",
+                path.display()
+            );
             id.controller_parameters(model).with_context(|| format!("using {}", path.display()))?
         }
     };

@@ -31,8 +31,27 @@ enum Command {
     MockMotor(commands::mock_motor::Args),
 }
 
-fn main() -> anyhow::Result<()> {
-    match Cli::parse().command {
+/// Errors are for the person at the rig: the message and its causes on one line, without the
+/// backtrace anyhow would add under `RUST_BACKTRACE`.
+fn main() -> std::process::ExitCode {
+    match run(Cli::parse().command) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            // Causes whose text the message already quotes are not repeated.
+            let mut message = e.to_string();
+            for cause in e.chain().skip(1).map(|c| c.to_string()) {
+                if !message.contains(&cause) {
+                    message = format!("{message}: {cause}");
+                }
+            }
+            eprintln!("error: {message}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(command: Command) -> anyhow::Result<()> {
+    match command {
         Command::Model(args) => commands::model::run(args),
         Command::Excite(args) => commands::excite::run(args),
         Command::Identify(args) => commands::identify::run(args),

@@ -157,6 +157,22 @@ fn an_excitation_run_through_the_daemon_identifies_the_mock() {
         assert!(fp.iter().all(|&x| x >= bound), "{fit}: FP% {fp:?}");
     }
 
+    // A model that is not physically consistent is refused for the model-based laws.
+    let ols = dir.join("ols.json");
+    let out = Command::new(ARASH).arg("identify").arg(&log).args(["--periods", "2", "-o"]).arg(&ols).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let ols_model: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&ols).unwrap()).unwrap();
+    let worst: f64 = serde_json::from_value::<Vec<f64>>(ols_model["min_pseudo_inertia_eigenvalue"].clone())
+        .unwrap()
+        .into_iter()
+        .fold(f64::INFINITY, f64::min);
+    let answer = ctl(&dir, &["controller", "robust", "--model", ols.to_str().unwrap()]);
+    eprintln!("OLS model: smallest pseudo-inertia eigenvalue {worst:.3e}; daemon: {answer:?}");
+    assert_eq!(answer.is_ok(), worst >= -1e-9, "{answer:?}");
+    if let Err(e) = answer {
+        assert!(e.contains("not physically consistent"), "{e}");
+    }
+
     // Close the loop: switch to the robust controller with the identified model and track the
     // paper's ω = 0.5 trajectory for 5 s.
     let model_path = dir.join("model.json");
