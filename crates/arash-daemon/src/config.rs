@@ -135,6 +135,25 @@ impl Default for SocketConfig {
     }
 }
 
+impl SocketConfig {
+    /// The socket's file mode, parsed from its octal text.
+    pub fn mode_bits(&self) -> Result<u32, String> {
+        u32::from_str_radix(self.mode.trim_start_matches("0o"), 8)
+            .map_err(|_| format!("socket.mode must be octal, like \"0660\", not {:?}", self.mode))
+    }
+}
+
+/// The daemon's name for a control law (configuration and `arash ctl controller`).
+pub fn controller_kind(name: &str) -> Result<arash_core::control::ControllerKind, String> {
+    use arash_core::control::ControllerKind;
+    match name {
+        "pd" => Ok(ControllerKind::Pd),
+        "idc" => Ok(ControllerKind::Idc),
+        "robust" => Ok(ControllerKind::Robust),
+        other => Err(format!("must be pd, idc or robust, not {other:?}")),
+    }
+}
+
 impl DaemonConfig {
     /// Read and check a configuration file.
     pub fn load(path: &Path) -> anyhow::Result<Self> {
@@ -176,8 +195,7 @@ impl DaemonConfig {
         if !(1..=99).contains(&self.rt.priority) {
             return Err(format!("rt.priority must be 1–99 (SCHED_FIFO), not {}", self.rt.priority));
         }
-        u32::from_str_radix(self.socket.mode.trim_start_matches("0o"), 8)
-            .map_err(|_| format!("socket.mode must be octal, like \"0660\", not {:?}", self.socket.mode))?;
+        self.socket.mode_bits()?;
         self.controller()?;
         self.control
             .gain_units
@@ -190,13 +208,7 @@ impl DaemonConfig {
     }
 
     pub fn controller(&self) -> Result<arash_core::control::ControllerKind, String> {
-        use arash_core::control::ControllerKind;
-        match self.control.controller.as_str() {
-            "pd" => Ok(ControllerKind::Pd),
-            "idc" => Ok(ControllerKind::Idc),
-            "robust" => Ok(ControllerKind::Robust),
-            other => Err(format!("control.controller must be pd, idc or robust, not {other:?}")),
-        }
+        controller_kind(&self.control.controller).map_err(|e| format!("control.controller {e}"))
     }
 
     /// Cycles of the link timeout and of the ramp.

@@ -217,7 +217,7 @@ async fn serve(
     }
     let _ = std::fs::remove_file(socket); // left by a crash
     let listener = UnixListener::bind(socket).with_context(|| format!("binding {}", socket.display()))?;
-    let mode = u32::from_str_radix(config.socket.mode.trim_start_matches("0o"), 8).expect("validated");
+    let mode = config.socket.mode_bits().expect("validated");
     std::fs::set_permissions(socket, std::os::unix::fs::PermissionsExt::from_mode(mode))?;
     eprintln!("arash-daemon: listening on {} (mode {:o}); motors disabled", socket.display(), mode);
 
@@ -377,12 +377,7 @@ async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::Result<serd
             Ok(serde_json::json!({ "run_id": id, "duration_s": duration_s }))
         }
         CtlRequest::Controller { kind, model } => {
-            let kind = match kind.as_str() {
-                "pd" => ControllerKind::Pd,
-                "idc" => ControllerKind::Idc,
-                "robust" => ControllerKind::Robust,
-                other => anyhow::bail!("controller kind must be pd, idc or robust, not {other:?}"),
-            };
+            let kind = crate::config::controller_kind(&kind).map_err(|e| anyhow::anyhow!("controller kind {e}"))?;
             let path = model.map(PathBuf::from);
             let controller = build_controller(&operator.model, kind, path.as_deref(), &operator.gains)?;
             send(operator, Request::Controller(controller))?;

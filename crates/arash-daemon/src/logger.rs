@@ -292,13 +292,7 @@ impl Logger {
         let segment = self.segment.as_mut().expect("a segment is open");
         let t = s.t - segment.t0.unwrap_or(s.t);
         segment.writer.write_json(TIMING_TOPIC, t, &json)?;
-        let new_errors = link.crc_errors + link.framing_errors + link.lost + link.stale + link.send_errors
-            - (self.last_link.crc_errors
-                + self.last_link.framing_errors
-                + self.last_link.lost
-                + self.last_link.stale
-                + self.last_link.send_errors);
-        if new_errors > 0 || dropped > self.last_dropped {
+        if link.errors() > self.last_link.errors() || dropped > self.last_dropped {
             let text = format!(
                 "link errors in the last second: {} CRC, {} framing, {} lost, {} stale, {} send; {} log items dropped",
                 link.crc_errors - self.last_link.crc_errors,
@@ -378,12 +372,13 @@ impl Logger {
 
     fn open_run(&mut self, id: u32) -> anyhow::Result<()> {
         self.finish_segment()?;
-        let label = self.runs.lock().expect("registry lock").get(&id).map(|r| r.label.clone()).unwrap_or_default();
-        let label: String =
-            label.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' }).collect();
-        if let Some(run) = self.runs.lock().expect("registry lock").get_mut(&id) {
-            run.state = "running".into();
-        }
+        let label = match self.runs.lock().expect("registry lock").get_mut(&id) {
+            Some(run) => {
+                run.state = "running".into();
+                run.label.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' }).collect()
+            }
+            None => String::new(),
+        };
         self.open(&format!("run-{id}-{label}"), "run", Some(id))
     }
 

@@ -153,7 +153,7 @@ impl MockMotor {
                     self.last_host_frame = std::time::Instant::now();
                     self.last_host_seq = seq;
                     self.on_command(&command)?;
-                    self.answer(&mut endpoint)?;
+                    self.answer(&mut endpoint);
                 }
             }
             if self.enabled && self.last_host_frame.elapsed() > self.watchdog {
@@ -236,15 +236,15 @@ impl MockMotor {
     }
 
     /// Send this period's telemetry through the fault plan.
-    fn answer<P: Read + Write>(&mut self, endpoint: &mut Endpoint<P>) -> anyhow::Result<()> {
-        self.release_held(endpoint)?;
-        let Some(telemetry) = self.reply() else { return Ok(()) };
+    fn answer<P: Read + Write>(&mut self, endpoint: &mut Endpoint<P>) {
+        self.release_held(endpoint);
+        let Some(telemetry) = self.reply() else { return };
         let mut wire = [0u8; MAX_WIRE];
         let n = crate::link::frame::encode(&Message::Telemetry(telemetry), &mut wire);
         let f = &self.faults;
         let (drop, corrupt, delay, reorder) = (f.drop, f.corrupt, f.delay, f.reorder);
         if self.rng.random_bool(drop) {
-            return Ok(());
+            return;
         }
         if self.rng.random_bool(corrupt) {
             let i = self.rng.random_range(0..n - 1);
@@ -260,10 +260,9 @@ impl MockMotor {
         } else {
             send(endpoint, &wire[..n]);
         }
-        Ok(())
     }
 
-    fn release_held<P: Read + Write>(&mut self, endpoint: &mut Endpoint<P>) -> anyhow::Result<()> {
+    fn release_held<P: Read + Write>(&mut self, endpoint: &mut Endpoint<P>) {
         let now = self.frames;
         let mut i = 0;
         while i < self.held.len() {
@@ -274,7 +273,6 @@ impl MockMotor {
                 i += 1;
             }
         }
-        Ok(())
     }
 
     fn silenced(&mut self) -> bool {

@@ -30,6 +30,13 @@ pub struct LinkStats {
     pub send_errors: u64,
 }
 
+impl LinkStats {
+    /// Every kind of error counted so far.
+    pub fn errors(&self) -> u64 {
+        self.crc_errors + self.framing_errors + self.lost + self.stale + self.send_errors
+    }
+}
+
 /// A transport to the motor drives.
 pub trait MotorLink: Send {
     /// Queue one command frame. Never blocks: a frame that cannot be written now is counted in
