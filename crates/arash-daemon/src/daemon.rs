@@ -40,7 +40,8 @@ pub struct DaemonOptions {
 struct Operator {
     model: Model,
     gains: RobustGains,
-    requests: Mutex<rtrb::Producer<Request>>,
+    /// The request queue and the number of requests pushed into it so far.
+    requests: Mutex<(rtrb::Producer<Request>, u64)>,
     shared: Arc<Shared>,
     runs: RunRegistry,
     next_run: Mutex<u32>,
@@ -185,7 +186,7 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     let operator = Arc::new(Operator {
         model,
         gains,
-        requests: Mutex::new(request_tx),
+        requests: Mutex::new((request_tx, 0)),
         shared: shared.clone(),
         runs,
         next_run: Mutex::new(0),
@@ -295,20 +296,29 @@ async fn client(stream: tokio::net::UnixStream, operator: Arc<Operator>) {
     }
 }
 
-fn send(operator: &Operator, request: Request) -> anyhow::Result<()> {
+/// Queue `request` for the control thread; the ticket it returns is what [`applied`] waits for.
+fn send(operator: &Operator, request: Request) -> anyhow::Result<u64> {
     let mut queue = operator.requests.lock().expect("request queue lock");
-    queue.push(request).map_err(|_| anyhow::anyhow!("the control thread is not taking requests"))
+    queue.0.push(request).map_err(|_| anyhow::anyhow!("the control thread is not taking requests"))?;
+    queue.1 += 1;
+    Ok(queue.1)
 }
 
-/// Wait up to 200 ms for `condition` on the shared state.
-async fn settle(operator: &Operator, condition: impl Fn(&Shared) -> bool) -> bool {
-    for _ in 0..40 {
-        if condition(&operator.shared) {
-            return true;
+/// Wait until the control thread has applied request `ticket` and published its effect. A
+/// fixed wait is not enough: on a loaded machine without real-time priority the thread can be
+/// descheduled for longer than any short guess (CI once refused an enable after 200 ms).
+async fn applied(operator: &Operator, ticket: u64) -> anyhow::Result<()> {
+    let shared = &operator.shared;
+    for _ in 0..1000 {
+        if shared.requests_handled.load(Ordering::Acquire) >= ticket {
+            return Ok(());
         }
-        tokio::time::sleep(Duration::from_millis(5)).await;
+        if !shared.running.load(Ordering::Acquire) {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(2)).await;
     }
-    condition(&operator.shared)
+    anyhow::bail!("the control thread did not answer within 2 s")
 }
 
 async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::Result<serde_json::Value> {
@@ -316,8 +326,8 @@ async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::Result<serd
     match request {
         CtlRequest::Status => Ok(status(operator)),
         CtlRequest::Enable => {
-            send(operator, Request::Enable)?;
-            if !settle(operator, |s| mode(s) == Some(Mode::Enabled)).await {
+            applied(operator, send(operator, Request::Enable)?).await?;
+            if mode(&operator.shared) != Some(Mode::Enabled) {
                 let faults = Faults(operator.shared.faults.load(Ordering::Relaxed));
                 anyhow::bail!(
                     "enable refused: mode {:?}, faults [{}], telemetry {}",
@@ -329,17 +339,15 @@ async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::Result<serd
             Ok(status(operator))
         }
         CtlRequest::Disable => {
-            send(operator, Request::Disable)?;
-            settle(operator, |s| mode(s) != Some(Mode::Enabled)).await;
+            applied(operator, send(operator, Request::Disable)?).await?;
             Ok(status(operator))
         }
         CtlRequest::Reset => {
-            send(operator, Request::ResetFault)?;
-            settle(operator, |s| mode(s) != Some(Mode::Faulted)).await;
+            applied(operator, send(operator, Request::ResetFault)?).await?;
             Ok(status(operator))
         }
         CtlRequest::Hold => {
-            send(operator, Request::Hold)?;
+            applied(operator, send(operator, Request::Hold)?).await?;
             Ok(status(operator))
         }
         CtlRequest::Run { trajectory, duration_s, label } => {
@@ -373,15 +381,15 @@ async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::Result<serd
                     state: "approaching".into(),
                 },
             );
-            send(operator, Request::Run(Box::new(RunRequest { id, trajectory: parsed, duration_s })))?;
+            let ticket = send(operator, Request::Run(Box::new(RunRequest { id, trajectory: parsed, duration_s })))?;
+            applied(operator, ticket).await?;
             Ok(serde_json::json!({ "run_id": id, "duration_s": duration_s }))
         }
         CtlRequest::Controller { kind, model } => {
             let kind = crate::config::controller_kind(&kind).map_err(|e| anyhow::anyhow!("controller kind {e}"))?;
             let path = model.map(PathBuf::from);
             let controller = build_controller(&operator.model, kind, path.as_deref(), &operator.gains)?;
-            send(operator, Request::Controller(controller))?;
-            settle(operator, |s| s.controller.load(Ordering::Relaxed) == kind as u32).await;
+            applied(operator, send(operator, Request::Controller(controller))?).await?;
             Ok(status(operator))
         }
     }

@@ -50,6 +50,9 @@ pub enum LogItem {
 pub struct Shared {
     /// Incremented every cycle: the heartbeat the systemd watchdog follows.
     pub cycle: AtomicU64,
+    /// Operator requests the thread has applied and published the effect of: the operator
+    /// interface waits for its ticket here instead of guessing how long a cycle takes.
+    pub requests_handled: AtomicU64,
     pub mode: AtomicU32,
     pub faults: AtomicU32,
     pub controller: AtomicU32,
@@ -98,7 +101,9 @@ pub fn run(mut cycle: ControlCycle, link: &mut dyn MotorLink, mut queues: Queues
             let _ = cycle.request(Request::Disable);
             stopping = Some(5); // a few cycles to get the disable frame out
         }
+        let mut handled = 0;
         while let Ok(request) = queues.requests.pop() {
+            handled += 1;
             if let Some(g) = cycle.request(request) {
                 hand_back(&mut queues.garbage, g, shared);
             }
@@ -115,6 +120,7 @@ pub fn run(mut cycle: ControlCycle, link: &mut dyn MotorLink, mut queues: Queues
             push(&mut queues.log, LogItem::Event { cycle: n, t, event }, shared)
         });
         publish(shared, &cycle, &sample.link);
+        shared.requests_handled.fetch_add(handled, Ordering::Release);
         push(&mut queues.log, LogItem::Cycle(sample), shared);
         if let Some(left) = stopping.as_mut() {
             *left -= 1;
