@@ -10,6 +10,7 @@
 pub mod base_parameters;
 pub mod control;
 pub mod data;
+pub mod diagnose;
 pub mod dynamics;
 #[cfg(feature = "flightlog")]
 pub mod flightlog;

@@ -27,6 +27,10 @@ fn control_cycles_do_not_allocate() {
         delay: Some(Delay::default()),
         friction_drift: Some(FrictionDrift::default()),
         payload: Some(Payload { at_s: 5.0, ..Payload::default() }),
+        viscous_nonlinear: Some(ViscousNonlinear::default()),
+        position_friction: Some(PositionFriction::default()),
+        hysteresis: Some(Hysteresis::default()),
+        torque_drift: Some(TorqueDrift::default()),
     };
     let scenario = Scenario { effects, ..Scenario::default() };
     let params = true_parameters(&model, &scenario);

@@ -179,6 +179,42 @@ fn joint_side_effects_follow_their_equations() {
     assert_effect(&run4, "cogging", 1e-9, |r, i, k| {
         c.amplitude[k] * (c.periods_per_rev[k] * r.state(i).0[k] / transmission[k] + c.phase[k]).sin()
     });
+    let v = ViscousNonlinear::default();
+    let run5 = run(&with(Effects { viscous_nonlinear: Some(v.clone()), ..Default::default() }), 3.0);
+    assert_effect(&run5, "viscous_nonlinear", 1e-9, |r, i, k| {
+        let qd = r.state(i).1[k];
+        v.coefficient[k] * qd * qd.abs()
+    });
+    let p = PositionFriction::default();
+    let run6 = run(&with(Effects { position_friction: Some(p.clone()), ..Default::default() }), 3.0);
+    assert_effect(&run6, "position_friction", 1e-9, |r, i, k| {
+        let joint = &r.model.joints[k];
+        let x = (2.0 * r.state(i).0[k] - joint.upper - joint.lower) / (joint.upper - joint.lower);
+        p.amplitude[k] * x * (r.state(i).1[k] / eps).tanh()
+    });
+}
+
+/// Dahl friction, integrated here independently from the true positions at cycle starts. Within
+/// a cycle the plant integrates it over its substeps; the exponential law composes exactly while
+/// the direction holds, so only cycles with a reversal inside differ (hence the looser bound).
+#[test]
+fn hysteresis_follows_the_dahl_law() {
+    let h = Hysteresis::default();
+    let run = run(&with(Effects { hysteresis: Some(h.clone()), ..Default::default() }), 3.0);
+    let mut z = [0.0; 3];
+    let mut expected = vec![[0.0; 3]; run.rows()];
+    for i in 0..run.rows() {
+        expected[i] = std::array::from_fn(|k| h.amplitude[k] * z[k]);
+        if i + 1 < run.rows() {
+            for k in 0..3 {
+                let dq = run.state(i + 1).0[k] - run.state(i).0[k];
+                if dq != 0.0 {
+                    z[k] = dq.signum() + (z[k] - dq.signum()) * (-dq.abs() / h.travel[k]).exp();
+                }
+            }
+        }
+    }
+    assert_effect(&run, "hysteresis", 1e-5, |_, i, k| expected[i][k]);
 }
 
 #[test]
@@ -247,6 +283,15 @@ fn measurement_effects_shift_and_delay_the_measured_torque() {
         let mean =
             (0..n).map(|i| run1.cycles.tau_meas[i * 3 + k] - run1.truth.tau_motor[i * 3 + k]).sum::<f64>() / n as f64;
         assert!((mean - o.offset[k]).abs() < 4.0 * noise[k] / (n as f64).sqrt(), "joint {k}: offset {mean}");
+    }
+    let drift = TorqueDrift::default();
+    let run3 = run(&with(Effects { torque_drift: Some(drift.clone()), ..Default::default() }), 3.0);
+    for k in 0..3 {
+        let v: Vec<f64> = (0..n)
+            .map(|i| run3.cycles.tau_meas[i * 3 + k] - run3.truth.tau_motor[i * 3 + k] - drift.rate[k] * run3.truth.t[i])
+            .collect();
+        let mean = v.iter().sum::<f64>() / n as f64;
+        assert!(mean.abs() < 4.0 * noise[k] / (n as f64).sqrt(), "joint {k}: drift residual {mean}");
     }
     let d = Delay { samples: 4 };
     let run2 = run(&with(Effects { delay: Some(d.clone()), ..Default::default() }), 3.0);

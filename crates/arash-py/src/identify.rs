@@ -201,7 +201,7 @@ fn identify<'py>(
     }
     let (t, q, tau) = log_arrays(&t, &q, &tau, robot.model.dof())?;
     let options = IdentifyOptions {
-        preprocess: PreprocessOptions { periods, cutoff_hz, order, decimate, friction_cutoff_hz: None },
+        preprocess: PreprocessOptions { periods, cutoff_hz, order, decimate, ..Default::default() },
         consistent: ConsistentOptions { pull, stiffness_bounds, ..Default::default() },
     };
     let model = Arc::clone(&robot.model);

@@ -133,6 +133,9 @@ pub struct Identification {
     pub condition_number: f64,
     pub settings: Settings,
     pub data: DataSummary,
+    /// Effects beyond the declared model, added by `arash diagnose` (see `docs/diagnosis.md`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub effects: Vec<crate::diagnose::EffectTerm>,
 }
 
 /// Identify `model` from a log: `t` (N), `q` and `tau` (N × dof, row-major, SI). `base` is the
@@ -204,6 +207,7 @@ pub fn identify(
             sample_rate_hz: pre.sample_rate_hz,
             periods_averaged: pre.periods_averaged,
         },
+        effects: vec![],
     })
 }
 

@@ -23,6 +23,10 @@ pub struct PreprocessOptions {
     /// Cut-off of the velocity that switches Coulomb friction (Hz); `None` gives
     /// [`DEFAULT_FRICTION_CUTOFF_HZ`] (never below the main cut-off).
     pub friction_cutoff_hz: Option<f64>,
+    /// Filter q̇ and q̈ again after each central difference (the paper's method). Off, the
+    /// derivatives of the filtered position pass through the filter once, exactly as the torque
+    /// does, which matters when the signals have content near the cut-off (the diagnosis).
+    pub filter_derivatives: bool,
 }
 
 /// Friction switches with the joint's actual velocity, which under closed-loop control dithers
@@ -33,7 +37,14 @@ pub const DEFAULT_FRICTION_CUTOFF_HZ: f64 = 20.0;
 
 impl Default for PreprocessOptions {
     fn default() -> Self {
-        Self { periods: None, cutoff_hz: None, order: 5, decimate: 1, friction_cutoff_hz: None }
+        Self {
+            periods: None,
+            cutoff_hz: None,
+            order: 5,
+            decimate: 1,
+            friction_cutoff_hz: None,
+            filter_derivatives: true,
+        }
     }
 }
 
@@ -169,8 +180,16 @@ pub fn preprocess(
         });
     }
     let q_f = filter_columns(&filter, &q, dof, periodic)?;
-    let qd = filter_columns(&filter, &central_difference(&q_f, dof, dt, periodic), dof, periodic)?;
-    let qdd = filter_columns(&filter, &central_difference(&qd, dof, dt, periodic), dof, periodic)?;
+    let derivative = |x: &[f64]| -> Result<Vec<f64>, FilterError> {
+        let d = central_difference(x, dof, dt, periodic);
+        if options.filter_derivatives {
+            filter_columns(&filter, &d, dof, periodic)
+        } else {
+            Ok(d)
+        }
+    };
+    let qd = derivative(&q_f)?;
+    let qdd = derivative(&qd)?;
     let tau_f = filter_columns(&filter, &tau, dof, periodic)?;
     let friction_cutoff_hz =
         options.friction_cutoff_hz.unwrap_or(DEFAULT_FRICTION_CUTOFF_HZ).max(cutoff_hz).min(0.25 * fs);
@@ -230,7 +249,7 @@ pub fn central_difference(x: &[f64], dof: usize, h: f64, periodic: bool) -> Vec<
 
 /// Filter every column; a periodic signal is filtered as three copies end to end and the middle
 /// copy kept, so that the filter sees no ends.
-fn filter_columns(filter: &Butterworth, x: &[f64], dof: usize, periodic: bool) -> Result<Vec<f64>, FilterError> {
+pub fn filter_columns(filter: &Butterworth, x: &[f64], dof: usize, periodic: bool) -> Result<Vec<f64>, FilterError> {
     let n = x.len() / dof;
     let copies = if periodic { 3 } else { 1 };
     let mut column = Vec::with_capacity(copies * n);

@@ -135,7 +135,8 @@ impl Drive {
         let slots = self.delay_ring.len() / n;
         let now = (self.cycles as usize % slots) * n;
         for k in 0..n {
-            let offset = self.scenario.effects.torque_offset.as_ref().map_or(0.0, |o| o.offset[k]);
+            let offset = self.scenario.effects.torque_offset.as_ref().map_or(0.0, |o| o.offset[k])
+                + self.scenario.effects.torque_drift.as_ref().map_or(0.0, |d| d.rate[k] * self.truth.t);
             self.delay_ring[now + k] = self.truth.tau_motor[k] + self.noise[k].sample(&mut self.rng) + offset;
         }
         if self.cycles == 0 {

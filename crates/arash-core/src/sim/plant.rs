@@ -26,6 +26,9 @@ pub struct Plant {
     /// Declared friction `[fv, fc]` per joint before drift.
     friction: Vec<f64>,
     drift_scale: f64,
+    /// Dahl state per joint (hysteresis effect), in [−1, 1].
+    dahl: Vec<f64>,
+    q_before: Vec<f64>,
     payload_body: Option<usize>,
     payload_attached: bool,
     armature: Option<Vec<f64>>,
@@ -88,6 +91,8 @@ impl Plant {
             tau_joint: vec![0.0; n],
             acc: vec![0.0; n],
             acc_at_cycle_start: vec![0.0; n],
+            dahl: vec![0.0; n],
+            q_before: vec![0.0; n],
         })
     }
 
@@ -183,12 +188,16 @@ impl Plant {
         let substeps = self.scenario.physics.substeps;
         let h = dt / substeps as f64;
         for i in 0..substeps {
+            let n = self.model.dof();
+            self.q_before.copy_from_slice(&self.x[..n]);
             match self.scenario.physics.integrator {
                 Integrator::SemiImplicitEuler => self.semi_implicit_euler(h, tau)?,
                 Integrator::Rk4 => self.rk4(h, tau)?,
             }
+            let before = std::mem::take(&mut self.q_before);
+            self.update_dahl(&before);
+            self.q_before = before;
             if i == 0 {
-                let n = self.model.dof();
                 self.acc_at_cycle_start.copy_from_slice(&self.k[0][n..2 * n]);
             }
         }
@@ -299,7 +308,30 @@ impl Plant {
         if let Some(d) = &e.configuration_disturbance {
             tau += d.amplitude[k] * (2.0 * std::f64::consts::PI * q / d.period[k] + d.phase[k]).sin();
         }
+        if let Some(v) = &e.viscous_nonlinear {
+            tau += v.coefficient[k] * qd * qd.abs();
+        }
+        if let Some(p) = &e.position_friction {
+            let joint = &self.model.joints[k];
+            let x = (2.0 * q - joint.upper - joint.lower) / (joint.upper - joint.lower);
+            tau += p.amplitude[k] * x * direction;
+        }
+        if let Some(h) = &e.hysteresis {
+            tau += h.amplitude[k] * self.dahl[k];
+        }
         tau
+    }
+
+    /// Advance the Dahl state of every joint over a step that moved the joints from `before`.
+    fn update_dahl(&mut self, before: &[f64]) {
+        let Some(h) = &self.scenario.effects.hysteresis else { return };
+        for (k, z) in self.dahl.iter_mut().enumerate() {
+            let dq = self.x[k] - before[k];
+            if dq != 0.0 {
+                let target = dq.signum();
+                *z = target + (*z - target) * (-dq.abs() / h.travel[k]).exp();
+            }
+        }
     }
 
     /// Cogging torque at motor position `position` (joint units) of joint `k`.

@@ -279,6 +279,66 @@ impl Default for Payload {
     }
 }
 
+/// Friction growing with the square of speed: `c·q̇·|q̇|`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ViscousNonlinear {
+    /// c per joint (N·m·s²/rad² or N·s²/m²).
+    pub coefficient: Vec<f64>,
+}
+
+impl Default for ViscousNonlinear {
+    fn default() -> Self {
+        Self { coefficient: vec![0.015, 0.015, 40.0] }
+    }
+}
+
+/// Coulomb friction that changes along the joint's travel: `a·x·tanh(q̇/ε)`, with x running from
+/// −1 at the lower URDF limit to 1 at the upper.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PositionFriction {
+    /// a per joint (N·m or N).
+    pub amplitude: Vec<f64>,
+}
+
+impl Default for PositionFriction {
+    fn default() -> Self {
+        Self { amplitude: vec![0.008, 0.006, 0.12] }
+    }
+}
+
+/// Dahl friction (pre-sliding hysteresis): `h·z`, `dz/dq = (1 − z·sign(q̇))/x₀`, so the friction
+/// force builds up over a travel of a few x₀ after each reversal.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Hysteresis {
+    /// h per joint (N·m or N).
+    pub amplitude: Vec<f64>,
+    /// x₀ per joint (rad or m).
+    pub travel: Vec<f64>,
+}
+
+impl Default for Hysteresis {
+    fn default() -> Self {
+        Self { amplitude: vec![0.008, 0.006, 0.12], travel: vec![0.01, 0.01, 0.0005] }
+    }
+}
+
+/// The current sensor's offset drifting linearly: `τ_meas += r·t`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TorqueDrift {
+    /// r per joint (N·m/s or N/s).
+    pub rate: Vec<f64>,
+}
+
+impl Default for TorqueDrift {
+    fn default() -> Self {
+        Self { rate: vec![2e-4, -2e-4, 3e-3] }
+    }
+}
+
 /// The undeclared effects: each is off unless its table is present.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -293,6 +353,10 @@ pub struct Effects {
     pub delay: Option<Delay>,
     pub friction_drift: Option<FrictionDrift>,
     pub payload: Option<Payload>,
+    pub viscous_nonlinear: Option<ViscousNonlinear>,
+    pub position_friction: Option<PositionFriction>,
+    pub hysteresis: Option<Hysteresis>,
+    pub torque_drift: Option<TorqueDrift>,
 }
 
 impl Effects {
@@ -309,6 +373,10 @@ impl Effects {
             ("delay", self.delay.is_some()),
             ("friction_drift", self.friction_drift.is_some()),
             ("payload", self.payload.is_some()),
+            ("viscous_nonlinear", self.viscous_nonlinear.is_some()),
+            ("position_friction", self.position_friction.is_some()),
+            ("hysteresis", self.hysteresis.is_some()),
+            ("torque_drift", self.torque_drift.is_some()),
         ];
         flags.iter().filter(|(_, on)| *on).map(|(name, _)| *name).collect()
     }
@@ -432,6 +500,19 @@ impl Scenario {
                 return Err(field_error("effects.friction_drift.amplitude", "must be finite and > −1"));
             }
             positive("effects.friction_drift.time_constant_s", x.time_constant_s)?;
+        }
+        if let Some(x) = &e.viscous_nonlinear {
+            joints("effects.viscous_nonlinear.coefficient", &x.coefficient, dof, Sign::Any)?;
+        }
+        if let Some(x) = &e.position_friction {
+            joints("effects.position_friction.amplitude", &x.amplitude, dof, Sign::Any)?;
+        }
+        if let Some(x) = &e.hysteresis {
+            joints("effects.hysteresis.amplitude", &x.amplitude, dof, Sign::Any)?;
+            joints("effects.hysteresis.travel", &x.travel, dof, Sign::Positive)?;
+        }
+        if let Some(x) = &e.torque_drift {
+            joints("effects.torque_drift.rate", &x.rate, dof, Sign::Any)?;
         }
         if let Some(x) = &e.payload {
             positive("effects.payload.mass", x.mass)?;

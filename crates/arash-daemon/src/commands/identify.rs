@@ -81,6 +81,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             order: args.order,
             decimate: args.decimate,
             friction_cutoff_hz: args.friction_cutoff,
+            ..Default::default()
         },
         consistent: ConsistentOptions { pull: args.pull, ..Default::default() },
     };

@@ -1,0 +1,89 @@
+//! The diagnosis as text and JSON.
+
+use super::{Diagnosis, ErrorSummary};
+use crate::identify::Metrics;
+
+impl Diagnosis {
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("a diagnosis always serialises")
+    }
+
+    /// The report: what was found with its evidence, the errors before and after, and what was
+    /// rejected (one line per effect and joint, its best variant's reason).
+    pub fn report(&self) -> String {
+        let mut s = format!(
+            "Diagnosis of {} ({} candidates, blocks of {} s: {}, α = {}, held-out: {})\n\n",
+            self.robot_name,
+            self.settings.candidates,
+            self.settings.block_s,
+            self.settings.blocks,
+            self.settings.alpha,
+            self.settings.heldout
+        );
+        if self.accepted.is_empty() {
+            s += "No effect found beyond the declared model.\n";
+        } else {
+            s += "Effects found (in the order they were added):\n";
+            for (i, f) in self.accepted.iter().enumerate() {
+                s += &format!(
+                    "  {}. {:<44} F = {:>9.1}  p = {:.1e} (≤ {:.1e})  held-out gain {:>5.1} %\n",
+                    i + 1,
+                    f.label,
+                    f.statistic,
+                    f.p_value,
+                    f.threshold,
+                    100.0 * f.heldout_gain
+                );
+                for ((name, c), sd) in f.term.columns.iter().zip(&f.term.coefficients).zip(&f.term.sigma) {
+                    s += &format!("       {name:<24} {c:>12.4e} ± {sd:.1e}\n");
+                }
+                if let (Some(m), Some(b)) = (f.mass_kg, &f.body) {
+                    s += &format!("       added mass on {b}: {:.1} g\n", 1e3 * m);
+                }
+                if !f.aliases.is_empty() {
+                    s += &format!("       indistinguishable here from: {}\n", f.aliases.join(", "));
+                }
+            }
+        }
+        s += "\nError per joint, before → after:\n";
+        s += &self.error_table("training", &self.before, &self.after, |e| &e.training);
+        s += &self.error_table("held-out", &self.before, &self.after, |e| &e.heldout);
+        s += &self.rejected_summary();
+        s
+    }
+
+    fn error_table(
+        &self,
+        label: &str,
+        before: &ErrorSummary,
+        after: &ErrorSummary,
+        pick: fn(&ErrorSummary) -> &Metrics,
+    ) -> String {
+        let (b, a) = (pick(before), pick(after));
+        let mut s = format!("  {label}\n");
+        for (k, name) in self.joint_names.iter().enumerate() {
+            s += &format!(
+                "    {name:<22} RMS {:>10.3e} → {:>10.3e}   FP% {:>6.2} → {:>6.2}   ‖e‖/‖τ‖ {:.4} → {:.4}\n",
+                b.rms[k], a.rms[k], b.fp_percent[k], a.fp_percent[k], b.relative_error[k], a.relative_error[k]
+            );
+        }
+        s
+    }
+
+    /// One line per (effect, joints): the reason of its most significant variant.
+    fn rejected_summary(&self) -> String {
+        let mut seen: Vec<(String, Vec<usize>)> = Vec::new();
+        let mut s = String::from("\nNot added:\n");
+        let mut sorted: Vec<_> = self.rejected.iter().collect();
+        sorted.sort_by(|a, b| a.p_value.unwrap_or(1.0).total_cmp(&b.p_value.unwrap_or(1.0)));
+        for r in sorted {
+            let key = (r.name.clone(), r.joints.clone());
+            if seen.contains(&key) {
+                continue;
+            }
+            seen.push(key);
+            s += &format!("  {:<44} {}\n", r.label, r.reason);
+        }
+        s
+    }
+}
