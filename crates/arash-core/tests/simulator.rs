@@ -288,7 +288,9 @@ fn measurement_effects_shift_and_delay_the_measured_torque() {
     let run3 = run(&with(Effects { torque_drift: Some(drift.clone()), ..Default::default() }), 3.0);
     for k in 0..3 {
         let v: Vec<f64> = (0..n)
-            .map(|i| run3.cycles.tau_meas[i * 3 + k] - run3.truth.tau_motor[i * 3 + k] - drift.rate[k] * run3.truth.t[i])
+            .map(|i| {
+                run3.cycles.tau_meas[i * 3 + k] - run3.truth.tau_motor[i * 3 + k] - drift.rate[k] * run3.truth.t[i]
+            })
             .collect();
         let mean = v.iter().sum::<f64>() / n as f64;
         assert!(mean.abs() < 4.0 * noise[k] / (n as f64).sqrt(), "joint {k}: drift residual {mean}");

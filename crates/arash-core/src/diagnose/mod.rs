@@ -699,18 +699,18 @@ pub fn diagnose(
     let mut accepted: Vec<Finding> = Vec::new();
     let mut delay_rejection = None;
     if options.effects.contains(&EffectKind::Delay) && max_shift > 0 {
-        let outcome = search_delay(
+        let outcome = search_delay(&DelaySearch {
             model,
-            &train_data,
-            validation_data.as_ref(),
-            &weights,
-            &free,
-            &fixed_prediction,
+            train: &train_data,
+            validation: validation_data.as_ref(),
+            weights: &weights,
+            free: &free,
+            fixed_prediction: &fixed_prediction,
             max_shift,
-            &block,
+            block: &block,
             block_count,
             options,
-        );
+        });
         delay = outcome.0;
         match outcome.1 {
             Ok(finding) => accepted.push(finding),
@@ -1102,35 +1102,25 @@ fn series(
     }
 }
 
+/// What the delay search works on.
+struct DelaySearch<'a> {
+    model: &'a Model,
+    train: &'a Prepared,
+    validation: Option<&'a Prepared>,
+    weights: &'a [f64],
+    free: &'a [bool],
+    fixed_prediction: &'a dyn Fn(&Prepared, isize) -> Vec<f64>,
+    max_shift: isize,
+    block: &'a [usize],
+    block_count: usize,
+    options: &'a DiagnoseOptions,
+}
+
 /// Search an integer shift of the torque against the position, and accept it only if it is
 /// significant (a block Wald test of the linearised delay, the derivative of the predicted
-/// torque) and cuts the held-out error by at least `min_gain`.
-#[allow(clippy::too_many_arguments)]
-fn search_delay(
-    model: &Model,
-    train: &Prepared,
-    validation: Option<&Prepared>,
-    weights: &[f64],
-    free: &[bool],
-    fixed_prediction: &dyn Fn(&Prepared, isize) -> Vec<f64>,
-    max_shift: isize,
-    block: &[usize],
-    block_count: usize,
-    options: &DiagnoseOptions,
-) -> (isize, Result<Finding, Rejection>) {
-    let outcome = delay_finding(
-        model,
-        train,
-        validation,
-        weights,
-        free,
-        fixed_prediction,
-        max_shift,
-        block,
-        block_count,
-        options,
-    );
-    match outcome {
+/// torque) and cuts the held-out error by at least `min_gain`. Returns the shift to apply.
+fn search_delay(search: &DelaySearch) -> (isize, Result<Finding, Rejection>) {
+    match delay_finding(search) {
         Ok(f) => (f.term.scale.unwrap_or(0.0) as isize, Ok(f)),
         Err((shift, r)) if shift.abs() <= ALIGNMENT_SAMPLES => (shift, Err(r)),
         Err((_, r)) => (0, Err(r)),
@@ -1143,19 +1133,20 @@ fn search_delay(
 pub const ALIGNMENT_SAMPLES: isize = 1;
 
 // Called once per diagnosis, so the large error variant costs nothing worth boxing for.
-#[allow(clippy::too_many_arguments, clippy::result_large_err)]
-fn delay_finding(
-    model: &Model,
-    train: &Prepared,
-    validation: Option<&Prepared>,
-    weights: &[f64],
-    free: &[bool],
-    fixed_prediction: &dyn Fn(&Prepared, isize) -> Vec<f64>,
-    max_shift: isize,
-    block: &[usize],
-    block_count: usize,
-    options: &DiagnoseOptions,
-) -> Result<Finding, (isize, Rejection)> {
+#[allow(clippy::result_large_err)]
+fn delay_finding(search: &DelaySearch) -> Result<Finding, (isize, Rejection)> {
+    let DelaySearch {
+        model,
+        train,
+        validation,
+        weights,
+        free,
+        fixed_prediction,
+        max_shift,
+        block,
+        block_count,
+        options,
+    } = *search;
     let dof = train.dof;
     let mut term = EffectTerm::new(EffectKind::Delay, None);
     term.columns = vec!["shift".into()];
