@@ -69,17 +69,13 @@ impl EffectKind {
         Self::ALL.into_iter().find(|k| k.id() == id)
     }
 
-    /// Whether the columns change faster than the torque filter passes, and so must be filtered
-    /// like the torque.
+    /// Whether the columns change faster than the torque filter passes, and so must be computed
+    /// from the friction velocity and filtered like the torque. `q̇·|q̇|` is smooth enough for
+    /// the filtered velocity, and the friction velocity's quantisation noise would leak into it.
     pub fn filtered_like_torque(self) -> bool {
         matches!(
             self,
-            Self::CoulombAsymmetry
-                | Self::Stribeck
-                | Self::ViscousNonlinear
-                | Self::PositionFriction
-                | Self::Hysteresis
-                | Self::Cogging
+            Self::CoulombAsymmetry | Self::Stribeck | Self::PositionFriction | Self::Hysteresis | Self::Cogging
         )
     }
 

@@ -79,7 +79,7 @@ impl Default for DiagnoseOptions {
             decimate: None,
             block_s: 2.0,
             alpha: 0.01,
-            min_gain: 0.12,
+            min_gain: 0.2,
             max_vif: 1000.0,
             max_delay_s: 0.02,
             max_effects: 6,
@@ -275,57 +275,9 @@ fn prepare(
         return Err(PreprocessError::TooFewSamples { needed: 2 * margin + 64 * stride, got: n });
     }
     let kept: Vec<usize> = (margin..n - margin).step_by(stride).collect();
-    let mut pre = pre;
-    if options.friction_cutoff_hz.is_none() {
-        choose_friction_velocity(model, base, &mut pre, log.q, &kept)?;
-    }
     let (declared, bodies) = declared_columns(model, base, &pre, &kept);
     Ok(Prepared { dof, fs, pre, q_raw: log.q.to_vec(), kept, declared, bodies })
 }
-
-/// Friction switches with the joint's true velocity, which under closed-loop control dithers and
-/// sticks at reversals faster than a low cut-off shows, while a high cut-off lets encoder
-/// quantisation through. Which is better depends on the joint's resolution and its controller,
-/// so the friction velocity's cut-off is chosen per joint from a few candidates by how well the
-/// declared model then fits that joint. This is a preprocessing choice made on the declared
-/// model alone, before any effect is tested.
-fn choose_friction_velocity(
-    model: &Model,
-    base: &BaseParameters,
-    pre: &mut Preprocessed,
-    q_raw: &[f64],
-    kept: &[usize],
-) -> Result<(), PreprocessError> {
-    let dof = pre.dof;
-    let fs = pre.sample_rate_hz;
-    let raw_velocity = central_difference(q_raw, dof, 1.0 / fs, false);
-    let mut best: Vec<(f64, Vec<f64>)> = vec![(f64::INFINITY, vec![]); dof];
-    for cutoff in FRICTION_CUTOFFS_HZ.iter().map(|c| c.max(pre.cutoff_hz)).filter(|c| *c < 0.4 * fs) {
-        let filter = crate::identify::filter::Butterworth::lowpass(pre.order, cutoff, fs)?;
-        let velocity = crate::identify::preprocess::filter_columns(&filter, &raw_velocity, dof, false)?;
-        pre.qd_friction.clone_from(&velocity);
-        let (declared, _) = declared_columns(model, base, pre, kept);
-        let refs: Vec<&Column> = declared.iter().collect();
-        let tau: Vec<f64> = kept.iter().flat_map(|&i| pre.tau[i * dof..(i + 1) * dof].iter().copied()).collect();
-        let Some(x) = least_squares(&refs, &tau, dof, Rows::All) else { continue };
-        let e = residual(&refs, &x, &tau, dof);
-        for (k, b) in best.iter_mut().enumerate() {
-            let sse: f64 = e.iter().skip(k).step_by(dof).map(|v| v * v).sum();
-            if sse < b.0 {
-                *b = (sse, velocity.iter().skip(k).step_by(dof).copied().collect());
-            }
-        }
-    }
-    for (k, (_, v)) in best.iter().enumerate().filter(|(_, b)| !b.1.is_empty()) {
-        for (s, x) in v.iter().enumerate() {
-            pre.qd_friction[s * dof + k] = *x;
-        }
-    }
-    Ok(())
-}
-
-/// Cut-offs tried for the friction velocity when none is given (Hz).
-const FRICTION_CUTOFFS_HZ: [f64; 4] = [20.0, 35.0, 50.0, 100.0];
 
 /// The base-parameter columns at the kept samples, Coulomb columns filtered like the torque (as
 /// identification does), and each body's mass and first-moment columns (payload candidates).
@@ -428,7 +380,7 @@ fn candidates(model: &Model, train: &Prepared, options: &DiagnoseOptions) -> (Ve
         add(EffectKind::Armature, None);
         add(EffectKind::ConfigurationDisturbance, None);
         add(EffectKind::PositionFriction, None);
-        for f in [0.01, 0.03, 0.1] {
+        for f in [0.03, 0.1, 0.3] {
             add(EffectKind::Hysteresis, Some(f * range));
         }
         add(EffectKind::Compliance, None);
