@@ -8,7 +8,10 @@
 3. Log the paper's validation trajectories at ω = 0.3, 0.5, 0.7 and 0.9 rad/s (one period each).
 4. Identify (`arash identify`) by OLS and by the physically consistent SDP, with Table II
    cross-validation on the validation logs.
-5. Control: track the ω = 0.5 validation trajectory with the paper's baseline (inverse dynamics
+5. Diagnose (`arash diagnose`): the calibration run (nothing undeclared in the nominal rig, so
+   nothing should be found), then 60 s of the excitation on a rig with a wiring disturbance the
+   model does not declare, which should be named, with the error before and after.
+6. Control: track the ω = 0.5 validation trajectory with the paper's baseline (inverse dynamics
    control with CAD parameters) and with the robust controller (eq. 22) using the identified
    model, and compare the tracking errors measured by the encoders.
 
@@ -76,7 +79,15 @@ def main():
         run("identify", calibration, "--method", method, "--periods", periods, "--decimate", 5,
             "--validate", *validation, "-o", out / f"model_{method}.json")
 
-    print("\n== 5. tracking the ω = 0.5 validation trajectory", flush=True)
+    print("\n== 5. arash diagnose: the calibration run (nominal rig)", flush=True)
+    run("diagnose", calibration, "-o", out / "diagnosis_nominal")
+    print("\n== 5. arash diagnose: a rig with an undeclared wiring disturbance (60 s)", flush=True)
+    wiring = out / "wiring.mcap"
+    run("simulate", "--scenario", ROOT / "scenarios" / "configuration_disturbance.toml", "--trajectory", excitation,
+        "--controller", "idc-cad", "--duration", 60, "-o", wiring)
+    run("diagnose", wiring, "-o", out / "diagnosis_wiring")
+
+    print("\n== 6. tracking the ω = 0.5 validation trajectory", flush=True)
     trajectory = ROOT / "trajectories" / "paper_validation_0.5.json"
     rows = [
         ("inverse dynamics, CAD parameters (paper's baseline)", ["--controller", "idc-cad"]),

@@ -116,7 +116,6 @@ fn assert_named_first(effect_toml: &str, effect: &str, joints: &[usize], against
 
 #[allow(dead_code)]
 const YAW: usize = 0;
-#[allow(dead_code)]
 const PITCH: usize = 1;
 #[allow(dead_code)]
 const INSERTION: usize = 2;
@@ -214,12 +213,75 @@ fn two_effects_at_once_are_both_found() {
     assert!(names.contains(&"cogging") && names.contains(&"offset"), "{names:?}");
 }
 
+/// Decoys: an unmodelled delay must not be taken for Stribeck friction, nor Stribeck friction for
+/// a delay.
 #[test]
-#[ignore]
-fn zz_explore() {
-    let which = std::env::var("SCEN").unwrap_or_default();
-    let text = if which.is_empty() { String::new() } else { format!("[effects.{which}]\n") };
-    let seed: u64 = std::env::var("SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
-    let against = if std::env::var("TRUTH").is_ok() { Against::Truth } else { Against::Refit };
-    eprintln!("{}", diagnose_scenario(&text, seed, against, false).report());
+fn a_delay_and_stribeck_friction_are_told_apart() {
+    let delayed = diagnose_scenario("[effects.delay]\nsamples = 4\n", 1, Against::Refit, false);
+    assert_eq!(delayed.accepted[0].name, "delay");
+    assert!(delayed.accepted.iter().all(|f| f.name != "stribeck"), "{}", delayed.report());
+    let stribeck = diagnose_scenario("[effects.stribeck]\n", 1, Against::Refit, false);
+    assert!(stribeck.accepted.iter().all(|f| f.name != "delay"), "{}", stribeck.report());
+    assert_eq!(stribeck.accepted[0].name, "stribeck");
+}
+
+/// Decoys: a wiring disturbance on the pitch is not absorbed into the refitted gravity
+/// parameters, and against a held model it is named before any gravity change (payload) is;
+/// a payload is not named a wiring disturbance.
+#[test]
+fn a_wiring_disturbance_and_a_gravity_change_are_told_apart() {
+    let refit = diagnose_scenario("[effects.configuration_disturbance]\n", 1, Against::Refit, false);
+    let pitch = refit.accepted.iter().position(|f| f.name == "configuration_disturbance" && f.joints == [PITCH]);
+    assert!(pitch.is_some(), "{}", refit.report());
+    assert!(refit.after.heldout.rms[PITCH] < 0.5 * refit.before.heldout.rms[PITCH], "{}", refit.report());
+    let held = diagnose_scenario("[effects.configuration_disturbance]\n", 1, Against::Truth, false);
+    let first_payload = held.accepted.iter().position(|f| f.name == "payload").unwrap_or(usize::MAX);
+    let wiring: Vec<usize> = held
+        .accepted
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| f.name == "configuration_disturbance")
+        .map(|(i, _)| i)
+        .collect();
+    assert_eq!(wiring.len(), 3, "{}", held.report());
+    assert!(wiring.iter().all(|&i| i < first_payload), "{}", held.report());
+    let payload = diagnose_scenario("[effects.payload]\nmass = 0.05\n", 1, Against::Truth, false);
+    assert_eq!(payload.accepted[0].name, "payload");
+    assert!(payload.accepted.iter().all(|f| f.name != "configuration_disturbance"), "{}", payload.report());
+}
+
+/// With a validation log, the ranking and the held-out errors are measured on it.
+#[test]
+fn a_validation_log_is_used_for_the_heldout_errors() {
+    let d = diagnose_scenario("[effects.cogging]\n", 1, Against::Refit, true);
+    assert_eq!(d.settings.heldout, "the validation log");
+    assert_eq!(d.accepted[0].name, "cogging");
+    for k in 0..3 {
+        assert!(d.after.heldout.rms[k] < d.before.heldout.rms[k], "joint {k}");
+    }
+}
+
+/// The updated model carries the effects found, and its prediction includes them: with offsets
+/// found, the prediction moves by each offset on its joint and nowhere else.
+#[test]
+fn the_updated_model_predicts_with_the_effects_found() {
+    let d = diagnose_scenario("[effects.torque_offset]\n", 1, Against::Refit, false);
+    let model = arash_asist();
+    let mut expected = [0.0; 3];
+    for e in &d.model.effects {
+        assert_eq!(e.kind.id(), "offset", "only offsets in this scenario: {e:?}");
+        expected[e.joint.unwrap()] += e.coefficients[0];
+    }
+    assert!(expected.iter().any(|x| *x != 0.0), "no offset in the model file");
+    let mut bare = d.model.clone();
+    bare.effects.clear();
+    let (q, qd, qdd) = ([0.1, 0.2, 0.01], [0.3, -0.2, 0.01], [1.0, 0.5, 0.1]);
+    let with = d.model.predict(&model, &q, &qd, &qdd);
+    let without = bare.predict(&model, &q, &qd, &qdd);
+    for j in 0..3 {
+        assert!((with[j] - without[j] - expected[j]).abs() < 1e-12, "joint {j}");
+    }
+    // And it survives the model file.
+    let reread = arash_core::identify::Identification::from_json(&d.model.to_json()).unwrap();
+    assert_eq!(reread.effects, d.model.effects);
 }

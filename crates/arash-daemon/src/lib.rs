@@ -10,6 +10,7 @@ pub mod config;
 pub mod ctl;
 pub mod daemon;
 pub mod drive_config;
+pub mod figures;
 pub mod link;
 pub mod logger;
 pub mod mock;

@@ -21,6 +21,8 @@ enum Command {
     Excite(commands::excite::Args),
     /// Identify the dynamic parameters from logged runs and write a model file.
     Identify(commands::identify::Args),
+    /// Find what the declared model lacks in logged runs: report, figures and an updated model.
+    Diagnose(commands::diagnose::Args),
     /// Run the simulated rig with a controller on a trajectory and write the flight log (MCAP).
     Simulate(commands::simulate::Args),
     /// Run the rig: the 1 kHz control loop over the motor link (starts with the motors disabled).
@@ -55,6 +57,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Model(args) => commands::model::run(args),
         Command::Excite(args) => commands::excite::run(args),
         Command::Identify(args) => commands::identify::run(args),
+        Command::Diagnose(args) => commands::diagnose::run(args),
         Command::Simulate(args) => commands::simulate::run(args),
         Command::Daemon(args) => commands::daemon::run(args),
         Command::Ctl(args) => commands::ctl::run(args),

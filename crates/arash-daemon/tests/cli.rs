@@ -198,3 +198,56 @@ fn simulate_refuses_bad_inputs_by_name() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("omega") && err.contains("traj.json"), "{err}");
 }
+
+/// `arash diagnose` on a simulated log with a wiring disturbance: it names the effect, writes the
+/// report, the JSON, the updated model and the figures, every figure a PNG with content; and a
+/// bad option is refused by name.
+#[test]
+fn diagnose_names_the_effect_and_writes_report_model_and_figures() {
+    let dir = std::env::temp_dir().join(format!("arash-cli-diagnose-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let log = dir.join("run.mcap");
+    let out = arash(&[
+        "simulate",
+        "--scenario",
+        &repo_file("scenarios/configuration_disturbance.toml"),
+        "--trajectory",
+        &repo_file("trajectories/excitation_L5_T15.json"),
+        "--controller",
+        "idc-cad",
+        "--duration",
+        "45",
+        "-o",
+        log.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report_dir = dir.join("diagnosis");
+    let out = arash(&["diagnose", log.to_str().unwrap(), "-o", report_dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("1. configuration_disturbance"), "{text}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report_dir.join("diagnosis.json")).unwrap()).unwrap();
+    assert_eq!(json["accepted"][0]["name"], "configuration_disturbance");
+    let model: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report_dir.join("model.json")).unwrap()).unwrap();
+    assert_eq!(model["format"], "arash-model/1");
+    assert_eq!(model["effects"][0]["kind"], "configuration_disturbance");
+    let report = std::fs::read_to_string(report_dir.join("report.txt")).unwrap();
+    assert!(text.starts_with(report.trim()), "report.txt is what was printed");
+    let pngs: Vec<_> = std::fs::read_dir(&report_dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "png"))
+        .collect();
+    assert!(pngs.len() >= 2, "{pngs:?}");
+    for png in &pngs {
+        let bytes = std::fs::read(png).unwrap();
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{}", png.display());
+        assert!(bytes.len() > 10_000, "{} looks blank", png.display());
+    }
+    let out = arash(&["diagnose", log.to_str().unwrap(), "--effects", "gremlins", "-o", "/tmp/none"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("gremlins"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -20,7 +20,7 @@ use pyo3::types::PyDict;
 use crate::{batch, same_length, to_numpy, value_error, vector, BaseParameters, NumpyArray, Robot};
 
 /// Validated log arrays: t (N,), q and tau (N, dof).
-fn log_arrays(
+pub(crate) fn log_arrays(
     t: &PyReadonlyArrayDyn<'_, f64>,
     q: &PyReadonlyArrayDyn<'_, f64>,
     tau: &PyReadonlyArrayDyn<'_, f64>,
@@ -51,6 +51,10 @@ pub(crate) struct Identification {
 }
 
 impl Identification {
+    pub(crate) fn new(model: Arc<Model>, inner: CoreIdentification) -> Self {
+        Self { model, inner }
+    }
+
     pub(crate) fn inner(&self) -> &CoreIdentification {
         &self.inner
     }

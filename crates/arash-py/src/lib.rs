@@ -569,12 +569,14 @@ pub(crate) fn value_error(e: impl std::fmt::Display) -> PyErr {
     PyValueError::new_err(e.to_string())
 }
 
+mod diagnose;
 mod identify;
 mod simulate;
 
 #[pymodule]
 fn _arash(module: &Bound<'_, PyModule>) -> PyResult<()> {
     identify::register(module)?;
+    diagnose::register(module)?;
     simulate::register(module)?;
     module.add_function(wrap_pyfunction!(butter, module)?)?;
     module.add_function(wrap_pyfunction!(filtfilt, module)?)?;

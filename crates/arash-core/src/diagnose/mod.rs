@@ -26,7 +26,7 @@ use crate::base_parameters::BaseParameters;
 use crate::data::Data;
 use crate::identify::estimate::joint_metrics;
 use crate::identify::preprocess::{central_difference, preprocess, PreprocessError, PreprocessOptions, Preprocessed};
-use crate::identify::{identify, Identification, IdentifyError, IdentifyMethod, IdentifyOptions, Metrics};
+use crate::identify::{Identification, IdentifyError, IdentifyMethod, Metrics};
 use crate::model::{CoulombShape, Model};
 use crate::regressor::regressor;
 pub use catalogue::{EffectKind, EffectTerm, TermState};
@@ -311,9 +311,9 @@ fn declared_columns(
     }
     let bodies = (0..model.bodies.len())
         .filter(|&b| columns[10 * b].iter().any(|v| *v != 0.0))
-        .map(|b| (b, (0..4).map(|c| Column::All(columns[10 * b + c].clone())).collect()))
+        .map(|b| (b, (0..4).map(|c| Column::dense(columns[10 * b + c].clone(), dof)).collect()))
         .collect();
-    let declared = base.independent.iter().map(|&j| Column::All(std::mem::take(&mut columns[j]))).collect();
+    let declared = base.independent.iter().map(|&j| Column::dense(std::mem::take(&mut columns[j]), dof)).collect();
     (declared, bodies)
 }
 
@@ -680,18 +680,17 @@ pub fn diagnose(
     if let Some(r) = delay_rejection {
         rejected.insert(0, r);
     }
-    let pool: Vec<Candidate> = templates
-        .into_iter()
-        .map(|term| {
-            let columns = problem.weighted(term_columns(model, &term, &train_data, delay));
-            let validation = match (&heldout, &validation_data) {
-                (HeldOut::Validation(p), Some(v)) => p.weighted(term_columns(model, &term, v, delay)),
-                _ => vec![],
-            };
-            Candidate { term, columns, validation }
-        })
-        .filter(|c| !c.columns.is_empty())
-        .collect();
+    let pool: Vec<Candidate> = parallel_map(templates, |term| {
+        let columns = problem.weighted(term_columns(model, &term, &train_data, delay));
+        let validation = match (&heldout, &validation_data) {
+            (HeldOut::Validation(p), Some(v)) => p.weighted(term_columns(model, &term, v, delay)),
+            _ => vec![],
+        };
+        Candidate { term, columns, validation }
+    })
+    .into_iter()
+    .filter(|c| !c.columns.is_empty())
+    .collect();
     let candidate_count = pool.len();
     // Why each candidate is out for now; a rejection without a p-value is final.
     let mut status: Vec<Option<Rejection>> = vec![None; pool.len()];
@@ -709,12 +708,16 @@ pub fn diagnose(
         let coef: Vec<f64> = coef.iter().copied().collect();
         let e0 = residual(&base_cols, &coef, &problem.y, dof);
         let mut tested: Vec<(usize, regression::GroupTest)> = Vec::new();
-        for (i, c) in pool.iter().enumerate() {
-            if chosen.contains(&i) || status[i].as_ref().is_some_and(|r| r.p_value.is_none()) {
-                continue;
-            }
-            let group: Vec<&Column> = c.columns.iter().collect();
-            match test_group(&base_cols, &base_gram, &e0, &group, &block, block_count, dof) {
+        let open: Vec<usize> = (0..pool.len())
+            .filter(|i| !chosen.contains(i) && status[*i].as_ref().is_none_or(|r| r.p_value.is_some()))
+            .collect();
+        let tests = parallel_map(open, |i| {
+            let group: Vec<&Column> = pool[i].columns.iter().collect();
+            (i, test_group(&base_cols, &base_gram, &e0, &group, &block, block_count, dof))
+        });
+        for (i, outcome) in tests {
+            let c = &pool[i];
+            match outcome {
                 Some(t) if t.unexplained * options.max_vif >= 1.0 => tested.push((i, t)),
                 other => {
                     let vif = other.map_or(f64::INFINITY, |t| 1.0 / t.unexplained);
@@ -722,7 +725,7 @@ pub fn diagnose(
                         model,
                         &c.term,
                         format!(
-                            "not identifiable on this data: the model already explains it (VIF {vif:.3} > {})",
+                            "not identifiable on this data: the model already explains it (VIF {vif:.1e} > {})",
                             options.max_vif
                         ),
                         None,
@@ -738,7 +741,8 @@ pub fn diagnose(
         let pass = regression::holm(&p_values, options.alpha);
         let mut order: Vec<usize> = (0..tested.len()).collect();
         order.sort_by(|&a, &b| p_values[a].total_cmp(&p_values[b]));
-        let mut best: Option<(usize, f64, Vec<f64>, f64, f64)> = None;
+        let mut passing: Vec<(usize, f64, Vec<f64>, f64, f64)> = Vec::new();
+        let mut scoring: Option<HeldOutBase> = None;
         for (rank, &o) in order.iter().enumerate() {
             let (i, t) = &tested[o];
             let threshold = regression::holm_threshold(options.alpha, tested.len(), rank);
@@ -764,7 +768,8 @@ pub fn diagnose(
                     continue;
                 }
             }
-            let (gains, total) = heldout_gain(&problem, &heldout, &pool, &chosen, *i);
+            let scoring = scoring.get_or_insert_with(|| HeldOutBase::new(&problem, &heldout, &pool, &chosen));
+            let (gains, total) = scoring.gain(&problem, &heldout, &pool, &chosen, *i);
             let joints = effect_joints(&pool[*i].term, dof);
             // Accepted on the joint it helps most, ranked by what it does for the whole robot,
             // so that an effect acting on several joints competes fairly with one-joint terms.
@@ -785,11 +790,11 @@ pub fn diagnose(
                 continue;
             }
             status[*i] = None;
-            if best.as_ref().is_none_or(|b| total > b.4) {
-                best = Some((o, gain, gains, threshold, total));
-            }
+            passing.push((o, gain, gains, threshold, total));
         }
-        let Some((o, gain, gains, threshold, _)) = best else { break };
+        let Some((o, gain, gains, threshold, _)) = most_useful(passing, |o| pool[tested[o].0].columns.len()) else {
+            break;
+        };
         let (winner, test) = tested[o].clone();
         // Candidates that passed too but that the winner explains are its aliases.
         let mut with_winner = chosen.clone();
@@ -869,12 +874,12 @@ pub fn diagnose(
 
     let mut updated = match given {
         Some(g) => g.clone(),
-        None => {
-            identify(model, base, urdf, train.t, train.q, train.tau, IdentifyMethod::Ols, &IdentifyOptions::default())?
-        }
+        None => declared_model(model, base, urdf, &train_data, &series, options, train.t.len())?,
     };
+    // Against a given model its freed (friction) coefficients take the joint fit's values; a
+    // refitted model keeps the OLS of `declared_model`, made with the effects taken out.
     let mut fitted = x_after.iter();
-    for ((b, j), _) in updated.beta.iter_mut().zip(&base.independent).zip(&free).filter(|(_, f)| **f) {
+    for ((b, j), _) in updated.beta.iter_mut().zip(&base.independent).zip(&free).filter(|(_, f)| **f && !refit) {
         *b = *fitted.next().expect("one coefficient per free column");
         // A refitted friction coefficient is a standard parameter of its own.
         if let Some(params) = updated.params.as_mut().filter(|_| !refit) {
@@ -921,6 +926,101 @@ pub fn diagnose(
     })
 }
 
+/// Of the candidates that passed (test index, own-joint gain, per-joint gains, Holm threshold,
+/// whole-robot gain), the one to add: the largest whole-robot gain, except that a candidate with
+/// fewer columns within 10 % of it is preferred. A payload's four columns can mimic an offset
+/// on one joint; the simpler explanation should win when the data cannot tell them apart.
+fn most_useful(
+    passing: Vec<(usize, f64, Vec<f64>, f64, f64)>,
+    width: impl Fn(usize) -> usize,
+) -> Option<(usize, f64, Vec<f64>, f64, f64)> {
+    let best = passing.iter().map(|p| p.4).fold(f64::NEG_INFINITY, f64::max);
+    passing
+        .into_iter()
+        .filter(|p| p.4 >= 0.9 * best)
+        .min_by(|a, b| width(a.0).cmp(&width(b.0)).then(b.4.total_cmp(&a.4)))
+}
+
+/// `f` over `items` on every core, in order. Candidates are independent of each other, and their
+/// columns and tests are most of a diagnosis's time.
+fn parallel_map<T: Send, R: Send>(items: Vec<T>, f: impl Fn(T) -> R + Sync) -> Vec<R> {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(items.len().max(1));
+    let per = items.len().div_ceil(threads).max(1);
+    let mut chunks: Vec<Vec<T>> = Vec::new();
+    let mut items = items.into_iter().peekable();
+    while items.peek().is_some() {
+        chunks.push(items.by_ref().take(per).collect());
+    }
+    std::thread::scope(|scope| {
+        let f = &f;
+        let handles: Vec<_> =
+            chunks.into_iter().map(|chunk| scope.spawn(move || chunk.into_iter().map(f).collect::<Vec<R>>())).collect();
+        handles.into_iter().flat_map(|h| h.join().expect("a diagnosis worker panicked")).collect()
+    })
+}
+
+/// The model file for a refitted declared model: OLS on the samples the diagnosis used, with the
+/// effects found taken out of the torque first (their coefficients are set after). σ%, the fit
+/// and the condition number come from that fit, as `arash identify` reports them.
+fn declared_model(
+    model: &Model,
+    base: &BaseParameters,
+    urdf: &str,
+    data: &Prepared,
+    series: &Series,
+    options: &DiagnoseOptions,
+    samples_in: usize,
+) -> Result<Identification, DiagnoseError> {
+    use crate::identify::estimate::{fit_stacked, Method};
+    use crate::identify::{consistent, nearest_standard_parameters, DataSummary, Settings};
+    let dof = data.dof;
+    let rows = data.samples() * dof;
+    let w = faer::Mat::<f64>::from_fn(rows, data.declared.len(), |i, j| data.declared[j].at(i / dof, i % dof, dof));
+    let mut tau = series.tau.clone();
+    for contribution in &series.contributions {
+        tau.iter_mut().zip(contribution).for_each(|(t, c)| *t -= c);
+    }
+    let stride = data.kept.get(1).map_or(1, |k| k - data.kept[0]);
+    let block = ((options.block_s * data.fs / stride as f64).round() as usize).max(1);
+    let fit = fit_stacked(&w, &tau, dof, base, Method::Ols, block)
+        .map_err(|e| DiagnoseError::Identify(IdentifyError::Estimate(e)))?;
+    let nearest = nearest_standard_parameters(model, base, &fit.beta);
+    Ok(Identification {
+        format: "arash-model/1".into(),
+        software_version: env!("CARGO_PKG_VERSION").into(),
+        robot_name: model.name.clone(),
+        urdf: urdf.to_string(),
+        parameter_names: model.parameter_names(),
+        base_names: base.names.clone(),
+        base_expressions: base.expressions.clone(),
+        base_independent: base.independent.clone(),
+        beta: fit.beta.clone(),
+        sigma_percent: fit.sigma_percent.clone(),
+        params: None,
+        training: fit.metrics.clone().into(),
+        training_ols: fit.metrics.clone().into(),
+        min_pseudo_inertia_eigenvalue: consistent::min_pseudo_inertia_eigenvalues(model, &nearest),
+        condition_number: fit.condition_number,
+        settings: Settings {
+            method: IdentifyMethod::Ols,
+            periods: None,
+            cutoff_hz: data.pre.cutoff_hz,
+            order: data.pre.order,
+            decimate: stride,
+            pull: 0.0,
+            stiffness_bounds: (None, None),
+        },
+        data: DataSummary {
+            sources: vec![],
+            samples_in,
+            samples_used: data.samples(),
+            sample_rate_hz: data.fs,
+            periods_averaged: 1,
+        },
+        effects: vec![],
+    })
+}
+
 /// The model's columns: the declared ones that are fitted, then the chosen effects'.
 fn model_columns<'a>(problem: &'a Problem, pool: &'a [Candidate], chosen: &[usize]) -> Vec<&'a Column> {
     problem.free_columns().chain(chosen.iter().flat_map(|&i| pool[i].columns.iter())).collect()
@@ -963,23 +1063,64 @@ fn heldout_sse(problem: &Problem, heldout: &HeldOut, pool: &[Candidate], chosen:
     }
 }
 
-/// Relative cut of the held-out squared error per joint from adding candidate `i`.
-/// Relative cut of the held-out squared error from adding candidate `i`: per joint, and over all
-/// joints together (in the weighted units, where every joint counts by its noise).
-fn heldout_gain(
-    problem: &Problem,
-    heldout: &HeldOut,
-    pool: &[Candidate],
-    chosen: &[usize],
-    i: usize,
-) -> (Vec<f64>, f64) {
-    let before = heldout_sse(problem, heldout, pool, chosen);
-    let mut with = chosen.to_vec();
-    with.push(i);
-    let after = heldout_sse(problem, heldout, pool, &with);
-    let per_joint = before.iter().zip(&after).map(|(b, a)| if *b > 0.0 { 1.0 - a / b } else { 0.0 }).collect();
-    let total = 1.0 - after.iter().sum::<f64>() / before.iter().sum::<f64>().max(f64::MIN_POSITIVE);
-    (per_joint, total)
+/// The current model's fit on the rows it is trained on for held-out scoring, computed once per
+/// round so that each candidate costs only its own products with the model.
+struct HeldOutBase<'a> {
+    cols: Vec<&'a Column>,
+    gram: nalgebra::DMatrix<f64>,
+    rhs: nalgebra::DVector<f64>,
+    sse: Vec<f64>,
+}
+
+impl<'a> HeldOutBase<'a> {
+    fn new(problem: &'a Problem, heldout: &HeldOut, pool: &'a [Candidate], chosen: &[usize]) -> Self {
+        let dof = problem.dof;
+        let cols = model_columns(problem, pool, chosen);
+        let rows = match heldout {
+            HeldOut::Blocks { train, .. } => Rows::Where(train),
+            HeldOut::Validation(_) => Rows::All,
+        };
+        let gram = gram(&cols, dof, rows);
+        let rhs = rhs(&cols, &problem.y, dof, rows);
+        let sse = heldout_sse(problem, heldout, pool, chosen);
+        Self { cols, gram, rhs, sse }
+    }
+
+    /// Relative cut of the held-out squared error from adding candidate `i`: per joint, and over
+    /// all joints together (in the weighted units, where every joint counts by its noise).
+    fn gain(
+        &self,
+        problem: &Problem,
+        heldout: &HeldOut,
+        pool: &[Candidate],
+        chosen: &[usize],
+        i: usize,
+    ) -> (Vec<f64>, f64) {
+        let dof = problem.dof;
+        let group: Vec<&Column> = pool[i].columns.iter().collect();
+        let rows = match heldout {
+            HeldOut::Blocks { train, .. } => Rows::Where(train),
+            HeldOut::Validation(_) => Rows::All,
+        };
+        let after = match regression::fit_augmented(&self.cols, &self.gram, &self.rhs, &group, &problem.y, dof, rows) {
+            None => self.sse.clone(),
+            Some(x) => match heldout {
+                HeldOut::Blocks { test, .. } => {
+                    let all: Vec<&Column> = self.cols.iter().copied().chain(group.iter().copied()).collect();
+                    sse(&all, &x, &problem.y, dof, Rows::Where(test))
+                }
+                HeldOut::Validation(v) => {
+                    let all: Vec<&Column> =
+                        validation_columns(v, pool, chosen).into_iter().chain(pool[i].validation.iter()).collect();
+                    sse(&all, &x, &v.y, dof, Rows::All)
+                }
+            },
+        };
+        let before = &self.sse;
+        let per_joint = before.iter().zip(&after).map(|(b, a)| if *b > 0.0 { 1.0 - a / b } else { 0.0 }).collect();
+        let total = 1.0 - after.iter().sum::<f64>() / before.iter().sum::<f64>().max(f64::MIN_POSITIVE);
+        (per_joint, total)
+    }
 }
 
 fn error_summary(problem: &Problem, heldout: &HeldOut, pool: &[Candidate], chosen: &[usize]) -> ErrorSummary {
@@ -1105,18 +1246,19 @@ fn delay_finding(search: &DelaySearch) -> Result<Finding, (isize, Rejection)> {
     let reject =
         |term: &EffectTerm, reason: String, p: Option<f64>, gain: Option<f64>| rejection(model, term, reason, p, gain);
     let fixed = fixed_prediction(train, 0);
-    let problems: Vec<Problem> =
-        (-max_shift..=max_shift).map(|d| Problem::new(train, train.tau(d), fixed.clone(), weights, free)).collect();
-    let cols = |p: &Problem| -> Vec<Column> { p.free_columns().cloned().collect() };
-    let declared = cols(&problems[0]);
-    let declared_refs: Vec<&Column> = declared.iter().collect();
-    let g = gram(&declared_refs, dof, Rows::All);
-    let total_sse = |p: &Problem| -> f64 {
-        let x = regression::solve_scaled(&g, &rhs(&declared_refs, &p.y, dof, Rows::All))
-            .map_or_else(|| vec![0.0; declared_refs.len()], |x| x.iter().copied().collect());
-        sse(&declared_refs, &x, &p.y, dof, Rows::All).iter().sum()
+    // One weighted problem; only its target moves with the shift.
+    let zero = Problem::new(train, train.tau(0), fixed.clone(), weights, free);
+    let target = |data: &Prepared, fixed: &[f64], d: isize| -> Vec<f64> {
+        data.tau(d).iter().zip(fixed).enumerate().map(|(i, (t, f))| (t - f) * weights[i % dof]).collect()
     };
-    let scores: Vec<f64> = problems.iter().map(total_sse).collect();
+    let declared_refs: Vec<&Column> = zero.free_columns().collect();
+    let g = gram(&declared_refs, dof, Rows::All);
+    let total_sse = |y: &[f64]| -> f64 {
+        let x = regression::solve_scaled(&g, &rhs(&declared_refs, y, dof, Rows::All))
+            .map_or_else(|| vec![0.0; declared_refs.len()], |x| x.iter().copied().collect());
+        sse(&declared_refs, &x, y, dof, Rows::All).iter().sum()
+    };
+    let scores: Vec<f64> = (-max_shift..=max_shift).map(|d| total_sse(&target(train, &fixed, d))).collect();
     let best = (0..scores.len()).min_by(|&a, &b| scores[a].total_cmp(&scores[b])).unwrap_or(max_shift as usize);
     let shift = best as isize - max_shift;
     term.scale = Some(shift as f64);
@@ -1144,12 +1286,11 @@ fn delay_finding(search: &DelaySearch) -> Result<Finding, (isize, Rejection)> {
         ));
     }
     // The linearised test: τ(t − d) ≈ τ(t) − d·τ̇(t).
-    let zero = &problems[max_shift as usize];
     let x0 = least_squares(&declared_refs, &zero.y, dof, Rows::All).unwrap_or_else(|| vec![0.0; declared_refs.len()]);
     let e0 = residual(&declared_refs, &x0, &zero.y, dof);
     let predicted: Vec<f64> = zero.y.iter().zip(&e0).map(|(y, e)| y - e).collect();
     let h = (train.kept[1] - train.kept[0]) as f64 / train.fs;
-    let column = Column::All(central_difference(&predicted, dof, h, false));
+    let column = Column::dense(central_difference(&predicted, dof, h, false), dof);
     let test = test_group(&declared_refs, &g, &e0, &[&column], block, block_count, dof);
     let Some(test) = test else {
         return Err((
@@ -1160,14 +1301,12 @@ fn delay_finding(search: &DelaySearch) -> Result<Finding, (isize, Rejection)> {
     let gains: Vec<f64> = match validation {
         Some(v) => {
             let vfixed = fixed_prediction(v, 0);
+            let vzero = Problem::new(v, v.tau(0), vfixed.clone(), weights, free);
+            let vrefs: Vec<&Column> = vzero.free_columns().collect();
             let at = |d: isize| -> Vec<f64> {
-                let p = &problems[(d + max_shift) as usize];
-                let x = least_squares(&declared_refs, &p.y, dof, Rows::All)
+                let x = least_squares(&declared_refs, &target(train, &fixed, d), dof, Rows::All)
                     .unwrap_or_else(|| vec![0.0; declared_refs.len()]);
-                let vp = Problem::new(v, v.tau(d), vfixed.clone(), weights, free);
-                let vcols = cols(&vp);
-                let vrefs: Vec<&Column> = vcols.iter().collect();
-                sse(&vrefs, &x, &vp.y, dof, Rows::All)
+                sse(&vrefs, &x, &target(v, &vfixed, d), dof, Rows::All)
             };
             let (b, a) = (at(0), at(shift));
             b.iter().zip(&a).map(|(b, a)| 1.0 - a / b).collect()
@@ -1176,10 +1315,10 @@ fn delay_finding(search: &DelaySearch) -> Result<Finding, (isize, Rejection)> {
             let train_rows: Vec<bool> = block.iter().map(|b| b % 2 == 0).collect();
             let test_rows: Vec<bool> = train_rows.iter().map(|t| !t).collect();
             let at = |d: isize| -> Vec<f64> {
-                let p = &problems[(d + max_shift) as usize];
-                let x = least_squares(&declared_refs, &p.y, dof, Rows::Where(&train_rows))
+                let y = target(train, &fixed, d);
+                let x = least_squares(&declared_refs, &y, dof, Rows::Where(&train_rows))
                     .unwrap_or_else(|| vec![0.0; declared_refs.len()]);
-                sse(&declared_refs, &x, &p.y, dof, Rows::Where(&test_rows))
+                sse(&declared_refs, &x, &y, dof, Rows::Where(&test_rows))
             };
             let (b, a) = (at(0), at(shift));
             b.iter().zip(&a).map(|(b, a)| 1.0 - a / b).collect()

@@ -12,18 +12,30 @@ use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 /// One regressor column.
 #[derive(Clone, Debug)]
 pub enum Column {
-    /// Values on every row (`samples × dof`).
-    All(Vec<f64>),
+    /// Values on every row: `rows` interleaved (`samples × dof`), and the same joint by joint
+    /// (`planes[k·samples + s]`), so that a product with a one-joint column reads memory
+    /// contiguously.
+    All { rows: Vec<f64>, planes: Vec<f64> },
     /// Values on joint `k`'s rows only (`samples`); zero elsewhere.
     Joint(usize, Vec<f64>),
 }
 
 impl Column {
+    /// A column with values on every row (`samples × dof`, interleaved).
+    pub fn dense(rows: Vec<f64>, dof: usize) -> Self {
+        let n = rows.len() / dof;
+        let mut planes = vec![0.0; rows.len()];
+        for (i, v) in rows.iter().enumerate() {
+            planes[(i % dof) * n + i / dof] = *v;
+        }
+        Column::All { rows, planes }
+    }
+
     /// The value on row `sample·dof + joint`.
     #[inline]
     pub fn at(&self, sample: usize, joint: usize, dof: usize) -> f64 {
         match self {
-            Column::All(v) => v[sample * dof + joint],
+            Column::All { rows, .. } => rows[sample * dof + joint],
             Column::Joint(k, v) if *k == joint => v[sample],
             Column::Joint(..) => 0.0,
         }
@@ -33,7 +45,11 @@ impl Column {
     pub fn scale_rows(&mut self, w: &[f64]) {
         let dof = w.len();
         match self {
-            Column::All(v) => v.iter_mut().enumerate().for_each(|(i, x)| *x *= w[i % dof]),
+            Column::All { rows, planes } => {
+                rows.iter_mut().enumerate().for_each(|(i, x)| *x *= w[i % dof]);
+                let n = planes.len() / dof;
+                planes.iter_mut().enumerate().for_each(|(i, x)| *x *= w[i / n]);
+            }
             Column::Joint(k, v) => v.iter_mut().for_each(|x| *x *= w[*k]),
         }
     }
@@ -59,49 +75,42 @@ impl Rows<'_> {
 
 /// `Σ a_i b_i` over the rows of the selected samples.
 pub fn dot(a: &Column, b: &Column, dof: usize, rows: Rows) -> f64 {
-    let samples = match a {
-        Column::All(v) => v.len() / dof,
-        Column::Joint(_, v) => v.len(),
+    let masked = |x: &[f64], y: &[f64]| -> f64 {
+        match rows {
+            Rows::All => x.iter().zip(y).map(|(a, b)| a * b).sum(),
+            Rows::Where(m) => x.iter().zip(y).zip(m).filter(|(_, t)| **t).map(|((a, b), _)| a * b).sum(),
+        }
     };
-    let mut sum = 0.0;
     match (a, b) {
-        (Column::All(x), Column::All(y)) => {
-            for s in (0..samples).filter(|&s| rows.take(s)) {
-                for k in 0..dof {
-                    sum += x[s * dof + k] * y[s * dof + k];
-                }
-            }
+        (Column::All { planes: x, .. }, Column::All { planes: y, .. }) => {
+            let n = x.len() / dof;
+            (0..dof).map(|k| masked(&x[k * n..(k + 1) * n], &y[k * n..(k + 1) * n])).sum()
         }
-        (Column::Joint(k, x), Column::All(y)) | (Column::All(y), Column::Joint(k, x)) => {
-            for s in (0..samples).filter(|&s| rows.take(s)) {
-                sum += x[s] * y[s * dof + k];
-            }
+        (Column::Joint(k, x), Column::All { planes, .. }) | (Column::All { planes, .. }, Column::Joint(k, x)) => {
+            let n = x.len();
+            masked(x, &planes[k * n..(k + 1) * n])
         }
-        (Column::Joint(k, x), Column::Joint(l, y)) if k == l => {
-            for s in (0..samples).filter(|&s| rows.take(s)) {
-                sum += x[s] * y[s];
-            }
-        }
-        (Column::Joint(..), Column::Joint(..)) => {}
+        (Column::Joint(k, x), Column::Joint(l, y)) if k == l => masked(x, y),
+        (Column::Joint(..), Column::Joint(..)) => 0.0,
     }
-    sum
 }
 
 /// `Σ a_i v_i` for a column and a dense row vector.
 pub fn dot_dense(a: &Column, v: &[f64], dof: usize, rows: Rows) -> f64 {
-    match a {
-        Column::All(x) => (0..v.len() / dof)
-            .filter(|&s| rows.take(s))
+    match (a, rows) {
+        (Column::All { rows: x, .. }, Rows::All) => x.iter().zip(v).map(|(a, b)| a * b).sum(),
+        (Column::All { rows: x, .. }, Rows::Where(m)) => (0..v.len() / dof)
+            .filter(|&s| m[s])
             .map(|s| (0..dof).map(|k| x[s * dof + k] * v[s * dof + k]).sum::<f64>())
             .sum(),
-        Column::Joint(k, x) => (0..x.len()).filter(|&s| rows.take(s)).map(|s| x[s] * v[s * dof + k]).sum(),
+        (Column::Joint(k, x), rows) => (0..x.len()).filter(|&s| rows.take(s)).map(|s| x[s] * v[s * dof + k]).sum(),
     }
 }
 
 /// `v += c·a` on every row.
 pub fn axpy(v: &mut [f64], c: f64, a: &Column, dof: usize) {
     match a {
-        Column::All(x) => v.iter_mut().zip(x).for_each(|(v, x)| *v += c * x),
+        Column::All { rows, .. } => v.iter_mut().zip(rows).for_each(|(v, x)| *v += c * x),
         Column::Joint(k, x) => x.iter().enumerate().for_each(|(s, x)| v[s * dof + k] += c * x),
     }
 }
@@ -115,6 +124,38 @@ pub fn least_squares(columns: &[&Column], y: &[f64], dof: usize, rows: Rows) -> 
         return Some(vec![]);
     }
     solve_scaled(&gram(columns, dof, rows), &rhs(columns, y, dof, rows)).map(|x| x.iter().copied().collect())
+}
+
+/// Least squares of `y` on `base` plus `group` over `rows`, reusing `base`'s Gram matrix and
+/// `Xᵀy` there: coefficients of the base columns, then of the group.
+pub fn fit_augmented(
+    base: &[&Column],
+    base_gram: &DMatrix<f64>,
+    base_rhs: &DVector<f64>,
+    group: &[&Column],
+    y: &[f64],
+    dof: usize,
+    rows: Rows,
+) -> Option<Vec<f64>> {
+    let (p, k) = (base.len(), group.len());
+    let mut g = DMatrix::zeros(p + k, p + k);
+    g.view_mut((0, 0), (p, p)).copy_from(base_gram);
+    let mut b = DVector::zeros(p + k);
+    b.rows_mut(0, p).copy_from(base_rhs);
+    for (j, c) in group.iter().enumerate() {
+        for (i, x) in base.iter().enumerate() {
+            let v = dot(x, c, dof, rows);
+            g[(i, p + j)] = v;
+            g[(p + j, i)] = v;
+        }
+        for (i, d) in group.iter().enumerate().skip(j) {
+            let v = dot(c, d, dof, rows);
+            g[(p + i, p + j)] = v;
+            g[(p + j, p + i)] = v;
+        }
+        b[p + j] = dot_dense(c, y, dof, rows);
+    }
+    solve_scaled(&g, &b).map(|x| x.iter().copied().collect())
 }
 
 /// `Xᵀy` over `rows`.
@@ -233,7 +274,7 @@ pub fn test_group(
 /// `C − X (XᵀX)⁻¹ XᵀC` for each column of the group, dense over every row; `g` is `XᵀX`.
 fn partial_out(base: &[&Column], g: &DMatrix<f64>, group: &[&Column], dof: usize) -> Option<Vec<Vec<f64>>> {
     let rows = match group.first()? {
-        Column::All(v) => v.len(),
+        Column::All { rows, .. } => rows.len(),
         Column::Joint(_, v) => v.len() * dof,
     };
     group
@@ -293,8 +334,8 @@ mod tests {
     fn sparse_and_dense_columns_agree() {
         let dof = 3;
         let a = Column::Joint(1, vec![1.0, 2.0, 3.0]);
-        let dense = Column::All(vec![0.0, 1.0, 0.0, 0.0, 2.0, 0.0, 0.0, 3.0, 0.0]);
-        let b = Column::All((0..9).map(|i| i as f64).collect());
+        let dense = Column::dense(vec![0.0, 1.0, 0.0, 0.0, 2.0, 0.0, 0.0, 3.0, 0.0], dof);
+        let b = Column::dense((0..9).map(|i| i as f64).collect(), dof);
         assert_eq!(dot(&a, &b, dof, Rows::All), dot(&dense, &b, dof, Rows::All));
         assert_eq!(dot(&a, &a, dof, Rows::Where(&[true, false, true])), 10.0);
     }
@@ -320,10 +361,10 @@ mod tests {
                 e[s] = x;
                 c[s] = z;
             }
-            let offset = Column::All(vec![1.0; samples]);
+            let offset = Column::dense(vec![1.0; samples], 1);
             let mean = e.iter().sum::<f64>() / samples as f64;
             let e0: Vec<f64> = e.iter().map(|v| v - mean).collect();
-            let cand = Column::All(c);
+            let cand = Column::dense(c, 1);
             let g = gram(&[&offset], dof, Rows::All);
             let t = test_group(&[&offset], &g, &e0, &[&cand], &block, blocks, dof).unwrap();
             if t.p_value < 0.05 {

@@ -1,5 +1,6 @@
 pub mod ctl;
 pub mod daemon;
+pub mod diagnose;
 pub mod excite;
 pub mod identify;
 pub mod mock_motor;

@@ -5,7 +5,7 @@ import os
 import numpy as np
 import numpy.typing as npt
 
-Array = npt.NDArray[np.float64]
+Array = npt.Array
 ArrayLike = npt.ArrayLike
 
 __version__: str
@@ -149,3 +149,31 @@ def _simulate(
     params: Optional[Any], duration: Optional[float], seed: Optional[int], gain_units: str,
     log: Optional[str], log_truth: bool,
 ) -> dict[str, Any]: ...
+
+
+class RawDiagnosis:
+    """The Rust side of ``arash.Diagnosis``."""
+
+    def report(self) -> str: ...
+    def to_json(self) -> str: ...
+    @property
+    def model(self) -> Identification: ...
+    @property
+    def series(self) -> dict: ...
+
+def _diagnose(
+    robot: Robot,
+    t: Array,
+    q: Array,
+    tau: Array,
+    *,
+    model: Identification | None = None,
+    validation: tuple | None = None,
+    transmission: list[float] | None = None,
+    cutoff_hz: float = 20.0,
+    block_s: float = 2.0,
+    alpha: float = 0.01,
+    min_gain: float = 0.2,
+    effects: list[str] | None = None,
+    refit: bool = False,
+) -> RawDiagnosis: ...

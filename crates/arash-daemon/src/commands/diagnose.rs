@@ -1,0 +1,198 @@
+//! `arash diagnose LOG... --robot ROBOT.urdf [--model model.json] [--validate LOG...]`: find what
+//! the declared model lacks, and write the report, the JSON, the figures and the updated model.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use arash_core::base_parameters::BaseParameterOptions;
+use arash_core::diagnose::{diagnose, DiagnoseOptions, Diagnosis, EffectKind, Log};
+use arash_core::identify::Identification;
+use arash_core::BaseParameters;
+
+use arash_daemon::drive_config::DriveConfig;
+use arash_daemon::figures;
+
+use crate::runlog;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Logged runs (MCAP flight logs, or CSV with columns t, q.<joint>, tau.<joint>), concatenated in order.
+    #[arg(required = true)]
+    logs: Vec<PathBuf>,
+    /// The robot's URDF; default: the bundled ARASH:ASiST.
+    #[arg(long)]
+    robot: Option<PathBuf>,
+    /// A model file (from `arash identify` or an earlier diagnosis) to diagnose against; its
+    /// inertial parameters are held, friction is refitted. Default: refit the declared model.
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// With --model: refit all its base parameters too.
+    #[arg(long)]
+    refit: bool,
+    /// Held-out runs for ranking and the held-out errors (concatenated); default: the odd
+    /// blocks of the training data.
+    #[arg(long, num_args = 1..)]
+    validate: Vec<PathBuf>,
+    /// Joint motion per motor radian, comma-separated, for the cogging search; default: the
+    /// bundled ARASH:ASiST drive's, or no cogging search for another robot.
+    #[arg(long, value_delimiter = ',')]
+    transmission: Option<Vec<f64>>,
+    /// Low-pass cut-off (Hz).
+    #[arg(long, default_value_t = 20.0)]
+    cutoff: f64,
+    /// Length of the blocks of time the tests and the held-out split use (s).
+    #[arg(long, default_value_t = 2.0)]
+    block: f64,
+    /// Family-wise error rate per search round (Holm).
+    #[arg(long, default_value_t = 0.01)]
+    alpha: f64,
+    /// Smallest cut of a joint's held-out squared error worth a term (fraction).
+    #[arg(long, default_value_t = 0.2)]
+    min_gain: f64,
+    /// Search only these effects (comma-separated identifiers; see docs/diagnosis.md).
+    #[arg(long, value_delimiter = ',')]
+    effects: Option<Vec<String>>,
+    /// Directory for report.txt, diagnosis.json, model.json and the figures.
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let (model, urdf) = super::load_robot(args.robot.as_deref())?;
+    let options = options(&args, &model)?;
+    let read = |paths: &[PathBuf]| -> anyhow::Result<runlog::Log> {
+        let logs = paths.iter().map(|p| runlog::read(p, &model)).collect::<anyhow::Result<Vec<_>>>()?;
+        Ok(runlog::concatenate(logs))
+    };
+    let train = read(&args.logs)?;
+    let validation = if args.validate.is_empty() { None } else { Some(read(&args.validate)?) };
+    let given = args
+        .model
+        .as_ref()
+        .map(|p| -> anyhow::Result<Identification> {
+            let text = std::fs::read_to_string(p).with_context(|| format!("reading model {}", p.display()))?;
+            Identification::from_json(&text).with_context(|| format!("model {}", p.display()))
+        })
+        .transpose()?;
+    eprintln!(
+        "diagnosing {} samples ({} file(s)){} ...",
+        train.t.len(),
+        args.logs.len(),
+        validation.as_ref().map_or(String::new(), |v| format!(", holding out {} samples", v.t.len()))
+    );
+    let started = std::time::Instant::now();
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::default())?;
+    let diagnosis = diagnose(
+        &model,
+        &base,
+        &urdf,
+        Log { t: &train.t, q: &train.q, tau: &train.tau },
+        validation.as_ref().map(|v| Log { t: &v.t, q: &v.q, tau: &v.tau }),
+        given.as_ref(),
+        &options,
+    )
+    .context("diagnosis failed")?;
+    eprintln!("diagnosed in {:.1} s", started.elapsed().as_secs_f64());
+    let report = diagnosis.report();
+    println!("{report}");
+    write_outputs(&args.output, &diagnosis, &report)?;
+    println!("wrote {}/ (report.txt, diagnosis.json, model.json, figures)", args.output.display());
+    Ok(())
+}
+
+fn options(args: &Args, model: &arash_core::Model) -> anyhow::Result<DiagnoseOptions> {
+    for (name, v) in [("--cutoff", args.cutoff), ("--block", args.block)] {
+        anyhow::ensure!(v.is_finite() && v > 0.0, "{name} must be positive, not {v}");
+    }
+    anyhow::ensure!(args.alpha > 0.0 && args.alpha < 1.0, "--alpha must lie in (0, 1), not {}", args.alpha);
+    anyhow::ensure!((0.0..1.0).contains(&args.min_gain), "--min-gain is a fraction in [0, 1), not {}", args.min_gain);
+    let effects = match &args.effects {
+        None => EffectKind::ALL.to_vec(),
+        Some(ids) => ids
+            .iter()
+            .map(|id| {
+                EffectKind::from_id(id.trim()).ok_or_else(|| {
+                    let known: Vec<&str> = EffectKind::ALL.iter().map(|k| k.id()).collect();
+                    anyhow::anyhow!("--effects: unknown effect `{id}` (known: {})", known.join(", "))
+                })
+            })
+            .collect::<anyhow::Result<_>>()?,
+    };
+    let transmission = match &args.transmission {
+        Some(t) => {
+            anyhow::ensure!(
+                t.len() == model.dof() && t.iter().all(|v| v.is_finite() && *v > 0.0),
+                "--transmission needs {} positive values, one per joint; got {t:?}",
+                model.dof()
+            );
+            Some(t.clone())
+        }
+        None if model.name == arash_core::arash_asist().name => Some(DriveConfig::default().transmission),
+        None => None,
+    };
+    Ok(DiagnoseOptions {
+        cutoff_hz: args.cutoff,
+        block_s: args.block,
+        alpha: args.alpha,
+        min_gain: args.min_gain,
+        effects,
+        transmission,
+        refit: args.refit,
+        ..DiagnoseOptions::default()
+    })
+}
+
+fn write_outputs(dir: &Path, diagnosis: &Diagnosis, report: &str) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    super::write_atomically(&dir.join("report.txt"), report)?;
+    super::write_atomically(&dir.join("diagnosis.json"), &diagnosis.to_json())?;
+    super::write_atomically(&dir.join("model.json"), &diagnosis.model.to_json())?;
+    for path in write_figures(dir, diagnosis)? {
+        eprintln!("figure {}", path.display());
+    }
+    Ok(())
+}
+
+/// The figures: per accepted effect and joint, the residual against the variable the effect
+/// depends on, with the effect (before) and without it (after); and the held-out FP% per joint
+/// before and after.
+pub fn write_figures(dir: &Path, d: &Diagnosis) -> anyhow::Result<Vec<PathBuf>> {
+    let s = &d.series;
+    let dof = d.joint_names.len();
+    let mut written = Vec::new();
+    let errors = dir.join("errors.png");
+    figures::bars_before_after(
+        &errors,
+        "Held-out FP% per joint, before and after the effects found",
+        "FP% (held-out)",
+        &d.joint_names,
+        &d.before.heldout.fp_percent,
+        &d.after.heldout.fp_percent,
+    )?;
+    written.push(errors);
+    for (i, finding) in d.accepted.iter().enumerate().filter(|(_, f)| f.term.kind != EffectKind::Delay) {
+        let Some(contribution) = s.contributions.get(effect_index(d, i)) else { continue };
+        for &k in &finding.joints {
+            let column = |x: &[f64]| x.iter().skip(k).step_by(dof).copied().collect::<Vec<f64>>();
+            let (label, x) = match finding.term.kind.plotted_against() {
+                "t" => ("t (s)".to_string(), s.t.clone()),
+                "qd" => (format!("q̇ of {} (rad/s or m/s)", d.joint_names[k]), column(&s.qd)),
+                "qdd" => (format!("q̈ of {} (rad/s² or m/s²)", d.joint_names[k]), column(&s.qdd)),
+                _ => (format!("q of {} (rad or m)", d.joint_names[k]), column(&s.q)),
+            };
+            let after = column(&s.residual_after);
+            let before: Vec<f64> = after.iter().zip(column(contribution)).map(|(a, c)| a + c).collect();
+            let path = dir.join(format!("effect-{}-{}-{}.png", i + 1, finding.name, d.joint_names[k]));
+            let title =
+                format!("{}: residual of {} without (before) and with (after) it", finding.label, d.joint_names[k]);
+            figures::scatter_before_after(&path, &title, &label, "residual (N·m or N)", &x, &before, &after)?;
+            written.push(path);
+        }
+    }
+    Ok(written)
+}
+
+/// Index of accepted effect `i` among those with a contribution series (the delay has none).
+fn effect_index(d: &Diagnosis, i: usize) -> usize {
+    d.accepted[..i].iter().filter(|f| f.term.kind != EffectKind::Delay).count()
+}

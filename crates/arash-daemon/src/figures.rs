@@ -1,0 +1,186 @@
+//! Report figures as PNG: scatter plots of a residual against the variable it depends on, before
+//! and after, bar charts of per-joint errors, and time series. The font is DejaVu Sans, bundled,
+//! so figures render the same on a machine without fonts.
+
+use std::path::Path;
+use std::sync::Once;
+
+use anyhow::Context;
+use plotters::prelude::*;
+
+const WIDTH: u32 = 900;
+const HEIGHT: u32 = 600;
+/// More points than this are thinned evenly: a scatter of 10⁵ points says no more than 10⁴.
+const MAX_POINTS: usize = 8000;
+
+fn fonts() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular())
+            .unwrap_or_else(|_| panic!("the bundled DejaVu Sans is a valid font"));
+    });
+}
+
+/// Lower and upper bounds of the finite values, widened a little (and made non-empty).
+fn range<'a>(values: impl Iterator<Item = &'a f64>) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+    if !lo.is_finite() {
+        return (-1.0, 1.0);
+    }
+    let pad = 0.05 * (hi - lo).max(1e-12 * lo.abs().max(1.0));
+    (lo - pad, hi + pad)
+}
+
+fn thin(n: usize) -> usize {
+    n.div_ceil(MAX_POINTS).max(1)
+}
+
+/// Two point clouds `y` against `x`: `before` in orange, `after` in blue.
+pub fn scatter_before_after(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    x: &[f64],
+    before: &[f64],
+    after: &[f64],
+) -> anyhow::Result<()> {
+    fonts();
+    let root = BitMapBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (x0, x1) = range(x.iter());
+    let (y0, y1) = range(before.iter().chain(after));
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(80)
+        .build_cartesian_2d(x0..x1, y0..y1)?;
+    chart.configure_mesh().x_desc(x_label).y_desc(y_label).label_style(("sans-serif", 15)).draw()?;
+    let step = thin(x.len());
+    for (values, color, label) in [(before, RGBColor(230, 120, 20), "before"), (after, RGBColor(30, 90, 200), "after")]
+    {
+        let points = x.iter().zip(values).step_by(step).map(|(a, b)| Circle::new((*a, *b), 2, color.mix(0.5).filled()));
+        chart.draw_series(points)?.label(label).legend(move |(px, py)| Circle::new((px + 10, py), 4, color.filled()));
+    }
+    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw()?;
+    root.present().with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+/// Grouped bars: for each label, `before` (orange) and `after` (blue).
+pub fn bars_before_after(
+    path: &Path,
+    title: &str,
+    y_label: &str,
+    labels: &[String],
+    before: &[f64],
+    after: &[f64],
+) -> anyhow::Result<()> {
+    fonts();
+    let root = BitMapBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (lo, hi) = range(before.iter().chain(after).chain(std::iter::once(&0.0)));
+    let n = labels.len();
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(80)
+        .build_cartesian_2d(-0.5..n as f64 - 0.5, lo..hi)?;
+    let names = labels.to_vec();
+    // Groups sit on the integers, so the integer ticks carry their names.
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .x_labels(n.max(1))
+        .x_label_formatter(&move |x| {
+            let i = x.round();
+            if (x - i).abs() < 1e-6 && i >= 0.0 {
+                names.get(i as usize).cloned().unwrap_or_default()
+            } else {
+                String::new()
+            }
+        })
+        .y_desc(y_label)
+        .label_style(("sans-serif", 15))
+        .draw()?;
+    for (offset, values, color, label) in
+        [(-0.4, before, RGBColor(230, 120, 20), "before"), (0.0, after, RGBColor(30, 90, 200), "after")]
+    {
+        let rects = values
+            .iter()
+            .enumerate()
+            .map(|(i, v)| Rectangle::new([(i as f64 + offset, 0.0), (i as f64 + offset + 0.4, *v)], color.filled()));
+        chart
+            .draw_series(rects)?
+            .label(label)
+            .legend(move |(px, py)| Rectangle::new([(px, py - 5), (px + 10, py + 5)], color.filled()));
+    }
+    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw()?;
+    root.present().with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+/// Lines `y(x)`, one per named series.
+pub fn lines(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[(&str, &[f64], &[f64])],
+) -> anyhow::Result<()> {
+    fonts();
+    let root = BitMapBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (x0, x1) = range(series.iter().flat_map(|s| s.1.iter()));
+    let (y0, y1) = range(series.iter().flat_map(|s| s.2.iter()));
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(80)
+        .build_cartesian_2d(x0..x1, y0..y1)?;
+    chart.configure_mesh().x_desc(x_label).y_desc(y_label).label_style(("sans-serif", 15)).draw()?;
+    for (i, (name, x, y)) in series.iter().enumerate() {
+        let color = Palette99::pick(i).to_rgba();
+        let step = thin(x.len());
+        let points = x.iter().zip(y.iter()).step_by(step).map(|(a, b)| (*a, *b));
+        chart
+            .draw_series(LineSeries::new(points, color.stroke_width(2)))?
+            .label(*name)
+            .legend(move |(px, py)| PathElement::new(vec![(px, py), (px + 20, py)], color.stroke_width(2)));
+    }
+    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw()?;
+    root.present().with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A figure is a PNG with ink on it: not blank and not all one colour.
+    #[test]
+    fn figures_are_pngs_with_content() {
+        let dir = std::env::temp_dir().join(format!("arash-figures-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let x: Vec<f64> = (0..500).map(|i| i as f64 * 0.01).collect();
+        let y: Vec<f64> = x.iter().map(|v| v.sin()).collect();
+        let z: Vec<f64> = x.iter().map(|v| 0.1 * v.cos()).collect();
+        let scatter = dir.join("scatter.png");
+        scatter_before_after(&scatter, "residual", "q (rad)", "N·m", &x, &y, &z).unwrap();
+        let bars = dir.join("bars.png");
+        bars_before_after(&bars, "FP%", "%", &["yaw".into(), "pitch".into()], &[80.0, 90.0], &[95.0, 99.0]).unwrap();
+        let line = dir.join("line.png");
+        lines(&line, "q", "t (s)", "rad", &[("q", &x, &y)]).unwrap();
+        for path in [scatter, bars, line] {
+            let bytes = std::fs::read(&path).unwrap();
+            assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{}", path.display());
+            assert!(bytes.len() > 5000, "{} is suspiciously small", path.display());
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
