@@ -262,7 +262,11 @@ impl EffectTerm {
     /// A one-line description with units, for reports.
     pub fn describe(&self, joint_names: &[String]) -> String {
         let joint = self.joint.map(|k| joint_names.get(k).cloned().unwrap_or_else(|| format!("joint {}", k + 1)));
-        let on = joint.map(|j| format!(" on {j}")).unwrap_or_default();
+        let on = match (joint, self.kind) {
+            (Some(j), _) => format!(" on {j}"),
+            (None, EffectKind::Armature) => " on every joint".into(),
+            (None, _) => String::new(),
+        };
         let detail = match self.kind {
             EffectKind::Stribeck => format!(" (v_s = {:.3})", self.scale.unwrap_or(0.0)),
             EffectKind::Hysteresis => format!(" (x₀ = {:.3})", self.scale.unwrap_or(0.0)),

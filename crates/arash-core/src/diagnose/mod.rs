@@ -406,6 +406,11 @@ fn candidates(model: &Model, train: &Prepared, options: &DiagnoseOptions) -> (Ve
             }
         }
     }
+    // Rotor inertia is a property of every drive at once: one candidate for all joints competes
+    // fairly with a payload, which also changes the inertia of several joints.
+    if wanted(EffectKind::Armature) && dof > 1 {
+        terms.push(EffectTerm::new(EffectKind::Armature, None));
+    }
     if wanted(EffectKind::Payload) {
         for (b, _) in &train.bodies {
             let mut t = EffectTerm::new(EffectKind::Payload, None);
@@ -414,7 +419,10 @@ fn candidates(model: &Model, train: &Prepared, options: &DiagnoseOptions) -> (Ve
         }
     }
     for t in &mut terms {
-        t.columns = t.column_names();
+        t.columns = match (t.kind, t.joint) {
+            (EffectKind::Armature, None) => model.joints.iter().map(|j| format!("q̈ of {}", j.name)).collect(),
+            _ => t.column_names(),
+        };
     }
     (terms, skipped)
 }
@@ -426,7 +434,14 @@ fn term_columns(model: &Model, term: &EffectTerm, data: &Prepared, delay: isize)
         let body = model.bodies.iter().position(|b| Some(&b.name) == term.body.as_ref());
         return data.bodies.iter().find(|(b, _)| Some(*b) == body).map(|(_, c)| c.clone()).unwrap_or_default();
     }
-    let Some(k) = term.joint else { return vec![] };
+    let Some(k) = term.joint else {
+        if term.kind == EffectKind::Armature {
+            return (0..dof)
+                .map(|k| Column::Joint(k, data.kept.iter().map(|&i| data.pre.qdd[i * dof + k]).collect()))
+                .collect();
+        }
+        return vec![];
+    };
     let width = term.width();
     let pre = &data.pre;
     let mut state = TermState::default();

@@ -294,6 +294,11 @@ impl Identification {
                         out[first + k] +=
                             features[..width].iter().zip(&term.coefficients).map(|(a, c)| a * c).sum::<f64>();
                     }
+                    (EffectKind::Armature, None) => {
+                        for (k, c) in term.coefficients.iter().enumerate().take(n) {
+                            out[first + k] += c * qdd[s * n + k];
+                        }
+                    }
                     (_, None) => {}
                 }
             }
