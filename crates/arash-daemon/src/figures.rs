@@ -37,6 +37,43 @@ fn thin(n: usize) -> usize {
     n.div_ceil(MAX_POINTS).max(1)
 }
 
+type Area<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;
+type Chart<'a, 'b> = ChartContext<
+    'a,
+    BitMapBackend<'b>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// A white canvas for one figure at `path`.
+fn canvas(path: &Path) -> anyhow::Result<Area<'_>> {
+    fonts();
+    let root = BitMapBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area();
+    root.fill(&WHITE)?;
+    Ok(root)
+}
+
+/// Axes with a title on `root`.
+fn axes<'a, 'b>(
+    root: &'a Area<'b>,
+    title: &str,
+    x: std::ops::Range<f64>,
+    y: std::ops::Range<f64>,
+) -> anyhow::Result<Chart<'a, 'b>> {
+    Ok(ChartBuilder::on(root)
+        .caption(title, ("sans-serif", 22))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(80)
+        .build_cartesian_2d(x, y)?)
+}
+
+/// The legend, then the file.
+fn finish<'a, 'b: 'a>(mut chart: Chart<'a, 'b>, root: &Area<'b>, path: &Path) -> anyhow::Result<()> {
+    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw()?;
+    root.present().with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
 /// Two point clouds `y` against `x`: `before` in orange, `after` in blue.
 pub fn scatter_before_after(
     path: &Path,
@@ -47,17 +84,10 @@ pub fn scatter_before_after(
     before: &[f64],
     after: &[f64],
 ) -> anyhow::Result<()> {
-    fonts();
-    let root = BitMapBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area();
-    root.fill(&WHITE)?;
+    let root = canvas(path)?;
     let (x0, x1) = range(x.iter());
     let (y0, y1) = range(before.iter().chain(after));
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 22))
-        .margin(15)
-        .x_label_area_size(45)
-        .y_label_area_size(80)
-        .build_cartesian_2d(x0..x1, y0..y1)?;
+    let mut chart = axes(&root, title, x0..x1, y0..y1)?;
     chart.configure_mesh().x_desc(x_label).y_desc(y_label).label_style(("sans-serif", 15)).draw()?;
     let step = thin(x.len());
     for (values, color, label) in [(before, RGBColor(230, 120, 20), "before"), (after, RGBColor(30, 90, 200), "after")]
@@ -65,9 +95,7 @@ pub fn scatter_before_after(
         let points = x.iter().zip(values).step_by(step).map(|(a, b)| Circle::new((*a, *b), 2, color.mix(0.5).filled()));
         chart.draw_series(points)?.label(label).legend(move |(px, py)| Circle::new((px + 10, py), 4, color.filled()));
     }
-    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw()?;
-    root.present().with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
+    finish(chart, &root, path)
 }
 
 /// Grouped bars: for each label, `before` (orange) and `after` (blue).
@@ -79,17 +107,10 @@ pub fn bars_before_after(
     before: &[f64],
     after: &[f64],
 ) -> anyhow::Result<()> {
-    fonts();
-    let root = BitMapBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area();
-    root.fill(&WHITE)?;
+    let root = canvas(path)?;
     let (lo, hi) = range(before.iter().chain(after).chain(std::iter::once(&0.0)));
     let n = labels.len();
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 22))
-        .margin(15)
-        .x_label_area_size(45)
-        .y_label_area_size(80)
-        .build_cartesian_2d(-0.5..n as f64 - 0.5, lo..hi)?;
+    let mut chart = axes(&root, title, -0.5..n as f64 - 0.5, lo..hi)?;
     let names = labels.to_vec();
     // Groups sit on the integers, so the integer ticks carry their names.
     chart
@@ -132,17 +153,10 @@ pub fn lines(
     y_label: &str,
     series: &[(&str, &[f64], &[f64])],
 ) -> anyhow::Result<()> {
-    fonts();
-    let root = BitMapBackend::new(path, (WIDTH, HEIGHT)).into_drawing_area();
-    root.fill(&WHITE)?;
+    let root = canvas(path)?;
     let (x0, x1) = range(series.iter().flat_map(|s| s.1.iter()));
     let (y0, y1) = range(series.iter().flat_map(|s| s.2.iter()));
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 22))
-        .margin(15)
-        .x_label_area_size(45)
-        .y_label_area_size(80)
-        .build_cartesian_2d(x0..x1, y0..y1)?;
+    let mut chart = axes(&root, title, x0..x1, y0..y1)?;
     chart.configure_mesh().x_desc(x_label).y_desc(y_label).label_style(("sans-serif", 15)).draw()?;
     for (i, (name, x, y)) in series.iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();
@@ -153,9 +167,7 @@ pub fn lines(
             .label(*name)
             .legend(move |(px, py)| PathElement::new(vec![(px, py), (px + 20, py)], color.stroke_width(2)));
     }
-    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw()?;
-    root.present().with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
+    finish(chart, &root, path)
 }
 
 #[cfg(test)]

@@ -203,6 +203,8 @@ pub struct Diagnosis {
     pub format: String,
     pub robot_name: String,
     pub joint_names: Vec<String>,
+    /// Whether each joint is prismatic (units m, N) rather than revolute (rad, N·m).
+    pub prismatic: Vec<bool>,
     pub accepted: Vec<Finding>,
     pub rejected: Vec<Rejection>,
     pub before: ErrorSummary,
@@ -915,6 +917,7 @@ pub fn diagnose(
         format: "arash-diagnosis/1".into(),
         robot_name: model.name.clone(),
         joint_names: joint_names(model),
+        prismatic: model.joints.iter().map(|j| j.kind == crate::model::JointKind::Prismatic).collect(),
         accepted,
         rejected,
         before,

@@ -174,18 +174,20 @@ pub fn write_figures(dir: &Path, d: &Diagnosis) -> anyhow::Result<Vec<PathBuf>> 
         let Some(contribution) = s.contributions.get(effect_index(d, i)) else { continue };
         for &k in &finding.joints {
             let column = |x: &[f64]| x.iter().skip(k).step_by(dof).copied().collect::<Vec<f64>>();
+            let (position, torque) = if d.prismatic[k] { ("m", "N") } else { ("rad", "N·m") };
+            let name = &d.joint_names[k];
             let (label, x) = match finding.term.kind.plotted_against() {
                 "t" => ("t (s)".to_string(), s.t.clone()),
-                "qd" => (format!("q̇ of {} (rad/s or m/s)", d.joint_names[k]), column(&s.qd)),
-                "qdd" => (format!("q̈ of {} (rad/s² or m/s²)", d.joint_names[k]), column(&s.qdd)),
-                _ => (format!("q of {} (rad or m)", d.joint_names[k]), column(&s.q)),
+                "qd" => (format!("q̇ of {name} ({position}/s)"), column(&s.qd)),
+                "qdd" => (format!("q̈ of {name} ({position}/s²)"), column(&s.qdd)),
+                _ => (format!("q of {name} ({position})"), column(&s.q)),
             };
             let after = column(&s.residual_after);
             let before: Vec<f64> = after.iter().zip(column(contribution)).map(|(a, c)| a + c).collect();
-            let path = dir.join(format!("effect-{}-{}-{}.png", i + 1, finding.name, d.joint_names[k]));
-            let title =
-                format!("{}: residual of {} without (before) and with (after) it", finding.label, d.joint_names[k]);
-            figures::scatter_before_after(&path, &title, &label, "residual (N·m or N)", &x, &before, &after)?;
+            let path = dir.join(format!("effect-{}-{}-{}.png", i + 1, finding.name, name));
+            let title = format!("{}: {name}'s residual with it (before) and without", finding.label);
+            let y_label = format!("residual ({torque})");
+            figures::scatter_before_after(&path, &title, &label, &y_label, &x, &before, &after)?;
             written.push(path);
         }
     }
