@@ -249,5 +249,8 @@ fn diagnose_names_the_effect_and_writes_report_model_and_figures() {
     let out = arash(&["diagnose", log.to_str().unwrap(), "--effects", "gremlins", "-o", "/tmp/none"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("gremlins"), "{err}");
+    let out = arash(&["diagnose", log.to_str().unwrap(), "--hold-friction", "-o", "/tmp/none"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--model"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

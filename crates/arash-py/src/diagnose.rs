@@ -59,7 +59,8 @@ impl RawDiagnosis {
 /// Diagnose a log against the robot's declared model (see `arash.diagnose`).
 #[pyfunction]
 #[pyo3(signature = (robot, t, q, tau, *, model=None, validation=None, transmission=None, cutoff_hz=20.0,
-                    block_s=2.0, alpha=0.01, min_gain=0.2, effects=None, refit=false))]
+                    block_s=2.0, alpha=0.01, min_gain=0.2, effects=None, refit=false,
+                    hold_friction=false))]
 #[allow(clippy::too_many_arguments)]
 fn _diagnose<'py>(
     py: Python<'py>,
@@ -76,6 +77,7 @@ fn _diagnose<'py>(
     min_gain: f64,
     effects: Option<Vec<String>>,
     refit: bool,
+    hold_friction: bool,
 ) -> PyResult<RawDiagnosis> {
     let dof = robot.model.dof();
     let (t, q, tau) = log_arrays(&t, &q, &tau, dof)?;
@@ -105,8 +107,17 @@ fn _diagnose<'py>(
             .map(|id| EffectKind::from_id(id).ok_or_else(|| PyValueError::new_err(format!("unknown effect `{id}`"))))
             .collect::<PyResult<_>>()?,
     };
-    let options =
-        DiagnoseOptions { cutoff_hz, block_s, alpha, min_gain, effects, transmission, refit, ..Default::default() };
+    let options = DiagnoseOptions {
+        cutoff_hz,
+        block_s,
+        alpha,
+        min_gain,
+        effects,
+        transmission,
+        refit,
+        hold_friction,
+        ..Default::default()
+    };
     let base = robot.default_base()?;
     let robot_model = Arc::clone(&robot.model);
     let given = model.map(|m| m.inner().clone());

@@ -67,6 +67,9 @@ pub struct DiagnoseOptions {
     pub coulomb_epsilon: Option<f64>,
     /// Cut-off of the velocity that switches friction (Hz); `None`: identification's default.
     pub friction_cutoff_hz: Option<f64>,
+    /// With a given model: hold its friction too (default: refit friction, which drifts with
+    /// temperature and depends on how its velocity was estimated).
+    pub hold_friction: bool,
     /// With a given model: refit its base parameters together with the effects (default: keep
     /// them, so that a payload or other change against that model shows).
     pub refit: bool,
@@ -86,6 +89,7 @@ impl Default for DiagnoseOptions {
             transmission: None,
             cogging_periods: (1..=8).map(f64::from).collect(),
             effects: EffectKind::ALL.to_vec(),
+            hold_friction: false,
             coulomb_epsilon: Some(1e-3),
             friction_cutoff_hz: None,
             refit: false,
@@ -619,7 +623,8 @@ pub fn diagnose(
     // Against a given model, friction is refitted all the same: it drifts with temperature, and
     // its coefficients depend on how the velocity that switches it was estimated.
     let friction = model.friction_offset()..model.elastic_offset();
-    let free: Vec<bool> = base.independent.iter().map(|j| refit || friction.contains(j)).collect();
+    let free: Vec<bool> =
+        base.independent.iter().map(|j| refit || (friction.contains(j) && !options.hold_friction)).collect();
     let fixed_prediction = |data: &Prepared, delay: isize| -> Vec<f64> {
         let mut pred = vec![0.0; data.samples() * dof];
         if let (Some(g), false) = (given, refit) {

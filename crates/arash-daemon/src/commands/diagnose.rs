@@ -27,8 +27,11 @@ pub struct Args {
     #[arg(long)]
     model: Option<PathBuf>,
     /// With --model: refit all its base parameters too.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "hold_friction")]
     refit: bool,
+    /// With --model: hold its friction too (trust the whole model file).
+    #[arg(long)]
+    hold_friction: bool,
     /// Held-out runs for ranking and the held-out errors (concatenated); default: the odd
     /// blocks of the training data.
     #[arg(long, num_args = 1..)]
@@ -59,6 +62,10 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let (model, urdf) = super::load_robot(args.robot.as_deref())?;
+    anyhow::ensure!(
+        args.model.is_some() || !(args.refit || args.hold_friction),
+        "--refit and --hold-friction apply to a model given with --model"
+    );
     let options = options(&args, &model)?;
     let read = |paths: &[PathBuf]| -> anyhow::Result<runlog::Log> {
         let logs = paths.iter().map(|p| runlog::read(p, &model)).collect::<anyhow::Result<Vec<_>>>()?;
@@ -138,6 +145,7 @@ fn options(args: &Args, model: &arash_core::Model) -> anyhow::Result<DiagnoseOpt
         effects,
         transmission,
         refit: args.refit,
+        hold_friction: args.hold_friction,
         ..DiagnoseOptions::default()
     })
 }

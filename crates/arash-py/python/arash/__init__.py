@@ -187,6 +187,7 @@ def diagnose(robot, t, q, tau, *, model=None, validation=None, **options):
         the odd-numbered 2 s blocks of the training log.
     options: ``transmission`` (joint motion per motor radian, per joint; enables the cogging
         search), ``cutoff_hz`` (20), ``block_s`` (2), ``alpha`` (0.01), ``min_gain`` (0.2),
-        ``effects`` (list of identifiers to search), ``refit`` (False).
+        ``effects`` (list of identifiers to search), ``refit`` (False: with a model, refit only
+        its friction), ``hold_friction`` (False: with a model, True holds its friction too).
     """
     return Diagnosis(_diagnose(robot, t, q, tau, model=model, validation=validation, **options))

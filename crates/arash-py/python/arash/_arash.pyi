@@ -176,4 +176,5 @@ def _diagnose(
     min_gain: float = 0.2,
     effects: list[str] | None = None,
     refit: bool = False,
+    hold_friction: bool = False,
 ) -> RawDiagnosis: ...
