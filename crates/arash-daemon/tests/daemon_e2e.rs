@@ -10,6 +10,13 @@ use arash_core::flightlog::read_log;
 
 const ARASH: &str = env!("CARGO_BIN_EXE_arash");
 
+/// One test at a time: each runs a 1 kHz mock and a 1 kHz daemon under `--rt ignore`, and two
+/// such pairs on a 2-core machine starve each other (CI once saw a velocity-limit fault from it).
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    SERIAL.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
 /// A child process killed when dropped.
 struct Proc(Child);
 
@@ -114,6 +121,7 @@ fn logs(dir: &Path, prefix: &str) -> Vec<PathBuf> {
 
 #[test]
 fn an_excitation_run_through_the_daemon_identifies_the_mock() {
+    let _serial = serial();
     let dir = scratch("identify");
     let excitation = dir.join("excitation.json");
     let out = Command::new(ARASH)
@@ -195,6 +203,7 @@ fn an_excitation_run_through_the_daemon_identifies_the_mock() {
 
 #[test]
 fn link_faults_are_counted_logged_and_ridden_through() {
+    let _serial = serial();
     let dir = scratch("linkfaults");
     let (_mock, pty) =
         mock(&dir, Some("seed = 3\ncorrupt = 0.02\ndrop = 0.01\nreorder = 0.01\ndelay = 0.01\ndelay_frames = 3\n"));
@@ -218,6 +227,7 @@ fn link_faults_are_counted_logged_and_ridden_through() {
 
 #[test]
 fn silence_trips_the_link_timeout_ramps_down_and_writes_a_black_box() {
+    let _serial = serial();
     let dir = scratch("silence");
     let (_mock, pty) = mock(&dir, Some("silent_at_s = 3.0\n"));
     let mut d = daemon(&dir, &pty, "");
@@ -250,12 +260,14 @@ fn faults_during_a_run(name: &str, plan: &str, config: &str) -> serde_json::Valu
 
 #[test]
 fn a_stuck_encoder_trips_the_following_error() {
+    let _serial = serial();
     let faults = faults_during_a_run("stuck", "stuck_at_s = 4.0\nstuck_joint = 0\n", "");
     assert_eq!(faults, serde_json::json!(["following error"]));
 }
 
 #[test]
 fn a_current_mismatch_trips() {
+    let _serial = serial();
     let plan = "mismatch_at_s = 2.0\nmismatch_joint = 2\nmismatch_factor = 0.5\n";
     let faults = faults_during_a_run("mismatch", plan, "[safety]\nmismatch_fraction = 0.05\n");
     assert_eq!(faults, serde_json::json!(["current mismatch"]));
@@ -263,6 +275,7 @@ fn a_current_mismatch_trips() {
 
 #[test]
 fn after_kill_9_the_log_is_recovered_and_the_daemon_comes_back_disabled() {
+    let _serial = serial();
     let dir = scratch("kill9");
     let (_mock, pty) = mock(&dir, None);
     let mut d = daemon(&dir, &pty, "");
@@ -296,6 +309,7 @@ fn after_kill_9_the_log_is_recovered_and_the_daemon_comes_back_disabled() {
 
 #[test]
 fn systemd_hears_ready_after_telemetry_and_watchdog_while_running_and_sigterm_finishes_the_log() {
+    let _serial = serial();
     use std::os::unix::net::UnixDatagram;
     let dir = scratch("systemd");
     let notify = UnixDatagram::bind(dir.join("notify.sock")).unwrap();
@@ -371,6 +385,7 @@ fn systemd_hears_ready_after_telemetry_and_watchdog_while_running_and_sigterm_fi
 
 #[test]
 fn no_telemetry_within_the_startup_timeout_is_an_error_that_names_it() {
+    let _serial = serial();
     let dir = scratch("startup");
     let (_master, slave) = serialport::TTYPort::pair().unwrap();
     let pty = serialport::SerialPort::name(&slave).unwrap();
@@ -382,6 +397,7 @@ fn no_telemetry_within_the_startup_timeout_is_an_error_that_names_it() {
 
 #[test]
 fn idle_logs_rotate_by_size() {
+    let _serial = serial();
     let dir = scratch("rotate");
     let (_mock, pty) = mock(&dir, None);
     let mut d = daemon(&dir, &pty, "[log]\nrotate_mib = 0.02\n\n[socket]\nmode = \"0600\"\n");
@@ -401,6 +417,7 @@ fn idle_logs_rotate_by_size() {
 
 #[test]
 fn a_logging_failure_is_reported_and_the_control_loop_goes_on() {
+    let _serial = serial();
     let dir = scratch("logfail");
     let (_mock, pty) = mock(&dir, None);
     let mut d = daemon(&dir, &pty, "[log]\nrotate_s = 1.0\n");
