@@ -493,6 +493,13 @@ fn torque_acceleration(data: &Prepared, k: usize, delay: isize) -> Vec<f64> {
     data.kept.iter().map(|&i| filtered[(i as isize + delay) as usize]).collect()
 }
 
+/// The held-out split of the training log: fit on the even blocks, judge on the odd ones.
+fn block_split(block: &[usize]) -> (Vec<bool>, Vec<bool>) {
+    let train: Vec<bool> = block.iter().map(|b| b % 2 == 0).collect();
+    let test = train.iter().map(|t| !t).collect();
+    (train, test)
+}
+
 /// Block index of each kept sample; the last partial block joins the one before it.
 fn blocks(data: &Prepared, block_s: f64) -> (Vec<usize>, usize) {
     let per = (block_s * data.fs).max(1.0);
@@ -662,8 +669,7 @@ pub fn diagnose(
     };
     let (block, block_count) = blocks(&train_data, options.block_s);
     let split = || {
-        let train: Vec<bool> = block.iter().map(|b| b % 2 == 0).collect();
-        let test = train.iter().map(|t| !t).collect();
+        let (train, test) = block_split(&block);
         HeldOut::Blocks { train, test }
     };
 
@@ -884,13 +890,18 @@ pub fn diagnose(
         }
         offset += width;
     }
-    // Before: the declared model on the data as logged, without any shift found.
-    let unshifted = Problem::new(&train_data, train_data.tau(0), fixed_prediction(&train_data, 0), &weights, &free);
-    let unshifted_heldout = match &validation_data {
-        Some(v) => HeldOut::Validation(Problem::new(v, v.tau(0), fixed_prediction(v, 0), &weights, &free)),
-        None => split(),
+    // Before: the declared model on the data as logged, without any shift found (the problem
+    // already built when no shift was).
+    let before = if delay == 0 {
+        error_summary(&problem, &heldout, &pool, &[])
+    } else {
+        let unshifted = Problem::new(&train_data, train_data.tau(0), fixed_prediction(&train_data, 0), &weights, &free);
+        let unshifted_heldout = match &validation_data {
+            Some(v) => HeldOut::Validation(Problem::new(v, v.tau(0), fixed_prediction(v, 0), &weights, &free)),
+            None => split(),
+        };
+        error_summary(&unshifted, &unshifted_heldout, &pool, &[])
     };
-    let before = error_summary(&unshifted, &unshifted_heldout, &pool, &[]);
     let after = error_summary(&problem, &heldout, &pool, &chosen);
     let series = series(&train_data, &problem, &declared_only, &x_before, &final_cols, &x_after, &pool, &chosen);
 
@@ -1335,8 +1346,7 @@ fn delay_finding(search: &DelaySearch) -> Result<Finding, (isize, Rejection)> {
             b.iter().zip(&a).map(|(b, a)| 1.0 - a / b).collect()
         }
         None => {
-            let train_rows: Vec<bool> = block.iter().map(|b| b % 2 == 0).collect();
-            let test_rows: Vec<bool> = train_rows.iter().map(|t| !t).collect();
+            let (train_rows, test_rows) = block_split(block);
             let at = |d: isize| -> Vec<f64> {
                 let y = target(train, &fixed, d);
                 let x = least_squares(&declared_refs, &y, dof, Rows::Where(&train_rows))

@@ -249,7 +249,7 @@ pub fn central_difference(x: &[f64], dof: usize, h: f64, periodic: bool) -> Vec<
 
 /// Filter every column; a periodic signal is filtered as three copies end to end and the middle
 /// copy kept, so that the filter sees no ends.
-pub fn filter_columns(filter: &Butterworth, x: &[f64], dof: usize, periodic: bool) -> Result<Vec<f64>, FilterError> {
+fn filter_columns(filter: &Butterworth, x: &[f64], dof: usize, periodic: bool) -> Result<Vec<f64>, FilterError> {
     let n = x.len() / dof;
     let copies = if periodic { 3 } else { 1 };
     let mut column = Vec::with_capacity(copies * n);
