@@ -11,6 +11,7 @@ fn spec(seconds: f64) -> RunSpec {
     let scenario = Scenario { name: "nominal".into(), ..Scenario::default() };
     RunSpec {
         params: true_parameters(&model, &scenario),
+        effects: vec![],
         gains: RobustGains::paper(&model),
         scenario,
         trajectory: Trajectory::PaperValidation { omega: 0.5 },

@@ -12,7 +12,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use arash_core::control::{standard_controller, Controller, ControllerKind, Faults, RobustGains, Trajectory};
+use arash_core::control::{controller_with_effects, Controller, ControllerKind, Faults, RobustGains, Trajectory};
 use arash_core::identify::Identification;
 use arash_core::record::Mode;
 use arash_core::Model;
@@ -47,15 +47,16 @@ struct Operator {
     next_run: Mutex<u32>,
 }
 
-/// Build a controller of `kind` for `model` with parameters from `model_file` (or CAD).
+/// Build a controller of `kind` for `model` with parameters from `model_file` (or CAD). The
+/// model-based laws also compensate the effects a diagnosis added to the file.
 pub fn build_controller(
     model: &Model,
     kind: ControllerKind,
     model_file: Option<&std::path::Path>,
     gains: &RobustGains,
 ) -> anyhow::Result<Box<dyn Controller>> {
-    let params = match model_file {
-        None => model.cad_parameters(),
+    let (params, effects) = match model_file {
+        None => (model.cad_parameters(), vec![]),
         Some(path) => {
             let text =
                 std::fs::read_to_string(path).with_context(|| format!("reading model file {}", path.display()))?;
@@ -69,10 +70,11 @@ pub fn build_controller(
                  the {kind:?} controller needs a consistent model: identify with --method consistent",
                 path.display()
             );
-            id.controller_parameters(model).with_context(|| format!("using {}", path.display()))?
+            let params = id.controller_parameters(model).with_context(|| format!("using {}", path.display()))?;
+            (params, id.effects)
         }
     };
-    standard_controller(kind, model, &params, gains).context("no controller for kind `none`")
+    controller_with_effects(kind, model, &params, &effects, gains).context("no controller for kind `none`")
 }
 
 fn open_link(config: &DaemonConfig, dof: usize) -> anyhow::Result<Box<dyn MotorLink>> {

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use arash_core::control::gains::PaperUnits;
 use arash_core::control::{RobustGains, Trajectory};
+use arash_core::diagnose::EffectTerm;
 use arash_core::flightlog::{read_log as core_read_log, FlightLog, LogWriter};
 use arash_core::record::{Columns, TruthColumns};
 use arash_core::sim::{named_parameters, true_parameters, ControllerChoice, RunSpec, Scenario};
@@ -96,7 +97,7 @@ fn controller_params(
     scenario: &Scenario,
     choice: ControllerChoice,
     params: Option<&Bound<'_, PyAny>>,
-) -> PyResult<(String, Vec<f64>)> {
+) -> PyResult<(String, Vec<f64>, Vec<EffectTerm>)> {
     let model = &robot.model;
     let named = match params {
         None => Some(choice.default_params().map(str::to_string).ok_or_else(|| {
@@ -111,13 +112,14 @@ fn controller_params(
                 "params must be \"cad\", \"truth\", an Identification or an array, not {name:?}"
             ))
         })?;
-        return Ok((name, values));
+        return Ok((name, values, vec![]));
     }
     let params = params.expect("None is named above");
     if let Ok(identification) = params.cast::<Identification>() {
         choice.check_params("an identified model").map_err(PyValueError::new_err)?;
-        let values = identification.get().inner().controller_parameters(model).map_err(value_error)?;
-        return Ok(("identified".into(), values));
+        let inner = identification.get().inner();
+        let values = inner.controller_parameters(model).map_err(value_error)?;
+        return Ok(("identified".into(), values, inner.effects.clone()));
     }
     choice.check_params("an array").map_err(PyValueError::new_err)?;
     let array: PyReadonlyArrayDyn<'_, f64> = params
@@ -127,7 +129,7 @@ fn controller_params(
     if !b.single {
         return Err(PyValueError::new_err(format!("params must have shape ({},)", model.num_params())));
     }
-    Ok(("array".into(), b.values))
+    Ok(("array".into(), b.values, vec![]))
 }
 
 /// Run the simulated rig; see `arash.simulate`.
@@ -160,7 +162,7 @@ fn _simulate<'py>(
     let trajectory = Trajectory::from_json(trajectory_json, model.dof()).map_err(value_error)?;
     let units: PaperUnits = gain_units.parse().map_err(PyValueError::new_err)?;
     let choice: ControllerChoice = controller.parse().map_err(PyValueError::new_err)?;
-    let (params_source, values) = controller_params(robot, &scenario, choice, params)?;
+    let (params_source, values, effects) = controller_params(robot, &scenario, choice, params)?;
     let spec = RunSpec {
         duration_s: duration.unwrap_or_else(|| trajectory.default_duration()),
         scenario,
@@ -168,6 +170,7 @@ fn _simulate<'py>(
         controller: choice.kind(),
         params_source,
         params: values,
+        effects,
         gains: RobustGains::from_paper(model, units),
     };
     let mut rig = spec.rig(model).map_err(value_error)?;

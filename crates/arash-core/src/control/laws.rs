@@ -1,9 +1,11 @@
 //! The three control laws. Each owns a copy of the model, a [`Data`] workspace and its scratch
 //! buffers, so `step` never allocates.
 
+use super::effects::EffectFeedforward;
 use super::gains::{IdcGains, PdGains, RobustGains};
 use super::{Controller, ControllerKind, Desired};
 use crate::data::Data;
+use crate::diagnose::EffectTerm;
 use crate::dynamics::{gravity_torque, inverse_dynamics};
 use crate::model::Model;
 use crate::regressor::slotine_li_regressor;
@@ -53,13 +55,21 @@ pub struct InverseDynamicsControl {
     params: Vec<f64>,
     gains: IdcGains,
     acc: Vec<f64>,
+    effects: EffectFeedforward,
 }
 
 impl InverseDynamicsControl {
     pub fn new(model: &Model, params: &[f64], gains: IdcGains) -> Self {
         check_lengths(model, params, &[&gains.kp, &gains.kd, &gains.epsilon]);
         let acc = vec![0.0; model.dof()];
-        Self { model: model.clone(), data: Data::new(model), params: params.to_vec(), gains, acc }
+        let effects = EffectFeedforward::default();
+        Self { model: model.clone(), data: Data::new(model), params: params.to_vec(), gains, acc, effects }
+    }
+
+    /// Compensate the effects a diagnosis added to the model, too (see [`EffectFeedforward`]).
+    pub fn with_effects(mut self, effects: &[EffectTerm]) -> Self {
+        self.effects = EffectFeedforward::new(&self.model, effects, &self.gains.epsilon, &mut self.params);
+        self
     }
 }
 
@@ -68,7 +78,9 @@ impl Controller for InverseDynamicsControl {
         ControllerKind::Idc
     }
 
-    fn reset(&mut self) {}
+    fn reset(&mut self) {
+        self.effects.reset();
+    }
 
     fn step(&mut self, _dt: f64, q: &[f64], qd: &[f64], desired: &Desired, tau: &mut [f64]) {
         for k in 0..self.model.dof() {
@@ -81,6 +93,7 @@ impl Controller for InverseDynamicsControl {
             let fc = self.params[coulomb + 2 * k];
             tau[k] += fc * ((qd[k] / self.gains.epsilon[k]).tanh() - self.model.coulomb_shape.eval(qd[k]));
         }
+        self.effects.add(q, qd, &self.acc, tau);
     }
 }
 
@@ -102,6 +115,7 @@ pub struct RobustController {
     qdd_r: Vec<f64>,
     s: Vec<f64>,
     y: Vec<f64>,
+    effects: EffectFeedforward,
 }
 
 impl RobustController {
@@ -117,7 +131,15 @@ impl RobustController {
             qdd_r: vec![0.0; n],
             s: vec![0.0; n],
             y: vec![0.0; n * model.num_params()],
+            effects: EffectFeedforward::default(),
         }
+    }
+
+    /// Compensate the effects a diagnosis added to the model, too (see [`EffectFeedforward`]).
+    /// Their accelerations are the reference's, `q̈_r`, as in the Slotine–Li regressor.
+    pub fn with_effects(mut self, effects: &[EffectTerm]) -> Self {
+        self.effects = EffectFeedforward::new(&self.model, effects, &self.gains.epsilon, &mut self.params);
+        self
     }
 
     /// The sliding variable `s = ė + Λe` of the last step.
@@ -131,7 +153,9 @@ impl Controller for RobustController {
         ControllerKind::Robust
     }
 
-    fn reset(&mut self) {}
+    fn reset(&mut self) {
+        self.effects.reset();
+    }
 
     fn step(&mut self, _dt: f64, q: &[f64], qd: &[f64], desired: &Desired, tau: &mut [f64]) {
         let (n, big_p) = (self.model.dof(), self.model.num_params());
@@ -150,5 +174,6 @@ impl Controller for RobustController {
             row[coulomb + 2 * k] = (qd[k] / g.epsilon[k]).tanh();
             tau[k] = row.iter().zip(&self.params).map(|(y, p)| y * p).sum::<f64>() - g.kd[k] * self.s[k];
         }
+        self.effects.add(desired.q, desired.qd, &self.qdd_r, tau);
     }
 }

@@ -5,12 +5,14 @@
 //! computes one torque command without allocating, so that the daemon's 1 kHz cycle and the
 //! simulator share the exact same code.
 
+pub mod effects;
 pub mod estimator;
 pub mod gains;
 mod laws;
 pub mod safety;
 pub mod trajectory;
 
+pub use effects::EffectFeedforward;
 pub use estimator::VelocityEstimator;
 pub use gains::{IdcGains, PdGains, RobustGains};
 pub use laws::{InverseDynamicsControl, PdGravity, RobustController};
@@ -62,6 +64,18 @@ pub fn standard_controller(
     params: &[f64],
     robust: &RobustGains,
 ) -> Option<Box<dyn Controller>> {
+    controller_with_effects(kind, model, params, &[], robust)
+}
+
+/// [`standard_controller`], with the model-based laws also compensating `effects` found by a
+/// diagnosis ([`EffectFeedforward`]; PD with gravity compensation ignores them).
+pub fn controller_with_effects(
+    kind: ControllerKind,
+    model: &crate::Model,
+    params: &[f64],
+    effects: &[crate::diagnose::EffectTerm],
+    robust: &RobustGains,
+) -> Option<Box<dyn Controller>> {
     let q_home: Vec<f64> = model.joints.iter().map(|j| 0.5 * (j.lower + j.upper)).collect();
     let q_home: Vec<f64> = q_home.into_iter().map(|q| if q.is_finite() { q } else { 0.0 }).collect();
     match kind {
@@ -69,11 +83,12 @@ pub fn standard_controller(
         ControllerKind::Pd => {
             Some(Box::new(PdGravity::new(model, params, PdGains::critically_damped(model, params, &q_home, 5.0))))
         }
-        ControllerKind::Idc => Some(Box::new(InverseDynamicsControl::new(
-            model,
-            params,
-            IdcGains::matching(model, robust, params, &q_home),
-        ))),
-        ControllerKind::Robust => Some(Box::new(RobustController::new(model, params, robust.clone()))),
+        ControllerKind::Idc => Some(Box::new(
+            InverseDynamicsControl::new(model, params, IdcGains::matching(model, robust, params, &q_home))
+                .with_effects(effects),
+        )),
+        ControllerKind::Robust => {
+            Some(Box::new(RobustController::new(model, params, robust.clone()).with_effects(effects)))
+        }
     }
 }

@@ -7,7 +7,7 @@ use super::plant::PlantError;
 use super::rig::Rig;
 use super::scenario::Scenario;
 use super::truth::true_parameters;
-use crate::control::{standard_controller, ControllerKind, RobustGains, Trajectory};
+use crate::control::{controller_with_effects, ControllerKind, RobustGains, Trajectory};
 use crate::model::Model;
 
 /// A controller as `arash simulate` and `arash.simulate` name it.
@@ -85,6 +85,9 @@ pub struct RunSpec {
     pub params_source: String,
     /// The controller's parameter vector (P entries).
     pub params: Vec<f64>,
+    /// Effects a diagnosis added to the controller's model, compensated by the model-based laws.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub effects: Vec<crate::diagnose::EffectTerm>,
     pub gains: RobustGains,
     /// Seconds of rig time.
     pub duration_s: f64,
@@ -108,7 +111,7 @@ impl RunSpec {
         if !(self.duration_s.is_finite() && self.duration_s > 0.0) {
             return Err(PlantError::Parameters(format!("the duration must be positive, not {} s", self.duration_s)));
         }
-        let controller = standard_controller(self.controller, model, &self.params, &self.gains)
+        let controller = controller_with_effects(self.controller, model, &self.params, &self.effects, &self.gains)
             .ok_or_else(|| PlantError::Parameters("a simulated run needs a controller".into()))?;
         Rig::new(model, &self.scenario, self.trajectory.clone(), controller)
     }

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use arash_core::control::gains::PaperUnits;
 use arash_core::control::{RobustGains, Trajectory};
+use arash_core::diagnose::EffectTerm;
 use arash_core::flightlog::LogWriter;
 use arash_core::identify::Identification;
 use arash_core::sim::{named_parameters, ControllerChoice, RunSpec, Scenario};
@@ -49,20 +50,24 @@ pub struct Args {
     output: PathBuf,
 }
 
-fn controller_parameters(args: &Args, model: &Model, scenario: &Scenario) -> anyhow::Result<(String, Vec<f64>)> {
+/// The controller's parameter source, its parameters, and the effects a diagnosis added to them.
+type ControllerParameters = (String, Vec<f64>, Vec<EffectTerm>);
+
+fn controller_parameters(args: &Args, model: &Model, scenario: &Scenario) -> anyhow::Result<ControllerParameters> {
     let Some(source) = args.params.as_deref().or(args.controller.default_params()) else {
         bail!("--controller idc needs --params cad|truth|MODEL.json");
     };
     args.controller.check_params(source).map_err(anyhow::Error::msg)?;
-    let params = match named_parameters(model, scenario, source) {
-        Some(params) => params,
+    let (params, effects) = match named_parameters(model, scenario, source) {
+        Some(params) => (params, vec![]),
         None => {
             let text = std::fs::read_to_string(source).with_context(|| format!("reading model file {source}"))?;
             let identification = Identification::from_json(&text).with_context(|| format!("loading {source}"))?;
-            identification.controller_parameters(model).with_context(|| format!("using {source}"))?
+            let params = identification.controller_parameters(model).with_context(|| format!("using {source}"))?;
+            (params, identification.effects)
         }
     };
-    Ok((source.to_string(), params))
+    Ok((source.to_string(), params, effects))
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -77,7 +82,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| format!("reading trajectory {}", args.trajectory.display()))?;
     let trajectory = Trajectory::from_json(&text, model.dof())
         .with_context(|| format!("trajectory {}", args.trajectory.display()))?;
-    let (params_source, params) = controller_parameters(&args, &model, &scenario)?;
+    let (params_source, params, effects) = controller_parameters(&args, &model, &scenario)?;
     let spec = RunSpec {
         duration_s: args.duration.unwrap_or_else(|| trajectory.default_duration()),
         scenario,
@@ -85,6 +90,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         controller: args.controller.kind(),
         params_source,
         params,
+        effects,
         gains: RobustGains::from_paper(&model, args.gain_units),
     };
     simulate(&model, &urdf, &spec, &args.output, args.truth)

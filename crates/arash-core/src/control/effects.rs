@@ -1,0 +1,117 @@
+//! Feedforward of the effects a diagnosis added to a model (see `docs/diagnosis.md`), so that a
+//! model-based controller compensates them too.
+//!
+//! A term acts per cycle through [`EffectTerm::features`], the same function the diagnosis fitted
+//! it with. A payload is not a feedforward: it is a change of one body's inertial parameters, so
+//! [`EffectFeedforward::new`] folds it into the parameter vector the controller already uses.
+//! Three effects are properties of a log, not of the robot, and are left out: `delay`,
+//! `compliance` (its proxy needs the measured torque's second derivative) and `drift` (a
+//! function of the log's own clock).
+
+use crate::diagnose::{EffectKind, EffectTerm, TermState};
+use crate::model::Model;
+
+/// Effects with no meaning at run time (see the module documentation).
+pub fn runtime_applicable(kind: EffectKind) -> bool {
+    !matches!(kind, EffectKind::Delay | EffectKind::Compliance | EffectKind::Drift)
+}
+
+/// The joint-wise effect terms of a model file, with their state, evaluated once per cycle
+/// without allocating.
+#[derive(Clone, Debug, Default)]
+pub struct EffectFeedforward {
+    terms: Vec<EffectTerm>,
+    states: Vec<TermState>,
+}
+
+impl EffectFeedforward {
+    /// Keep the terms that act at run time; fold payloads into `params`. A friction term fitted
+    /// with `sign(q̇)` switches with the controller's `tanh(q̇/ε)` instead (`epsilon`, per joint),
+    /// as the controller's own Coulomb term does: a sign of a noisy velocity would chatter.
+    pub fn new(model: &Model, effects: &[EffectTerm], epsilon: &[f64], params: &mut [f64]) -> Self {
+        let mut terms = Vec::new();
+        for term in effects.iter().filter(|t| runtime_applicable(t.kind)) {
+            if term.kind == EffectKind::Payload {
+                if let Some(b) = model.bodies.iter().position(|b| Some(&b.name) == term.body.as_ref()) {
+                    for (p, c) in params[10 * b..10 * b + 4].iter_mut().zip(&term.coefficients) {
+                        *p += c;
+                    }
+                }
+                continue;
+            }
+            let mut term = term.clone();
+            if let (None, Some(k)) = (term.epsilon, term.joint) {
+                term.epsilon = epsilon.get(k).copied();
+            }
+            terms.push(term);
+        }
+        let states = vec![TermState::default(); terms.len()];
+        Self { terms, states }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.terms.is_empty()
+    }
+
+    /// Forget the terms' state (the hysteresis term's direction of travel).
+    pub fn reset(&mut self) {
+        self.states.fill(TermState::default());
+    }
+
+    /// Add the effects' torques at position `q`, velocity `qd` and acceleration `qdd` to `tau`.
+    pub fn add(&mut self, q: &[f64], qd: &[f64], qdd: &[f64], tau: &mut [f64]) {
+        let mut features = [0.0; 8];
+        for (term, state) in self.terms.iter().zip(&mut self.states) {
+            match term.joint {
+                Some(k) => {
+                    let width = term.width();
+                    term.features(q[k], qd[k], qdd[k], 0.0, 0.0, state, &mut features[..width]);
+                    tau[k] += features[..width].iter().zip(&term.coefficients).map(|(a, c)| a * c).sum::<f64>();
+                }
+                // Armature fitted on every joint at once: one coefficient per joint.
+                None if term.kind == EffectKind::Armature => {
+                    for ((t, a), c) in tau.iter_mut().zip(qdd).zip(&term.coefficients) {
+                        *t += c * a;
+                    }
+                }
+                None => {}
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_wiring_term_adds_its_cosine_series_and_a_payload_moves_the_body_parameters() {
+        let model = crate::arash_asist();
+        let mut wiring = EffectTerm::new(EffectKind::ConfigurationDisturbance, Some(1));
+        wiring.span = Some((-0.5, 1.0));
+        wiring.coefficients = vec![0.02, -0.01, 0.005, 0.001];
+        let mut payload = EffectTerm::new(EffectKind::Payload, None);
+        payload.body = Some(model.bodies[2].name.clone());
+        payload.coefficients = vec![0.05, 0.001, 0.0, -0.002];
+        let mut delay = EffectTerm::new(EffectKind::Delay, None);
+        delay.scale = Some(3.0);
+        let cad = model.cad_parameters();
+        let mut params = cad.clone();
+        let mut ff = EffectFeedforward::new(&model, &[wiring, payload, delay], &[0.01, 0.01, 0.001], &mut params);
+        let changed: Vec<usize> = (0..params.len()).filter(|&i| params[i] != cad[i]).collect();
+        assert_eq!(changed, vec![20, 21, 23], "the payload's m, m·cx and m·cz on body 2");
+        assert!((params[20] - cad[20] - 0.05).abs() < 1e-15);
+
+        let q = [0.1, 0.4, 0.01];
+        let mut tau = [1.0, 2.0, 3.0];
+        ff.add(&q, &[0.0; 3], &[0.0; 3], &mut tau);
+        let x = (0.4 + 0.5) / 1.5;
+        let pi = std::f64::consts::PI;
+        let expected = 0.02 * (pi * x).cos() - 0.01 * (2.0 * pi * x).cos()
+            + 0.005 * (3.0 * pi * x).cos()
+            + 0.001 * (4.0 * pi * x).cos();
+        assert_eq!(tau[0], 1.0);
+        assert_eq!(tau[2], 3.0);
+        assert!((tau[1] - 2.0 - expected).abs() < 1e-15, "{} vs {expected}", tau[1] - 2.0);
+    }
+}
