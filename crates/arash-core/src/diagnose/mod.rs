@@ -17,6 +17,7 @@
 //! 6. the best is added, the model refitted, and the search repeated until nothing passes.
 
 pub mod catalogue;
+mod refit;
 pub mod regression;
 mod report;
 
@@ -30,6 +31,7 @@ use crate::identify::{Identification, IdentifyError, IdentifyMethod, Metrics};
 use crate::model::{CoulombShape, Model};
 use crate::regressor::regressor;
 pub use catalogue::{EffectKind, EffectTerm, TermState};
+pub use refit::consistent_with_effects;
 use regression::{gram, least_squares, residual, rhs, test_group, Column, Rows};
 
 /// Settings of [`diagnose`]; `Default` gives the documented defaults.
@@ -285,6 +287,19 @@ fn prepare(
     Ok(Prepared { dof, fs, pre, q_raw: log.q.to_vec(), kept, declared, bodies })
 }
 
+/// Column `c` of a body's mass and first-moment columns, or exact zeros where it is round-off
+/// beside the others (a first moment along an axis the body turns about): the regression pins
+/// such a column's coefficient to zero instead of fitting noise with it.
+fn visible(columns: &[Vec<f64>], c: usize) -> Vec<f64> {
+    let size = |v: &[f64]| v.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+    let largest = columns.iter().map(|v| size(v)).fold(0.0, f64::max);
+    if size(&columns[c]) <= 1e-9 * largest {
+        vec![0.0; columns[c].len()]
+    } else {
+        columns[c].clone()
+    }
+}
+
 /// The base-parameter columns at the kept samples, Coulomb columns filtered like the torque (as
 /// identification does), and each body's mass and first-moment columns (payload candidates).
 fn declared_columns(
@@ -293,6 +308,19 @@ fn declared_columns(
     pre: &Preprocessed,
     kept: &[usize],
 ) -> (Vec<Column>, Vec<(usize, Vec<Column>)>) {
+    let dof = model.dof();
+    let mut columns = full_columns(model, pre, kept);
+    let bodies = (0..model.bodies.len())
+        .filter(|&b| columns[10 * b].iter().any(|v| *v != 0.0))
+        .map(|b| (b, (0..4).map(|c| Column::dense(visible(&columns[10 * b..10 * b + 4], c), dof)).collect()))
+        .collect();
+    let declared = base.independent.iter().map(|&j| Column::dense(std::mem::take(&mut columns[j]), dof)).collect();
+    (declared, bodies)
+}
+
+/// All P standard-parameter columns at the kept samples (`kept × dof` rows each), the Coulomb
+/// columns filtered like the torque.
+fn full_columns(model: &Model, pre: &Preprocessed, kept: &[usize]) -> Vec<Vec<f64>> {
     let (dof, big_p) = (model.dof(), model.num_params());
     let mut columns = vec![vec![0.0; kept.len() * dof]; big_p];
     let mut data = Data::new(model);
@@ -315,12 +343,7 @@ fn declared_columns(
             columns[j][s * dof + k] = filtered[i];
         }
     }
-    let bodies = (0..model.bodies.len())
-        .filter(|&b| columns[10 * b].iter().any(|v| *v != 0.0))
-        .map(|b| (b, (0..4).map(|c| Column::dense(columns[10 * b + c].clone(), dof)).collect()))
-        .collect();
-    let declared = base.independent.iter().map(|&j| Column::dense(std::mem::take(&mut columns[j]), dof)).collect();
-    (declared, bodies)
+    columns
 }
 
 /// The direction function of joint `k`'s friction terms: the model's `tanh(q̇/ε)`, widened to

@@ -177,17 +177,39 @@ pub fn gram(columns: &[&Column], dof: usize, rows: Rows) -> DMatrix<f64> {
     g
 }
 
-/// Solve `G x = b` for a Gram matrix, scaled to unit diagonal; `None` if singular.
+/// Solve `G x = b` for a Gram matrix, scaled to unit diagonal; `None` if singular. A column
+/// that is exactly zero (a direction the data cannot see, such as a payload's first moment along
+/// a joint axis) is pinned: its coefficient is zero.
 pub fn solve_scaled(g: &DMatrix<f64>, b: &DVector<f64>) -> Option<DVector<f64>> {
     let p = g.nrows();
     let d: Vec<f64> = (0..p).map(|i| g[(i, i)].sqrt()).collect();
-    if d.iter().any(|x| x.is_nan() || *x <= 0.0) {
+    if d.iter().any(|x| x.is_nan() || *x < 0.0) {
         return None;
     }
-    let scaled = DMatrix::from_fn(p, p, |i, j| g[(i, j)] / (d[i] * d[j]));
-    let rhs = DVector::from_fn(p, |i, _| b[i] / d[i]);
+    let pinned = |i: usize| d[i] == 0.0;
+    let scaled = DMatrix::from_fn(p, p, |i, j| match (pinned(i), pinned(j)) {
+        (false, false) => g[(i, j)] / (d[i] * d[j]),
+        _ => f64::from(i == j),
+    });
+    let rhs = DVector::from_fn(p, |i, _| if pinned(i) { 0.0 } else { b[i] / d[i] });
     let x = scaled.cholesky()?.solve(&rhs);
-    Some(DVector::from_fn(p, |i, _| x[i] / d[i]))
+    Some(DVector::from_fn(p, |i, _| if pinned(i) { 0.0 } else { x[i] / d[i] }))
+}
+
+/// The inverse of a Gram matrix on its non-zero columns; zero rows and columns stay zero.
+fn pinned_inverse(g: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let p = g.nrows();
+    let pinned: Vec<bool> = (0..p).map(|i| g[(i, i)] == 0.0).collect();
+    let mut h = g.clone();
+    for i in (0..p).filter(|&i| pinned[i]) {
+        h[(i, i)] = 1.0;
+    }
+    let mut inv = h.try_inverse()?;
+    for i in (0..p).filter(|&i| pinned[i]) {
+        inv.row_mut(i).fill(0.0);
+        inv.column_mut(i).fill(0.0);
+    }
+    Some(inv)
 }
 
 /// The residual `y − X c` on every row.
@@ -244,7 +266,7 @@ pub fn test_group(
             if own > 0.0 {
                 t.iter().map(|x| x * x).sum::<f64>() / own
             } else {
-                0.0
+                f64::INFINITY // pinned (see `solve_scaled`), not dependent
             }
         })
         .fold(f64::INFINITY, f64::min);
@@ -261,7 +283,7 @@ pub fn test_group(
         }
     }
     let meat = scores.transpose() * &scores * (blocks as f64 / (blocks - 1) as f64);
-    let h_inv = h.clone().try_inverse()?;
+    let h_inv = pinned_inverse(&h)?;
     let cov = &h_inv * meat * &h_inv;
     let sigma: Vec<f64> = (0..k).map(|i| cov[(i, i)].max(0.0).sqrt()).collect();
     let wald = solve_scaled(&cov, &gamma).map_or(f64::INFINITY, |x| gamma.dot(&x));

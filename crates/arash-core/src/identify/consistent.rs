@@ -55,7 +55,7 @@ pub enum ConsistentError {
 /// The physically consistent estimate.
 #[derive(Clone, Debug)]
 pub struct ConsistentFit {
-    /// The full standard parameter vector.
+    /// The full standard parameter vector, then the coefficients of any extra columns.
     pub params: Vec<f64>,
     /// Smallest eigenvalue of each body's pseudo-inertia (≥ 0 up to solver tolerance).
     pub min_pseudo_inertia_eigenvalue: Vec<f64>,
@@ -95,22 +95,30 @@ pub fn min_pseudo_inertia_eigenvalues(model: &Model, params: &[f64]) -> Vec<f64>
 }
 
 /// Solve the consistent problem for a stacked full regressor `w` (m × P) and torques `tau`.
+///
+/// `w` may carry columns beyond the P standard parameters (the effects a diagnosis found): their
+/// coefficients are free, follow the P parameters in [`ConsistentFit::params`], and are pulled
+/// toward zero as weakly as the others are pulled toward CAD.
 pub fn identify_consistent(
     model: &Model,
     w: &Mat<f64>,
     tau: &[f64],
     options: &ConsistentOptions,
 ) -> Result<ConsistentFit, ConsistentError> {
-    let p = model.num_params();
-    if w.ncols() != p {
-        return Err(ConsistentError::Shape { cols: w.ncols(), params: p });
+    let (standard, p) = (model.num_params(), w.ncols());
+    if p < standard {
+        return Err(ConsistentError::Shape { cols: w.ncols(), params: standard });
     }
     let m = w.nrows() as f64;
     let gram = w.transpose() * w;
     let tau_mat = Mat::<f64>::from_fn(tau.len(), 1, |i, _| tau[i]);
     let wt_tau = w.transpose() * &tau_mat;
-    let cad = model.cad_parameters();
-    let scales = parameter_scales(model, options.length_scale);
+    let mut cad = model.cad_parameters();
+    cad.resize(p, 0.0);
+    let mut scales = parameter_scales(model, options.length_scale);
+    // An extra column's scale: the size of a coefficient that moves the prediction by one
+    // RMS torque, from its own curvature.
+    scales.extend((standard..p).map(|i| (m / gram[(i, i)].max(f64::MIN_POSITIVE)).sqrt()));
     let mean_curvature = (0..p).map(|i| gram[(i, i)] * scales[i] * scales[i]).sum::<f64>() / p as f64;
     // ½ πᵀPπ + qᵀπ with P = 2(WᵀW + Λ)/m and q = −2(Wᵀτ + Λ π_CAD)/m.
     let reg = |i: usize| options.pull * (gram[(i, i)] + 1e-3 * mean_curvature / (scales[i] * scales[i]));
@@ -127,7 +135,7 @@ pub fn identify_consistent(
     }
     let p_mat = CscMatrix::new_from_triplets(p, p, p_triplets.0, p_triplets.1, p_triplets.2);
     let q: Vec<f64> = (0..p).map(|i| -2.0 * (wt_tau[(i, 0)] + reg(i) * cad[i]) / m).collect();
-    let (a_mat, b, cones) = constraints(model, options.stiffness_bounds);
+    let (a_mat, b, cones) = constraints(model, p, options.stiffness_bounds);
     let settings = DefaultSettingsBuilder::default().verbose(false).max_iter(200).build().expect("valid settings");
     let mut solver = DefaultSolver::new(&p_mat, &q, &a_mat, &b, &cones, settings).expect("well-formed problem");
     solver.solve();
@@ -141,7 +149,7 @@ pub fn identify_consistent(
     }
     let params = solver.solution.x.clone();
     Ok(ConsistentFit {
-        min_pseudo_inertia_eigenvalue: min_pseudo_inertia_eigenvalues(model, &params),
+        min_pseudo_inertia_eigenvalue: min_pseudo_inertia_eigenvalues(model, &params[..standard]),
         params,
         status,
         iterations: solver.solution.iterations,
@@ -150,8 +158,12 @@ pub fn identify_consistent(
 }
 
 /// `A π + s = b`, `s ∈ K`: non-negative friction, stiffness bounds, then one 4×4 PSD cone per body.
-fn constraints(model: &Model, (ke_lo, ke_hi): (f64, f64)) -> (CscMatrix<f64>, Vec<f64>, Vec<SupportedConeT<f64>>) {
-    let p = model.num_params();
+/// `p` counts the columns, extra ones (unconstrained) included.
+fn constraints(
+    model: &Model,
+    p: usize,
+    (ke_lo, ke_hi): (f64, f64),
+) -> (CscMatrix<f64>, Vec<f64>, Vec<SupportedConeT<f64>>) {
     let (mut rows, mut cols, mut vals, mut b) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut push = |row: usize, col: usize, val: f64, rows: &mut Vec<usize>, cols: &mut Vec<usize>| {
         rows.push(row);
@@ -165,7 +177,7 @@ fn constraints(model: &Model, (ke_lo, ke_hi): (f64, f64)) -> (CscMatrix<f64>, Ve
         b.push(0.0);
         row += 1;
     }
-    for i in model.elastic_offset()..p {
+    for i in model.elastic_offset()..model.num_params() {
         if ke_lo.is_finite() {
             push(row, i, -1.0, &mut rows, &mut cols);
             b.push(-ke_lo);

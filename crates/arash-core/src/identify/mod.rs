@@ -410,12 +410,34 @@ pub fn validate(
     tau: &[f64],
     preprocess_options: &PreprocessOptions,
 ) -> Result<Metrics, IdentifyError> {
+    let series = validation_series(model, identification, t, q, tau, preprocess_options)?;
+    Ok(joint_metrics(&series.measured, &series.predicted, model.dof()).into())
+}
+
+/// A validation run preprocessed as for [`validate`]: the time of each sample, the filtered
+/// measured torque and the model's prediction (both N × dof, row-major).
+#[derive(Clone, Debug)]
+pub struct ValidationSeries {
+    pub t: Vec<f64>,
+    pub measured: Vec<f64>,
+    pub predicted: Vec<f64>,
+}
+
+/// The series [`validate`] scores, for plotting measured against predicted torque.
+pub fn validation_series(
+    model: &Model,
+    identification: &Identification,
+    t: &[f64],
+    q: &[f64],
+    tau: &[f64],
+    preprocess_options: &PreprocessOptions,
+) -> Result<ValidationSeries, IdentifyError> {
     let options =
         PreprocessOptions { cutoff_hz: Some(identification.settings.cutoff_hz), ..preprocess_options.clone() };
     let pre = preprocess(t, q, tau, model.dof(), &options)?;
     // Through the stacked regressor, so that the Coulomb columns are filtered like the torque.
-    let (w, tau_f) = stack_full(model, &pre);
+    let (w, measured) = stack_full(model, &pre);
     let full = identification.full_or_base_vector();
     let predicted: Vec<f64> = estimate::apply(&w, &full);
-    Ok(joint_metrics(&tau_f, &predicted, model.dof()).into())
+    Ok(ValidationSeries { t: pre.t.clone(), measured, predicted })
 }

@@ -5,7 +5,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
-use arash_core::diagnose::{diagnose, DiagnoseOptions, Diagnosis, EffectKind, Log};
+use arash_core::diagnose::{consistent_with_effects, diagnose, DiagnoseOptions, Diagnosis, EffectKind, Log};
+use arash_core::identify::consistent::ConsistentOptions;
 use arash_core::identify::Identification;
 use arash_core::BaseParameters;
 
@@ -55,6 +56,10 @@ pub struct Args {
     /// Search only these effects (comma-separated identifiers; see docs/diagnosis.md).
     #[arg(long, value_delimiter = ',')]
     effects: Option<Vec<String>>,
+    /// Also fit the physically consistent model together with the effects found and write it
+    /// as model_consistent.json: the model the model-based controllers accept.
+    #[arg(long)]
+    consistent: bool,
     /// Directory for report.txt, diagnosis.json, model.json and the figures.
     #[arg(short, long)]
     output: PathBuf,
@@ -103,6 +108,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let report = diagnosis.report();
     println!("{report}");
     write_outputs(&args.output, &diagnosis, &report)?;
+    if args.consistent {
+        let refit = consistent_with_effects(
+            &model,
+            &base,
+            Log { t: &train.t, q: &train.q, tau: &train.tau },
+            &diagnosis.model,
+            &options,
+            &ConsistentOptions::default(),
+        )
+        .context("the consistent fit with the effects found failed")?;
+        super::write_atomically(&args.output.join("model_consistent.json"), &refit.to_json())?;
+        let names: Vec<String> = model.joints.iter().map(|j| j.name.clone()).collect();
+        println!("{}", consistent_summary(&refit, &names));
+    }
     println!("wrote {}/ (report.txt, diagnosis.json, model.json, figures)", args.output.display());
     Ok(())
 }
@@ -150,7 +169,23 @@ fn options(args: &Args, model: &arash_core::Model) -> anyhow::Result<DiagnoseOpt
     })
 }
 
-fn write_outputs(dir: &Path, diagnosis: &Diagnosis, report: &str) -> anyhow::Result<()> {
+/// One paragraph on the consistent refit: its fit and its effects' coefficients.
+pub fn consistent_summary(refit: &Identification, joint_names: &[String]) -> String {
+    let fp: Vec<String> = refit.training.fp_percent.iter().map(|f| format!("{f:.2}")).collect();
+    let worst = refit.min_pseudo_inertia_eigenvalue.iter().copied().fold(f64::INFINITY, f64::min);
+    let mut s = format!(
+        "The physically consistent model fitted with the effects found: training FP% {}, smallest pseudo-inertia eigenvalue {worst:.3e}",
+        fp.join(" / ")
+    );
+    for term in &refit.effects {
+        let coefficients: Vec<String> = term.coefficients.iter().map(|c| format!("{c:.4e}")).collect();
+        s += &format!("\n  {}: {}", term.describe(joint_names), coefficients.join(", "));
+    }
+    s
+}
+
+/// Write report.txt, diagnosis.json, model.json and the figures into `dir`.
+pub fn write_outputs(dir: &Path, diagnosis: &Diagnosis, report: &str) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     super::write_atomically(&dir.join("report.txt"), report)?;
     super::write_atomically(&dir.join("diagnosis.json"), &diagnosis.to_json())?;

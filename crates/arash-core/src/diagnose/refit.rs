@@ -1,0 +1,80 @@
+//! The physically consistent model and the effects a diagnosis found, fitted together.
+//!
+//! The diagnosis estimates each effect by least squares beside the declared model. A controller
+//! that compensates the effects needs a consistent model too (it inverts `M(q)`), and fitting the
+//! two separately lets each absorb the other's error: the inertia soaks up part of a wiring
+//! torque, or a "payload" soaks up the inertia's error. Here the SDP of
+//! [`crate::identify::consistent`] gets the effects' columns as free extra columns, so that both
+//! come from one fit on the same data.
+
+use faer::Mat;
+
+use super::{full_columns, prepare, term_columns, DiagnoseError, DiagnoseOptions, EffectKind, Log};
+use crate::base_parameters::BaseParameters;
+use crate::control::effects::runtime_applicable;
+use crate::identify::consistent::{identify_consistent, ConsistentOptions};
+use crate::identify::estimate::joint_metrics;
+use crate::identify::{Identification, IdentifyMethod};
+use crate::model::Model;
+
+/// Refit `found` (a diagnosis's updated model) as a physically consistent model with its
+/// effects, on the training log the diagnosis used. The effects that act at run time are kept
+/// (not `delay`, `compliance` or `drift`, whose log-specific meaning a controller cannot use;
+/// a delay the diagnosis found still aligns the data); a `payload` is a change of inertial
+/// parameters, which the consistent fit estimates anyway. The effects' standard deviations are
+/// not re-estimated and are left empty.
+pub fn consistent_with_effects(
+    model: &Model,
+    base: &BaseParameters,
+    train: Log,
+    found: &Identification,
+    options: &DiagnoseOptions,
+    consistent: &ConsistentOptions,
+) -> Result<Identification, DiagnoseError> {
+    let (dof, standard) = (model.dof(), model.num_params());
+    let data = prepare(model, base, train, options, options.max_delay_s).map_err(DiagnoseError::Training)?;
+    let delay = found
+        .effects
+        .iter()
+        .find(|t| t.kind == EffectKind::Delay)
+        .and_then(|t| t.scale)
+        .map_or(0, |s| s.round() as isize);
+    let mut terms: Vec<_> =
+        found.effects.iter().filter(|t| runtime_applicable(t.kind) && t.kind != EffectKind::Payload).cloned().collect();
+    let mut columns = full_columns(model, &data.pre, &data.kept);
+    let mut widths = Vec::with_capacity(terms.len());
+    for term in &terms {
+        let term_columns = term_columns(model, term, &data, delay);
+        widths.push(term_columns.len());
+        for column in term_columns {
+            let rows = data.samples() * dof;
+            columns.push((0..rows).map(|r| column.at(r / dof, r % dof, dof)).collect());
+        }
+    }
+    let tau = data.tau(delay);
+    let w = Mat::<f64>::from_fn(tau.len(), columns.len(), |i, j| columns[j][i]);
+    let fit = identify_consistent(model, &w, &tau, consistent).map_err(crate::identify::IdentifyError::from)?;
+    let predicted: Vec<f64> =
+        (0..tau.len()).map(|i| columns.iter().zip(&fit.params).map(|(c, x)| c[i] * x).sum()).collect();
+
+    let mut extra = fit.params[standard..].iter().copied();
+    for (term, width) in terms.iter_mut().zip(widths) {
+        term.coefficients = extra.by_ref().take(width).collect();
+        term.sigma = vec![];
+    }
+    let params = fit.params[..standard].to_vec();
+    let mut beta = vec![0.0; base.rank];
+    base.project(&params, &mut beta);
+    let mut model_out = found.clone();
+    model_out.beta = beta;
+    model_out.params = Some(params);
+    model_out.min_pseudo_inertia_eigenvalue = fit.min_pseudo_inertia_eigenvalue;
+    model_out.training = joint_metrics(&tau, &predicted, dof).into();
+    model_out.settings.method = IdentifyMethod::Consistent;
+    model_out.settings.pull = consistent.pull;
+    if delay != 0 {
+        terms.extend(found.effects.iter().filter(|t| t.kind == EffectKind::Delay).cloned());
+    }
+    model_out.effects = terms;
+    Ok(model_out)
+}
