@@ -170,6 +170,47 @@ pub fn lines(
     finish(chart, &root, path)
 }
 
+/// One panel of [`panels`]: its y-axis label and its named series `(name, x, y)`.
+pub struct Panel<'a> {
+    pub y_label: String,
+    pub series: Vec<(&'a str, &'a [f64], Vec<f64>)>,
+}
+
+/// Panels stacked vertically over a shared x-axis (one per joint, as in the paper's figures),
+/// the series in the same colours in every panel.
+pub fn panels(path: &Path, title: &str, x_label: &str, panels: &[Panel]) -> anyhow::Result<()> {
+    fonts();
+    let height = 80 + 260 * panels.len() as u32;
+    let root = BitMapBackend::new(path, (WIDTH, height)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let root = root.titled(title, ("sans-serif", 22))?;
+    let (x0, x1) = range(panels.iter().flat_map(|p| p.series.iter().flat_map(|s| s.1.iter())));
+    for (i, (area, panel)) in root.split_evenly((panels.len().max(1), 1)).iter().zip(panels).enumerate() {
+        let (y0, y1) = range(panel.series.iter().flat_map(|s| s.2.iter()));
+        let mut chart = ChartBuilder::on(area)
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(80)
+            .build_cartesian_2d(x0..x1, y0..y1)?;
+        chart.configure_mesh().x_desc(x_label).y_desc(&panel.y_label).label_style(("sans-serif", 14)).draw()?;
+        for (i, (name, x, y)) in panel.series.iter().enumerate() {
+            let color = Palette99::pick(i).to_rgba();
+            let step = thin(x.len());
+            let points = x.iter().zip(y.iter()).step_by(step).map(|(a, b)| (*a, *b));
+            chart
+                .draw_series(LineSeries::new(points, color.stroke_width(2)))?
+                .label(*name)
+                .legend(move |(px, py)| PathElement::new(vec![(px, py), (px + 20, py)], color.stroke_width(2)));
+        }
+        // One legend, on the first panel: the colours are the same in every panel.
+        if i == 0 {
+            chart.configure_series_labels().background_style(WHITE.mix(0.6)).border_style(BLACK).draw()?;
+        }
+    }
+    root.present().with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -188,7 +229,11 @@ mod tests {
         bars_before_after(&bars, "FP%", "%", &["yaw".into(), "pitch".into()], &[80.0, 90.0], &[95.0, 99.0]).unwrap();
         let line = dir.join("line.png");
         lines(&line, "q", "t (s)", "rad", &[("q", &x, &y)]).unwrap();
-        for path in [scatter, bars, line] {
+        let stacked = dir.join("panels.png");
+        let panel =
+            |label: &str| Panel { y_label: label.into(), series: vec![("a", &x[..], y.clone()), ("b", &x, z.clone())] };
+        panels(&stacked, "two joints", "t (s)", &[panel("rad"), panel("m")]).unwrap();
+        for path in [scatter, bars, line, stacked] {
             let bytes = std::fs::read(&path).unwrap();
             assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{}", path.display());
             assert!(bytes.len() > 5000, "{} is suspiciously small", path.display());

@@ -15,6 +15,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The paper end to end on the simulated rig, through the daemon: excitation, calibration,
+    /// diagnosis, tracking three ways, and a report under logs/<run>/report/.
+    Demo(commands::demo::Args),
     /// Describe a robot: bodies, joints, parameter count and base parameters.
     Model(commands::model::Args),
     /// Design a persistently exciting Fourier trajectory and write it as JSON.
@@ -54,6 +57,7 @@ fn main() -> std::process::ExitCode {
 
 fn run(command: Command) -> anyhow::Result<()> {
     match command {
+        Command::Demo(args) => commands::demo::run(args),
         Command::Model(args) => commands::model::run(args),
         Command::Excite(args) => commands::excite::run(args),
         Command::Identify(args) => commands::identify::run(args),

@@ -60,6 +60,11 @@ pub struct Args {
     /// as model_consistent.json: the model the model-based controllers accept.
     #[arg(long)]
     consistent: bool,
+    /// Low-pass cut-off (Hz) of that fit; default: --cutoff. The calibration's own cut-off (in
+    /// its model file as settings.cutoff_hz) gives the controller a model that sees the data as
+    /// the calibrated one did.
+    #[arg(long, requires = "consistent")]
+    consistent_cutoff: Option<f64>,
     /// Directory for report.txt, diagnosis.json, model.json and the figures.
     #[arg(short, long)]
     output: PathBuf,
@@ -114,7 +119,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             &base,
             Log { t: &train.t, q: &train.q, tau: &train.tau },
             &diagnosis.model,
-            &options,
+            &DiagnoseOptions { cutoff_hz: args.consistent_cutoff.unwrap_or(options.cutoff_hz), ..options.clone() },
             &ConsistentOptions::default(),
         )
         .context("the consistent fit with the effects found failed")?;
@@ -127,7 +132,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 fn options(args: &Args, model: &arash_core::Model) -> anyhow::Result<DiagnoseOptions> {
-    for (name, v) in [("--cutoff", args.cutoff), ("--block", args.block)] {
+    for (name, v) in [
+        ("--cutoff", args.cutoff),
+        ("--block", args.block),
+        ("--consistent-cutoff", args.consistent_cutoff.unwrap_or(1.0)),
+    ] {
         anyhow::ensure!(v.is_finite() && v > 0.0, "{name} must be positive, not {v}");
     }
     anyhow::ensure!(args.alpha > 0.0 && args.alpha < 1.0, "--alpha must lie in (0, 1), not {}", args.alpha);

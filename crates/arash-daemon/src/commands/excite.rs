@@ -77,29 +77,40 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     })
     .context("designing the excitation")?;
     eprintln!();
-    let (t, q, qd, qdd) = excitation.sample(args.rate, 1);
+    let samples = write(&args.output, &model, &excitation, args.rate)?;
+    println!(
+        "excitation: L = {}, T = {} s, normalised condition number κ = {:.3}; wrote {} ({samples} samples at {} Hz)",
+        excitation.harmonics,
+        excitation.period_s,
+        excitation.condition_number,
+        args.output.display(),
+        args.rate
+    );
+    Ok(())
+}
+
+/// Write the trajectory file: the coefficients, and one period sampled at `rate` Hz. Returns
+/// the number of samples.
+pub fn write(
+    path: &std::path::Path,
+    model: &arash_core::Model,
+    excitation: &Excitation,
+    rate: f64,
+) -> anyhow::Result<usize> {
+    let (t, q, qd, qdd) = excitation.sample(rate, 1);
     let file = TrajectoryFile {
         format: "arash-trajectory/1",
         robot: &model.name,
         joint_names: model.joints.iter().map(|j| j.name.clone()).collect(),
-        excitation: &excitation,
-        sample_rate_hz: args.rate,
+        excitation,
+        sample_rate_hz: rate,
         t,
         q: rows(&q, model.dof()),
         qd: rows(&qd, model.dof()),
         qdd: rows(&qdd, model.dof()),
     };
-    super::write_atomically(&args.output, &serde_json::to_string(&file)?)?;
-    println!(
-        "excitation: L = {}, T = {} s, normalised condition number κ = {:.3}; wrote {} ({} samples at {} Hz)",
-        excitation.harmonics,
-        excitation.period_s,
-        excitation.condition_number,
-        args.output.display(),
-        file.t.len(),
-        args.rate
-    );
-    Ok(())
+    super::write_atomically(path, &serde_json::to_string(&file)?)?;
+    Ok(file.t.len())
 }
 
 fn rows(x: &[f64], dof: usize) -> Vec<Vec<f64>> {

@@ -67,11 +67,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let logs = args.logs.iter().map(|p| runlog::read(p, &model)).collect::<anyhow::Result<Vec<_>>>()?;
     let log = runlog::concatenate(logs);
     let cutoff = args.cutoff.or_else(|| {
-        // Five times the reference's top frequency: closed-loop positions carry controller
-        // dither that fools a cut-off read off their spectrum.
-        let bandwidth = log.trajectory.as_ref()?.bandwidth_hz()?;
-        let cutoff = (5.0 * bandwidth).max(1.0);
-        eprintln!("cut-off {cutoff:.2} Hz: 5 × the logged trajectory's top frequency ({bandwidth:.3} Hz)");
+        let cutoff = default_cutoff(&log)?;
+        eprintln!("cut-off {cutoff:.2} Hz: 5 × the logged trajectory's top frequency");
         Some(cutoff)
     });
     let options = IdentifyOptions {
@@ -112,4 +109,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     super::write_atomically(&args.output, &identification.to_json())?;
     println!("wrote {}", args.output.display());
     Ok(())
+}
+
+/// The low-pass cut-off for a log of a known trajectory: five times its top frequency (at least
+/// 1 Hz). Closed-loop positions carry controller dither that fools a cut-off read off their
+/// spectrum. `None` when the log names no trajectory (or a hold).
+pub fn default_cutoff(log: &runlog::Log) -> Option<f64> {
+    Some((5.0 * log.trajectory.as_ref()?.bandwidth_hz()?).max(1.0))
 }

@@ -1,5 +1,6 @@
 pub mod ctl;
 pub mod daemon;
+pub mod demo;
 pub mod diagnose;
 pub mod excite;
 pub mod identify;

@@ -1,0 +1,380 @@
+//! The demo's report: `report.md` with the tables, `summary.json` with the headline numbers, and
+//! figures in the spirit of the paper's Figs. 3–7 (the excitation, measured against predicted
+//! torque, the tracking error, the control effort), beside the diagnosis's own in `diagnosis/`.
+//!
+//! Angles are shown in degrees and insertion in µm or mm here, at the edge where people read.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use arash_core::diagnose::Diagnosis;
+use arash_core::flightlog::read_log;
+use arash_core::identify::excitation::Excitation;
+use arash_core::identify::{Identification, ValidationSeries};
+use arash_core::model::JointKind;
+use arash_core::Model;
+use arash_daemon::figures::{panels, Panel};
+
+/// What the calibration step produced.
+pub struct Calibration {
+    pub ols: Identification,
+    pub consistent: Identification,
+    /// Table II, as printed.
+    pub table_ii: String,
+    /// Measured against predicted torque on one validation run (its ω).
+    pub torque: Option<(f64, ValidationSeries)>,
+}
+
+/// One tracking run: its errors, and the series the figures need.
+pub struct TrackingRun {
+    pub label: String,
+    pub log: String,
+    /// Per joint, SI.
+    pub max_error: Vec<f64>,
+    pub rms_error: Vec<f64>,
+    t: Vec<f64>,
+    /// Row-major N × dof.
+    error: Vec<f64>,
+    tau_cmd: Vec<f64>,
+    /// Cycles after `settle_s` left out as [`disturbed`].
+    pub left_out: usize,
+    faults: u32,
+}
+
+impl TrackingRun {
+    /// Read a tracking log and score the cycles from `settle_s` seconds into the run on (the
+    /// transient after the start is not tracking: the validation trajectories start moving, the
+    /// approach ends at rest), except those [`disturbed`] by the host.
+    pub fn read(label: &str, path: &Path, settle_s: f64) -> anyhow::Result<Self> {
+        let log = read_log(path)?;
+        let c = &log.cycles;
+        let dof = log.joint_names.len();
+        anyhow::ensure!(!log.is_empty(), "the tracking log {} is empty", path.display());
+        let disturbed = disturbed(&c.t);
+        let scored = |i: usize| c.t[i] - c.t[0] >= settle_s;
+        let kept: Vec<usize> = (0..log.len()).filter(|&i| scored(i) && !disturbed[i]).collect();
+        let left_out = (0..log.len()).filter(|&i| scored(i) && disturbed[i]).count();
+        anyhow::ensure!(!kept.is_empty(), "the tracking log {} is shorter than {settle_s} s", path.display());
+        let rows = |x: &[f64]| -> Vec<f64> { kept.iter().flat_map(|&i| x[i * dof..(i + 1) * dof].to_vec()).collect() };
+        let error: Vec<f64> = rows(&c.q).iter().zip(rows(&c.q_des)).map(|(q, d)| q - d).collect();
+        let column = |k: usize| error.iter().skip(k).step_by(dof);
+        let n = kept.len() as f64;
+        let max_error = (0..dof).map(|k| column(k).fold(0.0_f64, |m, e| m.max(e.abs()))).collect();
+        let rms_error = (0..dof).map(|k| (column(k).map(|e| e * e).sum::<f64>() / n).sqrt()).collect();
+        let t0 = c.t[0];
+        Ok(Self {
+            label: label.into(),
+            log: path.display().to_string(),
+            max_error,
+            rms_error,
+            t: kept.iter().map(|&i| c.t[i] - t0).collect(),
+            error,
+            tau_cmd: rows(&c.tau_cmd),
+            left_out,
+            faults: c.faults.iter().fold(0, |a, f| a | f),
+        })
+    }
+}
+
+/// A stall of this many cycles or more is a missed deadline of the host...
+const STALL_CYCLES: usize = 3;
+/// ...and the controller's recovery from it takes this many cycles.
+const RECOVERY_CYCLES: usize = 50;
+
+/// Cycles whose error measures the host rather than the controller. A cycle without new
+/// telemetry repeats the last measurement and its time (see `rt::cycle`) while the reference
+/// moves on, so its "error" is the link's latency. After a stall of [`STALL_CYCLES`] or more,
+/// which the daemon only suffers on a host that is not real-time (`--rt ignore`, as in the
+/// demo), the mock motor applies the queued commands in a burst; the next [`RECOVERY_CYCLES`]
+/// are the recovery from that, not tracking.
+fn disturbed(t: &[f64]) -> Vec<bool> {
+    let mut out = vec![false; t.len()];
+    let mut missing = 0;
+    for i in 1..t.len() {
+        if t[i] > t[i - 1] {
+            if missing >= STALL_CYCLES {
+                let end = (i + RECOVERY_CYCLES).min(t.len());
+                out[i..end].fill(true);
+            }
+            missing = 0;
+        } else {
+            out[i] = true;
+            missing += 1;
+        }
+    }
+    out
+}
+
+/// The three tracking runs at `omega`.
+pub struct Tracking {
+    pub omega: f64,
+    /// Whether each joint is prismatic (shown in µm) or revolute (in degrees).
+    pub prismatic: Vec<bool>,
+    pub runs: Vec<TrackingRun>,
+}
+
+/// A joint quantity in its display unit.
+fn shown(prismatic: bool, x: f64) -> f64 {
+    if prismatic {
+        x * 1e6
+    } else {
+        x.to_degrees()
+    }
+}
+
+fn unit(prismatic: bool) -> &'static str {
+    if prismatic {
+        "µm"
+    } else {
+        "°"
+    }
+}
+
+impl Tracking {
+    /// Maximum and RMS error per joint for each run, and each run's improvement over the first
+    /// (the CAD baseline) in maximum error.
+    pub fn table(&self, joint_names: &[String]) -> String {
+        let mut s = format!(
+            "Tracking the validation trajectory at ω = {} rad/s: encoder-measured error over its second period \
+             (cycles left out: without new telemetry, or recovering from a stall of the host)\n",
+            self.omega
+        );
+        let _ = write!(s, "| controller |");
+        for (name, &p) in joint_names.iter().zip(&self.prismatic) {
+            let _ = write!(s, " {name} max ({u}) | {name} RMS ({u}) |", u = unit(p));
+        }
+        s.push_str(" cycles left out | faults |\n|---|");
+        s.push_str(&"---|---|".repeat(joint_names.len()));
+        s.push_str("---|---|\n");
+        for run in &self.runs {
+            let _ = write!(s, "| {} |", run.label);
+            for (k, &p) in self.prismatic.iter().enumerate() {
+                let _ = write!(s, " {:.4} | {:.4} |", shown(p, run.max_error[k]), shown(p, run.rms_error[k]));
+            }
+            let faults = if run.faults == 0 { "none".to_string() } else { format!("{:#x}", run.faults) };
+            let _ = writeln!(s, " {} | {faults} |", run.left_out);
+        }
+        if let Some(baseline) = self.runs.first() {
+            for run in &self.runs[1..] {
+                let ratios: Vec<String> = joint_names
+                    .iter()
+                    .enumerate()
+                    .map(|(k, name)| format!("{name} {:.1}×", baseline.max_error[k] / run.max_error[k]))
+                    .collect();
+                let _ = writeln!(s, "\n{}: max error cut by {} against the CAD baseline", run.label, ratios.join(", "));
+            }
+        }
+        s
+    }
+}
+
+fn joint_names(model: &Model) -> Vec<String> {
+    model.joints.iter().map(|j| j.name.clone()).collect()
+}
+
+pub fn prismatic(model: &Model) -> Vec<bool> {
+    model.joints.iter().map(|j| j.kind == JointKind::Prismatic).collect()
+}
+
+/// Column `k` of a row-major N × dof array, in display units.
+fn joint_column(x: &[f64], k: usize, dof: usize, prismatic: bool, scale_prismatic: f64) -> Vec<f64> {
+    x.iter().skip(k).step_by(dof).map(|v| if prismatic { v * scale_prismatic } else { v.to_degrees() }).collect()
+}
+
+/// Write the report into `dir`; returns how many figures it holds (the diagnosis's included).
+pub fn write(
+    dir: &Path,
+    model: &Model,
+    excitation: &Excitation,
+    calibration: &Calibration,
+    diagnosis: &Diagnosis,
+    tracking: &Tracking,
+) -> anyhow::Result<usize> {
+    let names = joint_names(model);
+    let dof = names.len();
+    let kinds = prismatic(model);
+    let mut figures = Vec::new();
+
+    // Fig. 3: the excitation, one period.
+    let (t, q, _, _) = excitation.sample(200.0, 1);
+    let excitation_panels: Vec<Panel> = (0..dof)
+        .map(|k| Panel {
+            y_label: format!("{} ({})", names[k], if kinds[k] { "mm" } else { "°" }),
+            series: vec![("q_d", &t[..], joint_column(&q, k, dof, kinds[k], 1e3))],
+        })
+        .collect();
+    let path = dir.join("excitation.png");
+    panels(
+        &path,
+        &format!("Excitation trajectory (κ = {:.3})", excitation.condition_number),
+        "t (s)",
+        &excitation_panels,
+    )?;
+    figures.push(("The excitation trajectory, one period", path));
+
+    // Figs. 4–5: measured against predicted torque on a validation run.
+    if let Some((omega, s)) = &calibration.torque {
+        let torque_panels: Vec<Panel> = (0..dof)
+            .map(|k| {
+                let column = |x: &[f64]| x.iter().skip(k).step_by(dof).copied().collect::<Vec<f64>>();
+                Panel {
+                    y_label: format!("{} ({})", names[k], if kinds[k] { "N" } else { "N·m" }),
+                    series: vec![
+                        ("measured", &s.t[..], column(&s.measured)),
+                        ("predicted", &s.t[..], column(&s.predicted)),
+                    ],
+                }
+            })
+            .collect();
+        let path = dir.join("torque.png");
+        panels(
+            &path,
+            &format!("Measured and predicted torque, validation at ω = {omega} rad/s (consistent model)"),
+            "t (s)",
+            &torque_panels,
+        )?;
+        figures.push(("Measured (filtered) against predicted torque on a validation run", path));
+    }
+
+    // Figs. 6–7: tracking error and control effort, one series per controller.
+    for (file, title, caption, values) in [
+        ("tracking_error.png", "Tracking error", "The tracking error of the three controllers", true),
+        (
+            "control_effort.png",
+            "Control effort (commanded torque)",
+            "The commanded torque of the three controllers",
+            false,
+        ),
+    ] {
+        let per_joint: Vec<Panel> = (0..dof)
+            .map(|k| Panel {
+                y_label: if values {
+                    format!("{} error ({})", names[k], unit(kinds[k]))
+                } else {
+                    format!("{} ({})", names[k], if kinds[k] { "N" } else { "N·m" })
+                },
+                series: tracking
+                    .runs
+                    .iter()
+                    .map(|r| {
+                        let y = if values {
+                            joint_column(&r.error, k, dof, kinds[k], 1e6)
+                        } else {
+                            r.tau_cmd.iter().skip(k).step_by(dof).copied().collect()
+                        };
+                        (r.label.as_str(), &r.t[..], y)
+                    })
+                    .collect(),
+            })
+            .collect();
+        let path = dir.join(file);
+        panels(&path, &format!("{title}, ω = {} rad/s", tracking.omega), "t (s)", &per_joint)?;
+        figures.push((caption, path));
+    }
+
+    let diagnosis_figures = list_pngs(&dir.join("diagnosis"))?;
+    let markdown = markdown(model, excitation, calibration, diagnosis, tracking, &figures, &diagnosis_figures);
+    super::super::write_atomically(&dir.join("report.md"), &markdown)?;
+    super::super::write_atomically(&dir.join("summary.json"), &summary(model, calibration, diagnosis, tracking))?;
+    Ok(figures.len() + diagnosis_figures.len())
+}
+
+fn list_pngs(dir: &Path) -> anyhow::Result<Vec<String>> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)?
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".png"))
+        .collect();
+    names.sort();
+    Ok(names)
+}
+
+fn markdown(
+    model: &Model,
+    excitation: &Excitation,
+    calibration: &Calibration,
+    diagnosis: &Diagnosis,
+    tracking: &Tracking,
+    figures: &[(&str, std::path::PathBuf)],
+    diagnosis_figures: &[String],
+) -> String {
+    let names = joint_names(model);
+    let file = |p: &std::path::PathBuf| p.file_name().map_or(String::new(), |f| f.to_string_lossy().into_owned());
+    let mut s = String::from("# arash demo: calibration, diagnosis and control of the simulated rig\n\n");
+    let _ = writeln!(
+        s,
+        "Excitation: L = {}, T = {} s, normalised condition number κ = {:.3}.\n",
+        excitation.harmonics, excitation.period_s, excitation.condition_number
+    );
+    let _ = writeln!(s, "![{}]({})\n", figures[0].0, file(&figures[0].1));
+    let _ = writeln!(s, "## Calibration\n\n```\nTable I (OLS)\n{}\n```\n", calibration.ols.table());
+    let _ = writeln!(s, "```\nPhysically consistent fit\n{}\n```\n", calibration.consistent.table());
+    let _ = writeln!(s, "```\n{}\n```\n", calibration.table_ii);
+    for (caption, path) in &figures[1..] {
+        if file(path) == "torque.png" {
+            let _ = writeln!(s, "![{caption}]({})\n", file(path));
+        }
+    }
+    let _ = writeln!(s, "## Diagnosis\n\n```\n{}\n```\n", diagnosis.report());
+    for name in diagnosis_figures {
+        let _ = writeln!(s, "![{name}](diagnosis/{name})\n");
+    }
+    let _ = writeln!(s, "## Tracking\n\n{}\n", tracking.table(&names));
+    for (caption, path) in &figures[1..] {
+        if file(path) != "torque.png" {
+            let _ = writeln!(s, "![{caption}]({})\n", file(path));
+        }
+    }
+    s
+}
+
+/// The headline numbers, for scripts and tests.
+fn summary(model: &Model, calibration: &Calibration, diagnosis: &Diagnosis, tracking: &Tracking) -> String {
+    let runs: Vec<serde_json::Value> = tracking
+        .runs
+        .iter()
+        .map(|r| {
+            serde_json::json!({
+                "controller": r.label, "log": r.log, "max_error": r.max_error, "rms_error": r.rms_error,
+                "faults": r.faults, "cycles_left_out": r.left_out,
+            })
+        })
+        .collect();
+    let accepted: Vec<serde_json::Value> = diagnosis
+        .accepted
+        .iter()
+        .map(|f| serde_json::json!({"name": f.name, "joints": f.joints, "heldout_gain": f.heldout_gain}))
+        .collect();
+    let value = serde_json::json!({
+        "format": "arash-demo-summary/1",
+        "joint_names": joint_names(model),
+        "training_fp_percent": {"ols": calibration.ols.training.fp_percent, "consistent": calibration.consistent.training.fp_percent},
+        "diagnosis": {
+            "accepted": accepted,
+            "error_before": diagnosis.before,
+            "error_after": diagnosis.after,
+        },
+        "tracking": {"omega": tracking.omega, "runs": runs},
+    });
+    serde_json::to_string_pretty(&value).expect("JSON values serialise")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stale_cycles_and_the_recovery_from_a_stall_are_left_out() {
+        // 1 ms cycles; one stale cycle at 10, a four-cycle stall at 100..=103.
+        let mut t: Vec<f64> = (0..400).map(|i| i as f64 * 1e-3).collect();
+        t[10] = t[9];
+        for i in 100..104 {
+            t[i] = t[99];
+        }
+        let d = disturbed(&t);
+        let left_out: Vec<usize> = (0..t.len()).filter(|&i| d[i]).collect();
+        let mut expected = vec![10];
+        expected.extend(100..104 + RECOVERY_CYCLES);
+        assert_eq!(left_out, expected);
+    }
+}

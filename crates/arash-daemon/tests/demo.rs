@@ -1,0 +1,197 @@
+//! `arash demo` end to end in its short mode: the mock motor with the demo scenario (a wiring
+//! disturbance on pitch and Stribeck friction, neither declared), the daemon, calibration,
+//! diagnosis, tracking three ways and the report. Then Ctrl-C in the middle of a run.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use arash_core::flightlog::read_log;
+
+const ARASH: &str = env!("CARGO_BIN_EXE_arash");
+
+/// The two tests each run a 1 kHz mock and daemon; on two cores they must not overlap.
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    SERIAL.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("arash-demo-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+fn pngs(dir: &Path, found: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).unwrap().flatten() {
+        let path = entry.path();
+        if path.is_dir() {
+            pngs(&path, found);
+        } else if path.extension().is_some_and(|e| e == "png") {
+            found.push(path);
+        }
+    }
+}
+
+/// Decode a PNG and check that it has ink: at least 1 % of its pixels are not the background,
+/// in more than two colours (axes alone are black on white).
+fn assert_figure(path: &Path) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap_or_else(|e| panic!("{} is not a PNG: {e}", path.display()));
+    let mut buffer = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buffer).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let channels = info.color_type.samples();
+    assert!(channels >= 3, "{}: colour type {:?}", path.display(), info.color_type);
+    let pixels: Vec<&[u8]> = buffer[..info.buffer_size()].chunks(channels).collect();
+    let background = pixels[0];
+    let inked = pixels.iter().filter(|p| p[..3] != background[..3]).count();
+    let colours: std::collections::HashSet<&[u8]> = pixels.iter().map(|p| &p[..3]).collect();
+    assert!(
+        inked * 100 >= pixels.len() && colours.len() > 2,
+        "{} looks blank: {inked} of {} pixels inked, {} colours",
+        path.display(),
+        pixels.len(),
+        colours.len()
+    );
+}
+
+fn column(summary: &serde_json::Value, path: &[&str]) -> Vec<f64> {
+    let mut v = summary;
+    for key in path {
+        v = &v[*key];
+    }
+    serde_json::from_value(v.clone()).unwrap_or_else(|e| panic!("{path:?}: {e} in {v}"))
+}
+
+#[test]
+fn the_demo_calibrates_diagnoses_and_controls_the_simulated_rig() {
+    let _serial = serial();
+    let dir = scratch("full");
+    let out =
+        Command::new(ARASH).args(["demo", "--restarts", "1", "--omegas", "0.5", "-o"]).arg(&dir).output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    for table in ["Table I (OLS)", "Table II", "Effects found", "Error per joint, before → after", "max error cut by"]
+    {
+        assert!(stdout.contains(table), "the demo printed no `{table}`:\n{stdout}");
+    }
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report/summary.json")).unwrap()).unwrap();
+    let runs = summary["tracking"]["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 3, "{summary}");
+    let cad = column(&runs[0], &["max_error"]);
+    for run in &runs[1..] {
+        let identified = column(run, &["max_error"]);
+        eprintln!("max tracking error (SI): CAD {cad:?}, {} {identified:?}", run["controller"]);
+        assert_eq!(run["faults"], 0, "{run}");
+    }
+    // The paper's result: the identified model at least halves the error of the CAD baseline.
+    let identified = column(&runs[1], &["max_error"]);
+    for k in 0..3 {
+        assert!(cad[k] >= 2.0 * identified[k], "joint {k}: CAD {} against identified {}", cad[k], identified[k]);
+    }
+    // Compensating the wiring term found on pitch tracks pitch better still.
+    let with_effects = column(&runs[2], &["max_error"]);
+    assert!(
+        with_effects[1] < 0.75 * identified[1],
+        "pitch: {} with the effects, {} without",
+        with_effects[1],
+        identified[1]
+    );
+    // And within the paper's bounds: 0.35° for the rotations, 128 µm for the insertion.
+    assert!(identified[0].to_degrees() < 0.35 && identified[1].to_degrees() < 0.35, "{identified:?}");
+    assert!(identified[2] < 128e-6, "{identified:?}");
+
+    // The scenario's wiring disturbance on pitch (joint 1) is named, and first.
+    let accepted = summary["diagnosis"]["accepted"].as_array().unwrap();
+    eprintln!("diagnosis: {accepted:?}");
+    let first = accepted.first().expect("the diagnosis found nothing");
+    assert_eq!(first["name"], "configuration_disturbance", "{accepted:?}");
+    assert_eq!(first["joints"], serde_json::json!([1]), "{accepted:?}");
+    for split in ["training", "heldout"] {
+        let before = column(&summary, &["diagnosis", "error_before", split, "rms"]);
+        let after = column(&summary, &["diagnosis", "error_after", split, "rms"]);
+        eprintln!("{split} RMS before {before:?}, after {after:?}");
+        // The wiring term cuts the pitch error; the joint refit may move the others a hair.
+        assert!(after[1] < 0.5 * before[1], "{split}: the pitch error must fall with the wiring term");
+        assert!(after.iter().zip(&before).all(|(a, b)| *a <= 1.01 * b), "{split}: {before:?} → {after:?}");
+    }
+
+    let mut figures = Vec::new();
+    pngs(&dir.join("report"), &mut figures);
+    let names: Vec<String> = figures.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
+    for expected in ["excitation.png", "torque.png", "tracking_error.png", "control_effort.png", "errors.png"] {
+        assert!(names.iter().any(|n| n == expected), "no {expected} in {names:?}");
+    }
+    assert!(names.iter().any(|n| n.starts_with("effect-1-configuration_disturbance")), "{names:?}");
+    figures.iter().for_each(|p| assert_figure(p));
+    let report = std::fs::read_to_string(dir.join("report/report.md")).unwrap();
+    for name in &names {
+        assert!(report.contains(name.as_str()), "report.md does not show {name}");
+    }
+    // Every run's log is complete.
+    let logs: Vec<PathBuf> = std::fs::read_dir(dir.join("logs")).unwrap().flatten().map(|e| e.path()).collect();
+    assert!(logs.len() >= 5, "{logs:?}");
+    for log in logs {
+        assert!(!read_log(&log).unwrap().truncated, "{} is truncated", log.display());
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn ctrl_c_disables_the_motors_and_keeps_the_logs() {
+    let _serial = serial();
+    let dir = scratch("interrupt");
+    let mut demo = Command::new(ARASH)
+        .args(["demo", "--restarts", "1", "--omegas", "0.5", "-o"])
+        .arg(&dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // Interrupt once the excitation run has been moving the rig for a few seconds.
+    let started = Instant::now();
+    let logs = |dir: &Path| -> Vec<PathBuf> {
+        let mut v: Vec<PathBuf> =
+            std::fs::read_dir(dir.join("logs")).map(|r| r.flatten().map(|e| e.path()).collect()).unwrap_or_default();
+        v.sort_by_key(|p| std::fs::metadata(p).and_then(|m| m.modified()).ok());
+        v
+    };
+    while !logs(&dir).iter().any(|p| p.to_string_lossy().contains("excitation")) {
+        assert!(started.elapsed() < Duration::from_secs(120), "the excitation run never started");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    std::thread::sleep(Duration::from_secs(4));
+    // SAFETY: signalling our own child, as a terminal's Ctrl-C would.
+    unsafe { libc::kill(demo.id() as i32, libc::SIGINT) };
+    let stopped = Instant::now();
+    let status = loop {
+        if let Some(status) = demo.try_wait().unwrap() {
+            break status;
+        }
+        assert!(stopped.elapsed() < Duration::from_secs(20), "the demo did not stop after Ctrl-C");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(!status.success(), "an interrupted demo must not report success");
+    // The daemon closed its logs (no `.part` left): the interrupted run's log is readable to
+    // its end, and the daemon's last log ends with the motors disabled.
+    let files = logs(&dir);
+    assert!(files.iter().all(|p| p.extension().is_some_and(|e| e == "mcap")), "unfinished logs: {files:?}");
+    let run_log = files.iter().find(|p| p.to_string_lossy().contains("excitation")).unwrap();
+    let run = read_log(run_log).unwrap();
+    assert!(!run.truncated && run.len() > 1000, "{}: {} cycles", run_log.display(), run.len());
+    // The last cycle logged, in whichever file holds it, has the motors off.
+    let (last_cycle, last_mode) = files
+        .iter()
+        .map(|p| read_log(p).unwrap())
+        .filter(|l| !l.is_empty())
+        .map(|l| (*l.cycles.cycle.last().unwrap(), *l.cycles.mode.last().unwrap()))
+        .max()
+        .expect("cycles were logged");
+    assert_eq!(
+        arash_core::record::Mode::from_u32(last_mode),
+        Some(arash_core::record::Mode::Disabled),
+        "cycle {last_cycle}: the motors were not disabled at the end"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
