@@ -158,16 +158,24 @@ pub fn lines(
     let (y0, y1) = range(series.iter().flat_map(|s| s.2.iter()));
     let mut chart = axes(&root, title, x0..x1, y0..y1)?;
     chart.configure_mesh().x_desc(x_label).y_desc(y_label).label_style(("sans-serif", 15)).draw()?;
-    for (i, (name, x, y)) in series.iter().enumerate() {
+    draw_lines(&mut chart, series.iter().map(|(name, x, y)| (*name, *x, *y)))?;
+    finish(chart, &root, path)
+}
+
+/// Named lines `y(x)`, thinned, in the palette's colours by order, with legend entries.
+fn draw_lines<'s>(
+    chart: &mut Chart<'_, '_>,
+    series: impl Iterator<Item = (&'s str, &'s [f64], &'s [f64])>,
+) -> anyhow::Result<()> {
+    for (i, (name, x, y)) in series.enumerate() {
         let color = Palette99::pick(i).to_rgba();
-        let step = thin(x.len());
-        let points = x.iter().zip(y.iter()).step_by(step).map(|(a, b)| (*a, *b));
+        let points = x.iter().zip(y).step_by(thin(x.len())).map(|(a, b)| (*a, *b));
         chart
             .draw_series(LineSeries::new(points, color.stroke_width(2)))?
-            .label(*name)
+            .label(name)
             .legend(move |(px, py)| PathElement::new(vec![(px, py), (px + 20, py)], color.stroke_width(2)));
     }
-    finish(chart, &root, path)
+    Ok(())
 }
 
 /// One panel of [`panels`]: its y-axis label and its named series `(name, x, y)`.
@@ -193,15 +201,7 @@ pub fn panels(path: &Path, title: &str, x_label: &str, panels: &[Panel]) -> anyh
             .y_label_area_size(80)
             .build_cartesian_2d(x0..x1, y0..y1)?;
         chart.configure_mesh().x_desc(x_label).y_desc(&panel.y_label).label_style(("sans-serif", 14)).draw()?;
-        for (i, (name, x, y)) in panel.series.iter().enumerate() {
-            let color = Palette99::pick(i).to_rgba();
-            let step = thin(x.len());
-            let points = x.iter().zip(y.iter()).step_by(step).map(|(a, b)| (*a, *b));
-            chart
-                .draw_series(LineSeries::new(points, color.stroke_width(2)))?
-                .label(*name)
-                .legend(move |(px, py)| PathElement::new(vec![(px, py), (px + 20, py)], color.stroke_width(2)));
-        }
+        draw_lines(&mut chart, panel.series.iter().map(|(name, x, y)| (*name, *x, y.as_slice())))?;
         // One legend, on the first panel: the colours are the same in every panel.
         if i == 0 {
             chart.configure_series_labels().background_style(WHITE.mix(0.6)).border_style(BLACK).draw()?;

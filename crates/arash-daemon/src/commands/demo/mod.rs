@@ -19,6 +19,7 @@ use arash_core::identify::preprocess::PreprocessOptions;
 use arash_core::identify::{identify, validate, validation_table, Identification, IdentifyMethod, IdentifyOptions};
 use arash_core::{BaseParameters, Model};
 use arash_daemon::drive_config::DriveConfig;
+use arash_daemon::rt::clock::RtPolicy;
 
 use crate::runlog;
 use report::{Tracking, TrackingRun};
@@ -50,10 +51,9 @@ pub struct Args {
     /// The rig's serial port (or a pseudo-terminal): drive real motors instead of the mock.
     #[arg(long)]
     port: Option<String>,
-    /// Real-time set-up of the daemon: require or ignore; default ignore with the mock,
-    /// require with --port.
+    /// Real-time set-up of the daemon; default ignore with the mock, require with --port.
     #[arg(long)]
-    rt: Option<String>,
+    rt: Option<RtPolicy>,
     /// Run directory; default logs/demo-<UTC time>.
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -135,8 +135,8 @@ fn steps(args: &Args, plan: &Plan) -> anyhow::Result<()> {
         }
     };
     let (motors, rt) = match &args.port {
-        Some(port) => (Motors::Port(port), args.rt.as_deref().unwrap_or("require")),
-        None => (Motors::Mock { scenario: &scenario, seed: args.seed }, args.rt.as_deref().unwrap_or("ignore")),
+        Some(port) => (Motors::Port(port), args.rt.unwrap_or(RtPolicy::Require)),
+        None => (Motors::Mock { scenario: &scenario, seed: args.seed }, args.rt.unwrap_or(RtPolicy::Ignore)),
     };
     let mut rig = Rig::start(dir, motors, rt)?;
     match &args.port {

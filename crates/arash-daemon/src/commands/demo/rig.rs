@@ -15,6 +15,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use arash_daemon::ctl::{call, CtlRequest};
+use arash_daemon::rt::clock::RtPolicy;
 
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
@@ -55,7 +56,11 @@ pub struct Rig {
 impl Rig {
     /// Start the motors and the daemon (idc with CAD, motors disabled) with its logs in
     /// `dir/logs` and its standard error in `dir/daemon.log`.
-    pub fn start(dir: &Path, motors: Motors, rt: &str) -> anyhow::Result<Self> {
+    pub fn start(dir: &Path, motors: Motors, rt: RtPolicy) -> anyhow::Result<Self> {
+        let rt = match rt {
+            RtPolicy::Require => "require",
+            RtPolicy::Ignore => "ignore",
+        };
         let exe = std::env::current_exe().context("locating the arash executable")?;
         let mut rig = Rig { socket: dir.join("arash.sock"), daemon: None, mock: None, port: String::new() };
         rig.port = match motors {
