@@ -75,10 +75,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let result = steps(&args, &plan);
     match &result {
         Ok(()) => println!("\nreport: {}", dir.join("report/report.md").display()),
-        Err(e) => eprintln!(
-            "\narash demo stopped: {e}\nthe motors are disabled; what was logged is kept in {}",
-            dir.display()
-        ),
+        // The error itself is printed by main.
+        Err(_) => {
+            eprintln!("\narash demo stopped; the motors are disabled and what was logged is kept in {}", dir.display())
+        }
     }
     result
 }

@@ -109,7 +109,9 @@ impl Rig {
         while call(&rig.socket, &CtlRequest::Status).is_err() {
             check_interrupt()?;
             if let Some(status) = rig.daemon.as_mut().and_then(|d| d.try_wait().ok().flatten()) {
-                anyhow::bail!("the daemon exited ({status}); see {}/daemon.log", dir.display());
+                let log = std::fs::read_to_string(dir.join("daemon.log")).unwrap_or_default();
+                let last = log.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("").trim();
+                anyhow::bail!("the daemon exited ({status}): {last} (see {}/daemon.log)", dir.display());
             }
             anyhow::ensure!(
                 started.elapsed() < Duration::from_secs(15),
