@@ -3,7 +3,10 @@
 
 use std::sync::Arc;
 
-use arash_core::diagnose::{diagnose as core_diagnose, DiagnoseOptions, Diagnosis as CoreDiagnosis, EffectKind, Log};
+use arash_core::diagnose::{
+    consistent_with_effects, diagnose as core_diagnose, DiagnoseOptions, Diagnosis as CoreDiagnosis, EffectKind, Log,
+};
+use arash_core::identify::consistent::ConsistentOptions;
 use numpy::PyReadonlyArrayDyn;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -16,6 +19,7 @@ use crate::{to_numpy, value_error, NumpyArray, Robot};
 pub(crate) struct RawDiagnosis {
     model: Arc<arash_core::Model>,
     inner: CoreDiagnosis,
+    consistent: Option<arash_core::identify::Identification>,
 }
 
 #[pymethods]
@@ -30,6 +34,12 @@ impl RawDiagnosis {
     #[getter]
     fn model(&self) -> Identification {
         Identification::new(Arc::clone(&self.model), self.inner.model.clone())
+    }
+    /// The physically consistent model fitted together with the effects found (with
+    /// `consistent=True`), else None.
+    #[getter]
+    fn model_consistent(&self) -> Option<Identification> {
+        self.consistent.as_ref().map(|c| Identification::new(Arc::clone(&self.model), c.clone()))
     }
     /// The signals behind the residual plots: t (N,), and q, qd, qdd, tau, residual_before,
     /// residual_after (N, dof), and one (N, dof) contribution per accepted effect.
@@ -60,7 +70,7 @@ impl RawDiagnosis {
 #[pyfunction]
 #[pyo3(signature = (robot, t, q, tau, *, model=None, validation=None, transmission=None, cutoff_hz=20.0,
                     block_s=2.0, alpha=0.01, min_gain=0.2, effects=None, refit=false,
-                    hold_friction=false))]
+                    hold_friction=false, consistent=false, consistent_cutoff_hz=None))]
 #[allow(clippy::too_many_arguments)]
 fn _diagnose<'py>(
     py: Python<'py>,
@@ -78,6 +88,8 @@ fn _diagnose<'py>(
     effects: Option<Vec<String>>,
     refit: bool,
     hold_friction: bool,
+    consistent: bool,
+    consistent_cutoff_hz: Option<f64>,
 ) -> PyResult<RawDiagnosis> {
     let dof = robot.model.dof();
     let (t, q, tau) = log_arrays(&t, &q, &tau, dof)?;
@@ -89,7 +101,9 @@ fn _diagnose<'py>(
             )));
         }
     }
-    for (name, v) in [("cutoff_hz", cutoff_hz), ("block_s", block_s)] {
+    for (name, v) in
+        [("cutoff_hz", cutoff_hz), ("block_s", block_s), ("consistent_cutoff_hz", consistent_cutoff_hz.unwrap_or(1.0))]
+    {
         if !(v.is_finite() && v > 0.0) {
             return Err(PyValueError::new_err(format!("{name} must be positive, got {v}")));
         }
@@ -121,20 +135,23 @@ fn _diagnose<'py>(
     let base = robot.default_base()?;
     let robot_model = Arc::clone(&robot.model);
     let given = model.map(|m| m.inner().clone());
-    let inner = py
+    let (inner, consistent) = py
         .detach(|| {
-            core_diagnose(
-                &robot_model,
-                base,
-                &robot.urdf,
-                Log { t: &t, q: &q, tau: &tau },
-                held.as_ref().map(|(t, q, tau)| Log { t, q, tau }),
-                given.as_ref(),
-                &options,
-            )
+            let train = Log { t: &t, q: &q, tau: &tau };
+            let held = held.as_ref().map(|(t, q, tau)| Log { t, q, tau });
+            let inner = core_diagnose(&robot_model, base, &robot.urdf, train, held, given.as_ref(), &options)?;
+            let consistent = consistent
+                .then(|| {
+                    let refit =
+                        DiagnoseOptions { cutoff_hz: consistent_cutoff_hz.unwrap_or(cutoff_hz), ..options.clone() };
+                    let solver = ConsistentOptions::default();
+                    consistent_with_effects(&robot_model, base, train, &inner.model, &refit, &solver)
+                })
+                .transpose()?;
+            Ok::<_, arash_core::diagnose::DiagnoseError>((inner, consistent))
         })
         .map_err(value_error)?;
-    Ok(RawDiagnosis { model: robot_model, inner })
+    Ok(RawDiagnosis { model: robot_model, inner, consistent })
 }
 
 pub(crate) fn register(module: &Bound<'_, PyModule>) -> PyResult<()> {

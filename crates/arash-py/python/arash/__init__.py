@@ -136,6 +136,8 @@ class Diagnosis:
         (‖e‖/‖τ‖), on the held-out data; ``error_before_training`` and ``error_after_training``
         are the same on the training data.
     model: the updated model (an ``Identification`` with the effects).
+    model_consistent: with ``consistent=True``, the physically consistent model fitted together
+        with the effects found (the model the model-based controllers accept); else None.
     series: the signals behind the residual plots (dict of numpy arrays).
     """
 
@@ -161,6 +163,7 @@ class Diagnosis:
         self.error_before_training = errors(data["before"]["training"])
         self.error_after_training = errors(data["after"]["training"])
         self.model = raw.model
+        self.model_consistent = raw.model_consistent
 
     @property
     def series(self):
@@ -188,6 +191,9 @@ def diagnose(robot, t, q, tau, *, model=None, validation=None, **options):
     options: ``transmission`` (joint motion per motor radian, per joint; enables the cogging
         search), ``cutoff_hz`` (20), ``block_s`` (2), ``alpha`` (0.01), ``min_gain`` (0.2),
         ``effects`` (list of identifiers to search), ``refit`` (False: with a model, refit only
-        its friction), ``hold_friction`` (False: with a model, True holds its friction too).
+        its friction), ``hold_friction`` (False: with a model, True holds its friction too),
+        ``consistent`` (False: True also fits the physically consistent model with the effects
+        found, as ``model_consistent``), ``consistent_cutoff_hz`` (that fit's cut-off; default
+        ``cutoff_hz``; the calibration's own is the better choice, see docs/diagnosis.md).
     """
     return Diagnosis(_diagnose(robot, t, q, tau, model=model, validation=validation, **options))

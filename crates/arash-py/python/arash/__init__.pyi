@@ -30,3 +30,37 @@ def simulate(
     log: Optional[Union[str, os.PathLike]] = None,
     log_truth: bool = False,
 ) -> dict[str, Any]: ...
+
+class Effect:
+    name: str
+    joints: list[int]
+    coefficients: Any
+    p_value: float
+    heldout_gain: float
+    mass_kg: Optional[float]
+    body: Optional[str]
+
+class Diagnosis:
+    accepted: list[Effect]
+    rejected: list[dict]
+    error_before: dict[str, Any]
+    error_after: dict[str, Any]
+    error_before_training: dict[str, Any]
+    error_after_training: dict[str, Any]
+    model: Identification
+    model_consistent: Optional[Identification]
+    @property
+    def series(self) -> dict: ...
+    def report(self) -> str: ...
+    def to_json(self) -> str: ...
+
+def diagnose(
+    robot: Robot,
+    t: Any,
+    q: Any,
+    tau: Any,
+    *,
+    model: Optional[Identification] = None,
+    validation: Optional[tuple] = None,
+    **options: Any,
+) -> Diagnosis: ...

@@ -159,6 +159,8 @@ class RawDiagnosis:
     @property
     def model(self) -> Identification: ...
     @property
+    def model_consistent(self) -> Identification | None: ...
+    @property
     def series(self) -> dict: ...
 
 def _diagnose(
@@ -177,4 +179,6 @@ def _diagnose(
     effects: list[str] | None = None,
     refit: bool = False,
     hold_friction: bool = False,
+    consistent: bool = False,
+    consistent_cutoff_hz: float | None = None,
 ) -> RawDiagnosis: ...
