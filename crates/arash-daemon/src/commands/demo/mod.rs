@@ -33,7 +33,8 @@ pub struct Args {
     /// Seconds of excitation to log, a whole number of periods (the paper: 300).
     #[arg(long, default_value_t = 60.0)]
     duration: f64,
-    /// Seed of the simulated rig and of the excitation design: the same seed, the same tables.
+    /// Seed of the simulated rig and of the excitation design: the same seed, the same
+    /// excitation, robot and noise (the tables agree to a few per cent; see docs/demo.md).
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Optimiser restarts of the excitation design.
