@@ -367,18 +367,20 @@ impl Identification {
     }
 }
 
-/// Table II shape: FP% per joint (rows) for each validation run (columns).
-pub fn validation_table(labels: &[String], fp_percent: &[Vec<f64>]) -> String {
+/// Table II shape: FP% per joint (rows, named by `joints`) for each validation run (columns).
+pub fn validation_table(joints: &[String], labels: &[String], fp_percent: &[Vec<f64>]) -> String {
     let dof = fp_percent.first().map_or(0, Vec::len);
-    let mut s = format!("{:<10}", "FP%");
+    let width = labels.iter().map(|l| l.chars().count() + 2).max().unwrap_or(0).max(12);
+    let mut s = format!("{:<12}", "FP%");
     for l in labels {
-        s += &format!("{l:>12}");
+        s += &format!("{l:>width$}");
     }
     s.push('\n');
     for k in 0..dof {
-        s += &format!("{:<10}", format!("joint {}", k + 1));
+        let name = joints.get(k).cloned().unwrap_or_else(|| format!("joint {}", k + 1));
+        s += &format!("{name:<12}");
         for run in fp_percent {
-            s += &format!("{:>12.2}", run[k]);
+            s += &format!("{:>width$.2}", run[k]);
         }
         s.push('\n');
     }

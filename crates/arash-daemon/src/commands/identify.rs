@@ -89,6 +89,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     identification.data.sources = args.logs.iter().map(|p| p.display().to_string()).collect();
     println!("{}", identification.table());
     if !args.validate.is_empty() {
+        let joints: Vec<String> = model.joints.iter().map(|j| j.name.clone()).collect();
         let mut labels = Vec::new();
         let mut fp = Vec::new();
         for path in &args.validate {
@@ -104,7 +105,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             labels.push(path.file_stem().map_or("run".into(), |s| s.to_string_lossy().into_owned()));
             fp.push(metrics.fp_percent);
         }
-        println!("Cross-validation (FP% per joint, one column per run):\n{}", validation_table(&labels, &fp));
+        println!("Cross-validation (FP% per joint, one column per run):\n{}", validation_table(&joints, &labels, &fp));
     }
     super::write_atomically(&args.output, &identification.to_json())?;
     println!("wrote {}", args.output.display());

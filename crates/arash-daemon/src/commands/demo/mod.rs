@@ -281,10 +281,11 @@ fn calibrate(
         table_ii.0.push(validate(model, &ols, &v.t, &v.q, &v.tau, &pre)?.fp_percent);
         table_ii.1.push(validate(model, &consistent, &v.t, &v.q, &v.tau, &pre)?.fp_percent);
     }
+    let joints: Vec<String> = model.joints.iter().map(|j| j.name.clone()).collect();
     let table_ii = format!(
         "Table II (FP% per joint on the validation runs)\nOLS:\n{}consistent:\n{}",
-        validation_table(&labels, &table_ii.0),
-        validation_table(&labels, &table_ii.1)
+        validation_table(&joints, &labels, &table_ii.0),
+        validation_table(&joints, &labels, &table_ii.1)
     );
     println!("{}", indent(&table_ii));
     let torque_check = validation.iter().find(|(w, _)| (*w - 0.5).abs() < 1e-9).or(validation.first());
