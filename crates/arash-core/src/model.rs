@@ -127,6 +127,11 @@ impl Model {
         self.friction_offset() + 2 * self.dof()
     }
 
+    /// Names of the joints, in `q` order.
+    pub fn joint_names(&self) -> Vec<String> {
+        self.joints.iter().map(|j| j.name.clone()).collect()
+    }
+
     /// Names of the standard parameters, in vector order: `link.m`, `link.mx`, …, `joint.fv`,
     /// `joint.fc`, `joint.ke`.
     pub fn parameter_names(&self) -> Vec<String> {

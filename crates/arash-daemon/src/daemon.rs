@@ -129,7 +129,7 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     metadata.insert("rate_hz".into(), config.control.rate_hz.to_string());
     let context = LogContext {
         urdf,
-        joint_names: model.joints.iter().map(|j| j.name.clone()).collect(),
+        joint_names: model.joint_names(),
         config_toml: config_text,
         metadata,
         rate_hz: config.control.rate_hz,

@@ -215,7 +215,7 @@ impl Robot {
 
     /// Actuated joint names, in the order of q.
     fn joint_names(&self) -> Vec<String> {
-        self.model.joints.iter().map(|j| j.name.clone()).collect()
+        self.model.joint_names()
     }
 
     /// Moving body (link) names, in parameter order.

@@ -209,7 +209,7 @@ fn _simulate<'py>(
     let d = cycles_dict(py, &columns, dof)?;
     d.set_item("truth", truth_dict(py, &truth, dof)?)?;
     d.set_item("true_params", vector(py, &true_params)?)?;
-    d.set_item("joint_names", model.joints.iter().map(|j| j.name.clone()).collect::<Vec<_>>())?;
+    d.set_item("joint_names", model.joint_names())?;
     d.set_item("scenario", spec.scenario.to_toml())?;
     Ok(d)
 }

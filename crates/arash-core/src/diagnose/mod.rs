@@ -861,10 +861,10 @@ pub fn diagnose(
             let after = test_group(&next_cols, &next_gram, &e0, &group, &block, block_count, dof);
             let left = after.map_or(0.0, |a| a.unexplained / t.unexplained);
             if left < 0.05 {
-                aliases.push(pool[*j].term.describe(&joint_names(model)));
+                aliases.push(pool[*j].term.describe(&model.joint_names()));
                 let reason = format!(
                     "indistinguishable on this data from the accepted {}",
-                    pool[winner].term.describe(&joint_names(model))
+                    pool[winner].term.describe(&model.joint_names())
                 );
                 status[*j] = Some(rejection(model, &pool[*j].term, reason, Some(t.p_value), None));
             }
@@ -883,7 +883,7 @@ pub fn diagnose(
         accepted.push(Finding {
             name: term.kind.id().into(),
             joints,
-            label: term.describe(&joint_names(model)),
+            label: term.describe(&model.joint_names()),
             term,
             statistic: test.f_statistic,
             p_value: test.p_value,
@@ -955,7 +955,7 @@ pub fn diagnose(
     Ok(Diagnosis {
         format: "arash-diagnosis/1".into(),
         robot_name: model.name.clone(),
-        joint_names: joint_names(model),
+        joint_names: model.joint_names(),
         prismatic: model.joints.iter().map(|j| j.kind == crate::model::JointKind::Prismatic).collect(),
         accepted,
         rejected,
@@ -1202,15 +1202,11 @@ fn effect_joints(term: &EffectTerm, dof: usize) -> Vec<usize> {
     }
 }
 
-fn joint_names(model: &Model) -> Vec<String> {
-    model.joints.iter().map(|j| j.name.clone()).collect()
-}
-
 fn rejection(model: &Model, term: &EffectTerm, reason: String, p_value: Option<f64>, gain: Option<f64>) -> Rejection {
     Rejection {
         name: term.kind.id().into(),
         joints: effect_joints(term, model.dof()),
-        label: term.describe(&joint_names(model)),
+        label: term.describe(&model.joint_names()),
         reason,
         p_value,
         heldout_gain: gain,
@@ -1405,7 +1401,7 @@ fn delay_finding(search: &DelaySearch) -> Result<Finding, (isize, Rejection)> {
     Ok(Finding {
         name: "delay".into(),
         joints: (0..dof).collect(),
-        label: term.describe(&joint_names(model)),
+        label: term.describe(&model.joint_names()),
         term,
         statistic: test.f_statistic,
         p_value: test.p_value,

@@ -136,7 +136,7 @@ impl RunSpec {
         metadata.insert("rate_hz".into(), self.scenario.physics.rate_hz.to_string());
         crate::flightlog::LogHeader {
             urdf: urdf.into(),
-            joint_names: model.joints.iter().map(|j| j.name.clone()).collect(),
+            joint_names: model.joint_names(),
             metadata,
             attachments: vec![
                 ("scenario.toml".into(), "application/toml".into(), self.scenario.to_toml().into_bytes()),

@@ -124,7 +124,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )
         .context("the consistent fit with the effects found failed")?;
         super::write_atomically(&args.output.join("model_consistent.json"), &refit.to_json())?;
-        let names: Vec<String> = model.joints.iter().map(|j| j.name.clone()).collect();
+        let names = model.joint_names();
         println!("{}", consistent_summary(&refit, &names));
     }
     println!("wrote {}/ (report.txt, diagnosis.json, model.json, figures)", args.output.display());

@@ -101,7 +101,7 @@ pub fn write(
     let file = TrajectoryFile {
         format: "arash-trajectory/1",
         robot: &model.name,
-        joint_names: model.joints.iter().map(|j| j.name.clone()).collect(),
+        joint_names: model.joint_names(),
         excitation,
         sample_rate_hz: rate,
         t,

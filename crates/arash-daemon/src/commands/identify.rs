@@ -89,7 +89,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     identification.data.sources = args.logs.iter().map(|p| p.display().to_string()).collect();
     println!("{}", identification.table());
     if !args.validate.is_empty() {
-        let joints: Vec<String> = model.joints.iter().map(|j| j.name.clone()).collect();
+        let joints = model.joint_names();
         let mut labels = Vec::new();
         let mut fp = Vec::new();
         for path in &args.validate {

@@ -221,7 +221,7 @@ fn experiment(
         runs.push(TrackingRun::read(label, &log, period)?);
     }
     let tracking = Tracking { omega: args.tracking_omega, prismatic: report::prismatic(model), runs };
-    let names: Vec<String> = model.joints.iter().map(|j| j.name.clone()).collect();
+    let names = model.joint_names();
     println!("{}", indent(&tracking.table(&names)));
     Ok((excitation, calibration, diagnosis, tracking))
 }
@@ -281,7 +281,7 @@ fn calibrate(
         table_ii.0.push(validate(model, &ols, &v.t, &v.q, &v.tau, &pre)?.fp_percent);
         table_ii.1.push(validate(model, &consistent, &v.t, &v.q, &v.tau, &pre)?.fp_percent);
     }
-    let joints: Vec<String> = model.joints.iter().map(|j| j.name.clone()).collect();
+    let joints = model.joint_names();
     let table_ii = format!(
         "Table II (FP% per joint on the validation runs)\nOLS:\n{}consistent:\n{}",
         validation_table(&joints, &labels, &table_ii.0),
@@ -338,7 +338,7 @@ fn diagnose_run(
             .context("the consistent fit with the effects found failed")?;
     let path = out.join("model_consistent.json");
     super::write_atomically(&path, &refit.to_json())?;
-    let names: Vec<String> = model.joints.iter().map(|j| j.name.clone()).collect();
+    let names = model.joint_names();
     println!("{}", indent(&super::diagnose::consistent_summary(&refit, &names)));
     Ok((diagnosis, path))
 }

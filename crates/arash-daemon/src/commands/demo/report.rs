@@ -168,10 +168,6 @@ impl Tracking {
     }
 }
 
-fn joint_names(model: &Model) -> Vec<String> {
-    model.joints.iter().map(|j| j.name.clone()).collect()
-}
-
 pub fn prismatic(model: &Model) -> Vec<bool> {
     model.joints.iter().map(|j| j.kind == JointKind::Prismatic).collect()
 }
@@ -190,7 +186,7 @@ pub fn write(
     diagnosis: &Diagnosis,
     tracking: &Tracking,
 ) -> anyhow::Result<usize> {
-    let names = joint_names(model);
+    let names = model.joint_names();
     let dof = names.len();
     let kinds = prismatic(model);
     let mut figures = Vec::new();
@@ -298,7 +294,7 @@ fn markdown(
     figures: &[(&str, std::path::PathBuf)],
     diagnosis_figures: &[String],
 ) -> String {
-    let names = joint_names(model);
+    let names = model.joint_names();
     let file = |p: &std::path::PathBuf| p.file_name().map_or(String::new(), |f| f.to_string_lossy().into_owned());
     let mut s = String::from("# arash demo: calibration, diagnosis and control of the simulated rig\n\n");
     let _ = writeln!(
@@ -347,7 +343,7 @@ fn summary(model: &Model, calibration: &Calibration, diagnosis: &Diagnosis, trac
         .collect();
     let value = serde_json::json!({
         "format": "arash-demo-summary/1",
-        "joint_names": joint_names(model),
+        "joint_names": model.joint_names(),
         "training_fp_percent": {"ols": calibration.ols.training.fp_percent, "consistent": calibration.consistent.training.fp_percent},
         "diagnosis": {
             "accepted": accepted,
