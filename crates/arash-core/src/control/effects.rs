@@ -49,10 +49,6 @@ impl EffectFeedforward {
         Self { terms, states }
     }
 
-    pub fn is_empty(&self) -> bool {
-        self.terms.is_empty()
-    }
-
     /// Forget the terms' state (the hysteresis term's direction of travel).
     pub fn reset(&mut self) {
         self.states.fill(TermState::default());

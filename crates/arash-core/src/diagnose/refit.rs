@@ -54,8 +54,7 @@ pub fn consistent_with_effects(
     let tau = data.tau(delay);
     let w = Mat::<f64>::from_fn(tau.len(), columns.len(), |i, j| columns[j][i]);
     let fit = identify_consistent(model, &w, &tau, consistent).map_err(crate::identify::IdentifyError::from)?;
-    let predicted: Vec<f64> =
-        (0..tau.len()).map(|i| columns.iter().zip(&fit.params).map(|(c, x)| c[i] * x).sum()).collect();
+    let predicted = crate::identify::estimate::apply(&w, &fit.params);
 
     let mut extra = fit.params[standard..].iter().copied();
     for (term, width) in terms.iter_mut().zip(widths) {

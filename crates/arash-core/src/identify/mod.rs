@@ -262,46 +262,21 @@ impl Identification {
     /// but `delay` (a property of the log), `compliance` (whose proxy needs the measured torque)
     /// and `drift` (a function of the log's own time).
     pub fn predict(&self, model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<f64> {
-        use crate::diagnose::{EffectKind, TermState};
         let (n, big_p) = (model.dof(), model.num_params());
         let mut data = Data::new(model);
         let mut y = vec![0.0; n * big_p];
-        let full = self.full_or_base_vector();
-        let mut out = Vec::with_capacity(q.len());
-        let mut states = vec![TermState::default(); self.effects.len()];
-        let mut features = [0.0; 8];
-        for s in 0..q.len() / n {
+        let mut full = self.full_or_base_vector();
+        // The controllers' evaluation of the effects; no ε given, so each term keeps the
+        // direction function it was fitted with.
+        let mut effects = crate::control::EffectFeedforward::new(model, &self.effects, &[], &mut full);
+        let mut out = vec![0.0; q.len() / n * n];
+        for (s, tau) in out.chunks_mut(n).enumerate() {
             let range = s * n..(s + 1) * n;
-            regressor(model, &mut data, &q[range.clone()], &qd[range.clone()], &qdd[range], &mut y);
-            let first = out.len();
-            out.extend(y.chunks(big_p).map(|row| row.iter().zip(&full).map(|(a, b)| a * b).sum::<f64>()));
-            for (term, state) in self.effects.iter().zip(&mut states) {
-                match (term.kind, term.joint) {
-                    (EffectKind::Delay | EffectKind::Compliance | EffectKind::Drift, _) => {}
-                    (EffectKind::Payload, _) => {
-                        let Some(b) = model.bodies.iter().position(|b| Some(&b.name) == term.body.as_ref()) else {
-                            continue;
-                        };
-                        for (k, row) in y.chunks(big_p).enumerate() {
-                            out[first + k] +=
-                                row[10 * b..10 * b + 4].iter().zip(&term.coefficients).map(|(a, c)| a * c).sum::<f64>();
-                        }
-                    }
-                    (_, Some(k)) => {
-                        let i = s * n + k;
-                        let width = term.width();
-                        term.features(q[i], qd[i], qdd[i], 0.0, 0.0, state, &mut features[..width]);
-                        out[first + k] +=
-                            features[..width].iter().zip(&term.coefficients).map(|(a, c)| a * c).sum::<f64>();
-                    }
-                    (EffectKind::Armature, None) => {
-                        for (k, c) in term.coefficients.iter().enumerate().take(n) {
-                            out[first + k] += c * qdd[s * n + k];
-                        }
-                    }
-                    (_, None) => {}
-                }
+            regressor(model, &mut data, &q[range.clone()], &qd[range.clone()], &qdd[range.clone()], &mut y);
+            for (t, row) in tau.iter_mut().zip(y.chunks(big_p)) {
+                *t = row.iter().zip(&full).map(|(a, b)| a * b).sum::<f64>();
             }
+            effects.add(&q[range.clone()], &qd[range.clone()], &qdd[range], tau);
         }
         out
     }
