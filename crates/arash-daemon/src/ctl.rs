@@ -51,3 +51,25 @@ pub fn call(socket: &Path, request: &CtlRequest) -> anyhow::Result<serde_json::V
     }
     Ok(value)
 }
+
+/// Poll the daemon every `period` until run `id` has ended and its log is finished; return the
+/// log's path. `on_status` sees every status document first (for progress, or to give up with
+/// an error); a fault of the daemon ends the wait with an error.
+pub fn wait_for_run(
+    socket: &Path,
+    id: u64,
+    period: Duration,
+    mut on_status: impl FnMut(&serde_json::Value) -> anyhow::Result<()>,
+) -> anyhow::Result<std::path::PathBuf> {
+    loop {
+        std::thread::sleep(period);
+        let status = call(socket, &CtlRequest::Status)?;
+        on_status(&status)?;
+        if status["mode"] == "faulted" {
+            anyhow::bail!("run {id}: the daemon faulted ({}); the motors are off", status["faults"]);
+        }
+        if let Some(log) = status["runs"][id.to_string()]["log"].as_str() {
+            return Ok(log.into());
+        }
+    }
+}

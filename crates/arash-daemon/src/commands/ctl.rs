@@ -84,24 +84,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Poll until run `id` has ended and its log is finished; print the log's path.
+/// Wait for run `id`, printing its state as it changes, then the log's path.
 fn wait_for_run(socket: &std::path::Path, id: u64) -> anyhow::Result<()> {
     let mut last_state = String::new();
-    loop {
-        std::thread::sleep(Duration::from_millis(200));
-        let status = call(socket, &CtlRequest::Status)?;
-        let run = &status["runs"][id.to_string()];
-        let state = run["state"].as_str().unwrap_or("").to_string();
+    let log = arash_daemon::ctl::wait_for_run(socket, id, Duration::from_millis(200), |status| {
+        let state = status["runs"][id.to_string()]["state"].as_str().unwrap_or("").to_string();
         if state != last_state {
             eprintln!("run {id}: {state}");
-            last_state = state.clone();
+            last_state = state;
         }
-        if status["mode"] == "faulted" {
-            anyhow::bail!("run {id}: the daemon faulted ({})", status["faults"]);
-        }
-        if let Some(log) = run["log"].as_str() {
-            println!("{log}");
-            return Ok(());
-        }
-    }
+        Ok(())
+    })?;
+    println!("{}", log.display());
+    Ok(())
 }

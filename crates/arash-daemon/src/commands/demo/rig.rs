@@ -14,7 +14,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use arash_daemon::ctl::{call, CtlRequest};
+use arash_daemon::ctl::{call, wait_for_run, CtlRequest};
 use arash_daemon::rt::clock::RtPolicy;
 
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
@@ -151,28 +151,14 @@ impl Rig {
             duration_s,
             label: Some(label.into()),
         })?;
-        let id = answer["run_id"].as_u64().unwrap_or(0).to_string();
+        let id = answer["run_id"].as_u64().unwrap_or(0);
         let total = answer["duration_s"].as_f64().unwrap_or(0.0);
         let mut running_since: Option<Instant> = None;
         let mut shown = String::new();
-        loop {
-            std::thread::sleep(Duration::from_millis(100));
+        let log = wait_for_run(&self.socket, id, Duration::from_millis(100), |status| {
             check_interrupt()?;
-            let status = self.call(&CtlRequest::Status)?;
-            if status["mode"] == "faulted" {
-                anyhow::bail!("{label}: the daemon faulted ({}); the motors are off", status["faults"]);
-            }
-            let run = &status["runs"][&id];
-            if let Some(log) = run["log"].as_str() {
-                eprintln!("\r    {label}: {total:.1} / {total:.1} s, logged to {log}");
-                return Ok(PathBuf::from(log));
-            }
-            let phase = if status["run_id"].as_u64().map(|r| r.to_string()) == Some(id.clone()) {
-                status["phase"].as_str().unwrap_or("")
-            } else {
-                ""
-            };
-            if phase == "run" && running_since.is_none() {
+            let ours = status["run_id"].as_u64() == Some(id);
+            if ours && status["phase"] == "run" && running_since.is_none() {
                 running_since = Some(Instant::now());
             }
             let done = running_since.map_or(0.0, |s| s.elapsed().as_secs_f64().min(total));
@@ -183,7 +169,11 @@ impl Rig {
                 let _ = std::io::stderr().flush();
                 shown = line;
             }
-        }
+            Ok(())
+        })
+        .with_context(|| label.to_string())?;
+        eprintln!("\r    {label}: {total:.1} / {total:.1} s, logged to {}", log.display());
+        Ok(log)
     }
 
     /// Disable the motors, stop the daemon (its logs are closed on SIGTERM) and the mock.
