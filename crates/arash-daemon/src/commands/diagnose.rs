@@ -114,18 +114,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     println!("{report}");
     write_outputs(&args.output, &diagnosis, &report)?;
     if args.consistent {
-        let refit = consistent_with_effects(
-            &model,
-            &base,
-            Log { t: &train.t, q: &train.q, tau: &train.tau },
-            &diagnosis.model,
-            &DiagnoseOptions { cutoff_hz: args.consistent_cutoff.unwrap_or(options.cutoff_hz), ..options.clone() },
-            &ConsistentOptions::default(),
-        )
-        .context("the consistent fit with the effects found failed")?;
-        super::write_atomically(&args.output.join("model_consistent.json"), &refit.to_json())?;
-        let names = model.joint_names();
-        println!("{}", consistent_summary(&refit, &names));
+        let train = Log { t: &train.t, q: &train.q, tau: &train.tau };
+        let cutoff_hz = args.consistent_cutoff.unwrap_or(options.cutoff_hz);
+        let (refit, _) = write_consistent(&args.output, &model, &base, train, &diagnosis, &options, cutoff_hz)?;
+        println!("{}", consistent_summary(&refit, &model.joint_names()));
     }
     println!("wrote {}/ (report.txt, diagnosis.json, model.json, figures)", args.output.display());
     Ok(())
@@ -176,6 +168,25 @@ fn options(args: &Args, model: &arash_core::Model) -> anyhow::Result<DiagnoseOpt
         hold_friction: args.hold_friction,
         ..DiagnoseOptions::default()
     })
+}
+
+/// Fit the physically consistent model together with the effects `diagnosis` found, on `train`
+/// filtered at `cutoff_hz`, and write it to `dir/model_consistent.json`; returns it and the path.
+pub fn write_consistent(
+    dir: &Path,
+    model: &arash_core::Model,
+    base: &BaseParameters,
+    train: Log,
+    diagnosis: &Diagnosis,
+    options: &DiagnoseOptions,
+    cutoff_hz: f64,
+) -> anyhow::Result<(Identification, PathBuf)> {
+    let options = DiagnoseOptions { cutoff_hz, ..options.clone() };
+    let refit = consistent_with_effects(model, base, train, &diagnosis.model, &options, &ConsistentOptions::default())
+        .context("the consistent fit with the effects found failed")?;
+    let path = dir.join("model_consistent.json");
+    super::write_atomically(&path, &refit.to_json())?;
+    Ok((refit, path))
 }
 
 /// One paragraph on the consistent refit: its fit and its effects' coefficients.

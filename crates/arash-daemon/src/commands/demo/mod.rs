@@ -12,11 +12,14 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::control::Trajectory;
-use arash_core::diagnose::{consistent_with_effects, diagnose, DiagnoseOptions, Diagnosis, Log};
+use arash_core::diagnose::{diagnose, DiagnoseOptions, Diagnosis, Log};
 use arash_core::identify::consistent::ConsistentOptions;
+use arash_core::identify::estimate::joint_metrics;
 use arash_core::identify::excitation::{design_excitation, Excitation, ExcitationOptions};
 use arash_core::identify::preprocess::PreprocessOptions;
-use arash_core::identify::{identify, validate, validation_table, Identification, IdentifyMethod, IdentifyOptions};
+use arash_core::identify::{
+    identify, validate, validation_series, validation_table, Identification, IdentifyMethod, IdentifyOptions,
+};
 use arash_core::{BaseParameters, Model};
 use arash_daemon::drive_config::DriveConfig;
 use arash_daemon::rt::clock::RtPolicy;
@@ -196,20 +199,21 @@ fn experiment(
     }
 
     println!("\n[4/7] calibration: {} periods averaged, Butterworth order 5 forward and backward", plan.periods);
-    let calibration = calibrate(model, urdf, base, plan, &training, &validation)?;
+    let training_log = runlog::read(&training, model)?;
+    let calibration = calibrate(model, urdf, base, plan, (&training, &training_log), &validation)?;
     rig::check_interrupt()?;
 
     println!("\n[5/7] diagnosis of the residual");
     let diagnosis_dir = dir.join("report").join("diagnosis");
     let cutoff_hz = calibration.consistent.settings.cutoff_hz;
-    let (diagnosis, with_effects) = diagnose_run(model, urdf, base, &training, cutoff_hz, &diagnosis_dir)?;
+    let (diagnosis, with_effects) = diagnose_run(model, urdf, base, &training_log, cutoff_hz, &diagnosis_dir)?;
     rig::check_interrupt()?;
 
     println!("\n[6/7] tracking the validation trajectory at ω = {} rad/s through the daemon", args.tracking_omega);
     let trajectory = trajectory_file(dir, args.tracking_omega)?;
     let ways = [
         ("inverse dynamics, CAD parameters", "idc", None),
-        ("robust, identified model", "robust", Some(dir.join("model_consistent.json"))),
+        ("robust, identified model", "robust", Some(calibration.consistent_file.clone())),
         ("robust, identified model + effects found", "robust", Some(with_effects)),
     ];
     // Two periods, scored on the second: the first holds the start-up transient.
@@ -242,44 +246,51 @@ fn indent(text: &str) -> String {
     text.lines().map(|l| format!("    {l}")).collect::<Vec<_>>().join("\n")
 }
 
-/// OLS and the consistent fit on the excitation log, Table II on the validation logs.
+/// OLS and the consistent fit on the excitation log (its path and contents), Table II on the
+/// validation logs, and the consistent model's torque on the ω = 0.5 run (or the first).
 fn calibrate(
     model: &Model,
     urdf: &str,
     base: &BaseParameters,
     plan: &Plan,
-    training: &Path,
+    (training, log): (&Path, &runlog::Log),
     validation: &[(f64, PathBuf)],
 ) -> anyhow::Result<report::Calibration> {
-    let log = runlog::read(training, model)?;
     let options = IdentifyOptions {
         preprocess: PreprocessOptions {
             periods: Some(plan.periods),
-            cutoff_hz: super::identify::default_cutoff(&log),
+            cutoff_hz: super::identify::default_cutoff(log),
             ..Default::default()
         },
         consistent: ConsistentOptions::default(),
     };
-    let fit = |method| -> anyhow::Result<Identification> {
+    let fit = |method| -> anyhow::Result<(Identification, PathBuf)> {
         let mut id = identify(model, base, urdf, &log.t, &log.q, &log.tau, method, &options)
             .with_context(|| format!("identification ({method:?}) failed"))?;
         id.data.sources = vec![training.display().to_string()];
         let path = plan.dir.join(format!("model_{}.json", format!("{method:?}").to_lowercase()));
         super::write_atomically(&path, &id.to_json())?;
-        Ok(id)
+        Ok((id, path))
     };
-    let ols = fit(IdentifyMethod::Ols)?;
-    let consistent = fit(IdentifyMethod::Consistent)?;
+    let (ols, _) = fit(IdentifyMethod::Ols)?;
+    let (consistent, consistent_file) = fit(IdentifyMethod::Consistent)?;
     println!("{}", indent(&format!("Table I (OLS):\n{}", ols.table())));
     println!("{}", indent(&format!("Physically consistent fit:\n{}", consistent.table())));
+    let plotted = validation.iter().position(|(w, _)| (*w - 0.5).abs() < 1e-9).unwrap_or(0);
     let mut labels = Vec::new();
     let mut table_ii = (Vec::new(), Vec::new());
-    for (omega, path) in validation {
+    let mut torque = None;
+    for (i, (omega, path)) in validation.iter().enumerate() {
         let v = runlog::read(path, model)?;
         let pre = PreprocessOptions::default();
         labels.push(format!("ω = {omega}"));
         table_ii.0.push(validate(model, &ols, &v.t, &v.q, &v.tau, &pre)?.fp_percent);
-        table_ii.1.push(validate(model, &consistent, &v.t, &v.q, &v.tau, &pre)?.fp_percent);
+        // `validate` scores exactly this series; the plotted run keeps it for the figure.
+        let series = validation_series(model, &consistent, &v.t, &v.q, &v.tau, &pre)?;
+        table_ii.1.push(joint_metrics(&series.measured, &series.predicted, model.dof()).fp_percent);
+        if i == plotted {
+            torque = Some((*omega, series));
+        }
     }
     let joints = model.joint_names();
     let table_ii = format!(
@@ -288,23 +299,7 @@ fn calibrate(
         validation_table(&joints, &labels, &table_ii.1)
     );
     println!("{}", indent(&table_ii));
-    let torque_check = validation.iter().find(|(w, _)| (*w - 0.5).abs() < 1e-9).or(validation.first());
-    let series = match torque_check {
-        Some((omega, path)) => {
-            let v = runlog::read(path, model)?;
-            let s = arash_core::identify::validation_series(
-                model,
-                &consistent,
-                &v.t,
-                &v.q,
-                &v.tau,
-                &PreprocessOptions::default(),
-            )?;
-            Some((*omega, s))
-        }
-        None => None,
-    };
-    Ok(report::Calibration { ols, consistent, table_ii, torque: series })
+    Ok(report::Calibration { ols, consistent, consistent_file, table_ii, torque })
 }
 
 /// Diagnose the excitation log (the declared model refitted), write the report, figures and
@@ -321,24 +316,18 @@ fn diagnose_run(
     model: &Model,
     urdf: &str,
     base: &BaseParameters,
-    training: &Path,
+    log: &runlog::Log,
     cutoff_hz: f64,
     out: &Path,
 ) -> anyhow::Result<(Diagnosis, PathBuf)> {
-    let log = runlog::read(training, model)?;
     let log = Log { t: &log.t, q: &log.q, tau: &log.tau };
     let options =
         DiagnoseOptions { transmission: Some(DriveConfig::default().transmission), ..DiagnoseOptions::default() };
     let diagnosis = diagnose(model, base, urdf, log, None, None, &options).context("diagnosis failed")?;
-    super::diagnose::write_outputs(out, &diagnosis, &diagnosis.report())?;
-    println!("{}", indent(&diagnosis.report()));
-    let refit_options = DiagnoseOptions { cutoff_hz, ..options };
-    let refit =
-        consistent_with_effects(model, base, log, &diagnosis.model, &refit_options, &ConsistentOptions::default())
-            .context("the consistent fit with the effects found failed")?;
-    let path = out.join("model_consistent.json");
-    super::write_atomically(&path, &refit.to_json())?;
-    let names = model.joint_names();
-    println!("{}", indent(&super::diagnose::consistent_summary(&refit, &names)));
+    let report = diagnosis.report();
+    super::diagnose::write_outputs(out, &diagnosis, &report)?;
+    println!("{}", indent(&report));
+    let (refit, path) = super::diagnose::write_consistent(out, model, base, log, &diagnosis, &options, cutoff_hz)?;
+    println!("{}", indent(&super::diagnose::consistent_summary(&refit, &model.joint_names())));
     Ok((diagnosis, path))
 }

@@ -19,6 +19,8 @@ use arash_daemon::figures::{panels, Panel};
 pub struct Calibration {
     pub ols: Identification,
     pub consistent: Identification,
+    /// Where the consistent model was written.
+    pub consistent_file: std::path::PathBuf,
     /// Table II, as printed.
     pub table_ii: String,
     /// Measured against predicted torque on one validation run (its ω).
@@ -113,12 +115,20 @@ pub struct Tracking {
     pub runs: Vec<TrackingRun>,
 }
 
-/// A joint quantity in its display unit.
-fn shown(prismatic: bool, x: f64) -> f64 {
+/// A joint quantity in its display unit: degrees, or metres times `prismatic_scale`.
+fn shown(prismatic: bool, prismatic_scale: f64, x: f64) -> f64 {
     if prismatic {
-        x * 1e6
+        x * prismatic_scale
     } else {
         x.to_degrees()
+    }
+}
+
+fn torque_unit(prismatic: bool) -> &'static str {
+    if prismatic {
+        "N"
+    } else {
+        "N·m"
     }
 }
 
@@ -149,7 +159,7 @@ impl Tracking {
         for run in &self.runs {
             let _ = write!(s, "| {} |", run.label);
             for (k, &p) in self.prismatic.iter().enumerate() {
-                let _ = write!(s, " {:.4} | {:.4} |", shown(p, run.max_error[k]), shown(p, run.rms_error[k]));
+                let _ = write!(s, " {:.4} | {:.4} |", shown(p, 1e6, run.max_error[k]), shown(p, 1e6, run.rms_error[k]));
             }
             let faults = if run.faults == 0 { "none".to_string() } else { format!("{:#x}", run.faults) };
             let _ = writeln!(s, " {} | {faults} |", run.left_out);
@@ -173,8 +183,8 @@ pub fn prismatic(model: &Model) -> Vec<bool> {
 }
 
 /// Column `k` of a row-major N × dof array, in display units.
-fn joint_column(x: &[f64], k: usize, dof: usize, prismatic: bool, scale_prismatic: f64) -> Vec<f64> {
-    x.iter().skip(k).step_by(dof).map(|v| if prismatic { v * scale_prismatic } else { v.to_degrees() }).collect()
+fn joint_column(x: &[f64], k: usize, dof: usize, prismatic: bool, prismatic_scale: f64) -> Vec<f64> {
+    x.iter().skip(k).step_by(dof).map(|v| shown(prismatic, prismatic_scale, *v)).collect()
 }
 
 /// Write the report into `dir`; returns how many figures it holds (the diagnosis's included).
@@ -189,7 +199,10 @@ pub fn write(
     let names = model.joint_names();
     let dof = names.len();
     let kinds = prismatic(model);
-    let mut figures = Vec::new();
+    // (caption, file name) of each figure, by the report section that shows it.
+    let mut excitation_figure = Vec::new();
+    let mut calibration_figures = Vec::new();
+    let mut tracking_figures = Vec::new();
 
     // Fig. 3: the excitation, one period.
     let (t, q, _, _) = excitation.sample(200.0, 1);
@@ -206,7 +219,7 @@ pub fn write(
         "t (s)",
         &excitation_panels,
     )?;
-    figures.push(("The excitation trajectory, one period", path));
+    excitation_figure.push(("The excitation trajectory, one period", "excitation.png"));
 
     // Figs. 4–5: measured against predicted torque on a validation run.
     if let Some((omega, s)) = &calibration.torque {
@@ -214,7 +227,7 @@ pub fn write(
             .map(|k| {
                 let column = |x: &[f64]| x.iter().skip(k).step_by(dof).copied().collect::<Vec<f64>>();
                 Panel {
-                    y_label: format!("{} ({})", names[k], if kinds[k] { "N" } else { "N·m" }),
+                    y_label: format!("{} ({})", names[k], torque_unit(kinds[k])),
                     series: vec![
                         ("measured", &s.t[..], column(&s.measured)),
                         ("predicted", &s.t[..], column(&s.predicted)),
@@ -229,7 +242,7 @@ pub fn write(
             "t (s)",
             &torque_panels,
         )?;
-        figures.push(("Measured (filtered) against predicted torque on a validation run", path));
+        calibration_figures.push(("Measured (filtered) against predicted torque on a validation run", "torque.png"));
     }
 
     // Figs. 6–7: tracking error and control effort, one series per controller.
@@ -247,7 +260,7 @@ pub fn write(
                 y_label: if values {
                     format!("{} error ({})", names[k], unit(kinds[k]))
                 } else {
-                    format!("{} ({})", names[k], if kinds[k] { "N" } else { "N·m" })
+                    format!("{} ({})", names[k], torque_unit(kinds[k]))
                 },
                 series: tracking
                     .runs
@@ -265,14 +278,15 @@ pub fn write(
             .collect();
         let path = dir.join(file);
         panels(&path, &format!("{title}, ω = {} rad/s", tracking.omega), "t (s)", &per_joint)?;
-        figures.push((caption, path));
+        tracking_figures.push((caption, file));
     }
 
     let diagnosis_figures = list_pngs(&dir.join("diagnosis"))?;
+    let figures = [excitation_figure, calibration_figures, tracking_figures];
     let markdown = markdown(model, excitation, calibration, diagnosis, tracking, &figures, &diagnosis_figures);
     super::super::write_atomically(&dir.join("report.md"), &markdown)?;
     super::super::write_atomically(&dir.join("summary.json"), &summary(model, calibration, diagnosis, tracking))?;
-    Ok(figures.len() + diagnosis_figures.len())
+    Ok(figures.iter().map(Vec::len).sum::<usize>() + diagnosis_figures.len())
 }
 
 fn list_pngs(dir: &Path) -> anyhow::Result<Vec<String>> {
@@ -285,42 +299,38 @@ fn list_pngs(dir: &Path) -> anyhow::Result<Vec<String>> {
     Ok(names)
 }
 
+/// `figures` are (caption, file name) for the excitation, calibration and tracking sections.
 fn markdown(
     model: &Model,
     excitation: &Excitation,
     calibration: &Calibration,
     diagnosis: &Diagnosis,
     tracking: &Tracking,
-    figures: &[(&str, std::path::PathBuf)],
+    figures: &[Vec<(&str, &str)>; 3],
     diagnosis_figures: &[String],
 ) -> String {
-    let names = model.joint_names();
-    let file = |p: &std::path::PathBuf| p.file_name().map_or(String::new(), |f| f.to_string_lossy().into_owned());
+    let images = |s: &mut String, section: &[(&str, &str)]| {
+        for (caption, file) in section {
+            let _ = writeln!(s, "![{caption}]({file})\n");
+        }
+    };
     let mut s = String::from("# arash demo: calibration, diagnosis and control of the simulated rig\n\n");
     let _ = writeln!(
         s,
         "Excitation: L = {}, T = {} s, normalised condition number κ = {:.3}.\n",
         excitation.harmonics, excitation.period_s, excitation.condition_number
     );
-    let _ = writeln!(s, "![{}]({})\n", figures[0].0, file(&figures[0].1));
+    images(&mut s, &figures[0]);
     let _ = writeln!(s, "## Calibration\n\n```\nTable I (OLS)\n{}\n```\n", calibration.ols.table());
     let _ = writeln!(s, "```\nPhysically consistent fit\n{}\n```\n", calibration.consistent.table());
     let _ = writeln!(s, "```\n{}\n```\n", calibration.table_ii);
-    for (caption, path) in &figures[1..] {
-        if file(path) == "torque.png" {
-            let _ = writeln!(s, "![{caption}]({})\n", file(path));
-        }
-    }
+    images(&mut s, &figures[1]);
     let _ = writeln!(s, "## Diagnosis\n\n```\n{}\n```\n", diagnosis.report());
     for name in diagnosis_figures {
         let _ = writeln!(s, "![{name}](diagnosis/{name})\n");
     }
-    let _ = writeln!(s, "## Tracking\n\n{}\n", tracking.table(&names));
-    for (caption, path) in &figures[1..] {
-        if file(path) != "torque.png" {
-            let _ = writeln!(s, "![{caption}]({})\n", file(path));
-        }
-    }
+    let _ = writeln!(s, "## Tracking\n\n{}\n", tracking.table(&model.joint_names()));
+    images(&mut s, &figures[2]);
     s
 }
 
