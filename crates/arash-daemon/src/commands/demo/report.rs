@@ -371,16 +371,21 @@ mod tests {
 
     #[test]
     fn stale_cycles_and_the_recovery_from_a_stall_are_left_out() {
-        // 1 ms cycles; one stale cycle at 10, a four-cycle stall at 100..=103.
+        // 1 ms cycles; one stale cycle at 10, a stall of exactly STALL_CYCLES at 100..=102, and
+        // a gap one cycle short of a stall at 200..=201.
         let mut t: Vec<f64> = (0..400).map(|i| i as f64 * 1e-3).collect();
         t[10] = t[9];
-        for i in 100..104 {
+        for i in 100..100 + STALL_CYCLES {
             t[i] = t[99];
+        }
+        for i in 200..200 + STALL_CYCLES - 1 {
+            t[i] = t[199];
         }
         let d = disturbed(&t);
         let left_out: Vec<usize> = (0..t.len()).filter(|&i| d[i]).collect();
         let mut expected = vec![10];
-        expected.extend(100..104 + RECOVERY_CYCLES);
+        expected.extend(100..100 + STALL_CYCLES + RECOVERY_CYCLES);
+        expected.extend(200..200 + STALL_CYCLES - 1);
         assert_eq!(left_out, expected);
     }
 }
