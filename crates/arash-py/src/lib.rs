@@ -34,7 +34,7 @@ pub(crate) fn batch(name: &str, array: &PyReadonlyArrayDyn<'_, f64>, width: usiz
             )))
         }
     };
-    let values: Vec<f64> = view.iter().copied().collect();
+    let values = contiguous_copy(&view);
     if let Some(i) = values.iter().position(|x| !x.is_finite()) {
         return Err(PyValueError::new_err(format!(
             "{name} is not finite at sample {}, entry {}: {}",
@@ -52,11 +52,17 @@ pub(crate) fn vector(name: &str, array: &PyReadonlyArrayDyn<'_, f64>) -> PyResul
     if view.ndim() != 1 {
         return Err(PyValueError::new_err(format!("{name} must be one-dimensional, got shape {:?}", view.shape())));
     }
-    let values: Vec<f64> = view.iter().copied().collect();
+    let values = contiguous_copy(&view);
     if let Some(i) = values.iter().position(|x| !x.is_finite()) {
         return Err(PyValueError::new_err(format!("{name} is not finite at sample {i}: {}", values[i])));
     }
     Ok(values)
+}
+
+/// The array's values in row-major order: one memory copy when numpy holds them contiguously,
+/// element by element otherwise.
+fn contiguous_copy(view: &numpy::ndarray::ArrayViewD<'_, f64>) -> Vec<f64> {
+    view.as_slice().map_or_else(|| view.iter().copied().collect(), <[f64]>::to_vec)
 }
 
 pub(crate) fn same_length(batches: &[(&str, &Batch)]) -> PyResult<usize> {
@@ -546,21 +552,12 @@ fn filtfilt<'py>(
         [n, k] => (*n, *k),
         _ => return Err(PyValueError::new_err(format!("x must have shape (N,) or (N, k), got {shape:?}"))),
     };
-    let values: Vec<f64> = view.iter().copied().collect();
+    let values = contiguous_copy(&view);
     if values.iter().any(|v| !v.is_finite()) {
         return Err(PyValueError::new_err("x contains NaN or infinity"));
     }
     let mut out = vec![0.0; n * k];
-    let (mut column, mut filtered, mut scratch) = (vec![0.0; n], vec![0.0; n], Vec::new());
-    for j in 0..k {
-        for i in 0..n {
-            column[i] = values[i * k + j];
-        }
-        filter.filtfilt(&column, &mut filtered, &mut scratch).map_err(value_error)?;
-        for i in 0..n {
-            out[i * k + j] = filtered[i];
-        }
-    }
+    filter.filtfilt_rows(&values, k, &mut out).map_err(value_error)?;
     let array = ArrayD::from_shape_vec(IxDyn(&shape), out).map_err(value_error)?;
     Ok(array.into_pyarray(py))
 }

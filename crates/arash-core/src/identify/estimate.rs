@@ -97,49 +97,50 @@ pub fn stack_full(model: &Model, data: &Preprocessed) -> (Mat<f64>, Vec<f64>) {
 }
 
 fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f64> {
-    let (n, big_p, c_count) = (model.dof(), model.num_params(), columns.len());
-    let samples = data.samples();
-    let rows = samples * n;
-    // Column-major, filled on all cores: each thread owns a band of samples in every column.
-    let mut buffer = vec![0.0; rows * c_count];
+    let (n, samples) = (model.dof(), data.samples());
+    let mut w = Mat::<f64>::zeros(samples * n, columns.len());
+    // Each thread fills a band of consecutive samples.
     let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
     let per_thread = samples.div_ceil(threads).max(1);
-    let mut bands: Vec<Vec<&mut [f64]>> = (0..samples.div_ceil(per_thread)).map(|_| Vec::new()).collect();
-    for column in buffer.chunks_mut(rows) {
-        for (band, piece) in bands.iter_mut().zip(column.chunks_mut(per_thread * n)) {
-            band.push(piece);
-        }
-    }
     std::thread::scope(|scope| {
-        for (band_index, mut band) in bands.into_iter().enumerate() {
-            scope.spawn(move || {
-                let mut ws = Data::new(model);
-                let mut y = vec![0.0; n * big_p];
-                let first = band_index * per_thread;
-                for s in first..(first + per_thread).min(samples) {
-                    let range = s * n..(s + 1) * n;
-                    let (q, qd, qdd) = (&data.q[range.clone()], &data.qd[range.clone()], &data.qdd[range]);
-                    regressor(model, &mut ws, q, qd, qdd, &mut y);
-                    for k in 0..n {
-                        for (c, &j) in columns.iter().enumerate() {
-                            band[c][(s - first) * n + k] = y[k * big_p + j];
-                        }
-                    }
-                }
-            });
+        let mut rest = w.as_mut();
+        for first in (0..samples).step_by(per_thread) {
+            let count = per_thread.min(samples - first);
+            let (band, tail) = rest.split_at_row_mut(count * n);
+            rest = tail;
+            scope.spawn(move || fill_band(model, data, columns, first, band));
         }
     });
-    let mut w = faer::MatRef::from_column_major_slice(&buffer, rows, c_count).to_owned();
-    for k in 0..n {
-        let coulomb = model.friction_offset() + 2 * k + 1;
-        let Some(c) = columns.iter().position(|&j| j == coulomb) else { continue };
-        let column: Vec<f64> = (0..samples).map(|s| model.coulomb_shape.eval(data.qd_friction[s * n + k])).collect();
-        let filtered = data.filter_like_torque(&column, 1).expect("the torque was filtered with these settings");
-        for (s, v) in filtered.into_iter().enumerate() {
-            w[(s * n + k, c)] = v;
+    let coulomb: Vec<(usize, usize)> = (0..n)
+        .filter_map(|k| columns.iter().position(|&j| j == model.friction_offset() + 2 * k + 1).map(|c| (k, c)))
+        .collect();
+    if coulomb.is_empty() {
+        return w;
+    }
+    let shapes: Vec<f64> = data.qd_friction.iter().map(|v| model.coulomb_shape.eval(*v)).collect();
+    let filtered = data.filter_like_torque(&shapes, n).expect("the torque was filtered with these settings");
+    for (k, c) in coulomb {
+        for s in 0..samples {
+            w[(s * n + k, c)] = filtered[s * n + k];
         }
     }
     w
+}
+
+/// Rows of the samples `first..` into `band` (one row per sample and joint).
+fn fill_band(model: &Model, data: &Preprocessed, columns: &[usize], first: usize, mut band: faer::MatMut<'_, f64>) {
+    let (n, big_p) = (model.dof(), model.num_params());
+    let mut ws = Data::new(model);
+    let mut y = vec![0.0; n * big_p];
+    for local in 0..band.nrows() / n {
+        let range = (first + local) * n..(first + local + 1) * n;
+        regressor(model, &mut ws, &data.q[range.clone()], &data.qd[range.clone()], &data.qdd[range], &mut y);
+        for k in 0..n {
+            for (c, &j) in columns.iter().enumerate() {
+                band[(local * n + k, c)] = y[k * big_p + j];
+            }
+        }
+    }
 }
 
 /// Fit β by OLS or WLS on preprocessed data.

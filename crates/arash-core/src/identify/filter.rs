@@ -77,43 +77,73 @@ impl Butterworth {
     }
 
     /// Zero-phase filtering of `x` into `out` (same length), as `scipy.signal.filtfilt(b, a, x)`.
-    /// `scratch` is resized to `x.len() + 2·padlen`; pass the same buffer to avoid reallocating.
-    pub fn filtfilt(&self, x: &[f64], out: &mut [f64], scratch: &mut Vec<f64>) -> Result<(), FilterError> {
-        let (n, pad) = (x.len(), self.padlen());
+    pub fn filtfilt(&self, x: &[f64], out: &mut [f64]) -> Result<(), FilterError> {
+        self.filtfilt_rows(x, 1, out)
+    }
+
+    /// Zero-phase filtering of every column of a row-major `N × width` signal into `out` (same
+    /// shape): `scipy.signal.filtfilt(b, a, x, axis=0)`.
+    ///
+    /// Each sample runs through a recursion that waits on the previous sample, so one channel at a
+    /// time leaves the processor idle between dependent multiply-adds. Up to [`LANES`] channels
+    /// go through side by side instead, with each channel's arithmetic exactly as it would be
+    /// alone, so the result does not depend on `width`.
+    pub fn filtfilt_rows(&self, x: &[f64], width: usize, out: &mut [f64]) -> Result<(), FilterError> {
+        assert!(width > 0 && x.len() % width == 0, "x must hold whole rows of {width} values");
+        assert_eq!(out.len(), x.len(), "output must match the input shape");
+        let (n, pad) = (x.len() / width, self.padlen());
         if n <= pad {
             return Err(FilterError::TooShort { what: "the signal".into(), len: n, padlen: pad });
         }
-        assert_eq!(out.len(), n, "output must match the input length");
-        // Odd extension: 2·x[0] − x[pad..1] before, 2·x[n−1] − x[n−2..n−pad−1] after.
-        scratch.clear();
-        scratch.extend((1..=pad).rev().map(|i| 2.0 * x[0] - x[i]));
-        scratch.extend_from_slice(x);
-        scratch.extend((2..pad + 2).map(|i| 2.0 * x[n - 1] - x[n - i]));
-        self.run_from_steady_state(scratch);
-        scratch.reverse();
-        self.run_from_steady_state(scratch);
-        scratch.reverse();
-        out.copy_from_slice(&scratch[pad..pad + n]);
+        let mut padded: Vec<Lanes> = Vec::with_capacity(n + 2 * pad);
+        for first in (0..width).step_by(LANES) {
+            let used = (width - first).min(LANES);
+            let row =
+                |k: usize| -> Lanes { std::array::from_fn(|l| if l < used { x[k * width + first + l] } else { 0.0 }) };
+            // Odd extension: 2·x[0] − x[pad..1] before, 2·x[n−1] − x[n−2..n−pad−1] after.
+            let odd = |edge: Lanes, inner: Lanes| -> Lanes { std::array::from_fn(|l| 2.0 * edge[l] - inner[l]) };
+            let (head, tail) = (row(0), row(n - 1));
+            padded.clear();
+            padded.extend((1..=pad).rev().map(|i| odd(head, row(i))));
+            padded.extend((0..n).map(row));
+            padded.extend((2..pad + 2).map(|i| odd(tail, row(n - i))));
+            self.run_from_steady_state(padded.iter_mut());
+            self.run_from_steady_state(padded.iter_mut().rev());
+            for (k, v) in padded[pad..pad + n].iter().enumerate() {
+                out[k * width + first..k * width + first + used].copy_from_slice(&v[..used]);
+            }
+        }
         Ok(())
     }
 
-    /// Filter `y` in place, starting every section from the steady state for a constant input
-    /// `y[0]` (`sosfilt(sos, y, zi=sosfilt_zi(sos)·y[0])`), transposed direct form II.
-    fn run_from_steady_state(&self, y: &mut [f64]) {
-        let y0 = y[0];
-        for section in &self.sections {
-            let (b, a) = (&section.b, &section.a);
-            let (mut z0, mut z1) = (section.zi0 * y0, section.zi1 * y0);
-            for sample in y.iter_mut() {
-                let x = *sample;
-                let out = b[0] * x + z0;
-                z0 = b[1] * x - a[1] * out + z1;
-                z1 = b[2] * x - a[2] * out;
-                *sample = out;
+    /// Filter the samples in iteration order, in place, starting every section from the steady
+    /// state for a constant input equal to the first sample
+    /// (`sosfilt(sos, y, zi=sosfilt_zi(sos)·y[0])`), transposed direct form II.
+    fn run_from_steady_state<'a>(&self, mut samples: impl Iterator<Item = &'a mut Lanes>) {
+        let Some(first) = samples.next() else { return };
+        let y0 = *first;
+        let mut state: Vec<(Lanes, Lanes)> =
+            self.sections.iter().map(|s| (y0.map(|v| s.zi0 * v), y0.map(|v| s.zi1 * v))).collect();
+        let coefficients: Vec<([f64; 3], [f64; 3])> = self.sections.iter().map(|s| (s.b, s.a)).collect();
+        for sample in std::iter::once(first).chain(samples) {
+            let mut x = *sample;
+            for ((b, a), (z0, z1)) in coefficients.iter().zip(state.iter_mut()) {
+                let mut y = [0.0; LANES];
+                for l in 0..LANES {
+                    y[l] = b[0] * x[l] + z0[l];
+                    z0[l] = b[1] * x[l] - a[1] * y[l] + z1[l];
+                    z1[l] = b[2] * x[l] - a[2] * y[l];
+                }
+                x = y;
             }
+            *sample = x;
         }
     }
 }
+
+/// Channels filtered side by side (see [`Butterworth::filtfilt_rows`]).
+pub const LANES: usize = 4;
+type Lanes = [f64; LANES];
 
 #[cfg(test)]
 mod tests {
@@ -129,10 +159,52 @@ mod tests {
         let n = 4000;
         let x: Vec<f64> =
             (0..n).map(|i| 1.0 + (2.0 * std::f64::consts::PI * 200.0 * i as f64 / 1000.0).sin()).collect();
-        let (mut y, mut scratch) = (vec![0.0; n], Vec::new());
-        filter.filtfilt(&x, &mut y, &mut scratch).unwrap();
+        let mut y = vec![0.0; n];
+        filter.filtfilt(&x, &mut y).unwrap();
         // Away from the ends, where the padding transient has died out.
         assert!(y[1000..n - 1000].iter().all(|v| (v - 1.0).abs() < 1e-6), "200 Hz should vanish, DC stay");
+    }
+
+    /// The previous evaluation order, one channel and one section at a time over the whole
+    /// padded signal, kept here as the reference the side-by-side evaluation must equal exactly.
+    fn one_channel_at_a_time(filter: &Butterworth, x: &[f64]) -> Vec<f64> {
+        let (n, pad) = (x.len(), filter.padlen());
+        let mut y: Vec<f64> = (1..=pad).rev().map(|i| 2.0 * x[0] - x[i]).collect();
+        y.extend_from_slice(x);
+        y.extend((2..pad + 2).map(|i| 2.0 * x[n - 1] - x[n - i]));
+        for _ in 0..2 {
+            let y0 = y[0];
+            for section in &filter.sections {
+                let (b, a) = (&section.b, &section.a);
+                let (mut z0, mut z1) = (section.zi0 * y0, section.zi1 * y0);
+                for sample in y.iter_mut() {
+                    let x = *sample;
+                    let out = b[0] * x + z0;
+                    z0 = b[1] * x - a[1] * out + z1;
+                    z1 = b[2] * x - a[2] * out;
+                    *sample = out;
+                }
+            }
+            y.reverse();
+        }
+        y[pad..pad + n].to_vec()
+    }
+
+    #[test]
+    fn channels_side_by_side_equal_each_channel_alone_bit_for_bit() {
+        let filter = Butterworth::lowpass(5, 3.0, 1000.0).unwrap();
+        let n = 2000;
+        // Seven channels: one full group of lanes and a partial one.
+        let width = 7;
+        let x: Vec<f64> = (0..n * width).map(|i| ((i * 7919) as f64).sin() + 0.01 * i as f64).collect();
+        let mut rows = vec![0.0; x.len()];
+        filter.filtfilt_rows(&x, width, &mut rows).unwrap();
+        for j in 0..width {
+            let column: Vec<f64> = x.iter().skip(j).step_by(width).copied().collect();
+            let reference = one_channel_at_a_time(&filter, &column);
+            let ours: Vec<f64> = rows.iter().skip(j).step_by(width).copied().collect();
+            assert!(ours.iter().zip(&reference).all(|(a, b)| a.to_bits() == b.to_bits()), "channel {j} differs");
+        }
     }
 
     #[test]
@@ -140,7 +212,7 @@ mod tests {
         assert!(matches!(Butterworth::lowpass(5, 600.0, 1000.0), Err(FilterError::CutoffOutOfRange { .. })));
         assert!(matches!(Butterworth::lowpass(0, 10.0, 1000.0), Err(FilterError::BadOrder(0))));
         let filter = Butterworth::lowpass(5, 10.0, 1000.0).unwrap();
-        let err = filter.filtfilt(&[0.0; 18], &mut [0.0; 18], &mut Vec::new()).unwrap_err();
+        let err = filter.filtfilt(&[0.0; 18], &mut [0.0; 18]).unwrap_err();
         assert_eq!(err, FilterError::TooShort { what: "the signal".into(), len: 18, padlen: 18 });
     }
 }
