@@ -1,0 +1,74 @@
+//! Criterion benches of the identification pipeline on a simulated 300,000-sample log (300 s at
+//! 1 kHz of a 15 s, 5-harmonic excitation; CAD torques plus noise), step by step and whole.
+//! Run: cargo bench -p arash-core --bench identification
+
+use std::hint::black_box;
+
+use arash_core::base_parameters::BaseParameterOptions;
+use arash_core::identify::estimate::{fit, stack, Method};
+use arash_core::identify::excitation::Excitation;
+use arash_core::identify::preprocess::{preprocess, PreprocessOptions};
+use arash_core::identify::{identify, IdentifyMethod, IdentifyOptions};
+use arash_core::*;
+use criterion::{criterion_group, criterion_main, Criterion};
+
+/// A smooth excitation within ARASH:ASiST's limits (fixed coefficients: the bench measures speed).
+fn excitation(model: &Model) -> Excitation {
+    let harmonics = 5;
+    let coefficient = |j: usize, l: usize, phase: f64| {
+        0.25 * model.joints[j].velocity * (phase + j as f64 + l as f64).sin() / (l + 1) as f64
+    };
+    Excitation {
+        harmonics,
+        period_s: 15.0,
+        q0: model.joints.iter().map(|j| 0.5 * (j.lower + j.upper)).collect(),
+        a: (0..model.dof()).map(|j| (0..harmonics).map(|l| coefficient(j, l, 0.3)).collect()).collect(),
+        b: (0..model.dof()).map(|j| (0..harmonics).map(|l| coefficient(j, l, 1.9)).collect()).collect(),
+        condition_number: f64::NAN,
+    }
+}
+
+/// 20 periods at 1 kHz: t, q and τ (CAD parameters, deterministic pseudo-noise of encoder and
+/// current-sensor size).
+fn simulated_log(model: &Model) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let (t, q, qd, qdd) = excitation(model).sample(1000.0, 20);
+    let (n, pi) = (model.dof(), model.cad_parameters());
+    let mut data = Data::new(model);
+    let mut tau = vec![0.0; q.len()];
+    let noise = [0.003, 0.003, 0.05];
+    for (s, out) in tau.chunks_mut(n).enumerate() {
+        let range = s * n..(s + 1) * n;
+        inverse_dynamics(model, &mut data, &q[range.clone()], &qd[range.clone()], &qdd[range], &pi, out);
+        for (k, v) in out.iter_mut().enumerate() {
+            *v += noise[k] * ((s * 7919 + k * 104_729) as f64).sin();
+        }
+    }
+    (t, q, tau)
+}
+
+fn bench(c: &mut Criterion) {
+    let model = arash_asist();
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
+    let (t, q, tau) = simulated_log(&model);
+    let mut group = c.benchmark_group("identification, 300,000 samples");
+    group.sample_size(10);
+    for (label, periods) in [("20 periods averaged", Some(20)), ("no averaging", None)] {
+        let options = PreprocessOptions { periods, cutoff_hz: Some(1.6667), ..Default::default() };
+        group.bench_function(format!("preprocess ({label})"), |b| {
+            b.iter(|| preprocess(black_box(&t), &q, &tau, 3, &options).unwrap())
+        });
+        let pre = preprocess(&t, &q, &tau, 3, &options).unwrap();
+        group.bench_function(format!("stack W ({label})"), |b| b.iter(|| stack(&model, &base, black_box(&pre))));
+        group.bench_function(format!("OLS fit ({label})"), |b| {
+            b.iter(|| fit(&model, &base, black_box(&pre), Method::Ols).unwrap())
+        });
+        let whole = IdentifyOptions { preprocess: options.clone(), ..Default::default() };
+        group.bench_function(format!("identify OLS ({label})"), |b| {
+            b.iter(|| identify(&model, &base, "", black_box(&t), &q, &tau, IdentifyMethod::Ols, &whole).unwrap())
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
