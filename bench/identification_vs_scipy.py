@@ -1,4 +1,5 @@
-"""Preprocessing + OLS against numpy/scipy doing the same steps, and the consistent SDP against cvxpy.
+"""Preprocessing + OLS against numpy/scipy doing the same steps (with arash's regressor, and with
+Pinocchio's), and the consistent SDP against cvxpy.
 
 Run from the repository root with the test venv:
     .venv/bin/python bench/identification_vs_scipy.py
@@ -12,17 +13,47 @@ import numpy as np
 from scipy import signal
 
 import arash
+import pinocchio as pin
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from simulated import fourier_trajectory, log, true_parameters  # noqa: E402
 from timing import median_seconds  # noqa: E402
 from test_identification import cvxpy_consistent  # noqa: E402
+from conftest import ROBOT_FILES  # noqa: E402
+from test_against_pinocchio import Expanded  # noqa: E402
 
 FS = 1000.0
 
 
-def scipy_pipeline(robot, base, t, q, tau, periods, cutoff):
+def pinocchio_reduced_regressor(ref, robot, base, q, qd, qdd):
+    """Y_r from Pinocchio's joint-torque regressor on the expanded tree: the tree states in numpy
+    for all samples at once, one Pinocchio call per sample (it has no batched API), then
+    Gᵀ·Y_tree·T, the friction and elastic columns and the independent columns in numpy."""
+    angles = q @ ref.G.T + ref.offset
+    config = np.zeros((len(q), ref.model.nq))
+    for jid in range(1, ref.model.njoints):
+        joint = ref.model.joints[jid]
+        theta = angles[:, joint.idx_v]
+        if joint.nq == 2:
+            config[:, joint.idx_q], config[:, joint.idx_q + 1] = np.cos(theta), np.sin(theta)
+        else:
+            config[:, joint.idx_q] = theta
+    v, a = qd @ ref.G.T, qdd @ ref.G.T
+    tree = np.empty((len(q), ref.model.nv, 10 * (ref.model.njoints - 1)))
+    for i in range(len(q)):
+        tree[i] = pin.computeJointTorqueRegressor(ref.model, ref.data, config[i], v[i], a[i])
+    rigid = ref.G.T @ tree @ ref.T
+    n = robot.dof
+    joint_cols = np.zeros((len(q), n, 3 * n))
+    for k in range(n):
+        joint_cols[:, k, 2 * k] = qd[:, k]
+        joint_cols[:, k, 2 * k + 1] = np.sign(qd[:, k])
+        joint_cols[:, k, 2 * n + k] = q[:, k]
+    return np.concatenate([rigid, joint_cols], axis=2)[:, :, base.independent]
+
+
+def scipy_pipeline(robot, base, t, q, tau, periods, cutoff, regressor=None):
     """The same steps in numpy/scipy: average, filter (sections, filtfilt padding), central
     differences, filter, regressor (arash's: there is no scipy one), the Coulomb columns switched by
     the velocity filtered at 20 Hz and then filtered like the torque, least squares."""
@@ -47,7 +78,7 @@ def scipy_pipeline(robot, base, t, q, tau, periods, cutoff):
     qdd = filt(diff(qd), periodic)
     tauf = filt(tau, periodic)
     qd_friction = filt(diff(q), periodic, sos_friction)
-    Yr = base.reduced_regressor(qf, qd, qdd)
+    Yr = (regressor or base.reduced_regressor)(qf, qd, qdd)
     names = robot.parameter_names()
     coulomb = [base.independent.index(names.index(f"{joint}.fc")) for joint in robot.joint_names()]
     Yr[:, range(robot.dof), coulomb] = filt(np.sign(qd_friction), periodic)
@@ -58,6 +89,7 @@ def scipy_pipeline(robot, base, t, q, tau, periods, cutoff):
 def main():
     robot = arash.Robot.arash_asist()
     base = robot.base_parameters()
+    ref = Expanded(ROBOT_FILES["arash_asist"], robot)
     rng = np.random.default_rng(0)
     truth = true_parameters(robot, rng)
     traj = fourier_trajectory(robot, rng)
@@ -80,6 +112,15 @@ def main():
         regressor = median_seconds(lambda: base.reduced_regressor(*states), 5)
         print(f"  of which the regressor on {samples} samples (both pipelines): {regressor * 1e3:.0f} ms; "
               f"bound on the ratio: {peer / regressor:.1f}×")
+        # The fully independent peer: Pinocchio's regressor instead of arash's.
+        pinocchio = lambda *s: pinocchio_reduced_regressor(ref, robot, base, *s)  # noqa: E731
+        repeats = 5 if periods else 1
+        independent = median_seconds(
+            lambda: scipy_pipeline(robot, base, t, q, tau, periods, cutoff, pinocchio), repeats)
+        c = scipy_pipeline(robot, base, t, q, tau, periods, cutoff, pinocchio)
+        agree = np.abs(a - c).max() / np.abs(c).max()
+        print(f"  numpy/scipy with Pinocchio's regressor: {independent * 1e3:.0f} ms, "
+              f"ratio {independent / ours:.1f}×; β agree to {agree:.1e} (max rel.)")
 
     import cvxpy as cp
 
