@@ -82,6 +82,16 @@ def test_table_ii_cross_validation_on_the_papers_trajectories(robot, truth, trai
     assert np.all(rows > 80), rows
 
 
+def test_arrays_in_any_memory_layout_give_the_same_fit(robot, training):
+    """Contiguous arrays are read in place, others copied; the fit must not depend on which."""
+    t, q, tau = training
+    reference = arash.identify(robot, t, q, tau, periods=4).beta
+    strided = np.repeat(q, 2, axis=0)[::2]  # a view with a step: not contiguous
+    assert not strided.flags.c_contiguous
+    for q_in, tau_in in ((np.asfortranarray(q), np.asfortranarray(tau)), (strided, tau)):
+        np.testing.assert_array_equal(arash.identify(robot, t, q_in, tau_in, periods=4).beta, reference)
+
+
 def test_bad_logs_are_refused(robot, training):
     t, q, tau = training
     with pytest.raises(ValueError, match="q is not finite at sample 5"):
@@ -90,6 +100,8 @@ def test_bad_logs_are_refused(robot, training):
         arash.identify(robot, t, bad, tau)
     with pytest.raises(ValueError, match="t has 60000 samples, q has 59999"):
         arash.identify(robot, t, q[:-1], tau)
+    with pytest.raises(ValueError, match=r"q must have shape \(N, 3\), got \[60000, 2\]"):
+        arash.identify(robot, t, q[:, :2], tau)
     with pytest.raises(ValueError, match="at least 2 whole periods"):
         arash.identify(robot, t, q, tau, periods=1)
     with pytest.raises(ValueError, match="not uniformly sampled"):

@@ -93,7 +93,7 @@ fn _diagnose<'py>(
 ) -> PyResult<RawDiagnosis> {
     let dof = robot.model.dof();
     let (t, q, tau) = log_arrays(&t, &q, &tau, dof)?;
-    let held = validation.map(|(vt, vq, vtau)| log_arrays(&vt, &vq, &vtau, dof)).transpose()?;
+    let held = validation.as_ref().map(|(vt, vq, vtau)| log_arrays(vt, vq, vtau, dof)).transpose()?;
     if let Some(tr) = &transmission {
         if tr.len() != dof || tr.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
             return Err(PyValueError::new_err(format!(
