@@ -119,20 +119,35 @@ impl Butterworth {
     /// Filter the samples in iteration order, in place, starting every section from the steady
     /// state for a constant input equal to the first sample
     /// (`sosfilt(sos, y, zi=sosfilt_zi(sos)·y[0])`), transposed direct form II.
-    fn run_from_steady_state<'a>(&self, mut samples: impl Iterator<Item = &'a mut Lanes>) {
+    fn run_from_steady_state<'a>(&self, samples: impl Iterator<Item = &'a mut Lanes>) {
+        // A fixed number of sections lets the states live in registers: kept in a heap vector,
+        // every sample's recursion would wait on a store and a reload of each state.
+        match self.sections.len() {
+            1 => self.run_sections::<1>(samples),
+            2 => self.run_sections::<2>(samples),
+            3 => self.run_sections::<3>(samples),
+            4 => self.run_sections::<4>(samples),
+            5 => self.run_sections::<5>(samples),
+            6 => self.run_sections::<6>(samples),
+            n => unreachable!("orders 1 to 12 give 1 to 6 sections, not {n}"),
+        }
+    }
+
+    fn run_sections<'a, const S: usize>(&self, mut samples: impl Iterator<Item = &'a mut Lanes>) {
         let Some(first) = samples.next() else { return };
         let y0 = *first;
-        let mut state: Vec<(Lanes, Lanes)> =
-            self.sections.iter().map(|s| (y0.map(|v| s.zi0 * v), y0.map(|v| s.zi1 * v))).collect();
-        let coefficients: Vec<([f64; 3], [f64; 3])> = self.sections.iter().map(|s| (s.b, s.a)).collect();
+        let section = |i: usize| &self.sections[i];
+        let coefficients: [([f64; 3], [f64; 3]); S] = std::array::from_fn(|i| (section(i).b, section(i).a));
+        let mut z0: [Lanes; S] = std::array::from_fn(|i| y0.map(|v| section(i).zi0 * v));
+        let mut z1: [Lanes; S] = std::array::from_fn(|i| y0.map(|v| section(i).zi1 * v));
         for sample in std::iter::once(first).chain(samples) {
             let mut x = *sample;
-            for ((b, a), (z0, z1)) in coefficients.iter().zip(state.iter_mut()) {
+            for (i, (b, a)) in coefficients.iter().enumerate() {
                 let mut y = [0.0; LANES];
                 for l in 0..LANES {
-                    y[l] = b[0] * x[l] + z0[l];
-                    z0[l] = b[1] * x[l] - a[1] * y[l] + z1[l];
-                    z1[l] = b[2] * x[l] - a[2] * y[l];
+                    y[l] = b[0] * x[l] + z0[i][l];
+                    z0[i][l] = b[1] * x[l] - a[1] * y[l] + z1[i][l];
+                    z1[i][l] = b[2] * x[l] - a[2] * y[l];
                 }
                 x = y;
             }
