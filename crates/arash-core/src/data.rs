@@ -24,6 +24,8 @@ pub struct Data {
     pub(crate) vel_ref: Vec<Motion>,
     /// Spatial accelerations (or reference accelerations), gravity included when asked for.
     pub(crate) acc: Vec<Motion>,
+    /// `(sin q_k, cos q_k)` of each actuated coordinate at the last forward kinematics.
+    pub(crate) sin_cos: Vec<(f64, f64)>,
     /// dof × dof scratch for the mass matrix and its Cholesky factor.
     pub(crate) mass: Vec<f64>,
     pub(crate) rhs: Vec<f64>,
@@ -44,6 +46,7 @@ impl Data {
             vel: vec![Motion::ZERO; nb],
             vel_ref: vec![Motion::ZERO; nb],
             acc: vec![Motion::ZERO; nb],
+            sin_cos: vec![(0.0, 1.0); n],
             mass: vec![0.0; n * n],
             rhs: vec![0.0; n],
             unit: vec![0.0; n],

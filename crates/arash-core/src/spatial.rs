@@ -157,8 +157,14 @@ pub fn rpy_to_rotation(roll: f64, pitch: f64, yaw: f64) -> Mat3 {
 /// Rotation by `angle` about the unit `axis`.
 #[inline]
 pub fn axis_angle(axis: &Vec3, angle: f64) -> Mat3 {
-    // Rodrigues as c·1 + s·[a]× + (1 − c)·a aᵀ: no normalisation, no allocation, few products.
     let (s, c) = angle.sin_cos();
+    axis_rotation(axis, s, c)
+}
+
+/// Rotation about the unit `axis` by the angle whose sine and cosine are `s` and `c`.
+#[inline]
+pub fn axis_rotation(axis: &Vec3, s: f64, c: f64) -> Mat3 {
+    // Rodrigues as c·1 + s·[a]× + (1 − c)·a aᵀ: no normalisation, no allocation, few products.
     let t = 1.0 - c;
     let (x, y, z) = (axis.x, axis.y, axis.z);
     Mat3::new(
