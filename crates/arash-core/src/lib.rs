@@ -31,7 +31,7 @@ pub use dynamics::{
 };
 pub use kinematics::forward_kinematics;
 pub use model::{ActuatedJoint, Body, CoulombShape, JointKind, Model};
-pub use regressor::{regressor, slotine_li_regressor};
+pub use regressor::{regressor, regressor_of_bodies, slotine_li_regressor};
 pub use urdf::{load_urdf, parse_urdf, UrdfError};
 
 /// The bundled reconstruction of ARASH:ASiST (`robots/arash_asist.urdf`).

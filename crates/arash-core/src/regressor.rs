@@ -11,10 +11,25 @@ use crate::spatial::{inertia_coefficients, Motion, BODY_PARAMS};
 
 /// `Y(q, q̇, q̈)`, row-major `dof × P`. Coulomb columns use `model.coulomb_shape` of `q̇`.
 pub fn regressor(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], qdd: &[f64], out: &mut [f64]) {
+    regressor_of_bodies(model, data, q, qd, qdd, None, out);
+}
+
+/// [`regressor`] with the rigid-body columns computed only for the bodies flagged in `bodies` (one
+/// flag per body; `None` means all). The other bodies' columns are left zero. A base regressor
+/// needs the columns of a few bodies only (on ARASH:ASiST, 5 of 8), and the kinematics is shared.
+pub fn regressor_of_bodies(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    bodies: Option<&[bool]>,
+    out: &mut [f64],
+) {
     placements_and_jacobians(model, data, q);
     motion_sweep(model, data, qd, qd, qdd, true);
     // u · (I a + v ×* I v) = ρ(u, a) − ρ(v × u, v): the Newton–Euler wrench projected on u.
-    fill_rigid_columns(model, data, out, |u, v, _, a| {
+    fill_rigid_columns(model, data, bodies, out, |u, v, _, a| {
         let mut row = inertia_coefficients(u, a);
         let coriolis = inertia_coefficients(&v.cross(u), v);
         for (r, c) in row.iter_mut().zip(coriolis) {
@@ -49,7 +64,7 @@ pub fn slotine_li_regressor(
         let fold = data.vel[b].cross(&data.vel_ref[b]);
         data.acc[b].axpy(-0.5, &fold);
     }
-    fill_rigid_columns(model, data, out, slotine_li_row);
+    fill_rigid_columns(model, data, None, out, slotine_li_row);
     fill_joint_columns(model, q, qd, qd_r, out);
 }
 
@@ -66,15 +81,32 @@ fn slotine_li_row(u: &Motion, v: &Motion, v_r: &Motion, a_folded: &Motion) -> [f
     row
 }
 
-/// Write the 10 columns of every body: row `k` of body `b` is `row(J_b[:, k], v_b, v_r,b, a_b)`.
-fn fill_rigid_columns<F>(model: &Model, data: &Data, out: &mut [f64], row: F)
+/// The flags for [`regressor_of_bodies`] that cover the regressor columns `columns`: a body is
+/// needed when one of its ten inertial columns is listed.
+pub fn bodies_of_columns(model: &Model, columns: &[usize]) -> Vec<bool> {
+    let mut bodies = vec![false; model.bodies.len()];
+    for &j in columns.iter().filter(|&&j| j < model.friction_offset()) {
+        bodies[j / BODY_PARAMS] = true;
+    }
+    bodies
+}
+
+/// Write the 10 columns of every body (of every flagged body, given `bodies`): row `k` of body `b`
+/// is `row(J_b[:, k], v_b, v_r,b, a_b)`.
+fn fill_rigid_columns<F>(model: &Model, data: &Data, bodies: Option<&[bool]>, out: &mut [f64], row: F)
 where
     F: Fn(&Motion, &Motion, &Motion, &Motion) -> [f64; BODY_PARAMS],
 {
     let (n, p) = (model.dof(), model.num_params());
     assert_eq!(out.len(), n * p, "regressor output must hold dof × P = {n} × {p} values");
+    if let Some(flags) = bodies {
+        assert_eq!(flags.len(), model.bodies.len(), "one flag per body");
+    }
     out.fill(0.0);
     for b in 0..model.bodies.len() {
+        if bodies.is_some_and(|flags| !flags[b]) {
+            continue;
+        }
         let (v, v_r, a) = (&data.vel[b], &data.vel_ref[b], &data.acc[b]);
         for k in 0..n {
             let u = &data.jac[b * n + k];

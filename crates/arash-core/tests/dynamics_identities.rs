@@ -216,6 +216,29 @@ fn base_regressor_reproduces_the_full_regressor_for_any_parameters() {
 }
 
 #[test]
+fn regressor_of_the_bodies_a_base_needs_gives_the_same_base_regressor() {
+    for model in all_models() {
+        let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
+        let bodies = regressor::bodies_of_columns(&model, &base.independent);
+        let (mut data, mut rng, n, p) = (Data::new(&model), rng(9), model.dof(), model.num_params());
+        let (mut y, mut y_some) = (vec![0.0; n * p], vec![f64::NAN; n * p]);
+        let (mut y_r, mut y_r_some) = (vec![0.0; n * base.rank], vec![0.0; n * base.rank]);
+        for _ in 0..STATES {
+            let s = state(&model, &mut rng);
+            regressor(&model, &mut data, &s.q, &s.qd, &s.qdd, &mut y);
+            regressor_of_bodies(&model, &mut data, &s.q, &s.qd, &s.qdd, Some(&bodies), &mut y_some);
+            base.reduce(&y, &mut y_r);
+            base.reduce(&y_some, &mut y_r_some);
+            assert_eq!(y_r, y_r_some, "{}: the base columns must not depend on the skipped bodies", model.name);
+            for (j, (full, some)) in y.iter().zip(&y_some).enumerate().map(|(i, v)| (i % p, v)) {
+                let skipped = j < model.friction_offset() && !bodies[j / 10];
+                assert!(if skipped { *some == 0.0 } else { some == full }, "{}: column {j}", model.name);
+            }
+        }
+    }
+}
+
+#[test]
 fn base_parameter_count_is_stable_across_sample_sets() {
     for model in all_models() {
         let reference = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();

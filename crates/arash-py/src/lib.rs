@@ -507,8 +507,10 @@ impl BaseParameters {
         let (q, qd, qdd) = (batch("q", &q, n)?, batch("qd", &qd, n)?, batch("qdd", &qdd, n)?);
         let count = same_length(&[("q", &q), ("qd", &qd), ("qdd", &qdd)])?;
         let base = &self.base;
+        let bodies = core::regressor::bodies_of_columns(m, &base.independent);
         batched(py, m, count, q.single, &[n, rank], |s, i, o| {
-            core::regressor(m, &mut s.data, row(&q, i, n), row(&qd, i, n), row(&qdd, i, n), &mut s.regressor);
+            let (q, qd, qdd) = (row(&q, i, n), row(&qd, i, n), row(&qdd, i, n));
+            core::regressor_of_bodies(m, &mut s.data, q, qd, qdd, Some(&bodies), &mut s.regressor);
             base.reduce(&s.regressor, o);
         })
     }

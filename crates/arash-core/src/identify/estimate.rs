@@ -18,7 +18,7 @@ use super::preprocess::Preprocessed;
 use crate::base_parameters::BaseParameters;
 use crate::data::Data;
 use crate::model::Model;
-use crate::regressor::regressor;
+use crate::regressor::{bodies_of_columns, regressor_of_bodies};
 
 /// Which least-squares problem to solve.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -132,9 +132,11 @@ fn fill_band(model: &Model, data: &Preprocessed, columns: &[usize], first: usize
     let (n, big_p) = (model.dof(), model.num_params());
     let mut ws = Data::new(model);
     let mut y = vec![0.0; n * big_p];
+    let bodies = bodies_of_columns(model, columns);
     for local in 0..band.nrows() / n {
         let range = (first + local) * n..(first + local + 1) * n;
-        regressor(model, &mut ws, &data.q[range.clone()], &data.qd[range.clone()], &data.qdd[range], &mut y);
+        let (q, qd, qdd) = (&data.q[range.clone()], &data.qd[range.clone()], &data.qdd[range]);
+        regressor_of_bodies(model, &mut ws, q, qd, qdd, Some(&bodies), &mut y);
         for k in 0..n {
             for (c, &j) in columns.iter().enumerate() {
                 band[(local * n + k, c)] = y[k * big_p + j];
