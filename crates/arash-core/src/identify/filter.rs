@@ -89,27 +89,43 @@ impl Butterworth {
     /// go through side by side instead, with each channel's arithmetic exactly as it would be
     /// alone, so the result does not depend on `width`.
     pub fn filtfilt_rows(&self, x: &[f64], width: usize, out: &mut [f64]) -> Result<(), FilterError> {
+        self.filtfilt_copies(x, width, 1, out)
+    }
+
+    /// [`Self::filtfilt_rows`] for one period of a periodic signal: the result of filtering three
+    /// copies of `x` end to end and keeping the middle one, so that the filter sees no ends. The
+    /// copies are read in place, not built.
+    pub fn filtfilt_rows_periodic(&self, x: &[f64], width: usize, out: &mut [f64]) -> Result<(), FilterError> {
+        self.filtfilt_copies(x, width, 3, out)
+    }
+
+    /// Filter `copies` copies of `x` end to end; write the middle copy to `out`.
+    fn filtfilt_copies(&self, x: &[f64], width: usize, copies: usize, out: &mut [f64]) -> Result<(), FilterError> {
         assert!(width > 0 && x.len() % width == 0, "x must hold whole rows of {width} values");
         assert_eq!(out.len(), x.len(), "output must match the input shape");
         let (n, pad) = (x.len() / width, self.padlen());
-        if n <= pad {
-            return Err(FilterError::TooShort { what: "the signal".into(), len: n, padlen: pad });
+        let total = copies * n;
+        if total <= pad {
+            return Err(FilterError::TooShort { what: "the signal".into(), len: total, padlen: pad });
         }
-        let mut padded: Vec<Lanes> = Vec::with_capacity(n + 2 * pad);
+        let kept = pad + (copies / 2) * n;
+        let mut padded: Vec<Lanes> = Vec::with_capacity(total + 2 * pad);
         for first in (0..width).step_by(LANES) {
             let used = (width - first).min(LANES);
-            let row =
-                |k: usize| -> Lanes { std::array::from_fn(|l| if l < used { x[k * width + first + l] } else { 0.0 }) };
-            // Odd extension: 2·x[0] − x[pad..1] before, 2·x[n−1] − x[n−2..n−pad−1] after.
+            let row = |k: usize| -> Lanes {
+                let at = (k % n) * width + first;
+                std::array::from_fn(|l| if l < used { x[at + l] } else { 0.0 })
+            };
+            // Odd extension: 2·x[0] − x[pad..1] before, 2·x[N−1] − x[N−2..N−pad−1] after.
             let odd = |edge: Lanes, inner: Lanes| -> Lanes { std::array::from_fn(|l| 2.0 * edge[l] - inner[l]) };
-            let (head, tail) = (row(0), row(n - 1));
+            let (head, tail) = (row(0), row(total - 1));
             padded.clear();
             padded.extend((1..=pad).rev().map(|i| odd(head, row(i))));
-            padded.extend((0..n).map(row));
-            padded.extend((2..pad + 2).map(|i| odd(tail, row(n - i))));
+            padded.extend((0..total).map(row));
+            padded.extend((2..pad + 2).map(|i| odd(tail, row(total - i))));
             self.run_from_steady_state(padded.iter_mut());
             self.run_from_steady_state(padded.iter_mut().rev());
-            for (k, v) in padded[pad..pad + n].iter().enumerate() {
+            for (k, v) in padded[kept..kept + n].iter().enumerate() {
                 out[k * width + first..k * width + first + used].copy_from_slice(&v[..used]);
             }
         }
@@ -219,6 +235,21 @@ mod tests {
             let reference = one_channel_at_a_time(&filter, &column);
             let ours: Vec<f64> = rows.iter().skip(j).step_by(width).copied().collect();
             assert!(ours.iter().zip(&reference).all(|(a, b)| a.to_bits() == b.to_bits()), "channel {j} differs");
+        }
+    }
+
+    #[test]
+    fn periodic_filtering_is_the_middle_of_three_copies_bit_for_bit() {
+        let filter = Butterworth::lowpass(5, 2.0, 1000.0).unwrap();
+        let (n, width) = (1500, 5);
+        let x: Vec<f64> = (0..n * width).map(|i| ((i * 104_729) as f64).cos() + 0.002 * i as f64).collect();
+        let mut periodic = vec![0.0; x.len()];
+        filter.filtfilt_rows_periodic(&x, width, &mut periodic).unwrap();
+        for j in 0..width {
+            let column: Vec<f64> = x.iter().skip(j).step_by(width).copied().collect();
+            let reference = one_channel_at_a_time(&filter, &column.repeat(3));
+            let ours = periodic.iter().skip(j).step_by(width);
+            assert!(ours.zip(&reference[n..2 * n]).all(|(a, b)| a.to_bits() == b.to_bits()), "channel {j} differs");
         }
     }
 

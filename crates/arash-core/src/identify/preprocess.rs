@@ -157,15 +157,15 @@ pub fn preprocess(
         return Err(PreprocessError::BadDecimation);
     }
     let fs = 1.0 / dt;
-    let (q, tau, periodic, periods) = match options.periods {
+    let (periodic, periods) = match options.periods {
         Some(p) if p < 2 => return Err(PreprocessError::TooFewPeriods { periods: p }),
-        Some(p) => {
-            let per = t.len() / p;
-            (average_periods(q, dof, p, per), average_periods(tau, dof, p, per), true, p)
-        }
-        None => (q.to_vec(), tau.to_vec(), false, 1),
+        Some(p) => (true, p),
+        None => (false, 1),
     };
-    let n = q.len() / dof;
+    let averaged = |x| averaged(x, dof, periods, t.len() / periods);
+    // q is needed for the cut-off and by both chains below; τ only by its own, which averages it.
+    let q = averaged(q);
+    let n = t.len() / periods;
     let cutoff_hz = match options.cutoff_hz {
         Some(c) => c,
         None => default_cutoff_hz(&q, dof, fs, periodic),
@@ -197,7 +197,7 @@ pub fn preprocess(
         Ok((q_f, qd, qdd))
     };
     let torque_and_friction = || -> Result<_, FilterError> {
-        let tau_f = filter_columns(&filter, &tau, dof, periodic)?;
+        let tau_f = filter_columns(&filter, &averaged(tau), dof, periodic)?;
         let qd_friction = filter_columns(&friction_filter, &central_difference(&q, dof, dt, periodic), dof, periodic)?;
         Ok((tau_f, qd_friction))
     };
@@ -224,6 +224,14 @@ pub fn preprocess(
         periodic,
         decimate: options.decimate,
     })
+}
+
+/// `x` averaged over its periods, or `x` itself (borrowed, not copied) for a single period.
+fn averaged(x: &[f64], dof: usize, periods: usize, per: usize) -> std::borrow::Cow<'_, [f64]> {
+    match periods {
+        1 => x.into(),
+        _ => average_periods(x, dof, periods, per).into(),
+    }
 }
 
 /// Mean over `periods` consecutive blocks of `per` samples (trailing samples beyond whole periods
@@ -263,14 +271,10 @@ pub fn central_difference(x: &[f64], dof: usize, h: f64, periodic: bool) -> Vec<
 /// copy kept, so that the filter sees no ends.
 fn filter_columns(filter: &Butterworth, x: &[f64], dof: usize, periodic: bool) -> Result<Vec<f64>, FilterError> {
     let mut out = vec![0.0; x.len()];
-    if !periodic {
-        filter.filtfilt_rows(x, dof, &mut out)?;
-        return Ok(out);
+    match periodic {
+        true => filter.filtfilt_rows_periodic(x, dof, &mut out)?,
+        false => filter.filtfilt_rows(x, dof, &mut out)?,
     }
-    let tiled = x.repeat(3);
-    let mut filtered = vec![0.0; tiled.len()];
-    filter.filtfilt_rows(&tiled, dof, &mut filtered)?;
-    out.copy_from_slice(&filtered[x.len()..2 * x.len()]);
     Ok(out)
 }
 
