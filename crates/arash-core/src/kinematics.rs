@@ -38,6 +38,12 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
 /// Parent-relative placements and body Jacobians at `q`: all that the dynamics needs (gravity
 /// enters through the base acceleration, so no placement in the base frame is required).
 pub(crate) fn placements_and_jacobians(model: &Model, data: &mut Data, q: &[f64]) {
+    placements_and_jacobians_of(model, data, q, None);
+}
+
+/// [`placements_and_jacobians`] for the flagged bodies only (all for `None`). The flags must
+/// include every flagged body's parent; the other bodies' entries are left stale.
+pub(crate) fn placements_and_jacobians_of(model: &Model, data: &mut Data, q: &[f64], bodies: Option<&[bool]>) {
     assert_eq!(q.len(), model.dof(), "q has {} entries, the model has {} dof", q.len(), model.dof());
     let n = model.dof();
     for (k, joint) in model.joints.iter().enumerate() {
@@ -46,6 +52,9 @@ pub(crate) fn placements_and_jacobians(model: &Model, data: &mut Data, q: &[f64]
         }
     }
     for (b, body) in model.bodies.iter().enumerate() {
+        if bodies.is_some_and(|flags| !flags[b]) {
+            continue;
+        }
         let theta = tree_value(body, q, true);
         let (rot, pos) = match body.kind {
             JointKind::Revolute => (body.origin_rot * revolute_rotation(model, data, body, theta), body.origin_pos),
@@ -95,6 +104,20 @@ fn revolute_rotation(model: &Model, data: &Data, body: &Body, theta: f64) -> Mat
 ///
 /// Precondition: [`forward_kinematics`] has been called for the same `q`.
 pub fn motion_sweep(model: &Model, data: &mut Data, qd: &[f64], qd_r: &[f64], qdd_r: &[f64], gravity: bool) {
+    motion_sweep_of(model, data, qd, qd_r, qdd_r, gravity, None);
+}
+
+/// [`motion_sweep`] for the flagged bodies only (all for `None`), with the flags as in
+/// [`placements_and_jacobians_of`].
+pub(crate) fn motion_sweep_of(
+    model: &Model,
+    data: &mut Data,
+    qd: &[f64],
+    qd_r: &[f64],
+    qdd_r: &[f64],
+    gravity: bool,
+    bodies: Option<&[bool]>,
+) {
     let n = model.dof();
     assert!(
         qd.len() == n && qd_r.len() == n && qdd_r.len() == n,
@@ -102,6 +125,9 @@ pub fn motion_sweep(model: &Model, data: &mut Data, qd: &[f64], qd_r: &[f64], qd
     );
     let base = if gravity { Motion::new(Vec3::zeros(), -model.gravity) } else { Motion::ZERO };
     for (b, body) in model.bodies.iter().enumerate() {
+        if bodies.is_some_and(|flags| !flags[b]) {
+            continue;
+        }
         let cols = &data.jac[b * n..(b + 1) * n];
         let mut v = Motion::ZERO;
         for k in 0..n {

@@ -5,7 +5,7 @@
 //! with the column layout documented on [`Model`]. Neither allocates.
 
 use crate::data::Data;
-use crate::kinematics::{motion_sweep, placements_and_jacobians};
+use crate::kinematics::{motion_sweep, motion_sweep_of, placements_and_jacobians, placements_and_jacobians_of};
 use crate::model::Model;
 use crate::spatial::{inertia_coefficients, Motion, BODY_PARAMS};
 
@@ -15,8 +15,9 @@ pub fn regressor(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], qdd: &[f
 }
 
 /// [`regressor`] with the rigid-body columns computed only for the bodies flagged in `bodies` (one
-/// flag per body; `None` means all). The other bodies' columns are left zero. A base regressor
-/// needs the columns of a few bodies only (on ARASH:ASiST, 5 of 8), and the kinematics is shared.
+/// flag per body; `None` means all), which must include each flagged body's parent, as
+/// [`bodies_of_columns`] gives. The other bodies' columns are left zero, and their kinematics is
+/// skipped. A base regressor needs the columns of a few bodies only (on ARASH:ASiST, 5 of 8).
 pub fn regressor_of_bodies(
     model: &Model,
     data: &mut Data,
@@ -26,8 +27,13 @@ pub fn regressor_of_bodies(
     bodies: Option<&[bool]>,
     out: &mut [f64],
 ) {
-    placements_and_jacobians(model, data, q);
-    motion_sweep(model, data, qd, qd, qdd, true);
+    if let Some(flags) = bodies {
+        assert_eq!(flags.len(), model.bodies.len(), "one flag per body");
+        let closed = model.bodies.iter().enumerate().all(|(b, body)| !flags[b] || body.parent.is_none_or(|p| flags[p]));
+        assert!(closed, "every flagged body's parent must be flagged");
+    }
+    placements_and_jacobians_of(model, data, q, bodies);
+    motion_sweep_of(model, data, qd, qd, qdd, true, bodies);
     // u · (I a + v ×* I v) = ρ(u, a) − ρ(v × u, v): the Newton–Euler wrench projected on u.
     fill_rigid_columns(model, data, bodies, out, |u, v, _, a| {
         let mut row = inertia_coefficients(u, a);
@@ -82,11 +88,16 @@ fn slotine_li_row(u: &Motion, v: &Motion, v_r: &Motion, a_folded: &Motion) -> [f
 }
 
 /// The flags for [`regressor_of_bodies`] that cover the regressor columns `columns`: a body is
-/// needed when one of its ten inertial columns is listed.
+/// needed when one of its ten inertial columns is listed, and so are its ancestors, whose motion
+/// it inherits.
 pub fn bodies_of_columns(model: &Model, columns: &[usize]) -> Vec<bool> {
     let mut bodies = vec![false; model.bodies.len()];
     for &j in columns.iter().filter(|&&j| j < model.friction_offset()) {
-        bodies[j / BODY_PARAMS] = true;
+        let mut body = Some(j / BODY_PARAMS);
+        while let Some(b) = body {
+            bodies[b] = true;
+            body = model.bodies[b].parent;
+        }
     }
     bodies
 }
@@ -99,9 +110,6 @@ where
 {
     let (n, p) = (model.dof(), model.num_params());
     assert_eq!(out.len(), n * p, "regressor output must hold dof × P = {n} × {p} values");
-    if let Some(flags) = bodies {
-        assert_eq!(flags.len(), model.bodies.len(), "one flag per body");
-    }
     out.fill(0.0);
     for b in 0..model.bodies.len() {
         if bodies.is_some_and(|flags| !flags[b]) {
