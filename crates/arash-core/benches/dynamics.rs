@@ -3,6 +3,7 @@
 
 use std::hint::black_box;
 
+use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::*;
 use criterion::{criterion_group, criterion_main, Criterion};
 
@@ -18,6 +19,11 @@ fn bench(c: &mut Criterion) {
 
     c.bench_function("regressor Y (arash_asist)", |b| {
         b.iter(|| regressor(&model, &mut data, black_box(&q), black_box(&qd), black_box(&qdd), &mut y))
+    });
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
+    let bodies = regressor::bodies_of_columns(&model, &base.independent);
+    c.bench_function("regressor_of_bodies, the base columns' bodies (arash_asist)", |b| {
+        b.iter(|| regressor_of_bodies(&model, &mut data, black_box(&q), &qd, &qdd, Some(&bodies), &mut y))
     });
     c.bench_function("slotine_li_regressor Y_S (arash_asist)", |b| {
         b.iter(|| slotine_li_regressor(&model, &mut data, black_box(&q), &qd, &qd, &qdd, &mut y))
