@@ -318,7 +318,9 @@ impl Identification {
             self.settings.cutoff_hz,
             self.condition_number
         );
-        s += &format!("{:<4} {:<34} {:>14} {:>10}\n", "", "parameter", "value", "σ%");
+        // The consistent β is a constrained estimate; its spread is reported from the least squares.
+        let sigma = if self.settings.method == IdentifyMethod::Consistent { "σ% (OLS)" } else { "σ%" };
+        s += &format!("{:<4} {:<34} {:>14} {:>10}\n", "", "parameter", "value", sigma);
         for (i, name) in self.base_names.iter().enumerate() {
             s += &format!("β{:<3} {:<34} {:>14.6e} {:>10.2}\n", i + 1, name, self.beta[i], self.sigma_percent[i]);
         }
