@@ -18,6 +18,8 @@ fn evaluations_do_not_allocate() {
     let mut y = vec![0.0; n * p];
     let mut mat = vec![0.0; n * n];
     let mut vec3 = vec![0.0; n];
+    let base = BaseParameters::compute(&model, &base_parameters::BaseParameterOptions::default()).unwrap();
+    let bodies = regressor::bodies_of_columns(&model, &base.independent);
     let evaluations = 100_000;
     watch_this_thread();
     let before = allocations();
@@ -27,6 +29,7 @@ fn evaluations_do_not_allocate() {
         let qd = [0.5 * t.cos(), -0.4 * t.sin(), 0.01 * t.cos()];
         let qdd = [-0.5 * t.sin(), -0.4 * t.cos(), -0.01 * t.sin()];
         regressor(&model, &mut data, &q, &qd, &qdd, &mut y);
+        regressor_of_bodies(&model, &mut data, &q, &qd, &qdd, Some(&bodies), &mut y);
         slotine_li_regressor(&model, &mut data, &q, &qd, &qd, &qdd, &mut y);
         mass_matrix(&model, &mut data, &q, &pi, &mut mat);
         coriolis_matrix(&model, &mut data, &q, &qd, &pi, &mut mat);
