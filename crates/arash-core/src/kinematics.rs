@@ -52,7 +52,7 @@ pub(crate) fn placements_and_jacobians_of(model: &Model, data: &mut Data, q: &[f
         }
     }
     for (b, body) in model.bodies.iter().enumerate() {
-        if bodies.is_some_and(|flags| !flags[b]) {
+        if skipped(bodies, b) {
             continue;
         }
         let theta = tree_value(body, q, true);
@@ -78,6 +78,12 @@ pub(crate) fn placements_and_jacobians_of(model: &Model, data: &mut Data, q: &[f
             data.jac[b * n + c.index].axpy(c.multiplier, &subspace(body));
         }
     }
+}
+
+/// Whether body `b` is left out under the flags `bodies` (`None` keeps every body).
+#[inline]
+pub(crate) fn skipped(bodies: Option<&[bool]>, b: usize) -> bool {
+    bodies.is_some_and(|flags| !flags[b])
 }
 
 /// The rotation of a revolute body by its tree angle `theta`. Passive joints of a closed chain
@@ -125,7 +131,7 @@ pub(crate) fn motion_sweep_of(
     );
     let base = if gravity { Motion::new(Vec3::zeros(), -model.gravity) } else { Motion::ZERO };
     for (b, body) in model.bodies.iter().enumerate() {
-        if bodies.is_some_and(|flags| !flags[b]) {
+        if skipped(bodies, b) {
             continue;
         }
         let cols = &data.jac[b * n..(b + 1) * n];

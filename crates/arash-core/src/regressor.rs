@@ -5,7 +5,9 @@
 //! with the column layout documented on [`Model`]. Neither allocates.
 
 use crate::data::Data;
-use crate::kinematics::{motion_sweep, motion_sweep_of, placements_and_jacobians, placements_and_jacobians_of};
+use crate::kinematics::{
+    motion_sweep, motion_sweep_of, placements_and_jacobians, placements_and_jacobians_of, skipped,
+};
 use crate::model::Model;
 use crate::spatial::{inertia_coefficients, Motion, BODY_PARAMS};
 
@@ -112,7 +114,7 @@ where
     assert_eq!(out.len(), n * p, "regressor output must hold dof × P = {n} × {p} values");
     out.fill(0.0);
     for b in 0..model.bodies.len() {
-        if bodies.is_some_and(|flags| !flags[b]) {
+        if skipped(bodies, b) {
             continue;
         }
         let (v, v_r, a) = (&data.vel[b], &data.vel_ref[b], &data.acc[b]);

@@ -102,13 +102,15 @@ fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f
     // Each thread fills a band of consecutive samples.
     let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
     let per_thread = samples.div_ceil(threads).max(1);
+    let bodies = bodies_of_columns(model, columns);
     std::thread::scope(|scope| {
         let mut rest = w.as_mut();
         for first in (0..samples).step_by(per_thread) {
             let count = per_thread.min(samples - first);
             let (band, tail) = rest.split_at_row_mut(count * n);
             rest = tail;
-            scope.spawn(move || fill_band(model, data, columns, first, band));
+            let bodies = &bodies;
+            scope.spawn(move || fill_band(model, data, columns, bodies, first, band));
         }
     });
     let coulomb: Vec<(usize, usize)> = (0..n)
@@ -127,16 +129,23 @@ fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f
     w
 }
 
-/// Rows of the samples `first..` into `band` (one row per sample and joint).
-fn fill_band(model: &Model, data: &Preprocessed, columns: &[usize], first: usize, mut band: faer::MatMut<'_, f64>) {
+/// Rows of the samples `first..` into `band` (one row per sample and joint); `bodies` are the
+/// flags [`bodies_of_columns`] gives for `columns`.
+fn fill_band(
+    model: &Model,
+    data: &Preprocessed,
+    columns: &[usize],
+    bodies: &[bool],
+    first: usize,
+    mut band: faer::MatMut<'_, f64>,
+) {
     let (n, big_p) = (model.dof(), model.num_params());
     let mut ws = Data::new(model);
     let mut y = vec![0.0; n * big_p];
-    let bodies = bodies_of_columns(model, columns);
     for local in 0..band.nrows() / n {
         let range = (first + local) * n..(first + local + 1) * n;
         let (q, qd, qdd) = (&data.q[range.clone()], &data.qd[range.clone()], &data.qdd[range]);
-        regressor_of_bodies(model, &mut ws, q, qd, qdd, Some(&bodies), &mut y);
+        regressor_of_bodies(model, &mut ws, q, qd, qdd, Some(bodies), &mut y);
         for k in 0..n {
             for (c, &j) in columns.iter().enumerate() {
                 band[(local * n + k, c)] = y[k * big_p + j];
