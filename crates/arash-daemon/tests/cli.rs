@@ -1,5 +1,8 @@
 //! The `arash` binary end to end: real process, real files, real exit codes.
 
+mod common;
+
+use common::Scratch;
 use std::process::Command;
 
 fn arash(args: &[&str]) -> std::process::Output {
@@ -32,43 +35,34 @@ fn model_reports_a_bad_file_by_name_and_fails() {
 
 #[test]
 fn model_reports_a_malformed_urdf_with_the_offending_element() {
-    let dir = std::env::temp_dir().join(format!("arash-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("bad.urdf");
-    std::fs::write(
-        &path,
+    let dir = Scratch::new("cli", "malformed-urdf");
+    let path = dir.file(
+        "bad.urdf",
         r#"<robot name="bad"><link name="a"/><link name="b"><inertial><mass value="-2"/><inertia ixx="1" iyy="1" izz="1"/></inertial></link>
            <joint name="j" type="revolute"><parent link="a"/><child link="b"/><limit lower="-1" upper="1" velocity="1" effort="1"/></joint></robot>"#,
-    )
-    .unwrap();
+    );
     let out = arash(&["model", path.to_str().unwrap()]);
     assert!(!out.status.success());
     let err = String::from_utf8(out.stderr).unwrap();
     assert!(err.contains("link `b`") && err.contains("mass -2 kg is not positive"), "{err}");
 }
 
-fn temp_file(name: &str, text: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("arash-cli-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
-    std::fs::write(&path, text).unwrap();
-    path
-}
-
 #[test]
 fn identify_names_a_missing_column_and_a_bad_cell() {
     let robot = repo_file("robots/arash_asist.urdf");
-    let missing = temp_file("missing.csv", "t,q.yaw,q.pitch,tau.yaw,tau.pitch,tau.insertion\n0,0,0,0,0,0\n");
-    let out = arash(&["identify", missing.to_str().unwrap(), "--robot", &robot, "-o", "/tmp/never.json"]);
+    let dir = Scratch::new("cli", "identify-bad-cells");
+    let never = dir.join("never.json");
+    let missing = dir.file("missing.csv", "t,q.yaw,q.pitch,tau.yaw,tau.pitch,tau.insertion\n0,0,0,0,0,0\n");
+    let out = arash(&["identify", missing.to_str().unwrap(), "--robot", &robot, "-o", never.to_str().unwrap()]);
     assert!(!out.status.success());
     let err = String::from_utf8(out.stderr).unwrap();
     assert!(err.contains("has no column `q.insertion`"), "{err}");
 
-    let bad = temp_file(
+    let bad = dir.file(
         "bad.csv",
         "t,q.yaw,q.pitch,q.insertion,tau.yaw,tau.pitch,tau.insertion\n0,0,0,0,0,0,0\n0.001,0,abc,0,0,0,0\n",
     );
-    let out = arash(&["identify", bad.to_str().unwrap(), "--robot", &robot, "-o", "/tmp/never.json"]);
+    let out = arash(&["identify", bad.to_str().unwrap(), "--robot", &robot, "-o", never.to_str().unwrap()]);
     assert!(!out.status.success());
     let err = String::from_utf8(out.stderr).unwrap();
     assert!(err.contains("row 3 column `q.pitch` is `abc`"), "{err}");
@@ -81,8 +75,10 @@ fn identify_refuses_a_log_that_does_not_move() {
     for i in 0..2000 {
         text += &format!("{},0.1,0.2,0.003,0.01,0.02,0.3\n", i as f64 * 1e-3);
     }
-    let still = temp_file("still.csv", &text);
-    let out = arash(&["identify", still.to_str().unwrap(), "--robot", &robot, "-o", "/tmp/never.json"]);
+    let dir = Scratch::new("cli", "identify-still");
+    let never = dir.join("never.json");
+    let still = dir.file("still.csv", &text);
+    let out = arash(&["identify", still.to_str().unwrap(), "--robot", &robot, "-o", never.to_str().unwrap()]);
     assert!(!out.status.success());
     let err = String::from_utf8(out.stderr).unwrap();
     assert!(err.contains("does not excite"), "{err}");
@@ -90,6 +86,8 @@ fn identify_refuses_a_log_that_does_not_move() {
 
 #[test]
 fn excite_refuses_bad_options_by_name() {
+    let dir = Scratch::new("cli", "excite-bad-options");
+    let never = dir.join("never.json");
     let out = arash(&[
         "excite",
         "--robot",
@@ -97,7 +95,7 @@ fn excite_refuses_bad_options_by_name() {
         "--harmonics",
         "1",
         "-o",
-        "/tmp/never.json",
+        never.to_str().unwrap(),
     ]);
     assert!(!out.status.success());
     let err = String::from_utf8(out.stderr).unwrap();
@@ -109,16 +107,17 @@ fn excite_refuses_bad_options_by_name() {
         "--acceleration-limits",
         "1,2",
         "-o",
-        "/tmp/never.json",
+        never.to_str().unwrap(),
     ]);
     let err = String::from_utf8(out.stderr).unwrap();
     assert!(!out.status.success() && err.contains("acceleration_limits has 2 entries"), "{err}");
+    assert!(!never.exists(), "a refused design writes no file");
 }
 
 #[test]
 fn simulate_writes_a_flight_log_that_identify_reads() {
     let robot = repo_file("robots/arash_asist.urdf");
-    let dir = temp_file("sim.keep", "").parent().unwrap().to_path_buf();
+    let dir = Scratch::new("cli", "simulate");
     let log = dir.join("run.mcap");
     let out = arash(&[
         "simulate",
@@ -149,13 +148,14 @@ fn simulate_writes_a_flight_log_that_identify_reads() {
     assert!(out.status.success(), "{err}");
     assert!(err.contains("from 7000 samples") && text.contains("Identified base parameters"), "{err}{text}");
     assert!(model.exists());
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn simulate_refuses_bad_inputs_by_name() {
     let traj = repo_file("trajectories/paper_validation_0.5.json");
-    let scenario = temp_file("bad.toml", "[effects.cogging]\namplitude = [0.1, 0.1]\n");
+    let dir = Scratch::new("cli", "simulate-bad-inputs");
+    let never = dir.join("never.mcap");
+    let scenario = dir.file("bad.toml", "[effects.cogging]\namplitude = [0.1, 0.1]\n");
     let out = arash(&[
         "simulate",
         "--scenario",
@@ -165,7 +165,7 @@ fn simulate_refuses_bad_inputs_by_name() {
         "--controller",
         "pd",
         "-o",
-        "/tmp/x.mcap",
+        never.to_str().unwrap(),
     ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("effects.cogging.amplitude") && err.contains("2 entries"), "{err}");
@@ -179,11 +179,11 @@ fn simulate_refuses_bad_inputs_by_name() {
         "--controller",
         "idc",
         "-o",
-        "/tmp/x.mcap",
+        never.to_str().unwrap(),
     ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("--params"), "{err}");
-    let bad = temp_file("traj.json", r#"{"kind": "paper-validation", "omega": 0}"#);
+    let bad = dir.file("traj.json", r#"{"kind": "paper-validation", "omega": 0}"#);
     let out = arash(&[
         "simulate",
         "--scenario",
@@ -193,7 +193,7 @@ fn simulate_refuses_bad_inputs_by_name() {
         "--controller",
         "pd",
         "-o",
-        "/tmp/x.mcap",
+        never.to_str().unwrap(),
     ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("omega") && err.contains("traj.json"), "{err}");
@@ -204,8 +204,7 @@ fn simulate_refuses_bad_inputs_by_name() {
 /// bad option is refused by name.
 #[test]
 fn diagnose_names_the_effect_and_writes_report_model_and_figures() {
-    let dir = std::env::temp_dir().join(format!("arash-cli-diagnose-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("cli", "diagnose");
     let log = dir.join("run.mcap");
     let out = arash(&[
         "simulate",
@@ -222,6 +221,7 @@ fn diagnose_names_the_effect_and_writes_report_model_and_figures() {
     ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let report_dir = dir.join("diagnosis");
+    let never = dir.join("never");
     let out = arash(&["diagnose", log.to_str().unwrap(), "-o", report_dir.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8(out.stdout).unwrap();
@@ -246,11 +246,10 @@ fn diagnose_names_the_effect_and_writes_report_model_and_figures() {
         assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{}", png.display());
         assert!(bytes.len() > 10_000, "{} looks blank", png.display());
     }
-    let out = arash(&["diagnose", log.to_str().unwrap(), "--effects", "gremlins", "-o", "/tmp/none"]);
+    let out = arash(&["diagnose", log.to_str().unwrap(), "--effects", "gremlins", "-o", never.to_str().unwrap()]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("gremlins"), "{err}");
-    let out = arash(&["diagnose", log.to_str().unwrap(), "--hold-friction", "-o", "/tmp/none"]);
+    let out = arash(&["diagnose", log.to_str().unwrap(), "--hold-friction", "-o", never.to_str().unwrap()]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("--model"), "{err}");
-    std::fs::remove_dir_all(&dir).unwrap();
 }

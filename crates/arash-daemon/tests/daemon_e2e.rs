@@ -8,6 +8,10 @@ use std::time::{Duration, Instant};
 
 use arash_core::flightlog::read_log;
 
+mod common;
+
+use common::Scratch;
+
 const ARASH: &str = env!("CARGO_BIN_EXE_arash");
 
 /// One test at a time: each runs a 1 kHz mock and a 1 kHz daemon under `--rt ignore`, and two
@@ -27,21 +31,12 @@ impl Drop for Proc {
     }
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("arash-e2e-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
 /// Start the mock motor with an optional fault plan; returns it and its pty.
-fn mock(dir: &Path, faults: Option<&str>) -> (Proc, String) {
+fn mock(dir: &Scratch, faults: Option<&str>) -> (Proc, String) {
     let mut cmd = Command::new(ARASH);
     cmd.arg("mock-motor").stdout(Stdio::piped()).stderr(Stdio::null());
     if let Some(f) = faults {
-        let path = dir.join("faults.toml");
-        std::fs::write(&path, f).unwrap();
-        cmd.arg("--faults").arg(path);
+        cmd.arg("--faults").arg(dir.file("faults.toml", f));
     }
     let mut child = cmd.spawn().unwrap();
     let mut line = String::new();
@@ -50,9 +45,8 @@ fn mock(dir: &Path, faults: Option<&str>) -> (Proc, String) {
 }
 
 /// `arash daemon` on `pty` with `config` (TOML text), its socket and logs in `dir`.
-fn daemon_command(dir: &Path, pty: &str, config: &str) -> Command {
-    let config_path = dir.join("daemon.toml");
-    std::fs::write(&config_path, config).unwrap();
+fn daemon_command(dir: &Scratch, pty: &str, config: &str) -> Command {
+    let config_path = dir.file("daemon.toml", config);
     let mut cmd = Command::new(ARASH);
     cmd.args(["daemon", "--rt", "ignore", "--port", pty, "--config"])
         .arg(&config_path)
@@ -64,7 +58,7 @@ fn daemon_command(dir: &Path, pty: &str, config: &str) -> Command {
 }
 
 /// Start the daemon on `pty` and wait for its socket.
-fn daemon(dir: &Path, pty: &str, config: &str) -> Proc {
+fn daemon(dir: &Scratch, pty: &str, config: &str) -> Proc {
     let err = std::fs::OpenOptions::new().create(true).append(true).open(dir.join("daemon.err")).unwrap();
     let child = daemon_command(dir, pty, config).stderr(err).spawn().unwrap();
     let started = Instant::now();
@@ -122,7 +116,7 @@ fn logs(dir: &Path, prefix: &str) -> Vec<PathBuf> {
 #[test]
 fn an_excitation_run_through_the_daemon_identifies_the_mock() {
     let _serial = serial();
-    let dir = scratch("identify");
+    let dir = Scratch::new("e2e", "identify");
     let excitation = dir.join("excitation.json");
     let out = Command::new(ARASH)
         .args(["excite", "--restarts", "1", "--rate", "10", "-o"])
@@ -204,7 +198,7 @@ fn an_excitation_run_through_the_daemon_identifies_the_mock() {
 #[test]
 fn link_faults_are_counted_logged_and_ridden_through() {
     let _serial = serial();
-    let dir = scratch("linkfaults");
+    let dir = Scratch::new("e2e", "linkfaults");
     let (_mock, pty) =
         mock(&dir, Some("seed = 3\ncorrupt = 0.02\ndrop = 0.01\nreorder = 0.01\ndelay = 0.01\ndelay_frames = 3\n"));
     let mut d = daemon(&dir, &pty, "");
@@ -228,7 +222,7 @@ fn link_faults_are_counted_logged_and_ridden_through() {
 #[test]
 fn silence_trips_the_link_timeout_ramps_down_and_writes_a_black_box() {
     let _serial = serial();
-    let dir = scratch("silence");
+    let dir = Scratch::new("e2e", "silence");
     let (_mock, pty) = mock(&dir, Some("silent_at_s = 3.0\n"));
     let mut d = daemon(&dir, &pty, "");
     ctl(&dir, &["enable"]).unwrap();
@@ -248,7 +242,7 @@ fn silence_trips_the_link_timeout_ramps_down_and_writes_a_black_box() {
 /// Play the ω = 0.5 validation trajectory with the mock's fault `plan` until the daemon faults;
 /// return the faults it names.
 fn faults_during_a_run(name: &str, plan: &str, config: &str) -> serde_json::Value {
-    let dir = scratch(name);
+    let dir = Scratch::new("e2e", name);
     let (_mock, pty) = mock(&dir, Some(plan));
     let _d = daemon(&dir, &pty, config);
     ctl(&dir, &["enable"]).unwrap();
@@ -276,7 +270,7 @@ fn a_current_mismatch_trips() {
 #[test]
 fn after_kill_9_the_log_is_recovered_and_the_daemon_comes_back_disabled() {
     let _serial = serial();
-    let dir = scratch("kill9");
+    let dir = Scratch::new("e2e", "kill9");
     let (_mock, pty) = mock(&dir, None);
     let mut d = daemon(&dir, &pty, "");
     ctl(&dir, &["enable"]).unwrap();
@@ -311,7 +305,7 @@ fn after_kill_9_the_log_is_recovered_and_the_daemon_comes_back_disabled() {
 fn systemd_hears_ready_after_telemetry_and_watchdog_while_running_and_sigterm_finishes_the_log() {
     let _serial = serial();
     use std::os::unix::net::UnixDatagram;
-    let dir = scratch("systemd");
+    let dir = Scratch::new("e2e", "systemd");
     let notify = UnixDatagram::bind(dir.join("notify.sock")).unwrap();
     notify.set_read_timeout(Some(Duration::from_millis(500))).unwrap();
     // A pty nobody answers yet: no telemetry, so no READY.
@@ -386,7 +380,7 @@ fn systemd_hears_ready_after_telemetry_and_watchdog_while_running_and_sigterm_fi
 #[test]
 fn no_telemetry_within_the_startup_timeout_is_an_error_that_names_it() {
     let _serial = serial();
-    let dir = scratch("startup");
+    let dir = Scratch::new("e2e", "startup");
     let (_master, slave) = serialport::TTYPort::pair().unwrap();
     let pty = serialport::SerialPort::name(&slave).unwrap();
     let out = daemon_command(&dir, &pty, "[link]\nstartup_timeout_ms = 300\n").output().unwrap();
@@ -398,7 +392,7 @@ fn no_telemetry_within_the_startup_timeout_is_an_error_that_names_it() {
 #[test]
 fn idle_logs_rotate_by_size() {
     let _serial = serial();
-    let dir = scratch("rotate");
+    let dir = Scratch::new("e2e", "rotate");
     let (_mock, pty) = mock(&dir, None);
     let mut d = daemon(&dir, &pty, "[log]\nrotate_mib = 0.02\n\n[socket]\nmode = \"0600\"\n");
     let mode = std::os::unix::fs::PermissionsExt::mode(&std::fs::metadata(dir.join("s.sock")).unwrap().permissions());
@@ -418,14 +412,14 @@ fn idle_logs_rotate_by_size() {
 #[test]
 fn a_logging_failure_is_reported_and_the_control_loop_goes_on() {
     let _serial = serial();
-    let dir = scratch("logfail");
+    let dir = Scratch::new("e2e", "logfail");
     let (_mock, pty) = mock(&dir, None);
     let mut d = daemon(&dir, &pty, "[log]\nrotate_s = 1.0\n");
     wait_until(&dir, Duration::from_secs(5), "telemetry", |s| s["telemetry"] == true);
     // Pull the log directory away: the next rotation (every second) can neither finish nor
     // open a file.
     std::fs::rename(dir.join("logs"), dir.join("moved")).unwrap();
-    std::fs::write(dir.join("logs"), "not a directory").unwrap();
+    dir.file("logs", "not a directory");
     wait_until(&dir, Duration::from_secs(10), "the logging failure", |s| s["logging"] == false);
     let before = status(&dir)["cycle"].as_u64().unwrap();
     std::thread::sleep(Duration::from_millis(300));

@@ -8,18 +8,16 @@ use std::time::{Duration, Instant};
 
 use arash_core::flightlog::read_log;
 
+mod common;
+
+use common::Scratch;
+
 const ARASH: &str = env!("CARGO_BIN_EXE_arash");
 
 /// The two tests each run a 1 kHz mock and daemon; on two cores they must not overlap.
 fn serial() -> std::sync::MutexGuard<'static, ()> {
     static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
     SERIAL.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("arash-demo-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
 }
 
 fn pngs(dir: &Path, found: &mut Vec<PathBuf>) {
@@ -66,7 +64,7 @@ fn column(summary: &serde_json::Value, path: &[&str]) -> Vec<f64> {
 #[test]
 fn the_demo_calibrates_diagnoses_and_controls_the_simulated_rig() {
     let _serial = serial();
-    let dir = scratch("full");
+    let dir = Scratch::new("demo", "full");
     let out =
         Command::new(ARASH).args(["demo", "--restarts", "1", "--omegas", "0.5", "-o"]).arg(&dir).output().unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -135,13 +133,12 @@ fn the_demo_calibrates_diagnoses_and_controls_the_simulated_rig() {
     for log in logs {
         assert!(!read_log(&log).unwrap().truncated, "{} is truncated", log.display());
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
 fn ctrl_c_disables_the_motors_and_keeps_the_logs() {
     let _serial = serial();
-    let dir = scratch("interrupt");
+    let dir = Scratch::new("demo", "interrupt");
     let mut demo = Command::new(ARASH)
         .args(["demo", "--restarts", "1", "--omegas", "0.5", "-o"])
         .arg(&dir)
@@ -193,5 +190,4 @@ fn ctrl_c_disables_the_motors_and_keeps_the_logs() {
         Some(arash_core::record::Mode::Disabled),
         "cycle {last_cycle}: the motors were not disabled at the end"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
