@@ -85,6 +85,7 @@ fn diagnose_scenario(scenario: &str, seed: u64, against: Against, validation: bo
     let options = DiagnoseOptions {
         transmission: Some(transmission()),
         hold_friction: against == Against::TruthWithFriction,
+        friction_cutoff_hz: std::env::var("FCUT").ok().map(|x| x.parse().unwrap()),
         ..DiagnoseOptions::default()
     };
     diagnose(
@@ -185,6 +186,20 @@ fn position_friction_is_found() {
 #[test]
 fn hysteresis_is_found() {
     assert_named_first("hysteresis", "hysteresis", ANY, Against::Refit);
+}
+
+/// A compliant cable with the encoder on the motor (k = 4000 N/m on the insertion, whose friction
+/// is 0.22 N): after each reversal the motor's torque ramps over the cable's stretch, 2F/k ≈
+/// 110 µm, before the joint slips. It is named first on the insertion, ahead of the hysteresis
+/// that also fits a direction-dependent torque, with a travel x₀ within a factor of two of F/k.
+#[test]
+fn compliance_is_found_with_the_cables_stretch() {
+    assert_named_first("compliance", "compliance", &[INSERTION], Against::Refit);
+    let d = diagnose_scenario("[effects.compliance]\n", 1, Against::Refit, false);
+    let x0 = d.accepted[0].term.scale.unwrap();
+    let stretch = 0.22 / 4000.0;
+    eprintln!("DETECTION compliance: x₀ = {x0:.2e} m against F/k = {stretch:.2e} m");
+    assert!((0.5 * stretch..=2.0 * stretch).contains(&x0), "x₀ = {x0:e} m");
 }
 
 #[test]

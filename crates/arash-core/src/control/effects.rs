@@ -4,16 +4,15 @@
 //! A term acts per cycle through [`EffectTerm::features`], the same function the diagnosis fitted
 //! it with. A payload is not a feedforward: it is a change of one body's inertial parameters, so
 //! [`EffectFeedforward::new`] folds it into the parameter vector the controller already uses.
-//! Three effects are properties of a log, not of the robot, and are left out: `delay`,
-//! `compliance` (its proxy needs the measured torque's second derivative) and `drift` (a
-//! function of the log's own clock).
+//! Two effects are properties of a log, not of the robot, and are left out: `delay` and `drift`
+//! (a function of the log's own clock).
 
 use crate::diagnose::{EffectKind, EffectTerm, TermState};
 use crate::model::Model;
 
 /// Effects with no meaning at run time (see the module documentation).
 pub fn runtime_applicable(kind: EffectKind) -> bool {
-    !matches!(kind, EffectKind::Delay | EffectKind::Compliance | EffectKind::Drift)
+    !matches!(kind, EffectKind::Delay | EffectKind::Drift)
 }
 
 /// The joint-wise effect terms of a model file, with their state, evaluated once per cycle
@@ -49,7 +48,7 @@ impl EffectFeedforward {
         Self { terms, states }
     }
 
-    /// Forget the terms' state (the hysteresis term's direction of travel).
+    /// Forget the terms' state (the hysteresis term's direction of travel, the cable's stretch).
     pub fn reset(&mut self) {
         self.states.fill(TermState::default());
     }
@@ -61,7 +60,7 @@ impl EffectFeedforward {
             match term.joint {
                 Some(k) => {
                     let width = term.width();
-                    term.features(q[k], qd[k], qdd[k], 0.0, 0.0, state, &mut features[..width]);
+                    term.features(q[k], qd[k], qdd[k], 0.0, state, &mut features[..width]);
                     tau[k] += features[..width].iter().zip(&term.coefficients).map(|(a, c)| a * c).sum::<f64>();
                 }
                 // Armature fitted on every joint at once: one coefficient per joint.

@@ -75,13 +75,18 @@ impl EffectKind {
     pub fn filtered_like_torque(self) -> bool {
         matches!(
             self,
-            Self::CoulombAsymmetry | Self::Stribeck | Self::PositionFriction | Self::Hysteresis | Self::Cogging
+            Self::CoulombAsymmetry
+                | Self::Stribeck
+                | Self::PositionFriction
+                | Self::Hysteresis
+                | Self::Cogging
+                | Self::Compliance
         )
     }
 
     /// The sign its (single) coefficient must have to be the physical effect: static friction
-    /// above Coulomb, positive rotor inertia, a spring that deflects under load, dissipative
-    /// viscous friction, and hysteresis that opposes motion. A fit with the other sign is some
+    /// above Coulomb, positive rotor inertia, dissipative viscous friction, and hysteresis and
+    /// friction through a stretched cable that oppose motion. A fit with the other sign is some
     /// other error that happens to correlate, not this effect.
     pub fn physical_sign(self) -> Option<f64> {
         match self {
@@ -94,8 +99,12 @@ impl EffectKind {
     pub fn plotted_against(self) -> &'static str {
         match self {
             Self::Offset | Self::Drift | Self::Delay => "t",
-            Self::Armature | Self::Compliance => "qdd",
-            Self::ConfigurationDisturbance | Self::PositionFriction | Self::Cogging | Self::Hysteresis => "q",
+            Self::Armature => "qdd",
+            Self::ConfigurationDisturbance
+            | Self::PositionFriction
+            | Self::Cogging
+            | Self::Hysteresis
+            | Self::Compliance => "q",
             Self::Payload => "q",
             Self::CoulombAsymmetry | Self::Stribeck | Self::ViscousNonlinear => "qd",
         }
@@ -116,8 +125,8 @@ pub struct EffectTerm {
     /// The body a payload sits on.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub body: Option<String>,
-    /// Stribeck velocity scale (rad/s or m/s), hysteresis travel (rad or m), cogging periods
-    /// per motor revolution, or the delay in samples.
+    /// Stribeck velocity scale (rad/s or m/s), hysteresis or compliance travel x₀ (rad or m),
+    /// cogging periods per motor revolution, or the delay in samples.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scale: Option<f64>,
     /// Position range (lo, hi) that normalises configuration and position-friction terms, or
@@ -137,7 +146,8 @@ pub struct EffectTerm {
     pub sigma: Vec<f64>,
 }
 
-/// The state a term needs between samples (the hysteresis term's Dahl state).
+/// The state a term needs between samples (the hysteresis term's Dahl state, the compliance
+/// term's cable stretch).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct TermState {
     pub dahl: f64,
@@ -161,7 +171,7 @@ impl EffectTerm {
         }
     }
 
-    /// Number of columns of the sample-wise features (payload and compliance have their own).
+    /// Number of columns of the sample-wise features (a payload has its own).
     pub fn width(&self) -> usize {
         match self.kind {
             EffectKind::ConfigurationDisturbance => CONFIGURATION_HARMONICS,
@@ -186,7 +196,7 @@ impl EffectTerm {
             EffectKind::PositionFriction => vec!["s(q̇)·x".into(), "s(q̇)·x²".into()],
             EffectKind::Hysteresis => vec!["z (Dahl)".into()],
             EffectKind::Cogging => vec!["sin(nθ)".into(), "cos(nθ)".into()],
-            EffectKind::Compliance => vec!["−τ̈".into()],
+            EffectKind::Compliance => vec!["z (cable stretch)".into()],
             EffectKind::Drift => vec!["(t − t₀)/T".into()],
             EffectKind::Payload => vec!["m".into(), "m·cx".into(), "m·cy".into(), "m·cz".into()],
             EffectKind::Delay => vec![],
@@ -201,11 +211,9 @@ impl EffectTerm {
     }
 
     /// The term's columns at one sample of its joint: position `q`, friction velocity `v`,
-    /// acceleration `qdd`, time `t`, and the measured torque's second derivative `tau_dd` (for the
-    /// compliance proxy). `state` carries the hysteresis state from sample to sample. Payload and
-    /// delay have no joint-wise features and write nothing.
-    #[allow(clippy::too_many_arguments)]
-    pub fn features(&self, q: f64, v: f64, qdd: f64, t: f64, tau_dd: f64, state: &mut TermState, out: &mut [f64]) {
+    /// acceleration `qdd` and time `t`. `state` carries the hysteresis and compliance states
+    /// from sample to sample. Payload and delay have no joint-wise features and write nothing.
+    pub fn features(&self, q: f64, v: f64, qdd: f64, t: f64, state: &mut TermState, out: &mut [f64]) {
         let (lo, hi) = self.span.unwrap_or((0.0, 1.0));
         let unit = (q - lo) / (hi - lo);
         let s = self.direction(v);
@@ -250,7 +258,19 @@ impl EffectTerm {
                 out[0] = sin;
                 out[1] = cos;
             }
-            EffectKind::Compliance => out[0] = -tau_dd,
+            EffectKind::Compliance => {
+                // Friction seen through a cable, with the encoder on the motor: after a reversal
+                // the joint holds while the cable re-stretches, so the motor's torque follows its
+                // position linearly over 2x₀ = 2F/k and then saturates at the friction F
+                // (elastoplastic: a spring until it slips). Unlike the Dahl state, the ramp is
+                // straight and ends at a definite travel.
+                let x0 = self.scale.unwrap_or(1.0);
+                if let Some(last) = state.last_q {
+                    state.dahl = (state.dahl + (q - last) / x0).clamp(-1.0, 1.0);
+                }
+                state.last_q = Some(q);
+                out[0] = state.dahl;
+            }
             EffectKind::Drift => {
                 let (t0, span) = self.span.unwrap_or((0.0, 1.0));
                 out[0] = (t - t0) / span;
@@ -270,6 +290,7 @@ impl EffectTerm {
         let detail = match self.kind {
             EffectKind::Stribeck => format!(" (v_s = {:.3})", self.scale.unwrap_or(0.0)),
             EffectKind::Hysteresis => format!(" (x₀ = {:.3})", self.scale.unwrap_or(0.0)),
+            EffectKind::Compliance => format!(" (x₀ = {:.2e})", self.scale.unwrap_or(0.0)),
             EffectKind::Cogging => format!(" ({} per motor revolution)", self.scale.unwrap_or(0.0)),
             EffectKind::Delay => format!(" ({} samples)", self.scale.unwrap_or(0.0)),
             EffectKind::Payload => format!(" on {}", self.body.as_deref().unwrap_or("?")),
@@ -299,13 +320,37 @@ mod tests {
         let mut state = TermState::default();
         let mut out = [0.0];
         for i in 0..200 {
-            term.features(i as f64 * 1e-3, 0.0, 0.0, 0.0, 0.0, &mut state, &mut out);
+            term.features(i as f64 * 1e-3, 0.0, 0.0, 0.0, &mut state, &mut out);
         }
         assert!(out[0] > 0.99, "saturates forward: {}", out[0]);
         let top = 0.199;
         for i in 1..=200 {
-            term.features(top - i as f64 * 1e-3, 0.0, 0.0, 0.0, 0.0, &mut state, &mut out);
+            term.features(top - i as f64 * 1e-3, 0.0, 0.0, 0.0, &mut state, &mut out);
         }
         assert!(out[0] < -0.99, "and backward: {}", out[0]);
+    }
+
+    /// The cable's stretch after a reversal is a straight ramp in position, 2x₀ long, then flat:
+    /// the elastoplastic law, not the Dahl state's exponential.
+    #[test]
+    fn the_cable_stretch_ramps_straight_over_two_x0_then_holds() {
+        let mut term = EffectTerm::new(EffectKind::Compliance, Some(0));
+        let x0 = 50e-6;
+        term.scale = Some(x0);
+        let mut state = TermState::default();
+        let mut out = [0.0];
+        let step = 1e-6;
+        for i in 0..=300 {
+            term.features(-(i as f64) * step, 0.0, 0.0, 0.0, &mut state, &mut out);
+        }
+        assert_eq!(out[0], -1.0, "held after a travel beyond 2x₀ backward");
+        let bottom = -300.0 * step;
+        for i in 1..=150 {
+            term.features(bottom + i as f64 * step, 0.0, 0.0, 0.0, &mut state, &mut out);
+            let travel = i as f64 * step;
+            let expected = (-1.0 + travel / x0).min(1.0);
+            assert!((out[0] - expected).abs() < 1e-9, "after {travel:e} m: {} against {expected}", out[0]);
+        }
+        assert_eq!(out[0], 1.0);
     }
 }

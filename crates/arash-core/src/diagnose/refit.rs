@@ -19,7 +19,7 @@ use crate::model::Model;
 
 /// Refit `found` (a diagnosis's updated model) as a physically consistent model with its
 /// effects, on the training log the diagnosis used. The effects that act at run time are kept
-/// (not `delay`, `compliance` or `drift`, whose log-specific meaning a controller cannot use;
+/// (not `delay` or `drift`, whose log-specific meaning a controller cannot use;
 /// a delay the diagnosis found still aligns the data); a `payload` is a change of inertial
 /// parameters, which the consistent fit estimates anyway. The effects' standard deviations are
 /// not re-estimated and are left empty.
@@ -44,7 +44,7 @@ pub fn consistent_with_effects(
     let mut columns = full_columns(model, &data.pre, &data.kept);
     let mut widths = Vec::with_capacity(terms.len());
     for term in &terms {
-        let term_columns = term_columns(model, term, &data, delay);
+        let term_columns = term_columns(model, term, &data);
         widths.push(term_columns.len());
         for column in term_columns {
             let rows = data.samples() * dof;
