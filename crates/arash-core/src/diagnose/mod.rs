@@ -479,6 +479,12 @@ fn not_the_cable(
     let (EffectKind::Compliance, Some(k)) = (term.kind, term.joint) else { return None };
     let j = base.independent.iter().position(|&p| p == model.friction_offset() + 2 * k + 1)?;
     let coulomb = if free[j] { coef[free[..j].iter().filter(|f| **f).count()] } else { given?.beta[j] };
+    if coulomb <= 0.0 {
+        return Some(format!(
+            "significant (p = {:.2e}) but the joint's fitted Coulomb friction ({coulomb:.3e}) is not positive: no friction for a cable to carry",
+            test.p_value
+        ));
+    }
     let share = test.coefficients[0] / coulomb;
     (share < 0.5).then(|| {
         format!(
