@@ -146,12 +146,22 @@ pub struct EffectTerm {
     pub sigma: Vec<f64>,
 }
 
-/// The state a term needs between samples (the hysteresis term's Dahl state, the compliance
-/// term's cable stretch).
+/// The state a term needs between samples: `z`, the hysteresis term's Dahl state or the
+/// compliance term's cable stretch, in [−1, 1], and the position it was last updated at.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct TermState {
-    pub dahl: f64,
+    pub z: f64,
     pub last_q: Option<f64>,
+}
+
+impl TermState {
+    /// The travel from the last position to `q` (zero at the first sample), which becomes the
+    /// last position.
+    fn travel_to(&mut self, q: f64) -> f64 {
+        let dq = self.last_q.map_or(0.0, |last| q - last);
+        self.last_q = Some(q);
+        dq
+    }
 }
 
 impl EffectTerm {
@@ -241,15 +251,12 @@ impl EffectTerm {
                 // forgets the previous one over a travel of a few x₀. Integrated exactly over
                 // each step, so large steps cannot overshoot.
                 let x0 = self.scale.unwrap_or(1.0);
-                if let Some(last) = state.last_q {
-                    let dq = q - last;
-                    if dq != 0.0 {
-                        let target = dq.signum();
-                        state.dahl = target + (state.dahl - target) * (-dq.abs() / x0).exp();
-                    }
+                let dq = state.travel_to(q);
+                if dq != 0.0 {
+                    let target = dq.signum();
+                    state.z = target + (state.z - target) * (-dq.abs() / x0).exp();
                 }
-                state.last_q = Some(q);
-                out[0] = state.dahl;
+                out[0] = state.z;
             }
             EffectKind::Cogging => {
                 let n = self.scale.unwrap_or(1.0);
@@ -265,11 +272,8 @@ impl EffectTerm {
                 // (elastoplastic: a spring until it slips). Unlike the Dahl state, the ramp is
                 // straight and ends at a definite travel.
                 let x0 = self.scale.unwrap_or(1.0);
-                if let Some(last) = state.last_q {
-                    state.dahl = (state.dahl + (q - last) / x0).clamp(-1.0, 1.0);
-                }
-                state.last_q = Some(q);
-                out[0] = state.dahl;
+                state.z = (state.z + state.travel_to(q) / x0).clamp(-1.0, 1.0);
+                out[0] = state.z;
             }
             EffectKind::Drift => {
                 let (t0, span) = self.span.unwrap_or((0.0, 1.0));

@@ -130,12 +130,13 @@ pub fn validate_log(t: &[f64], q: &[f64], tau: &[f64], dof: usize) -> Result<f64
     if n < 64 {
         return Err(PreprocessError::TooFewSamples { needed: 64, got: n });
     }
-    let raw: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    let mut steps = raw.clone();
+    let step = |w: &[f64]| w[1] - w[0];
+    let mut steps: Vec<f64> = t.windows(2).map(step).collect();
     let middle = steps.len() / 2;
     let median = *steps.select_nth_unstable_by(middle, f64::total_cmp).1;
     // Logged timestamps jitter; a step more than 1 % off the median is a gap or a reordering.
-    if let Some((index, &step)) = raw.iter().enumerate().find(|(_, s)| (**s - median).abs() > 0.01 * median) {
+    // `steps` is reordered by the selection, so the first such step is found in `t` itself.
+    if let Some((index, step)) = t.windows(2).map(step).enumerate().find(|(_, s)| (s - median).abs() > 0.01 * median) {
         return Err(PreprocessError::NonUniformTime { index, step, median });
     }
     if median <= 0.0 {
