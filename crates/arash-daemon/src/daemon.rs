@@ -100,6 +100,11 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     let DaemonOptions { config, config_text, model, urdf } = options;
     config.validate(&model).map_err(anyhow::Error::msg).context("invalid configuration")?;
     let dof = model.dof();
+    // First of all, before anything slow: a drive left powered by a crashed daemon keeps applying
+    // its last current until told otherwise. The control cycle goes on sending DISABLE until an
+    // operator enables.
+    let mut link = open_link(&config, dof)?;
+    let _ = link.send(&crate::link::Command::Disable);
 
     for (path, cycles) in crate::logger::recover(&config.log.dir) {
         match cycles {
@@ -116,7 +121,6 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     let kind = config.controller().map_err(anyhow::Error::msg)?;
     let controller = build_controller(&model, kind, config.control.model.as_deref(), &gains)?;
     let cycle = ControlCycle::new(config.cycle_config(&model).map_err(anyhow::Error::msg)?, controller);
-    let mut link = open_link(&config, dof)?;
 
     let (request_tx, request_rx) = rtrb::RingBuffer::new(64);
     let (garbage_tx, mut garbage_rx) = rtrb::RingBuffer::new(64);
@@ -413,6 +417,7 @@ fn status(operator: &Operator) -> serde_json::Value {
         "run_id": s.run_id.load(Ordering::Relaxed),
         "last_run_ended": s.last_run_ended.load(Ordering::Relaxed),
         "telemetry": s.have_telemetry.load(Ordering::Relaxed),
+        "drive": drive_status(s.drive.load(Ordering::Relaxed)),
         "q": q,
         "missed_cycles": load(&s.missed),
         "log_dropped": load(&s.log_dropped),
@@ -426,5 +431,16 @@ fn status(operator: &Operator) -> serde_json::Value {
             "send_errors": load(&s.send_errors),
         },
         "runs": runs,
+    })
+}
+
+/// The drive's own report: whether its power stage is on, and its latched faults.
+fn drive_status(bits: u32) -> serde_json::Value {
+    use crate::link::frame::{drive_fault, status};
+    let (state, faults) = (bits as u8, (bits >> 8) as u8);
+    serde_json::json!({
+        "powered": state & status::ENABLED != 0,
+        "brake": state & status::BRAKE != 0,
+        "faults": drive_fault::names(faults),
     })
 }

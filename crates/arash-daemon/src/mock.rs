@@ -129,6 +129,19 @@ impl MockMotor {
         &self.drive
     }
 
+    /// Whether the power stage is on.
+    pub fn enabled(&self) -> bool {
+        self.enabled
+    }
+
+    /// Switch the power stage on as if an earlier host had enabled it (a drive left powered by a
+    /// crashed host, or one that powers up enabled), holding `amps` per joint.
+    pub fn power_on(&mut self, amps: &[f64]) {
+        self.enabled = true;
+        self.setpoint[..amps.len()].copy_from_slice(amps);
+        self.last_host_frame = std::time::Instant::now();
+    }
+
     /// Simulated time (s).
     pub fn time(&self) -> f64 {
         self.frames as f64 * self.dt

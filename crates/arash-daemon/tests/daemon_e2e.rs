@@ -33,8 +33,13 @@ impl Drop for Proc {
 
 /// Start the mock motor with an optional fault plan; returns it and its pty.
 fn mock(dir: &Scratch, faults: Option<&str>) -> (Proc, String) {
+    mock_with(dir, faults, &[])
+}
+
+/// [`mock`] with more `arash mock-motor` arguments.
+fn mock_with(dir: &Scratch, faults: Option<&str>, args: &[&str]) -> (Proc, String) {
     let mut cmd = Command::new(ARASH);
-    cmd.arg("mock-motor").stdout(Stdio::piped()).stderr(Stdio::null());
+    cmd.arg("mock-motor").args(args).stdout(Stdio::piped()).stderr(Stdio::null());
     if let Some(f) = faults {
         cmd.arg("--faults").arg(dir.file("faults.toml", f));
     }
@@ -267,6 +272,51 @@ fn a_current_mismatch_trips() {
     assert_eq!(faults, serde_json::json!(["current mismatch"]));
 }
 
+/// Pitch position (rad) in a status answer.
+fn pitch(s: &serde_json::Value) -> f64 {
+    s["q"][1].as_f64().unwrap()
+}
+
+#[test]
+fn a_daemon_restarted_while_the_drive_is_still_powered_switches_it_off() {
+    let _serial = serial();
+    let dir = Scratch::new("e2e", "restart");
+    // A drive whose own watchdog is slower than the restart: it stays powered, holding the dead
+    // daemon's last current.
+    let (_mock, pty) = mock_with(&dir, None, &["--watchdog-ms", "60000"]);
+    let mut d = daemon(&dir, &pty, "");
+    ctl(&dir, &["enable"]).unwrap();
+    let trajectory = concat!(env!("CARGO_MANIFEST_DIR"), "/../../trajectories/paper_validation_0.9.json");
+    ctl(&dir, &["run", trajectory]).unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    d.0.kill().unwrap();
+    d.0.wait().unwrap();
+    std::fs::remove_file(dir.join("s.sock")).unwrap();
+    let _d = daemon(&dir, &pty, "");
+    wait_until(&dir, Duration::from_secs(5), "telemetry", |s| s["telemetry"] == true);
+    wait_until(&dir, Duration::from_secs(1), "the drive off", |s| s["drive"]["powered"] == false);
+    let first = status(&dir);
+    assert_eq!(first["mode"], "disabled", "{first}");
+    std::thread::sleep(Duration::from_millis(500));
+    let later = status(&dir);
+    assert_eq!(later["drive"]["powered"], false, "the drive was powered again: {later}");
+    assert!((pitch(&later) - pitch(&first)).abs() < 1e-3, "the pitch joint moved: {first} → {later}");
+    ctl(&dir, &["enable"]).unwrap();
+}
+
+#[test]
+fn a_drive_that_reports_power_on_at_start_up_is_switched_off() {
+    let _serial = serial();
+    let dir = Scratch::new("e2e", "powered");
+    let (_mock, pty) = mock_with(&dir, None, &["--watchdog-ms", "60000", "--powered", "0,0.5,0"]);
+    let _d = daemon(&dir, &pty, "");
+    wait_until(&dir, Duration::from_secs(5), "telemetry", |s| s["telemetry"] == true);
+    wait_until(&dir, Duration::from_secs(1), "the drive off", |s| s["drive"]["powered"] == false);
+    let s = status(&dir);
+    assert_eq!(s["mode"], "disabled", "{s}");
+    assert_eq!(s["faults"], serde_json::json!([]), "{s}");
+}
+
 #[test]
 fn after_kill_9_the_log_is_recovered_and_the_daemon_comes_back_disabled() {
     let _serial = serial();
@@ -277,6 +327,8 @@ fn after_kill_9_the_log_is_recovered_and_the_daemon_comes_back_disabled() {
     std::thread::sleep(Duration::from_millis(2500));
     d.0.kill().unwrap(); // SIGKILL: no chance to finish the file
     d.0.wait().unwrap();
+    // Longer than the drive's 100 ms watchdog: it switches off and latches HOST_TIMEOUT.
+    std::thread::sleep(Duration::from_millis(300));
     assert_eq!(logs(&dir, "daemon-").iter().filter(|p| p.to_string_lossy().ends_with(".part")).count(), 1);
     std::fs::remove_file(dir.join("s.sock")).unwrap();
     let _d = daemon(&dir, &pty, "");
@@ -292,13 +344,15 @@ fn after_kill_9_the_log_is_recovered_and_the_daemon_comes_back_disabled() {
     // The drive's own watchdog disabled it while no host was talking; the daemon starts with no
     // torque, and the drive's fault must be reset before enabling.
     let s = status(&dir);
-    assert_ne!(s["mode"], "enabled");
-    if s["mode"] == "faulted" {
-        assert_eq!(s["faults"], serde_json::json!(["motor"]));
-        ctl(&dir, &["reset"]).unwrap();
-    }
+    assert_eq!(s["mode"], "faulted", "{s}");
+    assert_eq!(s["faults"], serde_json::json!(["motor"]));
+    assert_eq!(s["drive"]["faults"], serde_json::json!(["host timeout"]));
+    assert!(ctl(&dir, &["enable"]).is_err(), "no enabling over the drive's fault");
+    ctl(&dir, &["reset"]).unwrap();
     wait_until(&dir, Duration::from_secs(2), "disabled", |s| s["mode"] == "disabled");
+    wait_until(&dir, Duration::from_secs(1), "the drive's fault cleared", |s| s["drive"]["faults"] == serde_json::json!([]));
     ctl(&dir, &["enable"]).unwrap();
+    assert_eq!(status(&dir)["mode"], "enabled");
 }
 
 #[test]

@@ -4,20 +4,34 @@
 use arash_core::control::{Controller, ControllerKind, Desired, Faults};
 use arash_core::record::Mode;
 use arash_daemon::config::DaemonConfig;
+use arash_daemon::link::frame::{drive_fault, status};
 use arash_daemon::link::{Command, LinkStats, MotorLink, Telemetry};
 use arash_daemon::rt::cycle::{ControlCycle, CycleConfig, Event, Request};
 
-/// A drive that echoes the current it was sent, unless told otherwise.
+/// A drive that echoes the current it was sent, switches its power stage as commanded and
+/// clears its faults on CLEAR_FAULT, unless told otherwise. Its telemetry answers the previous
+/// command, as a real drive's does.
 struct Script {
     telemetry: Telemetry,
     deliver: bool,
     echo: bool,
+    /// Whether DISABLE switches the power stage off.
+    obeys_disable: bool,
+    /// Whether CLEAR_FAULT clears the fault bits.
+    clears: bool,
     sent: Vec<Command>,
 }
 
 impl Script {
     fn new() -> Self {
-        Self { telemetry: Telemetry::new(3), deliver: true, echo: true, sent: Vec::new() }
+        Self {
+            telemetry: Telemetry::new(3),
+            deliver: true,
+            echo: true,
+            obeys_disable: true,
+            clears: true,
+            sent: Vec::new(),
+        }
     }
 
     fn last(&self) -> Command {
@@ -29,6 +43,12 @@ impl MotorLink for Script {
     fn send(&mut self, command: &Command) -> std::io::Result<()> {
         if let (true, Command::Current { amps, .. }) = (self.echo, command) {
             self.telemetry.amps = *amps;
+        }
+        match command {
+            Command::Enable if self.telemetry.faults == 0 => self.telemetry.status = status::ENABLED,
+            Command::Disable if self.obeys_disable => self.telemetry.status = status::BRAKE,
+            Command::ClearFault if self.clears => self.telemetry.faults = 0,
+            _ => {}
         }
         self.sent.push(*command);
         Ok(())
@@ -121,7 +141,7 @@ fn enabling_needs_valid_telemetry_first() {
     rig.cycle.request(Request::Enable);
     assert_eq!(rig.step(), vec![Event::EnableRefused]);
     assert_eq!(rig.cycle.mode(), Mode::Disabled);
-    assert_eq!(rig.link.last(), Command::Heartbeat, "a disabled daemon sends only heartbeats");
+    assert_eq!(rig.link.last(), Command::Disable, "a disabled daemon commands the drive off");
     rig.link.deliver = true;
     rig.step();
     rig.enable();
@@ -307,7 +327,7 @@ fn a_drive_fault_latches_until_reset_and_reset_leaves_the_motors_disabled() {
     let mut rig = Rig::new([0.1; 3], |_| {});
     rig.step();
     rig.enable();
-    rig.link.telemetry.faults = arash_daemon::link::frame::drive_fault::OVERCURRENT;
+    rig.link.telemetry.faults = drive_fault::OVERCURRENT;
     rig.step();
     assert_eq!(rig.cycle.faults(), Faults::MOTOR);
     rig.link.telemetry.faults = 0;
@@ -320,8 +340,87 @@ fn a_drive_fault_latches_until_reset_and_reset_leaves_the_motors_disabled() {
     assert_eq!(rig.cycle.mode(), Mode::Disabled);
     assert_eq!(rig.link.last(), Command::ClearFault);
     rig.step();
-    assert_eq!(rig.link.last(), Command::Heartbeat);
+    assert_eq!(rig.link.last(), Command::Disable);
     rig.enable();
+}
+
+#[test]
+fn a_drive_left_powered_by_a_crashed_daemon_is_switched_off_in_the_first_cycle() {
+    use arash_daemon::mock::{InProcessLink, MockMotor};
+    let model = arash_core::arash_asist();
+    let mut motor =
+        MockMotor::new(&model, &arash_core::sim::Scenario::default(), Default::default(), Default::default()).unwrap();
+    // The last current of the daemon that died: enough to swing the pitch joint.
+    motor.power_on(&[0.0, 3.0, 0.0]);
+    let mut link = InProcessLink::new(motor);
+    let mut cycle = ControlCycle::new(config(|_| {}), Box::new(Constant(vec![0.0; 3])));
+    cycle.step(&mut link, 0);
+    assert!(!link.motor.enabled(), "the first frame of a new daemon switches the drive off");
+    let pitch = link.motor.drive().encoder_counts(1);
+    for n in 1..500 {
+        cycle.step(&mut link, n);
+        assert!(!link.motor.enabled(), "cycle {n}: the drive was powered again");
+    }
+    assert_eq!(link.motor.drive().encoder_counts(1), pitch, "the brake holds the pitch joint");
+    assert_eq!(cycle.mode(), Mode::Disabled);
+    assert_eq!(cycle.faults(), Faults::NONE, "a drive that obeys DISABLE is no fault");
+}
+
+#[test]
+fn a_drive_that_stays_powered_against_disable_latches_drive_state_after_the_link_timeout() {
+    let mut rig = Rig::new([0.0; 3], |_| {});
+    rig.link.telemetry.status = status::ENABLED;
+    rig.link.obeys_disable = false;
+    for n in 1..20 {
+        rig.step();
+        assert_eq!(rig.link.last(), Command::Disable, "cycle {n}");
+        assert_eq!(rig.cycle.faults(), Faults::NONE, "cycle {n}: within the drive's grace");
+    }
+    let events = rig.step();
+    assert!(events.contains(&Event::FaultLatched(Faults::DRIVE_STATE)), "{events:?}");
+    assert_eq!(rig.cycle.mode(), Mode::Faulted);
+    rig.cycle.request(Request::Enable);
+    assert_eq!(rig.step(), vec![Event::EnableRefused]);
+    assert!(rig.link.sent.iter().all(|c| *c == Command::Disable), "nothing but DISABLE was ever sent");
+}
+
+#[test]
+fn a_reset_outlasts_the_stale_fault_in_the_drives_telemetry_and_then_enable_works() {
+    // The drive latched HOST_TIMEOUT while no host talked to it (a daemon restart).
+    let mut rig = Rig::new([0.1; 3], |_| {});
+    rig.link.telemetry.faults = drive_fault::HOST_TIMEOUT;
+    rig.step();
+    assert_eq!(rig.cycle.faults(), Faults::MOTOR);
+    rig.cycle.request(Request::ResetFault);
+    // This cycle's telemetry still shows the fault: it answers the frame sent before the reset.
+    let events = rig.step();
+    assert_eq!(events, vec![Event::FaultsCleared], "the stale fault bit must not re-latch");
+    assert_eq!(rig.link.last(), Command::ClearFault);
+    assert_eq!(rig.cycle.mode(), Mode::Disabled);
+    rig.step();
+    assert_eq!(rig.link.last(), Command::Disable, "the drive confirmed: back to commanding it off");
+    rig.enable();
+    rig.steps(5);
+    assert_eq!(rig.cycle.mode(), Mode::Enabled);
+}
+
+#[test]
+fn enabling_waits_for_the_drive_to_confirm_a_reset_and_a_fault_that_stays_latches_again() {
+    let mut rig = Rig::new([0.1; 3], |_| {});
+    rig.link.telemetry.faults = drive_fault::OVERTEMPERATURE;
+    rig.link.clears = false; // still hot
+    rig.step();
+    rig.cycle.request(Request::ResetFault);
+    rig.step();
+    rig.cycle.request(Request::Enable);
+    assert_eq!(rig.step(), vec![Event::EnableRefused], "the drive has not confirmed the reset");
+    // The reset lasts the link timeout (20 cycles), sending CLEAR_FAULT each cycle.
+    rig.steps(17);
+    assert_eq!(rig.cycle.mode(), Mode::Disabled);
+    assert_eq!(rig.link.last(), Command::ClearFault);
+    let events = rig.step();
+    assert!(events.contains(&Event::FaultLatched(Faults::MOTOR)), "{events:?}");
+    assert!(rig.link.sent.iter().all(|c| !matches!(c, Command::Current { .. } | Command::Enable)));
 }
 
 /// A CAN drive in the same process: answers every host frame with one telemetry set, until told

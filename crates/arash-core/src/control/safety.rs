@@ -34,6 +34,9 @@ impl Faults {
     pub const FOLLOWING_ERROR: Faults = Faults(1 << 6);
     /// The measured motor current disagreed with the command for too long (set by the daemon).
     pub const CURRENT_MISMATCH: Faults = Faults(1 << 7);
+    /// The drive reported its power stage on for too long while the host commanded it off (set
+    /// by the daemon; a drive that ignores DISABLE, or a stale enable from an earlier host).
+    pub const DRIVE_STATE: Faults = Faults(1 << 8);
 
     pub fn contains(self, other: Faults) -> bool {
         self.0 & other.0 == other.0
@@ -45,7 +48,7 @@ impl Faults {
 
     /// Names of the bits set, for reports.
     pub fn names(self) -> Vec<&'static str> {
-        const NAMES: [&str; 8] = [
+        const NAMES: [&str; 9] = [
             "non-finite state",
             "non-finite command",
             "position limit",
@@ -54,6 +57,7 @@ impl Faults {
             "motor",
             "following error",
             "current mismatch",
+            "drive state",
         ];
         NAMES.iter().enumerate().filter(|(i, _)| self.0 & (1 << i) != 0).map(|(_, n)| *n).collect()
     }

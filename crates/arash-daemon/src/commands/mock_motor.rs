@@ -25,6 +25,14 @@ pub struct Args {
     /// The robot's URDF; default: the bundled ARASH:ASiST.
     #[arg(long)]
     robot: Option<PathBuf>,
+    /// The drive's own watchdog (ms): while powered, it switches off and latches HOST_TIMEOUT
+    /// after this long without a host frame.
+    #[arg(long, default_value_t = 100)]
+    watchdog_ms: u64,
+    /// Start with the power stage on, holding these motor currents (A, one per joint, comma
+    /// separated), as a drive left powered by a crashed host would.
+    #[arg(long, value_delimiter = ',', num_args = 1..)]
+    powered: Option<Vec<f64>>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -42,6 +50,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => FaultPlan::default(),
     };
     let mut motor = MockMotor::new(&model, &scenario, DriveConfig::default(), faults)?;
+    motor.watchdog = std::time::Duration::from_millis(args.watchdog_ms);
+    if let Some(amps) = &args.powered {
+        anyhow::ensure!(
+            amps.len() == model.dof() && amps.iter().all(|a| a.is_finite()),
+            "--powered takes {} finite currents (A), one per joint; got {amps:?}",
+            model.dof()
+        );
+        motor.power_on(amps);
+    }
     let (mut master, slave) = serialport::TTYPort::pair().context("opening a pseudo-terminal")?;
     serialport::SerialPort::set_timeout(&mut master, std::time::Duration::ZERO)?;
     let path = serialport::SerialPort::name(&slave).context("the pseudo-terminal has no name")?;

@@ -59,6 +59,14 @@ pub mod drive_fault {
     /// No valid host frame within the drive's own watchdog time.
     pub const HOST_TIMEOUT: u8 = 1 << 3;
     pub const UNDERVOLTAGE: u8 = 1 << 4;
+
+    /// Names of the bits set in `faults`, for status and reports.
+    pub fn names(faults: u8) -> Vec<&'static str> {
+        const NAMES: [&str; 5] = ["overcurrent", "encoder", "overtemperature", "host timeout", "undervoltage"];
+        let unknown = faults >> NAMES.len() != 0;
+        let known = NAMES.iter().enumerate().filter(|(i, _)| faults & (1 << i) != 0).map(|(_, n)| *n);
+        known.chain(unknown.then_some("unknown")).collect()
+    }
 }
 
 /// One telemetry frame from the drive.

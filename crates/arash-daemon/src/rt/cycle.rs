@@ -6,18 +6,29 @@
 //! - **link timeout:** a cycle without new valid telemetry re-sends the last command; the
 //!   `link_timeout`-th such cycle in a row latches `LINK_TIMEOUT` and ramps the torque to zero
 //!   over `ramp` cycles, then disables the drive;
+//! - **disabled means commanded off:** while the host is not enabled, every frame it sends is
+//!   DISABLE (zero current, power stage off), from the first cycle on. A drive left powered by a
+//!   crashed daemon, or one that reports power on at start-up, is switched off at once; one that
+//!   still reports its power stage on after `link_timeout` telemetry frames latches
+//!   `DRIVE_STATE`;
 //! - **drive faults:** any fault bit in the telemetry latches `MOTOR`;
+//! - **reset:** [`Request::ResetFault`] sends CLEAR_FAULT every cycle until the drive reports no
+//!   fault (its telemetry lags the command by a cycle or more, so a stale fault bit must not
+//!   re-latch `MOTOR`). A drive still reporting a fault after `link_timeout` cycles latches
+//!   `MOTOR` again;
 //! - **following error:** |q − q_d| beyond the limit latches `FOLLOWING_ERROR` (a stuck encoder);
 //! - **current mismatch:** measured torque differing from the command by more than a fraction of
 //!   the torque limit for `mismatch_cycles` cycles in a row latches `CURRENT_MISMATCH`;
 //! - **start-up:** the drive cannot be enabled before valid telemetry arrives;
-//! - faults latch until [`Request::ResetFault`], which leaves the drive disabled.
+//! - faults latch until [`Request::ResetFault`], which leaves the drive disabled; enabling waits
+//!   until the drive has confirmed the reset.
 
 use arash_core::control::{Controller, Desired, Faults, SafetyGate, SafetyLimits, VelocityEstimator};
 use arash_core::record::{CycleRecord, Mode};
 
 use super::reference::{Phase, PhaseChange, Reference, RunRequest};
 use crate::drive_config::DriveConfig;
+use crate::link::frame::status;
 use crate::link::{Command, MotorLink, Telemetry, MAX_JOINTS};
 
 /// What the cycle is configured with (SI).
@@ -27,7 +38,8 @@ pub struct CycleConfig {
     pub dt: f64,
     pub drive: DriveConfig,
     pub limits: SafetyLimits,
-    /// Consecutive cycles without telemetry that latch a link timeout.
+    /// Consecutive cycles without telemetry that latch a link timeout; also the cycles a drive
+    /// has to obey DISABLE or to confirm CLEAR_FAULT.
     pub link_timeout: u32,
     /// Cycles over which the torque ramps to zero after a link timeout.
     pub ramp: u32,
@@ -63,7 +75,8 @@ pub enum Garbage {
 pub enum Event {
     Enabled,
     Disabled,
-    /// Enabling was refused: no valid telemetry yet, a latched fault, or already enabled.
+    /// Enabling was refused: no valid telemetry yet, a latched fault, a reset the drive has not
+    /// confirmed yet, or already enabled.
     EnableRefused,
     FaultLatched(Faults),
     FaultsCleared,
@@ -97,6 +110,10 @@ pub struct ControlCycle {
     ramp_from: [f64; MAX_JOINTS],
     ramp_left: u32,
     mismatch_count: [u32; MAX_JOINTS],
+    /// Cycles left for the drive to confirm a reset (0: no reset under way).
+    clearing: u32,
+    /// Consecutive telemetry frames with the power stage on while the host commands it off.
+    powered_while_off: u32,
     tau_out: Vec<f64>,
     record: CycleRecord,
     events: [Option<Event>; 8],
@@ -132,6 +149,8 @@ impl ControlCycle {
             ramp_from: [0.0; MAX_JOINTS],
             ramp_left: 0,
             mismatch_count: [0; MAX_JOINTS],
+            clearing: 0,
+            powered_while_off: 0,
             tau_out: vec![0.0; dof],
             record,
             events: [None; 8],
@@ -156,6 +175,11 @@ impl ControlCycle {
 
     pub fn has_telemetry(&self) -> bool {
         self.have_telemetry
+    }
+
+    /// The drive's last reported status bits ([`status`]) and fault bits.
+    pub fn drive_state(&self) -> (u8, u8) {
+        (self.telemetry.status, self.telemetry.faults)
     }
 
     /// Consecutive cycles without new telemetry.
@@ -202,7 +226,12 @@ impl ControlCycle {
     fn apply(&mut self, request: Request) -> Option<Garbage> {
         match request {
             Request::Enable => {
-                if self.mode == Mode::Disabled && self.have_telemetry && self.missing < self.cfg.link_timeout {
+                if self.mode == Mode::Disabled
+                    && self.have_telemetry
+                    && self.missing < self.cfg.link_timeout
+                    && self.clearing == 0
+                    && self.telemetry.faults == 0
+                {
                     self.mode = Mode::Enabled;
                     self.pending = Some(Command::Enable);
                     self.controller.reset();
@@ -230,7 +259,9 @@ impl ControlCycle {
                     self.gate.clear();
                     self.mode = Mode::Disabled;
                     self.ramp_left = 0;
-                    self.pending = Some(Command::ClearFault);
+                    self.pending = None;
+                    self.clearing = self.reset_cycles();
+                    self.powered_while_off = 0;
                     self.event(Event::FaultsCleared);
                 }
                 None
@@ -262,6 +293,7 @@ impl ControlCycle {
     /// Run one cycle against `link`.
     pub fn step(&mut self, link: &mut dyn MotorLink, cycle: u64) {
         let fresh = self.read(link);
+        self.count_down_reset();
         let t = self.time();
         self.reference_time = t;
         let r = &mut self.record;
@@ -330,10 +362,47 @@ impl ControlCycle {
         if r.tau_meas.iter().any(|x| !x.is_finite()) {
             self.gate.latch(Faults::NON_FINITE_STATE);
         }
-        if t.faults != 0 {
+        self.check_drive();
+        true
+    }
+
+    /// Compare the drive's reported state with what the host commands.
+    fn check_drive(&mut self) {
+        let (powered, faults) = (self.telemetry.status & status::ENABLED != 0, self.telemetry.faults);
+        if self.clearing > 0 {
+            // Only telemetry after the first CLEAR_FAULT confirms the reset.
+            if faults == 0 && self.clearing < self.reset_cycles() {
+                self.clearing = 0;
+            }
+        } else if faults != 0 {
             self.gate.latch(Faults::MOTOR);
         }
-        true
+        // During the ramp after a link timeout the host still drives currents on purpose.
+        if powered && self.mode != Mode::Enabled && self.ramp_left == 0 {
+            self.powered_while_off = self.powered_while_off.saturating_add(1);
+            if self.powered_while_off >= self.cfg.link_timeout {
+                self.gate.latch(Faults::DRIVE_STATE);
+            }
+        } else {
+            self.powered_while_off = 0;
+        }
+    }
+
+    /// Cycles a drive has to confirm a reset.
+    fn reset_cycles(&self) -> u32 {
+        self.cfg.link_timeout.max(1)
+    }
+
+    /// One cycle less for the drive to confirm a reset; at the end, a fault it still reports
+    /// latches again (telemetry without a fault has already ended the wait in `check_drive`).
+    fn count_down_reset(&mut self) {
+        if self.clearing == 0 {
+            return;
+        }
+        self.clearing -= 1;
+        if self.clearing == 0 && self.telemetry.faults != 0 {
+            self.gate.latch(Faults::MOTOR);
+        }
     }
 
     fn check_link(&mut self) {
@@ -413,7 +482,12 @@ impl ControlCycle {
             }
             Mode::Faulted | Mode::Disabled => {
                 self.last_sent = [0.0; MAX_JOINTS];
-                self.pending.take().unwrap_or(Command::Heartbeat)
+                self.pending = None;
+                if self.clearing > 0 {
+                    Command::ClearFault
+                } else {
+                    Command::Disable
+                }
             }
         }
     }

@@ -61,6 +61,8 @@ pub struct Shared {
     pub run_id: AtomicU32,
     pub last_run_ended: AtomicU32,
     pub have_telemetry: AtomicBool,
+    /// The drive's last reported status bits (low byte) and fault bits (next byte).
+    pub drive: AtomicU32,
     pub missed: AtomicU64,
     pub log_dropped: AtomicU64,
     /// Set by the logger thread if it stopped on an error (e.g. a full disk).
@@ -231,6 +233,8 @@ fn publish(shared: &Shared, cycle: &ControlCycle, stats: &LinkStats) {
     );
     shared.run_id.store(cycle.run_id().unwrap_or(0), Ordering::Relaxed);
     shared.have_telemetry.store(cycle.has_telemetry(), Ordering::Relaxed);
+    let (status, faults) = cycle.drive_state();
+    shared.drive.store(u32::from(status) | u32::from(faults) << 8, Ordering::Relaxed);
     for (a, &q) in shared.q.iter().zip(&r.q) {
         a.store(q.to_bits(), Ordering::Relaxed);
     }
