@@ -23,8 +23,13 @@ fn simulate(model: &Model, scenario: &str, seed: u64, seconds: f64) -> Run {
     let mut scenario = Scenario::from_toml(scenario).unwrap();
     scenario.seed = seed;
     let trajectory = Trajectory::from_json(EXCITATION, 3).unwrap();
-    let controller =
-        standard_controller(ControllerKind::Idc, model, &model.cad_parameters(), &RobustGains::paper(model)).unwrap();
+    let controller = standard_controller(
+        ControllerKind::Idc,
+        model,
+        &model.cad_parameters(),
+        Some(&RobustGains::paper(model).unwrap()),
+    )
+    .unwrap();
     let mut rig = Rig::new(model, &scenario, trajectory, controller).unwrap();
     let mut run = Run { t: vec![], q: vec![], tau: vec![] };
     for _ in 0..(seconds * 1000.0) as usize {
@@ -352,7 +357,7 @@ fn tracking_error(
         model,
         params,
         effects,
-        &RobustGains::paper(model),
+        Some(&RobustGains::paper(model).unwrap()),
     )
     .unwrap();
     let mut rig = Rig::new(model, &scenario, Trajectory::PaperValidation { omega }, controller).unwrap();

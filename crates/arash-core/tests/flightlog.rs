@@ -12,7 +12,7 @@ fn spec(seconds: f64) -> RunSpec {
     RunSpec {
         params: true_parameters(&model, &scenario),
         effects: vec![],
-        gains: RobustGains::paper(&model),
+        gains: Some(RobustGains::paper(&model).unwrap()),
         scenario,
         trajectory: Trajectory::PaperValidation { omega: 0.5 },
         controller: ControllerKind::Robust,

@@ -261,3 +261,50 @@ fn consistent_identification_is_physical_and_fits_like_ols() {
     let err = |b: &[f64]| b.iter().zip(&beta_true).map(|(x, y)| (x - y).powi(2)).sum::<f64>().sqrt();
     assert!(err(&beta_c) < 2.0 * err(&ols.beta) + 1e-6, "consistent {} vs OLS {}", err(&beta_c), err(&ols.beta));
 }
+
+#[test]
+fn a_model_file_is_judged_by_its_parameters_not_by_what_it_claims() {
+    use arash_core::identify::{identify, Identification, IdentifyMethod, IdentifyOptions};
+    let model = arash_asist();
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
+    let mut rng = rng(25);
+    let pi = true_parameters(&model, &mut rng);
+    let traj = Fourier::random(&model, 15.0, &mut rng);
+    let (t, q, tau) = simulated_log(&model, &pi, &traj, 2, &mut rng);
+    let mut options = IdentifyOptions::default();
+    options.preprocess.periods = Some(2);
+    options.preprocess.decimate = 5;
+    let load = |value: &serde_json::Value| Identification::from_json(&value.to_string()).unwrap();
+    for method in [IdentifyMethod::Consistent, IdentifyMethod::Ols] {
+        let id = identify(&model, &base, ARASH_ASIST_URDF, &t, &q, &tau, method, &options).unwrap();
+        let recomputed = id.recomputed_pseudo_inertia_eigenvalues(&model).unwrap();
+        for (a, b) in recomputed.iter().zip(&id.min_pseudo_inertia_eigenvalue) {
+            assert!((a - b).abs() <= 1e-9 * b.abs().max(1.0), "{method:?}: {a} recomputed, {b} written");
+        }
+        let file: serde_json::Value = serde_json::from_str(&id.to_json()).unwrap();
+        let honest = load(&file).consistent_controller_parameters(&model);
+        assert_eq!(honest.is_ok(), recomputed.iter().all(|e| *e >= -1e-9), "{method:?}: {honest:?}");
+
+        // A mass of −2 kg (π̂), or −2 on the first inertial base parameter (β̂), the file still
+        // claiming positive eigenvalues.
+        let mut tampered = file.clone();
+        match method {
+            IdentifyMethod::Consistent => tampered["params"][0] = (-2.0).into(),
+            _ => tampered["beta"][0] = (-2.0).into(),
+        }
+        tampered["min_pseudo_inertia_eigenvalue"] = serde_json::json!(vec![1.0; model.bodies.len()]);
+        let err = load(&tampered).consistent_controller_parameters(&model).unwrap_err().to_string();
+        eprintln!("{method:?}, tampered: {err}");
+        assert!(err.contains("not physically consistent"), "{method:?}: {err}");
+        if method == IdentifyMethod::Consistent {
+            assert!(err.contains("`yaw_yoke`") && err.contains("-2.0"), "the body and its eigenvalue: {err}");
+        }
+        assert!(load(&tampered).controller_parameters(&model).is_ok(), "PD needs no consistency");
+
+        // Vectors that do not fit together are refused by name, for every controller.
+        let mut short = file.clone();
+        short["beta"].as_array_mut().unwrap().pop();
+        let err = load(&short).controller_parameters(&model).unwrap_err().to_string();
+        assert!(err.contains("`beta` has"), "{err}");
+    }
+}

@@ -36,7 +36,8 @@ fn control_cycles_do_not_allocate() {
     let params = true_parameters(&model, &scenario);
     watch_this_thread();
     for kind in [ControllerKind::Pd, ControllerKind::Idc, ControllerKind::Robust] {
-        let controller = standard_controller(kind, &model, &params, &RobustGains::paper(&model)).unwrap();
+        let controller =
+            standard_controller(kind, &model, &params, Some(&RobustGains::paper(&model).unwrap())).unwrap();
         let mut rig = Rig::new(&model, &scenario, Trajectory::PaperValidation { omega: 0.9 }, controller).unwrap();
         let cycles = 10_000;
         let before = allocations();

@@ -67,7 +67,9 @@ struct Run {
 fn run(scenario: &Scenario, seconds: f64) -> Run {
     let model = robot();
     let params = true_parameters(&model, scenario);
-    let controller = standard_controller(ControllerKind::Robust, &model, &params, &RobustGains::paper(&model)).unwrap();
+    let controller =
+        standard_controller(ControllerKind::Robust, &model, &params, Some(&RobustGains::paper(&model).unwrap()))
+            .unwrap();
     let mut rig = Rig::new(&model, scenario, Trajectory::PaperValidation { omega: 0.9 }, controller).unwrap();
     let (mut cycles, mut truth) = (Columns::default(), TruthColumns::default());
     for _ in 0..(seconds * 1000.0) as usize {

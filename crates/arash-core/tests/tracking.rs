@@ -17,7 +17,8 @@ fn track(kind: ControllerKind, truth: bool, units: PaperUnits) -> Errors {
     let model = arash_core::arash_asist();
     let scenario = Scenario::default();
     let params = if truth { true_parameters(&model, &scenario) } else { model.cad_parameters() };
-    let controller = standard_controller(kind, &model, &params, &RobustGains::from_paper(&model, units)).unwrap();
+    let controller =
+        standard_controller(kind, &model, &params, Some(&RobustGains::from_paper(&model, units).unwrap())).unwrap();
     let trajectory = Trajectory::PaperValidation { omega: 0.5 };
     let cycles = (trajectory.default_duration() * 1000.0).round() as usize;
     let mut rig = Rig::new(&model, &scenario, trajectory, controller).unwrap();

@@ -12,7 +12,9 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use arash_core::control::{controller_with_effects, Controller, ControllerKind, Faults, RobustGains, Trajectory};
+use arash_core::control::{
+    controller_with_effects, Controller, ControllerKind, Faults, PlanLimits, RobustGains, Trajectory,
+};
 use arash_core::identify::Identification;
 use arash_core::record::Mode;
 use arash_core::Model;
@@ -39,12 +41,17 @@ pub struct DaemonOptions {
 /// The operator side's handles.
 struct Operator {
     model: Model,
-    gains: RobustGains,
+    /// The robust gains; `None` for a robot the paper's gains do not fit (PD only).
+    gains: Option<RobustGains>,
     /// The request queue and the number of requests pushed into it so far.
     requests: Mutex<(rtrb::Producer<Request>, u64)>,
     shared: Arc<Shared>,
     runs: RunRegistry,
     next_run: Mutex<u32>,
+    /// What a trajectory may ask of the joints, checked before a run is queued.
+    plan_limits: PlanLimits,
+    /// Control period (s): the spacing at which a trajectory is checked.
+    dt: f64,
 }
 
 /// Build a controller of `kind` for `model` with parameters from `model_file` (or CAD). The
@@ -53,28 +60,39 @@ pub fn build_controller(
     model: &Model,
     kind: ControllerKind,
     model_file: Option<&std::path::Path>,
-    gains: &RobustGains,
+    gains: Option<&RobustGains>,
 ) -> anyhow::Result<Box<dyn Controller>> {
     let (params, effects) = match model_file {
         None => (model.cad_parameters(), vec![]),
         Some(path) => {
-            let text =
-                std::fs::read_to_string(path).with_context(|| format!("reading model file {}", path.display()))?;
+            let text = read_file(path, MAX_MODEL_FILE_BYTES).context("reading the model file")?;
             let id = Identification::from_json(&text).with_context(|| format!("loading {}", path.display()))?;
-            // A model-based law inverts M(q): a body with an indefinite pseudo-inertia can make it
-            // indefinite and the loop unstable on the robot.
-            let worst = id.min_pseudo_inertia_eigenvalue.iter().copied().fold(f64::INFINITY, f64::min);
-            anyhow::ensure!(
-                kind == ControllerKind::Pd || worst >= -1e-9,
-                "{} is not physically consistent (smallest pseudo-inertia eigenvalue {worst:.3e}); \
-                 the {kind:?} controller needs a consistent model: identify with --method consistent",
-                path.display()
-            );
-            let params = id.controller_parameters(model).with_context(|| format!("using {}", path.display()))?;
+            let params = if kind == ControllerKind::Pd {
+                id.controller_parameters(model)
+            } else {
+                id.consistent_controller_parameters(model)
+            };
+            let params = params.with_context(|| format!("{} refused for the {kind:?} controller", path.display()))?;
             (params, id.effects)
         }
     };
-    controller_with_effects(kind, model, &params, &effects, gains).context("no controller for kind `none`")
+    Ok(controller_with_effects(kind, model, &params, &effects, gains)?)
+}
+
+/// Largest model file the daemon reads (the URDF is embedded; a real one is about 100 kB).
+const MAX_MODEL_FILE_BYTES: usize = 16 << 20;
+
+/// Read a regular file of at most `max` bytes as UTF-8: a device, a FIFO or an oversized file
+/// named by an operator must not stall the daemon's operator interface.
+fn read_file(path: &std::path::Path, max: usize) -> anyhow::Result<String> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
+    let meta = file.metadata().with_context(|| format!("reading {}", path.display()))?;
+    anyhow::ensure!(meta.is_file(), "{} is not a regular file", path.display());
+    let mut bytes = Vec::new();
+    file.take(max as u64 + 1).read_to_end(&mut bytes).with_context(|| format!("reading {}", path.display()))?;
+    anyhow::ensure!(bytes.len() <= max, "{} is larger than {max} bytes", path.display());
+    String::from_utf8(bytes).map_err(|_| anyhow::anyhow!("{} is not UTF-8 text", path.display()))
 }
 
 fn open_link(config: &DaemonConfig, dof: usize) -> anyhow::Result<Box<dyn MotorLink>> {
@@ -117,9 +135,9 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     }
 
     let units = config.control.gain_units.parse().map_err(anyhow::Error::msg)?;
-    let gains = RobustGains::from_paper(&model, units);
+    let gains = RobustGains::from_paper(&model, units).ok();
     let kind = config.controller().map_err(anyhow::Error::msg)?;
-    let controller = build_controller(&model, kind, config.control.model.as_deref(), &gains)?;
+    let controller = build_controller(&model, kind, config.control.model.as_deref(), gains.as_ref())?;
     let cycle = ControlCycle::new(config.cycle_config(&model).map_err(anyhow::Error::msg)?, controller);
 
     let (request_tx, request_rx) = rtrb::RingBuffer::new(64);
@@ -190,6 +208,8 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     }
 
     let operator = Arc::new(Operator {
+        plan_limits: PlanLimits::from_model(&model),
+        dt: 1.0 / config.control.rate_hz,
         model,
         gains,
         requests: Mutex::new((request_tx, 0)),
@@ -280,25 +300,55 @@ async fn serve(
     result
 }
 
+/// Longest request line the control socket reads; a longer one is refused and the connection
+/// closed, so that a client cannot make the daemon buffer without bound.
+pub const MAX_REQUEST_BYTES: usize = 64 * 1024;
+
+/// One operator connection: a JSON request per line, a JSON answer per line. Only complete lines
+/// are requests: a client that disconnects mid-line has asked for nothing.
 async fn client(stream: tokio::net::UnixStream, operator: Arc<Operator>) {
+    use tokio::io::AsyncReadExt;
     let (read, mut write) = stream.into_split();
-    let mut lines = BufReader::new(read).lines();
-    while let Ok(Some(line)) = lines.next_line().await {
-        let answer = match serde_json::from_str::<CtlRequest>(&line) {
-            Ok(request) => match handle(&operator, request).await {
-                Ok(mut value) => {
-                    value["ok"] = true.into();
-                    value
-                }
-                Err(e) => serde_json::json!({ "ok": false, "error": format!("{e:#}") }),
-            },
-            Err(e) => serde_json::json!({ "ok": false, "error": format!("bad request: {e}") }),
+    let mut reader = BufReader::new(read);
+    let mut line = Vec::new();
+    loop {
+        line.clear();
+        let limit = MAX_REQUEST_BYTES as u64 + 1;
+        match (&mut reader).take(limit).read_until(b'\n', &mut line).await {
+            Ok(0) | Err(_) => return,
+            Ok(_) => {}
+        }
+        let complete = line.last() == Some(&b'\n');
+        if !complete && line.len() <= MAX_REQUEST_BYTES {
+            return; // end of stream in the middle of a line
+        }
+        let answer = if complete {
+            answer(&operator, &line).await
+        } else {
+            serde_json::json!({ "ok": false, "error": format!("request longer than {MAX_REQUEST_BYTES} bytes; closing") })
         };
         let mut text = answer.to_string();
         text.push('\n');
-        if write.write_all(text.as_bytes()).await.is_err() {
+        if write.write_all(text.as_bytes()).await.is_err() || !complete {
             return;
         }
+    }
+}
+
+/// The answer to one request line.
+async fn answer(operator: &Operator, line: &[u8]) -> serde_json::Value {
+    let request = std::str::from_utf8(line)
+        .map_err(|_| "bad request: not UTF-8".to_string())
+        .and_then(|text| serde_json::from_str::<CtlRequest>(text).map_err(|e| format!("bad request: {e}")));
+    match request {
+        Ok(request) => match handle(operator, request).await {
+            Ok(mut value) => {
+                value["ok"] = true.into();
+                value
+            }
+            Err(e) => serde_json::json!({ "ok": false, "error": format!("{e:#}") }),
+        },
+        Err(e) => serde_json::json!({ "ok": false, "error": e }),
     }
 }
 
@@ -363,13 +413,14 @@ async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::Result<serd
             let text = if trajectory.trim_start().starts_with('{') {
                 trajectory
             } else {
-                std::fs::read_to_string(&trajectory).with_context(|| format!("reading trajectory {trajectory}"))?
+                read_file(std::path::Path::new(&trajectory), MAX_REQUEST_BYTES).context("reading the trajectory")?
             };
             let parsed = Trajectory::from_json(&text, operator.model.dof())?;
             let duration_s = duration_s.unwrap_or_else(|| parsed.default_duration());
             if !(duration_s.is_finite() && duration_s > 0.0) {
                 anyhow::bail!("duration_s must be positive, not {duration_s}");
             }
+            parsed.check_limits(&operator.plan_limits, duration_s, operator.dt)?;
             let id = {
                 let mut next = operator.next_run.lock().expect("run counter lock");
                 *next += 1;
@@ -394,7 +445,7 @@ async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::Result<serd
         CtlRequest::Controller { kind, model } => {
             let kind = crate::config::controller_kind(&kind).map_err(|e| anyhow::anyhow!("controller kind {e}"))?;
             let path = model.map(PathBuf::from);
-            let controller = build_controller(&operator.model, kind, path.as_deref(), &operator.gains)?;
+            let controller = build_controller(&operator.model, kind, path.as_deref(), operator.gains.as_ref())?;
             applied(operator, send(operator, Request::Controller(controller))?).await?;
             Ok(status(operator))
         }

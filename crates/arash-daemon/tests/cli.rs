@@ -253,3 +253,66 @@ fn diagnose_names_the_effect_and_writes_report_model_and_figures() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("--model"), "{err}");
 }
+
+/// A scenario for the two-joint planar fixture.
+const PLANAR_SCENARIO: &str = "name = \"planar\"\n[truth]\nviscous = [0.01, 0.01]\ncoulomb = [0.01, 0.01]\n\
+    stiffness = [0.0, 0.0]\n[sensors]\ncounts_per_rev = [8192.0, 8192.0]\ntransmission = [0.01, 0.01]\n\
+    torque_noise = [0.01, 0.01]\n";
+
+#[test]
+fn simulate_on_a_robot_of_another_dof_refuses_the_papers_gains_and_runs_pd() {
+    let dir = Scratch::new("cli", "simulate-planar");
+    let scenario = dir.file("planar.toml", PLANAR_SCENARIO);
+    let hold = dir.file("hold.json", r#"{"kind": "hold", "q": [0.2, -0.3]}"#);
+    let log = dir.join("planar.mcap");
+    let run = |controller: &str| {
+        arash(&[
+            "simulate",
+            "--robot",
+            &repo_file("tests/fixtures/planar_2link.urdf"),
+            "--scenario",
+            scenario.to_str().unwrap(),
+            "--trajectory",
+            hold.to_str().unwrap(),
+            "--controller",
+            controller,
+            "--params",
+            "cad",
+            "--duration",
+            "1",
+            "-o",
+            log.to_str().unwrap(),
+        ])
+    };
+    for controller in ["robust", "idc"] {
+        let out = run(controller);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{controller}: {err}");
+        assert!(err.contains("planar_2link") && err.contains("2 joints") && err.contains("PD"), "{err}");
+        assert!(!err.contains("panicked") && !log.exists(), "{err}");
+    }
+    let out = run("pd");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(log.exists());
+}
+
+#[test]
+fn simulate_refuses_a_trajectory_beyond_the_limits_naming_sample_joint_and_limit() {
+    let dir = Scratch::new("cli", "simulate-limits");
+    let never = dir.join("never.mcap");
+    let yaw = dir.file("yaw.json", r#"{"kind": "hold", "q": [1.5, 0.2, 0.005]}"#);
+    let out = arash(&[
+        "simulate",
+        "--scenario",
+        &repo_file("scenarios/nominal.toml"),
+        "--trajectory",
+        yaw.to_str().unwrap(),
+        "--controller",
+        "pd",
+        "-o",
+        never.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("sample 0") && err.contains("joint 0 `yaw`"), "{err}");
+    assert!(!never.exists(), "a refused run writes no log");
+}

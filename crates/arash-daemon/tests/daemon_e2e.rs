@@ -180,6 +180,14 @@ fn an_excitation_run_through_the_daemon_identifies_the_mock() {
         assert!(e.contains("not physically consistent"), "{e}");
     }
 
+    // A consistent file edited by hand to a mass of −2 kg, still claiming to be consistent.
+    let mut tampered = model.clone();
+    tampered["params"][0] = (-2.0).into();
+    let tampered_path = dir.file("tampered.json", &tampered.to_string());
+    let err = ctl(&dir, &["controller", "robust", "--model", tampered_path.to_str().unwrap()]).unwrap_err();
+    assert!(err.contains("not physically consistent") && err.contains("yaw_yoke"), "{err}");
+    assert_eq!(status(&dir)["controller"], "idc", "a refused model changes nothing");
+
     // Close the loop: switch to the robust controller with the identified model and track the
     // paper's ω = 0.5 trajectory for 5 s.
     let model_path = dir.join("model.json");
@@ -197,6 +205,92 @@ fn an_excitation_run_through_the_daemon_identifies_the_mock() {
         .fold(0.0, f64::max);
     eprintln!("robust controller with the identified model: max insertion error {:.1} µm", worst * 1e6);
     assert!(worst < 500e-6, "insertion error {worst} m");
+    assert!(terminate(&mut d).success());
+}
+
+#[test]
+fn plans_beyond_the_limits_are_refused_before_anything_moves() {
+    let _serial = serial();
+    let dir = Scratch::new("e2e", "plans");
+    let (_mock, pty) = mock(&dir, None);
+    let mut d = daemon(&dir, &pty, "");
+    ctl(&dir, &["enable"]).unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    let before = status(&dir);
+    let yaw = dir.file("yaw.json", r#"{"format": "arash-trajectory/1", "kind": "hold", "q": [1.5, 0.2, 0.005]}"#);
+    let err = ctl(&dir, &["run", yaw.to_str().unwrap()]).unwrap_err();
+    assert!(err.contains("sample 0") && err.contains("joint 0 `yaw`") && err.contains("0.741765"), "{err}");
+    // 12 rad/s on yaw (the limit is 3.49 rad/s), inside the position limits.
+    let fast = dir.file(
+        "fast.json",
+        r#"{"kind": "fourier", "harmonics": 1, "period_s": 0.05235987755982988, "q0": [0, 0.2, 0.005],
+            "a": [[12.0], [0], [0]], "b": [[0], [0], [0]], "condition_number": 1}"#,
+    );
+    let err = ctl(&dir, &["run", fast.to_str().unwrap()]).unwrap_err();
+    assert!(err.contains("speed 12.0") && err.contains("3.490659"), "{err}");
+    std::thread::sleep(Duration::from_millis(200));
+    let after = status(&dir);
+    assert_eq!(after["mode"], "enabled", "{after}");
+    assert_eq!(after["phase"], "hold", "no approach started: {after}");
+    assert_eq!(after["runs"], serde_json::json!({}), "no run registered: {after}");
+    for k in 0..3 {
+        let moved = (after["q"][k].as_f64().unwrap() - before["q"][k].as_f64().unwrap()).abs();
+        assert!(moved < 2e-3, "joint {k} moved {moved}: {before} → {after}");
+    }
+    assert!(terminate(&mut d).success());
+}
+
+#[test]
+fn the_control_socket_refuses_abuse_and_a_refused_request_changes_nothing() {
+    use std::io::{Read, Write};
+    use std::os::unix::net::UnixStream;
+    let _serial = serial();
+    let dir = Scratch::new("e2e", "socket");
+    let (_mock, pty) = mock(&dir, None);
+    let mut d = daemon(&dir, &pty, "");
+    wait_until(&dir, Duration::from_secs(5), "telemetry", |s| s["telemetry"] == true);
+    let connect = || {
+        let c = UnixStream::connect(dir.join("s.sock")).unwrap();
+        c.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+        c
+    };
+    let answer = |c: &mut UnixStream| {
+        let mut line = String::new();
+        BufReader::new(c.try_clone().unwrap()).read_line(&mut line).unwrap();
+        serde_json::from_str::<serde_json::Value>(&line).unwrap_or_else(|e| panic!("{e}: {line:?}"))
+    };
+    // Malformed, unknown, not UTF-8: each answered with an error naming it, on one connection.
+    let mut c = connect();
+    for (line, expect) in [
+        (&b"{not json\n"[..], "bad request"),
+        (b"{\"cmd\":\"self-destruct\"}\n", "unknown variant"),
+        (b"\xff\xfe\n", "not UTF-8"),
+        (b"{\"cmd\":\"run\",\"trajectory\":\"/dev/zero\"}\n", "enable the motors"),
+    ] {
+        c.write_all(line).unwrap();
+        let a = answer(&mut c);
+        assert_eq!(a["ok"], false, "{a}");
+        assert!(a["error"].as_str().unwrap().contains(expect), "{a}");
+    }
+    // An oversized line: refused and the connection closed.
+    let mut big = connect();
+    let _ = big.write_all(&vec![b'x'; 100_000]);
+    let a = answer(&mut big);
+    assert!(a["error"].as_str().unwrap().contains("longer than"), "{a}");
+    let mut rest = Vec::new();
+    assert_eq!(big.read_to_end(&mut rest).unwrap_or(0), 0, "closed after the refusal");
+    // A client that disconnects in the middle of `enable` has asked for nothing.
+    let mut cut = connect();
+    cut.write_all(b"{\"cmd\":\"enable\"}").unwrap();
+    drop(cut);
+    std::thread::sleep(Duration::from_millis(200));
+    let s = status(&dir);
+    assert_eq!(s["mode"], "disabled", "{s}");
+    // A trajectory path that is a device is refused without stalling the daemon.
+    ctl(&dir, &["enable"]).unwrap();
+    let err = ctl(&dir, &["run", "/dev/zero"]).unwrap_err();
+    assert!(err.contains("not a regular file"), "{err}");
+    assert_eq!(status(&dir)["phase"], "hold");
     assert!(terminate(&mut d).success());
 }
 
@@ -350,7 +444,9 @@ fn after_kill_9_the_log_is_recovered_and_the_daemon_comes_back_disabled() {
     assert!(ctl(&dir, &["enable"]).is_err(), "no enabling over the drive's fault");
     ctl(&dir, &["reset"]).unwrap();
     wait_until(&dir, Duration::from_secs(2), "disabled", |s| s["mode"] == "disabled");
-    wait_until(&dir, Duration::from_secs(1), "the drive's fault cleared", |s| s["drive"]["faults"] == serde_json::json!([]));
+    wait_until(&dir, Duration::from_secs(1), "the drive's fault cleared", |s| {
+        s["drive"]["faults"] == serde_json::json!([])
+    });
     ctl(&dir, &["enable"]).unwrap();
     assert_eq!(status(&dir)["mode"], "enabled");
 }

@@ -26,9 +26,13 @@ static ALLOCATOR: Counting = Counting;
 fn ten_thousand_control_cycles_allocate_nothing() {
     let model = arash_core::arash_asist();
     let cfg = DaemonConfig::default().cycle_config(&model).unwrap();
-    let controller =
-        standard_controller(ControllerKind::Robust, &model, &model.cad_parameters(), &RobustGains::paper(&model))
-            .unwrap();
+    let controller = standard_controller(
+        ControllerKind::Robust,
+        &model,
+        &model.cad_parameters(),
+        Some(&RobustGains::paper(&model).unwrap()),
+    )
+    .unwrap();
     let cycle = ControlCycle::new(cfg, controller);
     let motor = MockMotor::new(&model, &Scenario::default(), DriveConfig::default(), FaultPlan::default()).unwrap();
     let mut link = InProcessLink::new(motor);

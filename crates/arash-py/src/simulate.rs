@@ -171,7 +171,7 @@ fn _simulate<'py>(
         params_source,
         params: values,
         effects,
-        gains: RobustGains::from_paper(model, units),
+        gains: RobustGains::from_paper(model, units).ok(),
     };
     let mut rig = spec.rig(model).map_err(value_error)?;
     let (columns, truth, true_params) = py

@@ -67,20 +67,34 @@ pub struct RobustGains {
 pub const PAPER_KD: [f64; 3] = [0.4, 0.4, 10.0];
 pub const PAPER_LAMBDA: [f64; 3] = [10.0, 10.0, 220.0];
 
+/// The paper's gains do not fit the robot.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "the paper's gains K_d = diag(0.4, 0.4, 10), Λ = diag(10, 10, 220) are for the three joints of ARASH:ASiST \
+     (yaw, pitch, insertion); robot `{robot}` has {dof}"
+)]
+pub struct GainsError {
+    pub robot: String,
+    pub dof: usize,
+}
+
 impl RobustGains {
-    /// The paper's gains read in `units` and converted to SI for `model`'s joints.
-    pub fn from_paper(model: &Model, units: PaperUnits) -> Self {
-        assert_eq!(model.dof(), 3, "the paper's gains are for the three joints of ARASH:ASiST");
+    /// The paper's gains read in `units` and converted to SI for `model`'s joints; refused for a
+    /// robot with another number of joints.
+    pub fn from_paper(model: &Model, units: PaperUnits) -> Result<Self, GainsError> {
+        if model.dof() != PAPER_KD.len() {
+            return Err(GainsError { robot: model.name.clone(), dof: model.dof() });
+        }
         let kinds = joint_kinds(model);
-        Self {
+        Ok(Self {
             kd: PAPER_KD.iter().zip(&kinds).map(|(k, kind)| k * units.factor(*kind)).collect(),
             lambda: PAPER_LAMBDA.to_vec(),
             epsilon: default_epsilon(&kinds),
-        }
+        })
     }
 
     /// The paper's gains in the SI reading (see the module documentation).
-    pub fn paper(model: &Model) -> Self {
+    pub fn paper(model: &Model) -> Result<Self, GainsError> {
         Self::from_paper(model, PaperUnits::Si)
     }
 }

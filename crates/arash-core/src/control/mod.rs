@@ -14,10 +14,10 @@ pub mod trajectory;
 
 pub use effects::EffectFeedforward;
 pub use estimator::VelocityEstimator;
-pub use gains::{IdcGains, PdGains, RobustGains};
+pub use gains::{GainsError, IdcGains, PdGains, RobustGains};
 pub use laws::{InverseDynamicsControl, PdGravity, RobustController};
 pub use safety::{Faults, SafetyGate, SafetyLimits};
-pub use trajectory::{Trajectory, TrajectoryError};
+pub use trajectory::{PlanLimits, Trajectory, TrajectoryError};
 
 /// Desired joint state at one instant (rad or m, and their rates).
 #[derive(Clone, Copy, Debug)]
@@ -52,18 +52,32 @@ pub trait Controller: Send {
     fn step(&mut self, dt: f64, q: &[f64], qd: &[f64], desired: &Desired, tau: &mut [f64]);
 }
 
+/// Why no controller could be built.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ControllerError {
+    #[error("controller kind `none` commands no torque; choose pd, idc or robust")]
+    NoController,
+    #[error(
+        "the {kind:?} controller needs the robust gains K_d and Λ, and there are none for robot `{robot}` \
+         ({dof} joints; the paper's are for ARASH:ASiST's three). PD with gravity compensation sizes its \
+         own gains from the robot's mass matrix"
+    )]
+    NoGains { kind: ControllerKind, robot: String, dof: usize },
+}
+
 /// The controllers with their standard gains for `model` with parameter vector `params`:
 /// - PD with gravity compensation, critically damped at 5 Hz on `M(q_home)`;
 /// - inverse dynamics control with the poles of the robust controller ([`IdcGains::matching`]);
 /// - the robust controller with `robust` gains.
 ///
-/// `q_home` is the middle of the joint ranges.
+/// `q_home` is the middle of the joint ranges. The last two need `robust`
+/// ([`RobustGains::from_paper`] gives none for a robot other than ARASH:ASiST).
 pub fn standard_controller(
     kind: ControllerKind,
     model: &crate::Model,
     params: &[f64],
-    robust: &RobustGains,
-) -> Option<Box<dyn Controller>> {
+    robust: Option<&RobustGains>,
+) -> Result<Box<dyn Controller>, ControllerError> {
     controller_with_effects(kind, model, params, &[], robust)
 }
 
@@ -74,21 +88,22 @@ pub fn controller_with_effects(
     model: &crate::Model,
     params: &[f64],
     effects: &[crate::diagnose::EffectTerm],
-    robust: &RobustGains,
-) -> Option<Box<dyn Controller>> {
+    robust: Option<&RobustGains>,
+) -> Result<Box<dyn Controller>, ControllerError> {
     let q_home: Vec<f64> = model.joints.iter().map(|j| 0.5 * (j.lower + j.upper)).collect();
     let q_home: Vec<f64> = q_home.into_iter().map(|q| if q.is_finite() { q } else { 0.0 }).collect();
-    match kind {
-        ControllerKind::None => None,
+    let gains = || robust.ok_or_else(|| ControllerError::NoGains { kind, robot: model.name.clone(), dof: model.dof() });
+    Ok(match kind {
+        ControllerKind::None => return Err(ControllerError::NoController),
         ControllerKind::Pd => {
-            Some(Box::new(PdGravity::new(model, params, PdGains::critically_damped(model, params, &q_home, 5.0))))
+            Box::new(PdGravity::new(model, params, PdGains::critically_damped(model, params, &q_home, 5.0)))
         }
-        ControllerKind::Idc => Some(Box::new(
-            InverseDynamicsControl::new(model, params, IdcGains::matching(model, robust, params, &q_home))
+        ControllerKind::Idc => Box::new(
+            InverseDynamicsControl::new(model, params, IdcGains::matching(model, gains()?, params, &q_home))
                 .with_effects(effects),
-        )),
+        ),
         ControllerKind::Robust => {
-            Some(Box::new(RobustController::new(model, params, robust.clone()).with_effects(effects)))
+            Box::new(RobustController::new(model, params, gains()?.clone()).with_effects(effects))
         }
-    }
+    })
 }

@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::identify::excitation::Excitation;
 use crate::identify::paper_validation_state;
+use crate::model::{JointKind, Model};
 
 /// Why a trajectory file was refused.
 #[derive(Debug, thiserror::Error)]
@@ -26,7 +27,55 @@ pub enum TrajectoryError {
     Joints { found: usize, expected: usize },
     #[error("trajectory field `{0}` is not finite or not positive")]
     Value(&'static str),
+    #[error(
+        "the trajectory cannot be followed: at sample {sample} (t = {t:.3} s) joint {joint} `{name}` has {quantity} \
+         {value:.6} {unit}, beyond its limit {limit:.6} {unit}; refused before anything moved"
+    )]
+    Limit {
+        sample: usize,
+        t: f64,
+        joint: usize,
+        name: String,
+        /// `position`, `speed` or `acceleration`.
+        quantity: &'static str,
+        value: f64,
+        limit: f64,
+        unit: &'static str,
+    },
 }
+
+/// What a reference may ask of each joint (SI): inside `[lower, upper]`, no faster than
+/// `velocity`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlanLimits {
+    pub names: Vec<String>,
+    pub prismatic: Vec<bool>,
+    pub lower: Vec<f64>,
+    pub upper: Vec<f64>,
+    pub velocity: Vec<f64>,
+}
+
+impl PlanLimits {
+    /// The URDF's position and speed limits of `model`'s joints.
+    pub fn from_model(model: &Model) -> Self {
+        let joints = &model.joints;
+        Self {
+            names: model.joint_names(),
+            prismatic: joints.iter().map(|j| matches!(j.kind, JointKind::Prismatic)).collect(),
+            lower: joints.iter().map(|j| j.lower).collect(),
+            upper: joints.iter().map(|j| j.upper).collect(),
+            velocity: joints.iter().map(|j| j.velocity).collect(),
+        }
+    }
+}
+
+/// Longest period a trajectory file may have (s): the limit check samples one period.
+pub const MAX_PERIOD_S: f64 = 3600.0;
+/// Most harmonics of a Fourier trajectory (the paper's excitation has 5).
+pub const MAX_HARMONICS: usize = 100;
+/// Most samples the limit check evaluates; beyond, its step grows past the control period, still
+/// far below the period of the highest harmonic (at least 3.6 ms against 36 s).
+const MAX_CHECK_SAMPLES: f64 = 1e6;
 
 /// A reference `q_d(t)` with its first two derivatives.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -69,8 +118,14 @@ impl Trajectory {
     fn check(&self, dof: usize) -> Result<(), TrajectoryError> {
         let joints = match self {
             Trajectory::Fourier(e) => {
-                if !(e.period_s.is_finite() && e.period_s > 0.0) {
-                    return Err(TrajectoryError::Value("period_s"));
+                if !(e.period_s.is_finite() && e.period_s > 0.0 && e.period_s <= MAX_PERIOD_S) {
+                    return Err(TrajectoryError::Value("period_s (at most one hour)"));
+                }
+                if !(1..=MAX_HARMONICS).contains(&e.harmonics) {
+                    return Err(TrajectoryError::Value("harmonics (1 to 100)"));
+                }
+                if e.q0.iter().chain(e.a.iter().flatten()).chain(e.b.iter().flatten()).any(|x| !x.is_finite()) {
+                    return Err(TrajectoryError::Value("q0/a/b"));
                 }
                 if e.a.len() != e.q0.len()
                     || e.b.len() != e.q0.len()
@@ -81,7 +136,7 @@ impl Trajectory {
                 e.q0.len()
             }
             Trajectory::PaperValidation { omega } => {
-                if !(omega.is_finite() && *omega > 0.0) {
+                if !(omega.is_finite() && *omega > 0.0 && 2.0 * std::f64::consts::PI / omega <= MAX_PERIOD_S) {
                     return Err(TrajectoryError::Value("omega"));
                 }
                 3
@@ -117,6 +172,64 @@ impl Trajectory {
             Trajectory::PaperValidation { omega } => Some(omega / (2.0 * std::f64::consts::PI)),
             Trajectory::Hold { .. } => None,
         }
+    }
+
+    /// One period of a periodic reference (s); `None` for a hold.
+    pub fn period_s(&self) -> Option<f64> {
+        match self {
+            Trajectory::Fourier(e) => Some(e.period_s),
+            Trajectory::PaperValidation { omega } => Some(2.0 * std::f64::consts::PI / omega),
+            Trajectory::Hold { .. } => None,
+        }
+    }
+
+    /// Check the reference against `limits` at every `dt` over a run of `duration_s` (over one
+    /// period when the run is longer: the reference repeats). The error names the first sample,
+    /// joint and limit broken. Run before anything moves: the safety gate would trip only once
+    /// the robot is already on its way out.
+    pub fn check_limits(&self, limits: &PlanLimits, duration_s: f64, dt: f64) -> Result<(), TrajectoryError> {
+        let n = limits.lower.len();
+        let span = self.period_s().map_or(0.0, |p| p.min(duration_s));
+        let step = dt.max(span / MAX_CHECK_SAMPLES);
+        let samples = (span / step).ceil() as usize + 1;
+        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        for sample in 0..samples {
+            let t = (sample as f64 * step).min(span);
+            self.eval(t, &mut q, &mut qd, &mut qdd);
+            for k in 0..n {
+                let broken = |quantity, value: f64, limit: f64| {
+                    let unit = match (limits.prismatic[k], quantity) {
+                        (true, "position") => "m",
+                        (true, _) => "m/s",
+                        (false, "position") => "rad",
+                        (false, _) => "rad/s",
+                    };
+                    TrajectoryError::Limit {
+                        sample,
+                        t,
+                        joint: k,
+                        name: limits.names[k].clone(),
+                        quantity,
+                        value,
+                        limit,
+                        unit,
+                    }
+                };
+                // A reference that touches a limit exactly (the paper's validation trajectories
+                // do) is inside it; rounding in the evaluation must not refuse it.
+                let slack = |limit: f64| 1e-9 * limit.abs().max(1.0);
+                if !q[k].is_finite() || q[k] > limits.upper[k] + slack(limits.upper[k]) {
+                    return Err(broken("position", q[k], limits.upper[k]));
+                }
+                if q[k] < limits.lower[k] - slack(limits.lower[k]) {
+                    return Err(broken("position", q[k], limits.lower[k]));
+                }
+                if !qd[k].is_finite() || qd[k].abs() > limits.velocity[k] + slack(limits.velocity[k]) {
+                    return Err(broken("speed", qd[k].abs(), limits.velocity[k]));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// `q_d`, `q̇_d`, `q̈_d` at `t` into the caller's buffers.
@@ -157,6 +270,56 @@ mod tests {
         assert!(matches!(Trajectory::from_json(bad, 3), Err(TrajectoryError::Value("omega"))));
         let bad = r#"{"format": "other/2", "kind": "hold", "q": [0, 0, 0]}"#;
         assert!(matches!(Trajectory::from_json(bad, 3), Err(TrajectoryError::Format(_))));
+    }
+
+    fn limits() -> PlanLimits {
+        PlanLimits::from_model(&crate::arash_asist())
+    }
+
+    #[test]
+    fn the_papers_validation_trajectories_touch_the_limits_and_pass() {
+        for omega in [0.3, 0.5, 0.7, 0.9] {
+            Trajectory::PaperValidation { omega }.check_limits(&limits(), 100.0, 1e-3).unwrap();
+        }
+    }
+
+    #[test]
+    fn a_position_beyond_a_limit_is_refused_with_sample_joint_and_limit() {
+        let hold = Trajectory::Hold { q: vec![1.5, 0.0, 0.0] };
+        let err = hold.check_limits(&limits(), 10.0, 1e-3).unwrap_err();
+        match &err {
+            TrajectoryError::Limit { sample: 0, joint: 0, quantity: "position", value, limit, .. } => {
+                assert_eq!(*value, 1.5);
+                assert!((limit - 42.5f64.to_radians()).abs() < 1e-9);
+            }
+            other => panic!("{other:?}"),
+        }
+        let text = err.to_string();
+        assert!(text.contains("sample 0") && text.contains("joint 0") && text.contains("0.741765"), "{text}");
+        let below = Trajectory::Hold { q: vec![0.0, -0.5, 0.0] };
+        assert!(matches!(
+            below.check_limits(&limits(), 10.0, 1e-3),
+            Err(TrajectoryError::Limit { joint: 1, quantity: "position", .. })
+        ));
+    }
+
+    #[test]
+    fn a_speed_beyond_the_limit_is_refused_at_the_first_sample_that_breaks_it() {
+        // Yaw q = 0.1 sin(120 t): inside the position limits, 12 rad/s at t = 0 against 3.49 rad/s.
+        let mut e: Excitation = serde_json::from_str(
+            r#"{"harmonics": 1, "period_s": 0.05235987755982988, "q0": [0, 0.2, 0.005],
+                "a": [[12.0], [0], [0]], "b": [[0], [0], [0]], "condition_number": 1}"#,
+        )
+        .unwrap();
+        let fast = Trajectory::Fourier(e.clone());
+        let err = fast.check_limits(&limits(), 10.0, 1e-3).unwrap_err();
+        assert!(
+            matches!(err, TrajectoryError::Limit { sample: 0, joint: 0, quantity: "speed", value, .. } if (value - 12.0).abs() < 1e-6),
+            "{err}"
+        );
+        // A tenth of it passes: 1.2 rad/s.
+        e.a[0][0] = 1.2;
+        Trajectory::Fourier(e).check_limits(&limits(), 10.0, 1e-3).unwrap();
     }
 
     #[test]

@@ -211,6 +211,10 @@ pub fn identify(
     })
 }
 
+/// How far below zero a pseudo-inertia eigenvalue may be and still count as physical: the
+/// consistent solve's own tolerance.
+pub const CONSISTENCY_TOLERANCE: f64 = 1e-9;
+
 /// Write `text` to `path` through a temporary file and a rename, so that a crash never leaves half
 /// a model or trajectory file behind.
 pub fn write_atomically(path: &std::path::Path, text: &str) -> std::io::Result<()> {
@@ -282,18 +286,90 @@ impl Identification {
     }
 
     /// The parameter vector a model-based controller needs for `model`: π̂, or β̂ on the
-    /// independent columns. Refused when the file was identified for a different robot.
+    /// independent columns. Refused when the file was identified for a different robot or its
+    /// vectors do not fit together (a file edited by hand).
     pub fn controller_parameters(&self, model: &Model) -> Result<Vec<f64>, IdentifyError> {
-        if self.parameter_names != model.parameter_names() {
+        self.check_shape(model)?;
+        Ok(self.full_or_base_vector())
+    }
+
+    /// [`Self::controller_parameters`] for a law that inverts M(q): also refused unless every
+    /// body's pseudo-inertia, recomputed from the file's own parameters, is positive
+    /// semidefinite (an indefinite one can make M(q) indefinite and the loop unstable). The
+    /// file's `min_pseudo_inertia_eigenvalue` is a report, never trusted.
+    pub fn consistent_controller_parameters(&self, model: &Model) -> Result<Vec<f64>, IdentifyError> {
+        let params = self.controller_parameters(model)?;
+        let eigenvalues = self.recomputed_pseudo_inertia_eigenvalues(model)?;
+        let (body, worst) =
+            eigenvalues
+                .iter()
+                .copied()
+                .enumerate()
+                .fold((0, f64::INFINITY), |best, (b, e)| if e < best.1 { (b, e) } else { best });
+        if worst < -CONSISTENCY_TOLERANCE {
+            let claimed = self.min_pseudo_inertia_eigenvalue.iter().copied().fold(f64::INFINITY, f64::min);
             return Err(IdentifyError::File(format!(
+                "not physically consistent: body `{}` has a pseudo-inertia eigenvalue of {worst:.3e} recomputed from \
+                 its parameters (the file states {claimed:.3e}); a model-based controller needs a consistent model: \
+                 identify with --method consistent",
+                model.bodies[body].name
+            )));
+        }
+        Ok(params)
+    }
+
+    /// The smallest pseudo-inertia eigenvalue of each body from the file's parameters: π̂, or the
+    /// standard parameters nearest CAD that reproduce β̂.
+    pub fn recomputed_pseudo_inertia_eigenvalues(&self, model: &Model) -> Result<Vec<f64>, IdentifyError> {
+        self.check_shape(model)?;
+        let params = match &self.params {
+            Some(p) => p.clone(),
+            None => {
+                let base = BaseParameters::compute(model, &Default::default())?;
+                if base.independent != self.base_independent {
+                    return Err(IdentifyError::File(
+                        "its base parameters are not this robot's (independent columns differ)".into(),
+                    ));
+                }
+                nearest_standard_parameters(model, &base, &self.beta)
+            }
+        };
+        Ok(min_pseudo_inertia_eigenvalues(model, &params))
+    }
+
+    /// The file's vectors against `model`: same robot, matching lengths, finite values.
+    fn check_shape(&self, model: &Model) -> Result<(), IdentifyError> {
+        let file = |text: String| Err(IdentifyError::File(text));
+        if self.parameter_names != model.parameter_names() {
+            return file(format!(
                 "the model was identified for robot `{}` with {} parameters; this robot (`{}`) has {} with other names",
                 self.robot_name,
                 self.parameter_names.len(),
                 model.name,
                 model.num_params()
-            )));
+            ));
         }
-        Ok(self.full_or_base_vector())
+        let big_p = model.num_params();
+        if let Some(p) = &self.params {
+            if p.len() != big_p {
+                return file(format!("`params` has {} entries; the robot has {big_p} parameters", p.len()));
+            }
+        }
+        if self.beta.len() != self.base_independent.len() {
+            return file(format!(
+                "`beta` has {} entries but `base_independent` names {} columns",
+                self.beta.len(),
+                self.base_independent.len()
+            ));
+        }
+        if let Some(&j) = self.base_independent.iter().find(|&&j| j >= big_p) {
+            return file(format!("`base_independent` names column {j}; the robot has {big_p} parameters"));
+        }
+        let values = self.beta.iter().chain(self.params.iter().flatten());
+        if let Some(x) = values.copied().find(|x| !x.is_finite()) {
+            return file(format!("a parameter is {x}; every value must be finite"));
+        }
+        Ok(())
     }
 
     /// A P-vector whose product with the full regressor is the prediction: π̂, or β̂ placed on the
@@ -338,7 +414,7 @@ impl Identification {
         let worst = self.min_pseudo_inertia_eigenvalue.iter().copied().fold(f64::INFINITY, f64::min);
         s += &format!(
             "\n\nSmallest pseudo-inertia eigenvalue over bodies: {worst:.3e} ({})\n",
-            if worst >= -1e-9 { "physical" } else { "NOT physical" }
+            if worst >= -CONSISTENCY_TOLERANCE { "physical" } else { "NOT physical" }
         );
         s
     }

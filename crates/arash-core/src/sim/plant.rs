@@ -55,6 +55,8 @@ pub enum PlantError {
     NonFinite(f64),
     #[error("{0}")]
     Parameters(String),
+    #[error(transparent)]
+    Trajectory(#[from] crate::control::TrajectoryError),
 }
 
 impl Plant {

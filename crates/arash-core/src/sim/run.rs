@@ -7,7 +7,7 @@ use super::plant::PlantError;
 use super::rig::Rig;
 use super::scenario::Scenario;
 use super::truth::true_parameters;
-use crate::control::{controller_with_effects, ControllerKind, RobustGains, Trajectory};
+use crate::control::{controller_with_effects, ControllerKind, PlanLimits, RobustGains, Trajectory};
 use crate::model::Model;
 
 /// A controller as `arash simulate` and `arash.simulate` name it.
@@ -88,7 +88,10 @@ pub struct RunSpec {
     /// Effects a diagnosis added to the controller's model, compensated by the model-based laws.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub effects: Vec<crate::diagnose::EffectTerm>,
-    pub gains: RobustGains,
+    /// The robust gains (also behind inverse dynamics control's); `None` for a robot the paper's
+    /// gains do not fit, which only PD can then run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gains: Option<RobustGains>,
     /// Seconds of rig time.
     pub duration_s: f64,
 }
@@ -111,8 +114,11 @@ impl RunSpec {
         if !(self.duration_s.is_finite() && self.duration_s > 0.0) {
             return Err(PlantError::Parameters(format!("the duration must be positive, not {} s", self.duration_s)));
         }
-        let controller = controller_with_effects(self.controller, model, &self.params, &self.effects, &self.gains)
-            .ok_or_else(|| PlantError::Parameters("a simulated run needs a controller".into()))?;
+        let dt = 1.0 / self.scenario.physics.rate_hz;
+        self.trajectory.check_limits(&PlanLimits::from_model(model), self.duration_s, dt)?;
+        let controller =
+            controller_with_effects(self.controller, model, &self.params, &self.effects, self.gains.as_ref())
+                .map_err(|e| PlantError::Parameters(e.to_string()))?;
         Rig::new(model, &self.scenario, self.trajectory.clone(), controller)
     }
 

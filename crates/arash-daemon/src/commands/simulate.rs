@@ -91,7 +91,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         params_source,
         params,
         effects,
-        gains: RobustGains::from_paper(&model, args.gain_units),
+        gains: RobustGains::from_paper(&model, args.gain_units).ok(),
     };
     simulate(&model, &urdf, &spec, &args.output, args.truth)
 }
