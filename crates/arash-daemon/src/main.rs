@@ -39,6 +39,7 @@ enum Command {
 /// Errors are for the person at the rig: the message and its causes on one line, without the
 /// backtrace anyhow would add under `RUST_BACKTRACE`.
 fn main() -> std::process::ExitCode {
+    std::panic::set_hook(Box::new(report_bug));
     match run(Cli::parse().command) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
@@ -52,6 +53,23 @@ fn main() -> std::process::ExitCode {
             eprintln!("error: {message}");
             std::process::ExitCode::FAILURE
         }
+    }
+}
+
+/// A panic is a bug in arash, not the user's mistake: say so in one line with where it happened,
+/// without a backtrace (set `ARASH_BACKTRACE=1` to get one for a bug report).
+fn report_bug(info: &std::panic::PanicHookInfo) {
+    let message = info
+        .payload()
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| info.payload().downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown cause".into());
+    let place = info.location().map(|l| format!(" at {}:{}", l.file(), l.line())).unwrap_or_default();
+    let thread = std::thread::current().name().unwrap_or("main").to_string();
+    eprintln!("error: internal error in arash (thread `{thread}`{place}): {message}. This is a bug; please report it with the command line.");
+    if std::env::var_os("ARASH_BACKTRACE").is_some() {
+        eprintln!("{}", std::backtrace::Backtrace::force_capture());
     }
 }
 

@@ -96,7 +96,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     simulate(&model, &urdf, &spec, &args.output, args.truth)
 }
 
+/// Simulate into `output.part` and rename it when the run is complete, so that a failed or
+/// interrupted run never leaves a file that looks finished.
 fn simulate(model: &Model, urdf: &str, spec: &RunSpec, output: &Path, with_truth: bool) -> anyhow::Result<()> {
+    let mut part = output.as_os_str().to_owned();
+    part.push(".part");
+    let part = PathBuf::from(part);
+    let result = simulate_into(model, urdf, spec, &part, with_truth);
+    match result {
+        Ok(()) => std::fs::rename(&part, output).with_context(|| format!("renaming {}", part.display()))?,
+        Err(e) => {
+            let _ = std::fs::remove_file(&part);
+            return Err(e);
+        }
+    }
+    eprintln!(
+        "wrote {} ({:.1} MB)",
+        output.display(),
+        std::fs::metadata(output).map(|m| m.len() as f64 / 1e6).unwrap_or(0.0)
+    );
+    Ok(())
+}
+
+fn simulate_into(model: &Model, urdf: &str, spec: &RunSpec, output: &Path, with_truth: bool) -> anyhow::Result<()> {
     let mut rig = spec.rig(model)?;
     let mut log = LogWriter::create(output, &spec.log_header(model, urdf, with_truth), spec.scenario.physics.rate_hz)?;
     let cycles = spec.cycles();
@@ -123,12 +145,10 @@ fn simulate(model: &Model, urdf: &str, spec: &RunSpec, output: &Path, with_truth
     log.finish()?;
     let elapsed = started.elapsed().as_secs_f64();
     eprintln!(
-        "simulated {:.1} s of rig time in {:.2} s ({:.0}× real time); wrote {} ({:.1} MB)",
+        "simulated {:.1} s of rig time in {:.2} s ({:.0}× real time)",
         spec.duration_s,
         elapsed,
-        spec.duration_s / elapsed,
-        output.display(),
-        std::fs::metadata(output).map(|m| m.len() as f64 / 1e6).unwrap_or(0.0)
+        spec.duration_s / elapsed
     );
     if !worst_faults.is_empty() {
         eprintln!("warning: the safety gate latched a fault: {}", worst_faults.names().join(", "));
