@@ -4,8 +4,9 @@
 //!   run gets its own `run-<id>-<label>.mcap`, with time zero at the run's first cycle, so that
 //!   `arash identify` takes it as is.
 //! - **Crash safety.** A file is written as `<name>.mcap.part` and renamed when finished. A
-//!   `.part` file found at start-up was cut off by a crash: [`recover`] renames it to
-//!   `<name>.recovered.mcap`, which reads up to its last flushed second.
+//!   `.part` file found at start-up was cut off by a crash: [`recover`] rewrites what survived
+//!   (up to its last flushed second) into `<name>.recovered.mcap`, a complete file with a
+//!   summary that seeking readers open too.
 //! - **Black box.** The last 2 s of cycles are kept in memory; a fault writes them, with the
 //!   faulted cycle, to `blackbox-<cycle>.mcap`.
 //! - **Timing.** Once a second, histograms of the period error and the execution time go to
@@ -85,9 +86,18 @@ pub fn recover(dir: &Path) -> Vec<(PathBuf, Result<usize, String>)> {
         let Some(name) = path.file_name().and_then(|n| n.to_str()) else { continue };
         let Some(stem) = name.strip_suffix(".mcap.part") else { continue };
         let target = path.with_file_name(format!("{stem}.recovered.mcap"));
-        if let Err(e) = std::fs::rename(&path, &target) {
-            out.push((path, Err(e.to_string())));
-            continue;
+        // Rewritten with a summary and a footer so that every MCAP reader opens it; the cut
+        // original is kept only if that fails.
+        match arash_core::flightlog::rewrite_complete(&path, &target) {
+            Ok(_) => {
+                let _ = std::fs::remove_file(&path);
+            }
+            Err(e) => {
+                let kept = path.with_file_name(format!("{stem}.cut.mcap"));
+                let _ = std::fs::rename(&path, &kept);
+                out.push((kept, Err(format!("could not rewrite it complete: {e}"))));
+                continue;
+            }
         }
         let cycles = arash_core::flightlog::read_log(&target).map(|l| l.len()).map_err(|e| e.to_string());
         out.push((target, cycles));

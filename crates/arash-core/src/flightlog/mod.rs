@@ -10,10 +10,12 @@
 //!   the disk).
 
 mod reader;
+mod recover;
 pub mod schema;
 mod writer;
 
 pub use reader::{read_log, FlightLog};
+pub use recover::rewrite_complete;
 pub use writer::{LogHeader, LogWriter};
 
 /// The value of the `format` metadata key.
