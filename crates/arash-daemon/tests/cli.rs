@@ -316,3 +316,77 @@ fn simulate_refuses_a_trajectory_beyond_the_limits_naming_sample_joint_and_limit
     assert!(!out.status.success() && err.contains("sample 0") && err.contains("joint 0 `yaw`"), "{err}");
     assert!(!never.exists(), "a refused run writes no log");
 }
+
+#[test]
+fn bad_logs_are_refused_by_name_with_no_backtrace_and_no_file_left() {
+    let dir = Scratch::new("cli", "bad-logs");
+    let never = dir.join("never.json");
+    let refused = |args: &[&str], expect: &[&str]| {
+        let out = arash(args);
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        for e in expect {
+            assert!(err.contains(e), "{args:?}: expected `{e}` in {err}");
+        }
+        assert!(!err.contains("panicked") && !err.contains("stack backtrace"), "{err}");
+        assert!(!never.exists(), "a refused command left {}", never.display());
+    };
+    // NaN in a cell names the row and the column.
+    let nan = dir.file(
+        "nan.csv",
+        "t,q.yaw,q.pitch,q.insertion,tau.yaw,tau.pitch,tau.insertion\n0,0,0,0,0,0,0\n0.001,0,0,0,NaN,0,0\n",
+    );
+    refused(&["identify", nan.to_str().unwrap(), "-o", never.to_str().unwrap()], &["row 3", "tau.yaw", "NaN"]);
+    // A log of another robot (two joints) for ARASH:ASiST names both sets of joints.
+    let planar = dir.join("planar.mcap");
+    let scenario = dir.file("planar.toml", PLANAR_SCENARIO);
+    let hold = dir.file("hold.json", r#"{"kind": "hold", "q": [0.2, -0.3]}"#);
+    let out = arash(&[
+        "simulate",
+        "--robot",
+        &repo_file("tests/fixtures/planar_2link.urdf"),
+        "--scenario",
+        scenario.to_str().unwrap(),
+        "--trajectory",
+        hold.to_str().unwrap(),
+        "--controller",
+        "pd",
+        "--duration",
+        "1",
+        "-o",
+        planar.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    refused(&["identify", planar.to_str().unwrap(), "-o", never.to_str().unwrap()], &["shoulder", "yaw"]);
+    // Bytes that are not a log at all, and an empty file.
+    let junk = dir.file("junk.mcap", "this is not an MCAP file");
+    refused(
+        &["identify", junk.to_str().unwrap(), "-o", never.to_str().unwrap()],
+        &["junk.mcap", "not an arash flight log"],
+    );
+    let empty = dir.file("empty.csv", "");
+    refused(&["identify", empty.to_str().unwrap(), "-o", never.to_str().unwrap()], &["empty.csv"]);
+    // A log cut off by a crash is read up to the cut, and says so.
+    let whole = dir.join("whole.mcap");
+    let out = arash(&[
+        "simulate",
+        "--scenario",
+        &repo_file("scenarios/nominal.toml"),
+        "--trajectory",
+        &repo_file("trajectories/paper_validation_0.9.json"),
+        "--controller",
+        "idc-cad",
+        "--duration",
+        "7",
+        "-o",
+        whole.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let bytes = std::fs::read(&whole).unwrap();
+    let cut = dir.join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let model = dir.join("model.json");
+    let out = arash(&["identify", cut.to_str().unwrap(), "-o", model.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("was cut off"), "{err}");
+}
