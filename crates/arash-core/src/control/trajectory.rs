@@ -323,6 +323,24 @@ mod tests {
     }
 
     #[test]
+    fn periods_and_harmonics_are_bounded_so_that_the_check_cannot_hang() {
+        let fourier = |period: f64, harmonics: usize| {
+            format!(
+                r#"{{"kind": "fourier", "harmonics": {harmonics}, "period_s": {period}, "q0": [0, 0.2, 0.005],
+                    "a": [{z}, {z}, {z}], "b": [{z}, {z}, {z}], "condition_number": 1}}"#,
+                z = format!("[{}]", vec!["1e-5"; harmonics].join(","))
+            )
+        };
+        assert!(matches!(Trajectory::from_json(&fourier(1e9, 5), 3), Err(TrajectoryError::Value(_))));
+        assert!(matches!(Trajectory::from_json(&fourier(15.0, 1000), 3), Err(TrajectoryError::Value(_))));
+        let omega = r#"{"kind": "paper-validation", "omega": 1e-9}"#;
+        assert!(matches!(Trajectory::from_json(omega, 3), Err(TrajectoryError::Value(_))));
+        // The longest period allowed is checked over a day of run at a bounded number of samples.
+        let longest = Trajectory::from_json(&fourier(MAX_PERIOD_S, 5), 3).unwrap();
+        longest.check_limits(&limits(), 86_400.0, 1e-3).unwrap();
+    }
+
+    #[test]
     fn derivatives_are_consistent() {
         let t = Trajectory::PaperValidation { omega: 0.9 };
         let (mut q0, mut q1, mut qd, mut qdd) = ([0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3]);
