@@ -70,3 +70,47 @@ def test_timing_histograms_count_every_cycle_of_their_second(daemon_logs):
     # The cycles on /arash/cycle are consecutive: one message per cycle.
     assert np.all(np.diff(log["cycle"]) == 1)
     assert log["metadata"]["source"] == "arash-daemon"
+
+
+def test_a_log_cut_by_kill_9_is_recovered_into_a_file_the_official_seeking_reader_opens(tmp_path):
+    if not ARASH.exists():
+        pytest.skip(f"{ARASH} is not built")
+    mock = subprocess.Popen([ARASH, "mock-motor"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    sock = tmp_path / "s.sock"
+    start = [ARASH, "daemon", "--rt", "ignore", "--port", None, "--socket", sock, "--log-dir", tmp_path / "logs"]
+
+    def daemon(pty):
+        args = [pty if a is None else a for a in start]
+        d = subprocess.Popen(args, stderr=subprocess.DEVNULL)
+        for _ in range(200):
+            if sock.exists():
+                return d
+            time.sleep(0.05)
+        raise AssertionError("no control socket")
+
+    try:
+        pty = mock.stdout.readline().strip()
+        first = daemon(pty)
+        time.sleep(2.5)
+        first.send_signal(signal.SIGKILL)
+        first.wait()
+        os.remove(sock)
+        second = daemon(pty)  # recovers the cut file at start-up
+        second.send_signal(signal.SIGTERM)
+        assert second.wait(timeout=10) == 0
+    finally:
+        mock.kill()
+        mock.wait()
+    recovered = sorted((tmp_path / "logs").glob("*.recovered.mcap"))
+    assert len(recovered) == 1
+    ours = arash.read_log(recovered[0])
+    assert not ours["truncated"]
+    with open(recovered[0], "rb") as f:
+        reader = mcap_reader.make_reader(f)
+        assert isinstance(reader, mcap_reader.SeekingReader)
+        summary = reader.get_summary()
+        assert summary is not None and summary.statistics is not None
+        cycles = sum(1 for _, channel, _ in reader.iter_messages(topics=["/arash/cycle"]))
+    assert cycles == len(ours["cycle"])
+    # At most about one second lost of the 2.5 s the first daemon ran.
+    assert cycles >= 1400, cycles
