@@ -65,7 +65,7 @@ pub fn build_controller(
     let (params, effects) = match model_file {
         None => (model.cad_parameters(), vec![]),
         Some(path) => {
-            let text = read_file(path, MAX_MODEL_FILE_BYTES).context("reading the model file")?;
+            let text = read_file(path, MAX_INPUT_FILE_BYTES).context("reading the model file")?;
             let id = Identification::from_json(&text).with_context(|| format!("loading {}", path.display()))?;
             let params = if kind == ControllerKind::Pd {
                 id.controller_parameters(model)
@@ -79,8 +79,10 @@ pub fn build_controller(
     Ok(controller_with_effects(kind, model, &params, &effects, gains)?)
 }
 
-/// Largest model file the daemon reads (the URDF is embedded; a real one is about 100 kB).
-const MAX_MODEL_FILE_BYTES: usize = 16 << 20;
+/// Largest model or trajectory file the daemon reads: a model file embeds its URDF (15 kB for
+/// ARASH:ASiST) and an excitation from `arash excite` carries a sampled copy of one period (3 MB
+/// for the paper's 15 s at 1 kHz); both are far below this.
+const MAX_INPUT_FILE_BYTES: usize = 64 << 20;
 
 /// Read a regular file of at most `max` bytes as UTF-8: a device, a FIFO or an oversized file
 /// named by an operator must not stall the daemon's operator interface.
@@ -413,7 +415,7 @@ async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::Result<serd
             let text = if trajectory.trim_start().starts_with('{') {
                 trajectory
             } else {
-                read_file(std::path::Path::new(&trajectory), MAX_REQUEST_BYTES).context("reading the trajectory")?
+                read_file(std::path::Path::new(&trajectory), MAX_INPUT_FILE_BYTES).context("reading the trajectory")?
             };
             let parsed = Trajectory::from_json(&text, operator.model.dof())?;
             let duration_s = duration_s.unwrap_or_else(|| parsed.default_duration());
