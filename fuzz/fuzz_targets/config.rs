@@ -2,16 +2,12 @@
 //! settings without a panic; whatever validates gives a cycle configuration.
 #![no_main]
 
-use std::sync::OnceLock;
-
-use arash_core::Model;
 use arash_daemon::config::DaemonConfig;
 use libfuzzer_sys::fuzz_target;
 
-fn model() -> &'static Model {
-    static MODEL: OnceLock<Model> = OnceLock::new();
-    MODEL.get_or_init(arash_core::arash_asist)
-}
+#[path = "robot.rs"]
+mod robot;
+use robot::model;
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else { return };

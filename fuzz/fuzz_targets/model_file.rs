@@ -2,16 +2,12 @@
 //! consistency recomputed from its parameters) without a panic; what is accepted is finite.
 #![no_main]
 
-use std::sync::OnceLock;
-
 use arash_core::identify::Identification;
-use arash_core::Model;
 use libfuzzer_sys::fuzz_target;
 
-fn model() -> &'static Model {
-    static MODEL: OnceLock<Model> = OnceLock::new();
-    MODEL.get_or_init(arash_core::arash_asist)
-}
+#[path = "robot.rs"]
+mod robot;
+use robot::model;
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else { return };

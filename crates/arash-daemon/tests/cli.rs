@@ -13,6 +13,25 @@ fn repo_file(path: &str) -> String {
     format!("{}/../../{path}", env!("CARGO_MANIFEST_DIR"))
 }
 
+/// `arash simulate --scenario S --trajectory T --controller C -o OUT`, then `extra` arguments.
+fn simulate(
+    scenario: &str,
+    trajectory: &str,
+    controller: &str,
+    output: &std::path::Path,
+    extra: &[&str],
+) -> std::process::Output {
+    let mut args = vec!["simulate", "--scenario", scenario, "--trajectory", trajectory, "--controller", controller];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["-o", output.to_str().unwrap()]);
+    arash(&args)
+}
+
+/// The two-joint planar fixture.
+fn planar_urdf() -> String {
+    repo_file("tests/fixtures/planar_2link.urdf")
+}
+
 #[test]
 fn model_describes_the_bundled_robot() {
     let out = arash(&["model", &repo_file("robots/arash_asist.urdf")]);
@@ -156,45 +175,15 @@ fn simulate_refuses_bad_inputs_by_name() {
     let dir = Scratch::new("cli", "simulate-bad-inputs");
     let never = dir.join("never.mcap");
     let scenario = dir.file("bad.toml", "[effects.cogging]\namplitude = [0.1, 0.1]\n");
-    let out = arash(&[
-        "simulate",
-        "--scenario",
-        scenario.to_str().unwrap(),
-        "--trajectory",
-        &traj,
-        "--controller",
-        "pd",
-        "-o",
-        never.to_str().unwrap(),
-    ]);
+    let out = simulate(scenario.to_str().unwrap(), &traj, "pd", &never, &[]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("effects.cogging.amplitude") && err.contains("2 entries"), "{err}");
     let scenario = repo_file("scenarios/nominal.toml");
-    let out = arash(&[
-        "simulate",
-        "--scenario",
-        &scenario,
-        "--trajectory",
-        &traj,
-        "--controller",
-        "idc",
-        "-o",
-        never.to_str().unwrap(),
-    ]);
+    let out = simulate(&scenario, &traj, "idc", &never, &[]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("--params"), "{err}");
     let bad = dir.file("traj.json", r#"{"kind": "paper-validation", "omega": 0}"#);
-    let out = arash(&[
-        "simulate",
-        "--scenario",
-        &scenario,
-        "--trajectory",
-        bad.to_str().unwrap(),
-        "--controller",
-        "pd",
-        "-o",
-        never.to_str().unwrap(),
-    ]);
+    let out = simulate(&scenario, bad.to_str().unwrap(), "pd", &never, &[]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("omega") && err.contains("traj.json"), "{err}");
 }
@@ -265,25 +254,9 @@ fn simulate_on_a_robot_of_another_dof_refuses_the_papers_gains_and_runs_pd() {
     let scenario = dir.file("planar.toml", PLANAR_SCENARIO);
     let hold = dir.file("hold.json", r#"{"kind": "hold", "q": [0.2, -0.3]}"#);
     let log = dir.join("planar.mcap");
-    let run = |controller: &str| {
-        arash(&[
-            "simulate",
-            "--robot",
-            &repo_file("tests/fixtures/planar_2link.urdf"),
-            "--scenario",
-            scenario.to_str().unwrap(),
-            "--trajectory",
-            hold.to_str().unwrap(),
-            "--controller",
-            controller,
-            "--params",
-            "cad",
-            "--duration",
-            "1",
-            "-o",
-            log.to_str().unwrap(),
-        ])
-    };
+    let urdf = planar_urdf();
+    let extra = ["--robot", &urdf, "--params", "cad", "--duration", "1"];
+    let run = |controller: &str| simulate(scenario.to_str().unwrap(), hold.to_str().unwrap(), controller, &log, &extra);
     for controller in ["robust", "idc"] {
         let out = run(controller);
         let err = String::from_utf8_lossy(&out.stderr);
@@ -301,17 +274,7 @@ fn simulate_refuses_a_trajectory_beyond_the_limits_naming_sample_joint_and_limit
     let dir = Scratch::new("cli", "simulate-limits");
     let never = dir.join("never.mcap");
     let yaw = dir.file("yaw.json", r#"{"kind": "hold", "q": [1.5, 0.2, 0.005]}"#);
-    let out = arash(&[
-        "simulate",
-        "--scenario",
-        &repo_file("scenarios/nominal.toml"),
-        "--trajectory",
-        yaw.to_str().unwrap(),
-        "--controller",
-        "pd",
-        "-o",
-        never.to_str().unwrap(),
-    ]);
+    let out = simulate(&repo_file("scenarios/nominal.toml"), yaw.to_str().unwrap(), "pd", &never, &[]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("sample 0") && err.contains("joint 0 `yaw`"), "{err}");
     assert!(!never.exists(), "a refused run writes no log");
@@ -341,21 +304,9 @@ fn bad_logs_are_refused_by_name_with_no_backtrace_and_no_file_left() {
     let planar = dir.join("planar.mcap");
     let scenario = dir.file("planar.toml", PLANAR_SCENARIO);
     let hold = dir.file("hold.json", r#"{"kind": "hold", "q": [0.2, -0.3]}"#);
-    let out = arash(&[
-        "simulate",
-        "--robot",
-        &repo_file("tests/fixtures/planar_2link.urdf"),
-        "--scenario",
-        scenario.to_str().unwrap(),
-        "--trajectory",
-        hold.to_str().unwrap(),
-        "--controller",
-        "pd",
-        "--duration",
-        "1",
-        "-o",
-        planar.to_str().unwrap(),
-    ]);
+    let urdf = planar_urdf();
+    let extra = ["--robot", &urdf, "--duration", "1"];
+    let out = simulate(scenario.to_str().unwrap(), hold.to_str().unwrap(), "pd", &planar, &extra);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     refused(&["identify", planar.to_str().unwrap(), "-o", never.to_str().unwrap()], &["shoulder", "yaw"]);
     // Bytes that are not a log at all, and an empty file.
@@ -368,19 +319,8 @@ fn bad_logs_are_refused_by_name_with_no_backtrace_and_no_file_left() {
     refused(&["identify", empty.to_str().unwrap(), "-o", never.to_str().unwrap()], &["empty.csv"]);
     // A log cut off by a crash is read up to the cut, and says so.
     let whole = dir.join("whole.mcap");
-    let out = arash(&[
-        "simulate",
-        "--scenario",
-        &repo_file("scenarios/nominal.toml"),
-        "--trajectory",
-        &repo_file("trajectories/paper_validation_0.9.json"),
-        "--controller",
-        "idc-cad",
-        "--duration",
-        "7",
-        "-o",
-        whole.to_str().unwrap(),
-    ]);
+    let (nominal, fast) = (repo_file("scenarios/nominal.toml"), repo_file("trajectories/paper_validation_0.9.json"));
+    let out = simulate(&nominal, &fast, "idc-cad", &whole, &["--duration", "7"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let bytes = std::fs::read(&whole).unwrap();
     let cut = dir.join("cut.mcap");
