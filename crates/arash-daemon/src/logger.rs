@@ -76,8 +76,9 @@ pub struct LogContext {
     pub rate_hz: f64,
 }
 
-/// Rename every `*.mcap.part` in `dir` (left by a crash) to `*.recovered.mcap`; returns the
-/// recovered files and how many cycles each still holds.
+/// Rewrite every `*.mcap.part` in `dir` (left by a crash) into a complete `*.recovered.mcap`
+/// (see [`arash_core::flightlog::rewrite_complete`]); returns the recovered files and how many
+/// cycles each still holds.
 pub fn recover(dir: &Path) -> Vec<(PathBuf, Result<usize, String>)> {
     let Ok(entries) = std::fs::read_dir(dir) else { return Vec::new() };
     let mut out = Vec::new();

@@ -36,7 +36,7 @@ pub enum TrajectoryError {
         t: f64,
         joint: usize,
         name: String,
-        /// `position`, `speed` or `acceleration`.
+        /// `position` or `speed`.
         quantity: &'static str,
         value: f64,
         limit: f64,
@@ -197,35 +197,28 @@ impl Trajectory {
             let t = (sample as f64 * step).min(span);
             self.eval(t, &mut q, &mut qd, &mut qdd);
             for k in 0..n {
-                let broken = |quantity, value: f64, limit: f64| {
-                    let unit = match (limits.prismatic[k], quantity) {
-                        (true, "position") => "m",
-                        (true, _) => "m/s",
-                        (false, "position") => "rad",
-                        (false, _) => "rad/s",
-                    };
-                    TrajectoryError::Limit {
-                        sample,
-                        t,
-                        joint: k,
-                        name: limits.names[k].clone(),
-                        quantity,
-                        value,
-                        limit,
-                        unit,
-                    }
+                let (position, speed) = if limits.prismatic[k] { ("m", "m/s") } else { ("rad", "rad/s") };
+                let broken = |quantity, value: f64, limit: f64, unit| TrajectoryError::Limit {
+                    sample,
+                    t,
+                    joint: k,
+                    name: limits.names[k].clone(),
+                    quantity,
+                    value,
+                    limit,
+                    unit,
                 };
                 // A reference that touches a limit exactly (the paper's validation trajectories
                 // do) is inside it; rounding in the evaluation must not refuse it.
                 let slack = |limit: f64| 1e-9 * limit.abs().max(1.0);
                 if !q[k].is_finite() || q[k] > limits.upper[k] + slack(limits.upper[k]) {
-                    return Err(broken("position", q[k], limits.upper[k]));
+                    return Err(broken("position", q[k], limits.upper[k], position));
                 }
                 if q[k] < limits.lower[k] - slack(limits.lower[k]) {
-                    return Err(broken("position", q[k], limits.lower[k]));
+                    return Err(broken("position", q[k], limits.lower[k], position));
                 }
                 if !qd[k].is_finite() || qd[k].abs() > limits.velocity[k] + slack(limits.velocity[k]) {
-                    return Err(broken("speed", qd[k].abs(), limits.velocity[k]));
+                    return Err(broken("speed", qd[k].abs(), limits.velocity[k], speed));
                 }
             }
         }

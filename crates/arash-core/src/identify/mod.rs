@@ -298,14 +298,9 @@ impl Identification {
     /// semidefinite (an indefinite one can make M(q) indefinite and the loop unstable). The
     /// file's `min_pseudo_inertia_eigenvalue` is a report, never trusted.
     pub fn consistent_controller_parameters(&self, model: &Model) -> Result<Vec<f64>, IdentifyError> {
-        let params = self.controller_parameters(model)?;
-        let eigenvalues = self.recomputed_pseudo_inertia_eigenvalues(model)?;
+        let eigenvalues = self.recomputed_pseudo_inertia_eigenvalues(model)?; // checks the shape too
         let (body, worst) =
-            eigenvalues
-                .iter()
-                .copied()
-                .enumerate()
-                .fold((0, f64::INFINITY), |best, (b, e)| if e < best.1 { (b, e) } else { best });
+            eigenvalues.iter().copied().enumerate().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap_or((0, f64::INFINITY));
         if worst < -CONSISTENCY_TOLERANCE {
             let claimed = self.min_pseudo_inertia_eigenvalue.iter().copied().fold(f64::INFINITY, f64::min);
             return Err(IdentifyError::File(format!(
@@ -315,26 +310,23 @@ impl Identification {
                 model.bodies[body].name
             )));
         }
-        Ok(params)
+        Ok(self.full_or_base_vector())
     }
 
     /// The smallest pseudo-inertia eigenvalue of each body from the file's parameters: π̂, or the
     /// standard parameters nearest CAD that reproduce β̂.
     pub fn recomputed_pseudo_inertia_eigenvalues(&self, model: &Model) -> Result<Vec<f64>, IdentifyError> {
         self.check_shape(model)?;
-        let params = match &self.params {
-            Some(p) => p.clone(),
-            None => {
-                let base = BaseParameters::compute(model, &Default::default())?;
-                if base.independent != self.base_independent {
-                    return Err(IdentifyError::File(
-                        "its base parameters are not this robot's (independent columns differ)".into(),
-                    ));
-                }
-                nearest_standard_parameters(model, &base, &self.beta)
-            }
-        };
-        Ok(min_pseudo_inertia_eigenvalues(model, &params))
+        if let Some(params) = &self.params {
+            return Ok(min_pseudo_inertia_eigenvalues(model, params));
+        }
+        let base = BaseParameters::compute(model, &Default::default())?;
+        if base.independent != self.base_independent {
+            return Err(IdentifyError::File(
+                "its base parameters are not this robot's (independent columns differ)".into(),
+            ));
+        }
+        Ok(min_pseudo_inertia_eigenvalues(model, &nearest_standard_parameters(model, &base, &self.beta)))
     }
 
     /// The file's vectors against `model`: same robot, matching lengths, finite values.

@@ -94,8 +94,9 @@ pub struct ControlCycle {
     gate: SafetyGate,
     reference: Reference,
     mode: Mode,
-    /// A one-off command to send instead of the cycle's usual one.
-    pending: Option<Command>,
+    /// The ENABLE frame is still to be sent (in place of the first current command). A disabled
+    /// or faulted cycle needs no such flag: it sends DISABLE, or CLEAR_FAULT during a reset.
+    enabling: bool,
     telemetry: Telemetry,
     have_telemetry: bool,
     missing: u32,
@@ -138,7 +139,7 @@ impl ControlCycle {
             resolution,
             controller,
             mode: Mode::Disabled,
-            pending: None,
+            enabling: false,
             telemetry: Telemetry::new(dof),
             have_telemetry: false,
             missing: 0,
@@ -233,7 +234,7 @@ impl ControlCycle {
                     && self.telemetry.faults == 0
                 {
                     self.mode = Mode::Enabled;
-                    self.pending = Some(Command::Enable);
+                    self.enabling = true;
                     self.controller.reset();
                     self.gate.clear();
                     self.mismatch_count = [0; MAX_JOINTS];
@@ -249,7 +250,6 @@ impl ControlCycle {
             Request::Disable => {
                 if self.mode == Mode::Enabled {
                     self.mode = Mode::Disabled;
-                    self.pending = Some(Command::Disable);
                     self.event(Event::Disabled);
                 }
                 None
@@ -259,7 +259,6 @@ impl ControlCycle {
                     self.gate.clear();
                     self.mode = Mode::Disabled;
                     self.ramp_left = 0;
-                    self.pending = None;
                     self.clearing = self.reset_cycles();
                     self.powered_while_off = 0;
                     self.event(Event::FaultsCleared);
@@ -444,7 +443,6 @@ impl ControlCycle {
         } else {
             self.ramp_left = 0;
         }
-        self.pending = if self.ramp_left == 0 { Some(Command::Disable) } else { None };
     }
 
     /// The frame for this cycle.
@@ -459,10 +457,10 @@ impl ControlCycle {
         };
         match self.mode {
             Mode::Enabled => {
-                if let Some(c) = self.pending.take() {
+                if std::mem::take(&mut self.enabling) {
                     // The drive gets no current this cycle: the rate limit starts from zero.
                     self.gate.clear();
-                    return c;
+                    return Command::Enable;
                 }
                 if self.missing == 0 {
                     self.last_sent[..n].copy_from_slice(&self.tau_out);
@@ -475,14 +473,11 @@ impl ControlCycle {
                 for k in 0..n {
                     self.last_sent[k] = self.ramp_from[k] * scale;
                 }
-                if self.ramp_left == 0 {
-                    self.pending = Some(Command::Disable);
-                }
                 currents(&self.last_sent[..n])
             }
             Mode::Faulted | Mode::Disabled => {
                 self.last_sent = [0.0; MAX_JOINTS];
-                self.pending = None;
+                self.enabling = false;
                 if self.clearing > 0 {
                     Command::ClearFault
                 } else {
