@@ -5,10 +5,11 @@
 use std::hint::black_box;
 
 use arash_core::base_parameters::BaseParameterOptions;
+use arash_core::control::fourier::Excitation;
 use arash_core::identify::estimate::{fit, stack, Method};
-use arash_core::identify::excitation::Excitation;
 use arash_core::identify::preprocess::{preprocess, PreprocessOptions};
-use arash_core::identify::{identify, IdentifyMethod, IdentifyOptions};
+use arash_core::identify::{identify, Declared, IdentifyOptions, Log};
+use arash_core::model_file::IdentifyMethod;
 use arash_core::*;
 use criterion::{criterion_group, criterion_main, Criterion};
 
@@ -64,7 +65,15 @@ fn bench(c: &mut Criterion) {
         });
         let whole = IdentifyOptions { preprocess: options.clone(), ..Default::default() };
         group.bench_function(format!("identify OLS ({label})"), |b| {
-            b.iter(|| identify(&model, &base, "", black_box(&t), &q, &tau, IdentifyMethod::Ols, &whole).unwrap())
+            b.iter(|| {
+                identify(
+                    Declared { model: &model, base: &base, urdf: "" },
+                    Log { t: black_box(&t), q: &q, tau: &tau },
+                    IdentifyMethod::Ols,
+                    &whole,
+                )
+                .unwrap()
+            })
         });
     }
     group.finish();

@@ -8,7 +8,7 @@
 use crate::data::Data;
 use crate::kinematics::{motion_sweep, placements_and_jacobians};
 use crate::model::Model;
-use crate::spatial::{apply_inertia, Force, Motion, BODY_PARAMS};
+use crate::spatial::{apply_inertia, Force, Motion};
 
 /// Why forward dynamics could not be solved.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
@@ -20,7 +20,7 @@ pub enum DynamicsError {
 }
 
 fn body_params(params: &[f64], b: usize) -> &[f64] {
-    &params[b * BODY_PARAMS..(b + 1) * BODY_PARAMS]
+    &params[crate::params::body(b)]
 }
 
 pub(crate) fn check_params(model: &Model, params: &[f64]) {
@@ -47,11 +47,11 @@ fn project_wrenches<F: Fn(usize) -> Force>(model: &Model, data: &Data, tau: &mut
 
 /// Friction and elastic torques `fv·q̇ + fc·shape(q̇) + ke·q`, added to `tau`.
 fn add_joint_torques(model: &Model, params: &[f64], q: &[f64], qd: &[f64], tau: &mut [f64]) {
-    let (fo, eo) = (model.friction_offset(), model.elastic_offset());
+    let at = model.layout();
     for k in 0..model.dof() {
-        tau[k] += params[fo + 2 * k] * qd[k]
-            + params[fo + 2 * k + 1] * model.coulomb_shape.eval(qd[k])
-            + params[eo + k] * q[k];
+        tau[k] += params[at.viscous(k)] * qd[k]
+            + params[at.coulomb(k)] * model.coulomb_shape.eval(qd[k])
+            + params[at.stiffness(k)] * q[k];
     }
 }
 
@@ -164,17 +164,16 @@ pub fn forward_dynamics(
     params: &[f64],
     qdd: &mut [f64],
 ) -> Result<(), DynamicsError> {
-    forward_dynamics_with_armature(model, data, q, qd, tau, params, None, qdd)
+    forward_dynamics_with_armature(model, data, (q, qd), tau, params, None, qdd)
 }
 
 /// Forward dynamics with a diagonal `armature` added to `M` (reflected rotor inertia, kg·m² or
-/// kg per joint): `q̈ = (M + diag(armature))⁻¹ (τ − C q̇ − g − friction − elastic)`.
-#[allow(clippy::too_many_arguments)]
+/// kg per joint) at the state `(q, q̇)`: `q̈ = (M + diag(armature))⁻¹ (τ − C q̇ − g − friction −
+/// elastic)`.
 pub fn forward_dynamics_with_armature(
     model: &Model,
     data: &mut Data,
-    q: &[f64],
-    qd: &[f64],
+    (q, qd): (&[f64], &[f64]),
     tau: &[f64],
     params: &[f64],
     armature: Option<&[f64]>,

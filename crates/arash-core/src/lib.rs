@@ -12,11 +12,15 @@ pub mod control;
 pub mod data;
 pub mod diagnose;
 pub mod dynamics;
+pub mod effects;
 #[cfg(feature = "flightlog")]
 pub mod flightlog;
 pub mod identify;
 pub mod kinematics;
 pub mod model;
+pub mod model_file;
+pub mod params;
+pub mod physical;
 pub mod record;
 pub mod regressor;
 pub mod sim;
@@ -31,6 +35,8 @@ pub use dynamics::{
 };
 pub use kinematics::forward_kinematics;
 pub use model::{ActuatedJoint, Body, CoulombShape, JointKind, Model};
+pub use model_file::ModelFile;
+pub use params::ParamLayout;
 pub use regressor::{regressor, regressor_of_bodies, slotine_li_regressor};
 pub use urdf::{load_urdf, parse_urdf, UrdfError};
 

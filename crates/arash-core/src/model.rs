@@ -5,6 +5,7 @@
 //! into a tree and every passive joint mimics an actuated one. Build a [`Model`] once (usually with
 //! [`crate::urdf::parse_urdf`]) and pair it with a [`crate::Data`] workspace for evaluation.
 
+use crate::params::ParamLayout;
 use crate::spatial::{Mat3, Vec3, BODY_PARAMS};
 
 /// How a body moves relative to its parent.
@@ -112,19 +113,14 @@ impl Model {
         self.joints.len()
     }
 
+    /// Where each parameter sits in π.
+    pub fn layout(&self) -> ParamLayout {
+        ParamLayout::new(self.bodies.len(), self.dof())
+    }
+
     /// Length of the standard parameter vector.
     pub fn num_params(&self) -> usize {
-        BODY_PARAMS * self.bodies.len() + 3 * self.dof()
-    }
-
-    /// Index of the first friction column.
-    pub fn friction_offset(&self) -> usize {
-        BODY_PARAMS * self.bodies.len()
-    }
-
-    /// Index of the first elastic column.
-    pub fn elastic_offset(&self) -> usize {
-        self.friction_offset() + 2 * self.dof()
+        self.layout().len()
     }
 
     /// Names of the joints, in `q` order.

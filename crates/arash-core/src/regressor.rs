@@ -94,8 +94,8 @@ fn slotine_li_row(u: &Motion, v: &Motion, v_r: &Motion, a_folded: &Motion) -> [f
 /// it inherits.
 pub fn bodies_of_columns(model: &Model, columns: &[usize]) -> Vec<bool> {
     let mut bodies = vec![false; model.bodies.len()];
-    for &j in columns.iter().filter(|&&j| j < model.friction_offset()) {
-        let mut body = Some(j / BODY_PARAMS);
+    for j in columns.iter().filter_map(|&j| model.layout().body_of(j)) {
+        let mut body = Some(j);
         while let Some(b) = body {
             bodies[b] = true;
             body = model.bodies[b].parent;
@@ -123,7 +123,7 @@ where
             if *u == Motion::ZERO {
                 continue; // joint k does not move body b
             }
-            let start = k * p + b * BODY_PARAMS;
+            let start = k * p + crate::params::body(b).start;
             out[start..start + BODY_PARAMS].copy_from_slice(&row(u, v, v_r, a));
         }
     }
@@ -131,11 +131,11 @@ where
 
 /// Friction and elastic columns: `fv·q̇_r`, `fc·shape(q̇)`, `ke·q` on each joint's own row.
 fn fill_joint_columns(model: &Model, q: &[f64], qd: &[f64], qd_r: &[f64], out: &mut [f64]) {
-    let p = model.num_params();
+    let (p, at) = (model.num_params(), model.layout());
     for k in 0..model.dof() {
         let row = &mut out[k * p..(k + 1) * p];
-        row[model.friction_offset() + 2 * k] = qd_r[k];
-        row[model.friction_offset() + 2 * k + 1] = model.coulomb_shape.eval(qd[k]);
-        row[model.elastic_offset() + k] = q[k];
+        row[at.viscous(k)] = qd_r[k];
+        row[at.coulomb(k)] = model.coulomb_shape.eval(qd[k]);
+        row[at.stiffness(k)] = q[k];
     }
 }

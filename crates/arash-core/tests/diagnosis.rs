@@ -4,8 +4,9 @@
 
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::control::{standard_controller, ControllerKind, RobustGains, Trajectory};
-use arash_core::diagnose::{diagnose, DiagnoseOptions, Diagnosis, Log};
-use arash_core::identify::{identify, Identification, IdentifyMethod, IdentifyOptions};
+use arash_core::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
+use arash_core::identify::{identify, Declared, IdentifyOptions, Log};
+use arash_core::model_file::{IdentifyMethod, ModelFile};
 use arash_core::sim::{Rig, Scenario};
 use arash_core::{arash_asist, BaseParameters, Model, ARASH_ASIST_URDF};
 
@@ -52,15 +53,11 @@ fn transmission() -> Vec<f64> {
 /// absorbs into the base parameters (a payload is a change of inertial parameters; rotor inertia
 /// on a revolute joint adds to a link's inertia about the same axis) show only against a model
 /// held fixed.
-fn true_model(model: &Model, base: &BaseParameters, seed: u64) -> Identification {
+fn true_model(model: &Model, base: &BaseParameters, seed: u64) -> ModelFile {
     let run = simulate(model, "", seed, 40.0);
     let mut id = identify(
-        model,
-        base,
-        ARASH_ASIST_URDF,
-        &run.t,
-        &run.q,
-        &run.tau,
+        Declared { model, base, urdf: ARASH_ASIST_URDF },
+        Log { t: &run.t, q: &run.q, tau: &run.tau },
         IdentifyMethod::Ols,
         &IdentifyOptions::default(),
     )
@@ -94,9 +91,7 @@ fn diagnose_scenario(scenario: &str, seed: u64, against: Against, validation: bo
         ..DiagnoseOptions::default()
     };
     diagnose(
-        &model,
-        &base,
-        ARASH_ASIST_URDF,
+        Declared { model: &model, base: &base, urdf: ARASH_ASIST_URDF },
         Log { t: &run.t, q: &run.q, tau: &run.tau },
         held.as_ref().map(|h| Log { t: &h.t, q: &h.q, tau: &h.tau }),
         given.as_ref(),
@@ -336,7 +331,7 @@ fn the_updated_model_predicts_with_the_effects_found() {
         assert!((with[j] - without[j] - expected[j]).abs() < 1e-12, "joint {j}");
     }
     // And it survives the model file.
-    let reread = arash_core::identify::Identification::from_json(&d.model.to_json()).unwrap();
+    let reread = arash_core::model_file::ModelFile::from_json(&d.model.to_json()).unwrap();
     assert_eq!(reread.effects, d.model.effects);
 }
 
@@ -388,12 +383,8 @@ fn the_consistent_refit_with_the_effects_found_is_physical_and_tracks_the_wiring
     let run = simulate(&model, scenario, 3, 60.0);
     let log = Log { t: &run.t, q: &run.q, tau: &run.tau };
     let plain = identify(
-        &model,
-        &base,
-        ARASH_ASIST_URDF,
-        &run.t,
-        &run.q,
-        &run.tau,
+        Declared { model: &model, base: &base, urdf: ARASH_ASIST_URDF },
+        log,
         IdentifyMethod::Consistent,
         &IdentifyOptions {
             // As `arash identify` and `arash demo` do: periods averaged, 5 × the top harmonic.
@@ -408,7 +399,8 @@ fn the_consistent_refit_with_the_effects_found_is_physical_and_tracks_the_wiring
     .unwrap();
     // Diagnosed at the diagnosis's cut-off, refitted at the calibration's, as `arash demo` does.
     let options = DiagnoseOptions { transmission: Some(transmission()), ..DiagnoseOptions::default() };
-    let d = diagnose(&model, &base, ARASH_ASIST_URDF, log, None, None, &options).unwrap();
+    let d =
+        diagnose(Declared { model: &model, base: &base, urdf: ARASH_ASIST_URDF }, log, None, None, &options).unwrap();
     assert_eq!(d.accepted[0].name, "configuration_disturbance", "{}", d.report());
     assert_eq!(d.accepted[0].joints, vec![1]);
     let consistent = arash_core::identify::consistent::ConsistentOptions::default();

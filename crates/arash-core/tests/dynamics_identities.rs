@@ -231,7 +231,7 @@ fn regressor_of_the_bodies_a_base_needs_gives_the_same_base_regressor() {
             base.reduce(&y_some, &mut y_r_some);
             assert_eq!(y_r, y_r_some, "{}: the base columns must not depend on the skipped bodies", model.name);
             for (j, (full, some)) in y.iter().zip(&y_some).enumerate().map(|(i, v)| (i % p, v)) {
-                let skipped = j < model.friction_offset() && !bodies[j / 10];
+                let skipped = j < model.layout().friction().start && !bodies[j / 10];
                 assert!(if skipped { *some == 0.0 } else { some == full }, "{}: column {j}", model.name);
             }
         }
@@ -289,7 +289,7 @@ fn slotine_li_regressor_is_the_christoffel_reference_dynamics() {
             gravity_torque(&model, &mut data, &s.q, &pi, &mut g);
             let via_ys = apply(&ys, &pi);
             for k in 0..n {
-                let (fo, eo) = (model.friction_offset(), model.elastic_offset());
+                let (fo, eo) = (model.layout().friction().start, model.layout().stiffnesses().start);
                 let joint = pi[fo + 2 * k] * r.qd[k] + pi[fo + 2 * k + 1] * s.qd[k].signum() + pi[eo + k] * s.q[k];
                 let expected = dot(&m[k * n..(k + 1) * n], &r.qdd) + dot(&c[k * n..(k + 1) * n], &r.qd) + g[k] + joint;
                 assert!((via_ys[k] - expected).abs() <= 1e-11 * (1.0 + expected.abs()), "{}: joint {k}", model.name);
@@ -305,6 +305,6 @@ fn tanh_coulomb_shape_is_smooth_through_zero() {
     let (mut data, p) = (Data::new(&model), model.num_params());
     let mut y = vec![0.0; 3 * p];
     regressor(&model, &mut data, &[0.0; 3], &[0.005, -0.02, 0.0], &[0.0; 3], &mut y);
-    let fc = |k: usize| y[k * p + model.friction_offset() + 2 * k + 1];
+    let fc = |k: usize| y[k * p + model.layout().coulomb(k)];
     assert!((fc(0) - 0.5f64.tanh()).abs() < 1e-15 && (fc(1) + 2.0f64.tanh()).abs() < 1e-15 && fc(2) == 0.0);
 }

@@ -79,9 +79,9 @@ fn true_parameters(model: &Model, rng: &mut ChaCha8Rng) -> Vec<f64> {
         );
         pi[10 * b..10 * b + 10].copy_from_slice(&new);
     }
-    let fo = model.friction_offset();
+    let fo = model.layout().friction().start;
     pi[fo..fo + 6].copy_from_slice(&[0.02, 0.03, 0.015, 0.025, 3.0, 0.4]);
-    pi[model.elastic_offset()..].copy_from_slice(&[0.05, 0.08, 20.0]);
+    pi[model.layout().stiffnesses()].copy_from_slice(&[0.05, 0.08, 20.0]);
     pi
 }
 
@@ -229,8 +229,9 @@ fn data_that_does_not_move_a_joint_is_refused_naming_the_parameters() {
 
 #[test]
 fn consistent_identification_is_physical_and_fits_like_ols() {
-    use arash_core::identify::consistent::{identify_consistent, min_pseudo_inertia_eigenvalues, ConsistentOptions};
+    use arash_core::identify::consistent::{identify_consistent, ConsistentOptions};
     use arash_core::identify::estimate::{joint_metrics, stack_full};
+    use arash_core::physical::min_pseudo_inertia_eigenvalues;
     let model = arash_asist();
     let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
     let mut rng = rng(24);
@@ -246,8 +247,7 @@ fn consistent_identification_is_physical_and_fits_like_ols() {
     for (b, e) in min_pseudo_inertia_eigenvalues(&model, &consistent.params).iter().enumerate() {
         assert!(*e >= -1e-9, "body {} pseudo-inertia eigenvalue {e}", model.bodies[b].name);
     }
-    let fo = model.friction_offset();
-    assert!(consistent.params[fo..model.elastic_offset()].iter().all(|f| *f >= -1e-9));
+    assert!(consistent.params[model.layout().friction()].iter().all(|f| *f >= -1e-9));
     // Consistency costs almost nothing here: the truth is consistent.
     let predicted: Vec<f64> = arash_core::identify::estimate::apply(&w, &consistent.params);
     let metrics = joint_metrics(&tau_f, &predicted, 3);
@@ -264,7 +264,8 @@ fn consistent_identification_is_physical_and_fits_like_ols() {
 
 #[test]
 fn a_model_file_is_judged_by_its_parameters_not_by_what_it_claims() {
-    use arash_core::identify::{identify, Identification, IdentifyMethod, IdentifyOptions};
+    use arash_core::identify::{identify, Declared, IdentifyOptions, Log};
+    use arash_core::model_file::{IdentifyMethod, ModelFile};
     let model = arash_asist();
     let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
     let mut rng = rng(25);
@@ -274,9 +275,15 @@ fn a_model_file_is_judged_by_its_parameters_not_by_what_it_claims() {
     let mut options = IdentifyOptions::default();
     options.preprocess.periods = Some(2);
     options.preprocess.decimate = 5;
-    let load = |value: &serde_json::Value| Identification::from_json(&value.to_string()).unwrap();
+    let load = |value: &serde_json::Value| ModelFile::from_json(&value.to_string()).unwrap();
     for method in [IdentifyMethod::Consistent, IdentifyMethod::Ols] {
-        let id = identify(&model, &base, ARASH_ASIST_URDF, &t, &q, &tau, method, &options).unwrap();
+        let id = identify(
+            Declared { model: &model, base: &base, urdf: ARASH_ASIST_URDF },
+            Log { t: &t, q: &q, tau: &tau },
+            method,
+            &options,
+        )
+        .unwrap();
         let recomputed = id.recomputed_pseudo_inertia_eigenvalues(&model).unwrap();
         for (a, b) in recomputed.iter().zip(&id.min_pseudo_inertia_eigenvalue) {
             assert!((a - b).abs() <= 1e-9 * b.abs().max(1.0), "{method:?}: {a} recomputed, {b} written");

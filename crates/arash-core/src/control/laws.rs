@@ -1,12 +1,12 @@
 //! The three control laws. Each owns a copy of the model, a [`Data`] workspace and its scratch
 //! buffers, so `step` never allocates.
 
-use super::effects::EffectFeedforward;
+use super::feedforward::EffectFeedforward;
 use super::gains::{IdcGains, PdGains, RobustGains};
 use super::{Controller, ControllerKind, Desired};
 use crate::data::Data;
-use crate::diagnose::EffectTerm;
 use crate::dynamics::{gravity_torque, inverse_dynamics};
+use crate::effects::EffectTerm;
 use crate::model::Model;
 use crate::regressor::slotine_li_regressor;
 
@@ -88,9 +88,9 @@ impl Controller for InverseDynamicsControl {
                 desired.qdd[k] - self.gains.kd[k] * (qd[k] - desired.qd[k]) - self.gains.kp[k] * (q[k] - desired.q[k]);
         }
         inverse_dynamics(&self.model, &mut self.data, q, qd, &self.acc, &self.params, tau);
-        let coulomb = self.model.friction_offset() + 1;
+        let layout = self.model.layout();
         for k in 0..self.model.dof() {
-            let fc = self.params[coulomb + 2 * k];
+            let fc = self.params[layout.coulomb(k)];
             tau[k] += fc * ((qd[k] / self.gains.epsilon[k]).tanh() - self.model.coulomb_shape.eval(qd[k]));
         }
         self.effects.add(q, qd, &self.acc, tau);
@@ -105,7 +105,7 @@ impl Controller for InverseDynamicsControl {
 ///
 /// `β̂` enters as any full parameter vector whose product with the regressor equals `Y_S,b β̂`:
 /// the identified `π̂`, or `β̂` placed on the independent columns
-/// ([`crate::identify::Identification::full_or_base_vector`]).
+/// ([`crate::model_file::ModelFile::full_or_base_vector`]).
 pub struct RobustController {
     model: Model,
     data: Data,
@@ -167,11 +167,11 @@ impl Controller for RobustController {
             self.s[k] = ed + g.lambda[k] * e;
         }
         slotine_li_regressor(&self.model, &mut self.data, q, qd, &self.qd_r, &self.qdd_r, &mut self.y);
-        let coulomb = self.model.friction_offset() + 1;
+        let layout = self.model.layout();
         for k in 0..n {
             let row = &mut self.y[k * big_p..(k + 1) * big_p];
             // Joint k's Coulomb column is non-zero in row k only; the per-joint ε goes here.
-            row[coulomb + 2 * k] = (qd[k] / g.epsilon[k]).tanh();
+            row[layout.coulomb(k)] = (qd[k] / g.epsilon[k]).tanh();
             tau[k] = row.iter().zip(&self.params).map(|(y, p)| y * p).sum::<f64>() - g.kd[k] * self.s[k];
         }
         self.effects.add(desired.q, desired.qd, &self.qdd_r, tau);

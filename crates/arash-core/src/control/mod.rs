@@ -5,18 +5,19 @@
 //! computes one torque command without allocating, so that the daemon's 1 kHz cycle and the
 //! simulator share the exact same code.
 
-pub mod effects;
 pub mod estimator;
+pub mod feedforward;
+pub mod fourier;
 pub mod gains;
 mod laws;
 pub mod safety;
 pub mod trajectory;
 
-pub use effects::EffectFeedforward;
 pub use estimator::VelocityEstimator;
+pub use feedforward::EffectFeedforward;
 pub use gains::{GainsError, IdcGains, PdGains, RobustGains};
 pub use laws::{InverseDynamicsControl, PdGravity, RobustController};
-pub use safety::{Faults, SafetyGate, SafetyLimits};
+pub use safety::{Faults, LimitsError, SafetyGate, SafetyLimits};
 pub use trajectory::{PlanLimits, Trajectory, TrajectoryError};
 
 /// Desired joint state at one instant (rad or m, and their rates).
@@ -87,7 +88,7 @@ pub fn controller_with_effects(
     kind: ControllerKind,
     model: &crate::Model,
     params: &[f64],
-    effects: &[crate::diagnose::EffectTerm],
+    effects: &[crate::effects::EffectTerm],
     robust: Option<&RobustGains>,
 ) -> Result<Box<dyn Controller>, ControllerError> {
     let q_home: Vec<f64> = model.joints.iter().map(|j| 0.5 * (j.lower + j.upper)).collect();

@@ -112,8 +112,8 @@ impl SafetyLimits {
     }
 
     /// Checks that every vector has `dof` entries and every limit is positive (or ±∞ for
-    /// positions); the message names the first bad entry.
-    pub fn validate(&self, dof: usize) -> Result<(), String> {
+    /// positions); the error names the first bad entry.
+    pub fn validate(&self, dof: usize) -> Result<(), LimitsError> {
         let named: [(&str, &Vec<f64>); 6] = [
             ("torque", &self.torque),
             ("torque_rate", &self.torque_rate),
@@ -124,7 +124,7 @@ impl SafetyLimits {
         ];
         for (name, v) in named {
             if v.len() != dof {
-                return Err(format!("safety limit `{name}` has {} entries, the robot has {dof} joints", v.len()));
+                return Err(LimitsError::Length { name, got: v.len(), dof });
             }
         }
         for k in 0..dof {
@@ -132,7 +132,7 @@ impl SafetyLimits {
                 [("torque", self.torque[k]), ("torque_rate", self.torque_rate[k]), ("velocity", self.velocity[k])]
             {
                 if v.is_nan() || v <= 0.0 {
-                    return Err(format!("safety limit `{name}` of joint {k} must be positive, not {v}"));
+                    return Err(LimitsError::NotPositive { name, joint: k, value: v });
                 }
             }
             if self.margin[k].is_nan()
@@ -141,10 +141,8 @@ impl SafetyLimits {
                 || self.upper[k].is_nan()
                 || self.lower[k] >= self.upper[k]
             {
-                return Err(format!(
-                    "joint {k}: position limits [{}, {}] with margin {} are not an interval",
-                    self.lower[k], self.upper[k], self.margin[k]
-                ));
+                let (lower, upper, margin) = (self.lower[k], self.upper[k], self.margin[k]);
+                return Err(LimitsError::NotAnInterval { joint: k, lower, upper, margin });
             }
         }
         Ok(())
@@ -225,6 +223,17 @@ impl SafetyGate {
         }
         faults
     }
+}
+
+/// A [`SafetyLimits`] that cannot guard a robot, named.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum LimitsError {
+    #[error("safety limit `{name}` has {got} entries, the robot has {dof} joints")]
+    Length { name: &'static str, got: usize, dof: usize },
+    #[error("safety limit `{name}` of joint {joint} must be positive, not {value}")]
+    NotPositive { name: &'static str, joint: usize, value: f64 },
+    #[error("joint {joint}: position limits [{lower}, {upper}] with margin {margin} are not an interval")]
+    NotAnInterval { joint: usize, lower: f64, upper: f64, margin: f64 },
 }
 
 #[cfg(test)]

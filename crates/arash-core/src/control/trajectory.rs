@@ -10,8 +10,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::identify::excitation::Excitation;
-use crate::identify::paper_validation_state;
+use super::fourier::Excitation;
 use crate::model::{JointKind, Model};
 
 /// Why a trajectory file was refused.
@@ -242,6 +241,22 @@ impl Trajectory {
             }
         }
     }
+}
+
+/// The paper's validation trajectory at `omega` (rad/s): φ = 35° sin ωt, ψ = 40° cos ωt + 15°,
+/// d = 1.8 cm sin ωt + 0.4 cm. Returns (q, q̇, q̈) in SI units.
+///
+/// The paper prints d = −1.8 cm sin ωt − 0.4 cm, which spans −22…14 mm and leaves its own
+/// insertion range of −14…27 mm. Its d must be counted the other way: reversed, it spans
+/// −14…22 mm and touches the lower limit exactly as ψ touches both of its limits.
+pub fn paper_validation_state(omega: f64, t: f64) -> ([f64; 3], [f64; 3], [f64; 3]) {
+    let deg = std::f64::consts::PI / 180.0;
+    let (s, c) = (omega * t).sin_cos();
+    let amp = [35.0 * deg, 40.0 * deg, 0.018];
+    let q = [amp[0] * s, amp[1] * c + 15.0 * deg, amp[2] * s + 0.004];
+    let qd = [amp[0] * omega * c, -amp[1] * omega * s, amp[2] * omega * c];
+    let qdd = [-amp[0] * omega * omega * s, -amp[1] * omega * omega * c, -amp[2] * omega * omega * s];
+    (q, qd, qdd)
 }
 
 #[cfg(test)]

@@ -9,13 +9,15 @@
 
 use faer::Mat;
 
-use super::{full_columns, prepare, term_columns, DiagnoseError, DiagnoseOptions, EffectKind, Log};
+use super::options::{DiagnoseError, DiagnoseOptions};
+use super::prepare::{full_columns, prepare, term_columns};
 use crate::base_parameters::BaseParameters;
-use crate::control::effects::runtime_applicable;
+use crate::effects::EffectKind;
 use crate::identify::consistent::{identify_consistent, ConsistentOptions};
 use crate::identify::estimate::joint_metrics;
-use crate::identify::{Identification, IdentifyMethod};
+use crate::identify::Log;
 use crate::model::Model;
+use crate::model_file::{IdentifyMethod, ModelFile};
 
 /// Refit `found` (a diagnosis's updated model) as a physically consistent model with its
 /// effects, on the training log the diagnosis used. The effects that act at run time are kept
@@ -27,10 +29,10 @@ pub fn consistent_with_effects(
     model: &Model,
     base: &BaseParameters,
     train: Log,
-    found: &Identification,
+    found: &ModelFile,
     options: &DiagnoseOptions,
     consistent: &ConsistentOptions,
-) -> Result<Identification, DiagnoseError> {
+) -> Result<ModelFile, DiagnoseError> {
     let (dof, standard) = (model.dof(), model.num_params());
     let data = prepare(model, base, train, options, options.max_delay_s).map_err(DiagnoseError::Training)?;
     let delay = found
@@ -40,7 +42,7 @@ pub fn consistent_with_effects(
         .and_then(|t| t.scale)
         .map_or(0, |s| s.round() as isize);
     let mut terms: Vec<_> =
-        found.effects.iter().filter(|t| runtime_applicable(t.kind) && t.kind != EffectKind::Payload).cloned().collect();
+        found.effects.iter().filter(|t| t.kind.at_run_time() && t.kind != EffectKind::Payload).cloned().collect();
     let mut columns = full_columns(model, &data.pre, &data.kept);
     let mut widths = Vec::with_capacity(terms.len());
     for term in &terms {

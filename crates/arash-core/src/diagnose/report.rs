@@ -1,7 +1,7 @@
 //! The diagnosis as text and JSON.
 
-use super::{Diagnosis, ErrorSummary};
-use crate::identify::Metrics;
+use super::findings::{Diagnosis, ErrorSummary};
+use crate::model_file::Metrics;
 
 impl Diagnosis {
     pub fn to_json(&self) -> String {

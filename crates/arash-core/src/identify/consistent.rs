@@ -23,7 +23,7 @@ use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverSt
 use faer::Mat;
 
 use crate::model::Model;
-use crate::spatial::{pseudo_inertia, BODY_PARAMS};
+use crate::physical::{min_pseudo_inertia_eigenvalues, parameter_scales};
 
 /// Settings for [`identify_consistent`].
 #[derive(Clone, Debug)]
@@ -38,7 +38,11 @@ pub struct ConsistentOptions {
 
 impl Default for ConsistentOptions {
     fn default() -> Self {
-        Self { pull: 1e-4, stiffness_bounds: (0.0, f64::INFINITY), length_scale: 0.1 }
+        Self {
+            pull: 1e-4,
+            stiffness_bounds: (0.0, f64::INFINITY),
+            length_scale: crate::physical::DEFAULT_LENGTH_SCALE_M,
+        }
     }
 }
 
@@ -62,36 +66,6 @@ pub struct ConsistentFit {
     pub status: SolverStatus,
     pub iterations: u32,
     pub solve_time_s: f64,
-}
-
-/// Per-parameter scales `s` (see the module documentation).
-pub fn parameter_scales(model: &Model, length_scale: f64) -> Vec<f64> {
-    let mut s = Vec::with_capacity(model.num_params());
-    for body in &model.bodies {
-        let m = body.inertial[0];
-        let l = length_scale;
-        s.extend_from_slice(&[
-            m,
-            m * l,
-            m * l,
-            m * l,
-            m * l * l,
-            m * l * l,
-            m * l * l,
-            m * l * l,
-            m * l * l,
-            m * l * l,
-        ]);
-    }
-    s.extend(std::iter::repeat_n(1.0, 3 * model.dof()));
-    s
-}
-
-/// Smallest eigenvalue of each body's 4×4 pseudo-inertia for parameters `params`.
-pub fn min_pseudo_inertia_eigenvalues(model: &Model, params: &[f64]) -> Vec<f64> {
-    (0..model.bodies.len())
-        .map(|b| pseudo_inertia(&params[b * BODY_PARAMS..(b + 1) * BODY_PARAMS]).symmetric_eigenvalues().min())
-        .collect()
 }
 
 /// Solve the consistent problem for a stacked full regressor `w` (m × P) and torques `tau`.
@@ -172,12 +146,12 @@ fn constraints(
     };
     // Non-negative orthant: s = π_i − lo ≥ 0 (A = −e_i, b = −lo) or s = hi − π_i ≥ 0 (A = e_i).
     let mut row = 0;
-    for i in model.friction_offset()..model.elastic_offset() {
+    for i in model.layout().friction() {
         push(row, i, -1.0, &mut rows, &mut cols);
         b.push(0.0);
         row += 1;
     }
-    for i in model.elastic_offset()..model.num_params() {
+    for i in model.layout().stiffnesses() {
         if ke_lo.is_finite() {
             push(row, i, -1.0, &mut rows, &mut cols);
             b.push(-ke_lo);
@@ -209,7 +183,7 @@ fn constraints(
     for body in 0..model.bodies.len() {
         for entry in svec {
             for &(k, c) in entry {
-                push(row, body * BODY_PARAMS + k, -c, &mut rows, &mut cols);
+                push(row, crate::params::body(body).start + k, -c, &mut rows, &mut cols);
             }
             b.push(0.0);
             row += 1;

@@ -82,7 +82,7 @@ pub const CONDITION_LIMIT: f64 = 1e8;
 ///
 /// Coulomb friction columns step where a velocity changes sign, but the measured torque has been
 /// low-pass filtered, so its steps are smoothed. Left alone, that mismatch biases the whole fit
-/// (on ARASH:ASiST, 16 % of the yaw torque). Those columns are therefore built from the friction
+/// (docs/identification.md gives the size). Those columns are therefore built from the friction
 /// velocity (`Preprocessed::qd_friction`, which keeps the fast dither of a controlled joint around
 /// zero speed) and filtered exactly like the torque ("parallel filtering"). The other columns are smooth functions of signals already
 /// filtered far below the cut-off, and the filter leaves them unchanged.
@@ -113,9 +113,8 @@ fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f
             scope.spawn(move || fill_band(model, data, columns, bodies, first, band));
         }
     });
-    let coulomb: Vec<(usize, usize)> = (0..n)
-        .filter_map(|k| columns.iter().position(|&j| j == model.friction_offset() + 2 * k + 1).map(|c| (k, c)))
-        .collect();
+    let coulomb: Vec<(usize, usize)> =
+        (0..n).filter_map(|k| columns.iter().position(|&j| j == model.layout().coulomb(k)).map(|c| (k, c))).collect();
     if coulomb.is_empty() {
         return w;
     }

@@ -23,9 +23,9 @@ use argmin::solver::neldermead::NelderMead;
 use nalgebra::DMatrix;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use serde::{Deserialize, Serialize};
 
 use crate::base_parameters::BaseParameters;
+use crate::control::fourier::Excitation;
 use crate::data::Data;
 use crate::model::{JointKind, Model};
 use crate::regressor::regressor;
@@ -71,78 +71,20 @@ pub enum ExcitationError {
     Infeasible(f64),
 }
 
-/// A designed excitation: the Fourier coefficients and what they achieve.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct Excitation {
-    pub harmonics: usize,
-    pub period_s: f64,
-    /// Offsets q₀ per joint (rad or m).
-    pub q0: Vec<f64>,
-    /// `a[j][l]`, `b[j][l]` for joint j and harmonic l + 1 (rad/s or m/s).
-    pub a: Vec<Vec<f64>>,
-    pub b: Vec<Vec<f64>>,
-    /// Normalised condition number achieved (see the module documentation).
-    pub condition_number: f64,
-}
-
-impl Excitation {
-    fn omega(&self) -> f64 {
-        2.0 * std::f64::consts::PI / self.period_s
-    }
-
-    /// Position, velocity and acceleration at time `t` (SI).
-    pub fn state(&self, t: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-        let n = self.q0.len();
-        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        self.state_into(t, &mut q, &mut qd, &mut qdd);
-        (q, qd, qdd)
-    }
-
-    /// [`Excitation::state`] into caller buffers, without allocating.
-    pub fn state_into(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
-        let w = self.omega();
-        for j in 0..self.q0.len() {
-            (q[j], qd[j], qdd[j]) = (self.q0[j], 0.0, 0.0);
-            for l in 0..self.harmonics {
-                let wl = w * (l + 1) as f64;
-                let (s, c) = (wl * t).sin_cos();
-                let (a, b) = (self.a[j][l], self.b[j][l]);
-                q[j] += a / wl * s - b / wl * c;
-                qd[j] += a * c + b * s;
-                qdd[j] += wl * (-a * s + b * c);
-            }
+/// Sum of `excitation`'s limit violations (each relative to its limit) over a fine grid; 0 when
+/// feasible.
+pub fn limit_violation(excitation: &Excitation, limits: &Limits) -> f64 {
+    let mut violation = 0.0;
+    for i in 0..400 {
+        let (q, qd, qdd) = excitation.state(excitation.period_s * i as f64 / 400.0);
+        for j in 0..q.len() {
+            let range = limits.upper[j] - limits.lower[j];
+            violation += ((limits.lower[j] - q[j]).max(0.0) + (q[j] - limits.upper[j]).max(0.0)) / range;
+            violation += (qd[j].abs() - limits.velocity[j]).max(0.0) / limits.velocity[j];
+            violation += (qdd[j].abs() - limits.acceleration[j]).max(0.0) / limits.acceleration[j];
         }
     }
-
-    /// Sampled at `rate_hz` over `periods` periods: (t, q, q̇, q̈), the latter row-major N × dof.
-    pub fn sample(&self, rate_hz: f64, periods: usize) -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
-        let count = (self.period_s * rate_hz).round() as usize * periods;
-        let (mut t, mut q, mut qd, mut qdd) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-        for i in 0..count {
-            let ti = i as f64 / rate_hz;
-            let (a, b, c) = self.state(ti);
-            t.push(ti);
-            q.extend(a);
-            qd.extend(b);
-            qdd.extend(c);
-        }
-        (t, q, qd, qdd)
-    }
-
-    /// Sum of limit violations (each relative to its limit) over a fine grid; 0 when feasible.
-    pub fn limit_violation(&self, limits: &Limits) -> f64 {
-        let mut violation = 0.0;
-        for i in 0..400 {
-            let (q, qd, qdd) = self.state(self.period_s * i as f64 / 400.0);
-            for j in 0..q.len() {
-                let range = limits.upper[j] - limits.lower[j];
-                violation += ((limits.lower[j] - q[j]).max(0.0) + (q[j] - limits.upper[j]).max(0.0)) / range;
-                violation += (qd[j].abs() - limits.velocity[j]).max(0.0) / limits.velocity[j];
-                violation += (qdd[j].abs() - limits.acceleration[j]).max(0.0) / limits.acceleration[j];
-            }
-        }
-        violation
-    }
+    violation
 }
 
 /// The limits a trajectory must respect (margins already applied).
@@ -285,7 +227,7 @@ impl CostFunction for Problem<'_> {
 
     fn cost(&self, x: &Vec<f64>) -> Result<f64, ArgminError> {
         let excitation = self.excitation(x);
-        let violation = excitation.limit_violation(self.limits);
+        let violation = limit_violation(&excitation, self.limits);
         if violation > 0.0 {
             // Outside the limits the condition number is irrelevant; steer back first.
             return Ok(100.0 + 1e3 * violation);
@@ -362,7 +304,7 @@ fn run_restart(problem: &Problem, limits: &Limits, restart: usize) -> (f64, Opti
         .expect("the cost function cannot fail");
     let x = result.state().get_best_param().cloned().unwrap_or(x0);
     let excitation = problem.excitation(&x);
-    let violation = excitation.limit_violation(limits);
+    let violation = limit_violation(&excitation, limits);
     let kappa = (violation == 0.0).then(|| problem.condition(&excitation));
     (violation, kappa, x)
 }

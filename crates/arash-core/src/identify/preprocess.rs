@@ -31,8 +31,8 @@ pub struct PreprocessOptions {
 
 /// Friction switches with the joint's actual velocity, which under closed-loop control dithers
 /// around zero far faster than the trajectory's bandwidth. A velocity filtered at the main
-/// cut-off (a few Hz) crosses zero cleanly and misses that, which on the simulated rig cost 10–30
-/// points of FP%. 20 Hz keeps the dither and still rejects most encoder quantisation noise.
+/// cut-off (a few Hz) crosses zero cleanly and misses that (docs/identification.md gives what it
+/// costs). 20 Hz keeps the dither and still rejects most encoder quantisation noise.
 pub const DEFAULT_FRICTION_CUTOFF_HZ: f64 = 20.0;
 
 impl Default for PreprocessOptions {
@@ -279,6 +279,20 @@ fn filter_columns(filter: &Butterworth, x: &[f64], dof: usize, periodic: bool) -
     Ok(out)
 }
 
+/// The cut-off for a log of a known trajectory whose highest frequency is `bandwidth_hz`: five
+/// times it, at least 1 Hz. Closed-loop positions carry controller dither that fools a cut-off
+/// read off their spectrum ([`default_cutoff_hz`]), so a log that names its trajectory uses this.
+pub fn cutoff_for_bandwidth(bandwidth_hz: f64) -> f64 {
+    (CUTOFF_PER_BANDWIDTH * bandwidth_hz).max(MIN_CUTOFF_HZ)
+}
+
+/// The cut-off over the highest frequency of the trajectory: the filter then passes the
+/// trajectory's harmonics with a phase-free (forward–backward) gain near one.
+pub const CUTOFF_PER_BANDWIDTH: f64 = 5.0;
+
+/// The lowest cut-off either rule gives (Hz).
+pub const MIN_CUTOFF_HZ: f64 = 1.0;
+
 /// Cut-off from the trajectory's bandwidth: five times the highest frequency that carries at least
 /// 0.1 % of the largest spectral amplitude of any joint's position, kept within [1 Hz, fs/4].
 ///
@@ -316,7 +330,7 @@ pub fn default_cutoff_hz(q: &[f64], dof: usize, fs: f64, periodic: bool) -> f64 
             highest = highest.max(frequencies[i]);
         }
     }
-    (5.0 * highest).clamp(1.0, fs / 4.0)
+    (CUTOFF_PER_BANDWIDTH * highest).clamp(MIN_CUTOFF_HZ, fs / 4.0)
 }
 
 #[cfg(test)]

@@ -67,7 +67,6 @@ impl Plant {
         let mut truth_model = model.clone();
         truth_model.coulomb_shape = CoulombShape::Tanh { epsilon: scenario.truth.coulomb_epsilon };
         let params = true_parameters(model, scenario);
-        let fo = model.friction_offset();
         let payload_body = match &scenario.effects.payload {
             Some(p) => Some(model.bodies.iter().position(|b| b.name == p.body).ok_or_else(|| {
                 let names: Vec<&str> = model.bodies.iter().map(|b| b.name.as_str()).collect();
@@ -79,7 +78,7 @@ impl Plant {
         Ok(Self {
             data: Data::new(&truth_model),
             model: truth_model,
-            friction: params[fo..fo + 2 * n].to_vec(),
+            friction: params[model.layout().friction()].to_vec(),
             params,
             scenario: scenario.clone(),
             drift_scale: 1.0,
@@ -169,10 +168,9 @@ impl Plant {
 
     /// Apply the slow, time-dependent effects (friction drift, payload) for time `t`.
     fn set_time(&mut self, t: f64) {
-        let fo = self.model.friction_offset();
         if let Some(d) = &self.scenario.effects.friction_drift {
             self.drift_scale = 1.0 + d.amplitude * (1.0 - (-t / d.time_constant_s).exp());
-            for (p, f) in self.params[fo..fo + self.friction.len()].iter_mut().zip(&self.friction) {
+            for (p, f) in self.params[self.model.layout().friction()].iter_mut().zip(&self.friction) {
                 *p = f * self.drift_scale;
             }
         }
@@ -282,8 +280,7 @@ impl Plant {
         forward_dynamics_with_armature(
             &self.model,
             &mut self.data,
-            q,
-            qd,
+            (q, qd),
             &self.tau_joint,
             &self.params,
             armature,
@@ -355,9 +352,9 @@ impl Plant {
         let (q, qd) = (&x[..n], &x[n..2 * n]);
         let mut e = kinetic_energy(&self.model, &mut self.data, q, qd, &self.params)
             + potential_energy(&self.model, &mut self.data, q, &self.params);
-        let eo = self.model.elastic_offset();
+        let at = self.model.layout();
         for k in 0..n {
-            e += 0.5 * self.params[eo + k] * q[k] * q[k];
+            e += 0.5 * self.params[at.stiffness(k)] * q[k] * q[k];
             if let Some(a) = &self.armature {
                 e += 0.5 * a[k] * qd[k] * qd[k];
             }

@@ -87,7 +87,7 @@ pub struct RunSpec {
     pub params: Vec<f64>,
     /// Effects a diagnosis added to the controller's model, compensated by the model-based laws.
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub effects: Vec<crate::diagnose::EffectTerm>,
+    pub effects: Vec<crate::effects::EffectTerm>,
     /// The robust gains (also behind inverse dynamics control's); `None` for a robot the paper's
     /// gains do not fit, which only PD can then run.
     #[serde(skip_serializing_if = "Option::is_none")]

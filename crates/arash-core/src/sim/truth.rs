@@ -15,7 +15,7 @@ use rand_distr::{Distribution, StandardNormal};
 
 use super::scenario::Scenario;
 use crate::model::Model;
-use crate::spatial::{params_from_com, rotational_inertia, Mat3, Vec3, BODY_PARAMS};
+use crate::spatial::{params_from_com, rotational_inertia, Mat3, Vec3};
 
 const MASS_SIGMA: f64 = 0.15;
 const COM_SIGMA_M: f64 = 0.003;
@@ -43,7 +43,7 @@ pub fn true_parameters(model: &Model, scenario: &Scenario) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(scenario.seed);
     rng.set_stream(0x7275_7468);
     for b in 0..model.bodies.len() {
-        let p = &mut params[b * BODY_PARAMS..(b + 1) * BODY_PARAMS];
+        let p = &mut params[crate::params::ParamLayout::new(b + 1, 0).body(b)];
         let (m, c, i_c) = body_com(p);
         let (zm, zc, zi) =
             (clipped_normal(&mut rng), Vec3::from_fn(|_, _| clipped_normal(&mut rng)), clipped_normal(&mut rng));
@@ -52,11 +52,11 @@ pub fn true_parameters(model: &Model, scenario: &Scenario) -> Vec<f64> {
         let inertia = i_c * (1.0 + scale * INERTIA_SIGMA * zi);
         p.copy_from_slice(&params_from_com(mass, &com, &inertia));
     }
-    let (fo, eo) = (model.friction_offset(), model.elastic_offset());
+    let at = model.layout();
     for k in 0..model.dof() {
-        params[fo + 2 * k] = scenario.truth.viscous[k];
-        params[fo + 2 * k + 1] = scenario.truth.coulomb[k];
-        params[eo + k] = scenario.truth.stiffness[k];
+        params[at.viscous(k)] = scenario.truth.viscous[k];
+        params[at.coulomb(k)] = scenario.truth.coulomb[k];
+        params[at.stiffness(k)] = scenario.truth.stiffness[k];
     }
     params
 }
@@ -64,7 +64,7 @@ pub fn true_parameters(model: &Model, scenario: &Scenario) -> Vec<f64> {
 /// Add a point mass `mass` at `position` (body frame) to body `b`.
 pub fn add_payload(params: &mut [f64], b: usize, mass: f64, position: &[f64; 3]) {
     let extra = params_from_com(mass, &Vec3::from(*position), &Mat3::zeros());
-    for (p, e) in params[b * BODY_PARAMS..(b + 1) * BODY_PARAMS].iter_mut().zip(extra) {
+    for (p, e) in params[crate::params::body(b)].iter_mut().zip(extra) {
         *p += e;
     }
 }

@@ -62,7 +62,7 @@ pub fn physical_params(model: &Model, rng: &mut ChaCha8Rng) -> Vec<f64> {
 
 /// Parameters with friction and elasticity zeroed: the rigid-body part only.
 pub fn rigid_only(model: &Model, mut p: Vec<f64>) -> Vec<f64> {
-    p[model.friction_offset()..].fill(0.0);
+    p[model.layout().friction().start..].fill(0.0);
     p
 }
 

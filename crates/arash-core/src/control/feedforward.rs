@@ -7,13 +7,8 @@
 //! Two effects are properties of a log, not of the robot, and are left out: `delay` and `drift`
 //! (a function of the log's own clock).
 
-use crate::diagnose::{EffectKind, EffectTerm, TermState};
+use crate::effects::{EffectKind, EffectTerm, TermState};
 use crate::model::Model;
-
-/// Effects with no meaning at run time (see the module documentation).
-pub fn runtime_applicable(kind: EffectKind) -> bool {
-    !matches!(kind, EffectKind::Delay | EffectKind::Drift)
-}
 
 /// The joint-wise effect terms of a model file, with their state, evaluated once per cycle
 /// without allocating.
@@ -29,10 +24,10 @@ impl EffectFeedforward {
     /// as the controller's own Coulomb term does: a sign of a noisy velocity would chatter.
     pub fn new(model: &Model, effects: &[EffectTerm], epsilon: &[f64], params: &mut [f64]) -> Self {
         let mut terms = Vec::new();
-        for term in effects.iter().filter(|t| runtime_applicable(t.kind)) {
+        for term in effects.iter().filter(|t| t.kind.at_run_time()) {
             if term.kind == EffectKind::Payload {
                 if let Some(b) = model.bodies.iter().position(|b| Some(&b.name) == term.body.as_ref()) {
-                    for (p, c) in params[10 * b..10 * b + 4].iter_mut().zip(&term.coefficients) {
+                    for (p, c) in params[model.layout().mass_and_moments(b)].iter_mut().zip(&term.coefficients) {
                         *p += c;
                     }
                 }

@@ -1,0 +1,169 @@
+//! What every step of a diagnosis shares: the prepared logs, which declared columns are fitted,
+//! the joint weights and the blocks of time.
+
+use super::options::{DiagnoseError, DiagnoseOptions};
+use super::prepare::{prepare, term_columns, Prepared};
+use super::problem::{block_split, blocks, Candidate, HeldOut, Problem};
+use super::regression::{self, least_squares, residual, Column, Rows};
+use crate::base_parameters::BaseParameters;
+use crate::effects::EffectTerm;
+use crate::identify::{IdentifyError, Log};
+use crate::model::Model;
+use crate::model_file::ModelFile;
+
+/// The prepared logs and what every step of the search shares: which declared columns are
+/// fitted, the joint weights and the blocks of time.
+pub(super) struct Context<'a> {
+    pub(super) model: &'a Model,
+    pub(super) base: &'a BaseParameters,
+    pub(super) given: Option<&'a ModelFile>,
+    pub(super) options: &'a DiagnoseOptions,
+    pub(super) train: Prepared,
+    pub(super) validation: Option<Prepared>,
+    /// Whether the declared base parameters are refitted (no model given, or `refit`).
+    pub(super) refit: bool,
+    /// Which declared columns are fitted (the others are held at the given model's values).
+    pub(super) free: Vec<bool>,
+    /// Per joint, 1 / RMS of the declared model's residual: N·m and N do not mix.
+    pub(super) weights: Vec<f64>,
+    /// Block index of each kept training sample, and the number of blocks.
+    pub(super) block: Vec<usize>,
+    pub(super) block_count: usize,
+}
+
+impl<'a> Context<'a> {
+    pub(super) fn new(
+        model: &'a Model,
+        base: &'a BaseParameters,
+        train: Log,
+        validation: Option<Log>,
+        given: Option<&'a ModelFile>,
+        options: &'a DiagnoseOptions,
+    ) -> Result<Self, DiagnoseError> {
+        let margin = options.max_delay_s;
+        let train = prepare(model, base, train, options, margin).map_err(DiagnoseError::Training)?;
+        let validation = validation
+            .map(|v| prepare(model, base, v, options, margin))
+            .transpose()
+            .map_err(DiagnoseError::Validation)?;
+        if let Some(g) = given {
+            g.controller_parameters(model).map_err(IdentifyError::from)?;
+            if g.base_independent != base.independent {
+                return Err(DiagnoseError::BaseMismatch);
+            }
+        }
+        let refit = given.is_none() || options.refit;
+        // Against a given model, friction is refitted all the same: it drifts with temperature,
+        // and its coefficients depend on how the velocity that switches it was estimated.
+        let friction = model.layout().friction();
+        let free = base.independent.iter().map(|j| refit || (friction.contains(j) && !options.hold_friction)).collect();
+        let (block, block_count) = blocks(&train, options.block_s);
+        let mut ctx = Self {
+            model,
+            base,
+            given,
+            options,
+            train,
+            validation,
+            refit,
+            free,
+            weights: vec![1.0; model.dof()],
+            block,
+            block_count,
+        };
+        ctx.weights = ctx.joint_weights()?;
+        Ok(ctx)
+    }
+
+    /// The largest shift of the delay search (samples).
+    pub(super) fn max_shift(&self) -> isize {
+        (self.options.max_delay_s * self.train.fs).round() as isize
+    }
+
+    /// What the given model's held parameters and effects predict on `data` (zero when refitting).
+    pub(super) fn fixed_prediction(&self, data: &Prepared) -> Vec<f64> {
+        let dof = data.dof;
+        let mut pred = vec![0.0; data.samples() * dof];
+        if let (Some(g), false) = (self.given, self.refit) {
+            for ((c, b), _) in data.declared.iter().zip(&g.beta).zip(&self.free).filter(|(_, f)| !**f) {
+                regression::axpy(&mut pred, *b, c, dof);
+            }
+            for term in &g.effects {
+                for (c, x) in term_columns(self.model, term, data).iter().zip(&term.coefficients) {
+                    regression::axpy(&mut pred, *x, c, dof);
+                }
+            }
+        }
+        pred
+    }
+
+    /// 1 / RMS per joint of the declared model's unweighted residual on the training log.
+    fn joint_weights(&self) -> Result<Vec<f64>, DiagnoseError> {
+        let dof = self.model.dof();
+        let unit = self.problem(&self.train, 0);
+        let cols: Vec<&Column> = unit.free_columns().collect();
+        let x = least_squares(&cols, &unit.y, dof, Rows::All).ok_or(DiagnoseError::Singular)?;
+        let e = residual(&cols, &x, &unit.y, dof);
+        let n = self.train.samples() as f64;
+        Ok((0..dof)
+            .map(|k| {
+                let rms = (e.iter().skip(k).step_by(dof).map(|v| v * v).sum::<f64>() / n).sqrt();
+                if rms > 0.0 {
+                    1.0 / rms
+                } else {
+                    1.0
+                }
+            })
+            .collect())
+    }
+
+    /// The weighted problem on `data` with the torque shifted by `delay` samples.
+    pub(super) fn problem(&self, data: &Prepared, delay: isize) -> Problem {
+        Problem::new(data, data.tau(delay), self.fixed_prediction(data), &self.weights, &self.free)
+    }
+
+    /// Where held-out errors are measured, with the torque shifted by `delay` samples.
+    pub(super) fn heldout(&self, delay: isize) -> HeldOut {
+        match &self.validation {
+            Some(v) => HeldOut::Validation(self.problem(v, delay)),
+            None => {
+                let (train, test) = block_split(&self.block);
+                HeldOut::Blocks { train, test }
+            }
+        }
+    }
+
+    /// Each template's weighted columns on the training log (and the validation log); templates
+    /// without columns on this data are dropped.
+    pub(super) fn pool(&self, templates: Vec<EffectTerm>, problem: &Problem, heldout: &HeldOut) -> Vec<Candidate> {
+        parallel_map(templates, |term| {
+            let columns = problem.weighted(term_columns(self.model, &term, &self.train));
+            let validation = match (heldout, &self.validation) {
+                (HeldOut::Validation(p), Some(v)) => p.weighted(term_columns(self.model, &term, v)),
+                _ => vec![],
+            };
+            Candidate { term, columns, validation }
+        })
+        .into_iter()
+        .filter(|c| !c.columns.is_empty())
+        .collect()
+    }
+}
+
+/// `f` over `items` on every core, in order. Candidates are independent of each other, and their
+/// columns and tests are most of a diagnosis's time.
+pub(super) fn parallel_map<T: Send, R: Send>(items: Vec<T>, f: impl Fn(T) -> R + Sync) -> Vec<R> {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(items.len().max(1));
+    let per = items.len().div_ceil(threads).max(1);
+    let mut chunks: Vec<Vec<T>> = Vec::new();
+    let mut items = items.into_iter().peekable();
+    while items.peek().is_some() {
+        chunks.push(items.by_ref().take(per).collect());
+    }
+    std::thread::scope(|scope| {
+        let f = &f;
+        let handles: Vec<_> =
+            chunks.into_iter().map(|chunk| scope.spawn(move || chunk.into_iter().map(f).collect::<Vec<R>>())).collect();
+        handles.into_iter().flat_map(|h| h.join().expect("a diagnosis worker panicked")).collect()
+    })
+}

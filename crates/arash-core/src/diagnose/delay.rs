@@ -1,0 +1,130 @@
+//! The delay search: an integer shift of the torque against the position, searched before any
+//! other effect because an unmodelled delay otherwise masquerades as velocity-dependent
+//! friction.
+
+use super::context::Context;
+use super::findings::{rejection, Finding, Rejection, RejectionReason};
+use super::prepare::Prepared;
+use super::problem::{block_split, sse, Problem};
+use super::regression::{gram, least_squares, residual, rhs, solve_scaled, test_group, Column, Rows};
+use crate::effects::{EffectKind, EffectTerm};
+use crate::identify::preprocess::central_difference;
+
+/// Search an integer shift of the torque against the position, and accept it only if it is
+/// significant (a block Wald test of the linearised delay, the derivative of the predicted
+/// torque) and cuts the held-out error by at least `min_gain`. Returns the shift to apply.
+pub(super) fn search_delay(ctx: &Context) -> (isize, Result<Finding, Rejection>) {
+    match delay_finding(ctx) {
+        Ok(f) => (f.term.scale.unwrap_or(0.0) as isize, Ok(f)),
+        Err((shift, r)) if shift.abs() <= ALIGNMENT_SAMPLES => (shift, Err(r)),
+        Err((_, r)) => (0, Err(r)),
+    }
+}
+
+/// Shifts up to this many samples are alignment, not an effect: a log whose torque was held over
+/// the cycle after the position was read (zero-order hold, as both the simulator and the daemon
+/// log) is misaligned by up to a sample by construction. They are applied silently.
+pub const ALIGNMENT_SAMPLES: isize = 1;
+
+// Called once per diagnosis, so the large error variant costs nothing worth boxing for.
+#[allow(clippy::result_large_err)]
+fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
+    let (model, train, validation, options) = (ctx.model, &ctx.train, ctx.validation.as_ref(), ctx.options);
+    let (weights, free, block, block_count) = (&ctx.weights[..], &ctx.free[..], &ctx.block[..], ctx.block_count);
+    let max_shift = ctx.max_shift();
+    let fixed_prediction = |data: &Prepared| ctx.fixed_prediction(data);
+    let dof = train.dof;
+    let mut term = EffectTerm::new(EffectKind::Delay, None);
+    term.columns = vec!["shift".into()];
+    let reject = |term: &EffectTerm, reason: RejectionReason, p: Option<f64>, gain: Option<f64>| {
+        rejection(model, term, reason, p, gain)
+    };
+    let fixed = fixed_prediction(train);
+    // One weighted problem; only its target moves with the shift.
+    let zero = Problem::new(train, train.tau(0), fixed.clone(), weights, free);
+    let target = |data: &Prepared, fixed: &[f64], d: isize| -> Vec<f64> {
+        data.tau(d).iter().zip(fixed).enumerate().map(|(i, (t, f))| (t - f) * weights[i % dof]).collect()
+    };
+    let declared_refs: Vec<&Column> = zero.free_columns().collect();
+    let g = gram(&declared_refs, dof, Rows::All);
+    let total_sse = |y: &[f64]| -> f64 {
+        let x = solve_scaled(&g, &rhs(&declared_refs, y, dof, Rows::All))
+            .map_or_else(|| vec![0.0; declared_refs.len()], |x| x.iter().copied().collect());
+        sse(&declared_refs, &x, y, dof, Rows::All).iter().sum()
+    };
+    let scores: Vec<f64> = (-max_shift..=max_shift).map(|d| total_sse(&target(train, &fixed, d))).collect();
+    let best = (0..scores.len()).min_by(|&a, &b| scores[a].total_cmp(&scores[b])).unwrap_or(max_shift as usize);
+    let shift = best as isize - max_shift;
+    term.scale = Some(shift as f64);
+    if shift == 0 {
+        return Err((0, reject(&term, RejectionReason::NoMisalignment, None, None)));
+    }
+    if shift.abs() <= ALIGNMENT_SAMPLES {
+        return Err((shift, reject(&term, RejectionReason::Alignment { shift }, None, None)));
+    }
+    if shift.abs() == max_shift {
+        return Err((0, reject(&term, RejectionReason::AtSearchEdge { max_shift }, None, None)));
+    }
+    // The linearised test: τ(t − d) ≈ τ(t) − d·τ̇(t).
+    let x0 = least_squares(&declared_refs, &zero.y, dof, Rows::All).unwrap_or_else(|| vec![0.0; declared_refs.len()]);
+    let e0 = residual(&declared_refs, &x0, &zero.y, dof);
+    let predicted: Vec<f64> = zero.y.iter().zip(&e0).map(|(y, e)| y - e).collect();
+    let h = (train.kept[1] - train.kept[0]) as f64 / train.fs;
+    let column = Column::dense(central_difference(&predicted, dof, h, false), dof);
+    let test = test_group(&declared_refs, &g, &e0, &[&column], block, block_count, dof);
+    let Some(test) = test else {
+        return Err((0, reject(&term, RejectionReason::Untestable, None, None)));
+    };
+    let gains: Vec<f64> = match validation {
+        Some(v) => {
+            let vfixed = fixed_prediction(v);
+            let vzero = Problem::new(v, v.tau(0), vfixed.clone(), weights, free);
+            let vrefs: Vec<&Column> = vzero.free_columns().collect();
+            let at = |d: isize| -> Vec<f64> {
+                let x = least_squares(&declared_refs, &target(train, &fixed, d), dof, Rows::All)
+                    .unwrap_or_else(|| vec![0.0; declared_refs.len()]);
+                sse(&vrefs, &x, &target(v, &vfixed, d), dof, Rows::All)
+            };
+            let (b, a) = (at(0), at(shift));
+            b.iter().zip(&a).map(|(b, a)| 1.0 - a / b).collect()
+        }
+        None => {
+            let (train_rows, test_rows) = block_split(block);
+            let at = |d: isize| -> Vec<f64> {
+                let y = target(train, &fixed, d);
+                let x = least_squares(&declared_refs, &y, dof, Rows::Where(&train_rows))
+                    .unwrap_or_else(|| vec![0.0; declared_refs.len()]);
+                sse(&declared_refs, &x, &y, dof, Rows::Where(&test_rows))
+            };
+            let (b, a) = (at(0), at(shift));
+            b.iter().zip(&a).map(|(b, a)| 1.0 - a / b).collect()
+        }
+    };
+    let gain = gains.iter().sum::<f64>() / dof as f64;
+    let p_value = Some(test.p_value);
+    if test.p_value > options.alpha {
+        let reason = RejectionReason::DelayNotSignificant { p_value: test.p_value, alpha: options.alpha };
+        return Err((0, reject(&term, reason, p_value, Some(gain))));
+    }
+    if gain < options.min_gain {
+        let reason = RejectionReason::DelaySmallGain { shift, gain, min_gain: options.min_gain };
+        return Err((0, reject(&term, reason, p_value, Some(gain))));
+    }
+    term.coefficients = vec![shift as f64 / train.fs];
+    term.sigma = vec![test.sigma[0]];
+    Ok(Finding {
+        name: "delay".into(),
+        joints: (0..dof).collect(),
+        label: term.describe(&model.joint_names()),
+        term,
+        statistic: test.f_statistic,
+        p_value: test.p_value,
+        threshold: options.alpha,
+        heldout_gain: gain,
+        heldout_gain_per_joint: gains,
+        aliases: vec![],
+        mass_kg: None,
+        body: None,
+        round: 0,
+    })
+}

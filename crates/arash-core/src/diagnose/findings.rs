@@ -1,0 +1,276 @@
+//! What a diagnosis reports: the effects accepted with their evidence, the candidates rejected
+//! with a typed reason, the errors before and after, and the settings it ran with.
+
+use serde::{Deserialize, Serialize};
+
+use crate::effects::{EffectTerm, NotSearched};
+use crate::model::Model;
+use crate::model_file::{Metrics, ModelFile};
+
+/// An accepted effect and the evidence for it.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Finding {
+    /// The catalogue identifier.
+    pub name: String,
+    /// Joints it acts on (0-based).
+    pub joints: Vec<usize>,
+    /// Readable: identifier, joint and variant.
+    pub label: String,
+    /// The term as written into the model (coefficients and their σ inside).
+    pub term: EffectTerm,
+    /// Hotelling-scaled block Wald statistic, F(k, B − k).
+    pub statistic: f64,
+    pub p_value: f64,
+    /// The Holm threshold the p-value had to pass.
+    pub threshold: f64,
+    /// Relative cut of the held-out squared error, mean over `joints`.
+    pub heldout_gain: f64,
+    /// Per joint of the robot (0 where it does not act).
+    pub heldout_gain_per_joint: Vec<f64>,
+    /// Other candidates that explain the same thing on this data and cannot be told apart.
+    pub aliases: Vec<String>,
+    /// For a payload: the mass (kg) and the body.
+    pub mass_kg: Option<f64>,
+    pub body: Option<String>,
+    /// Search round in which it was accepted (0: the delay search).
+    pub round: usize,
+}
+
+/// A candidate that was not accepted, and why.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Rejection {
+    pub name: String,
+    pub joints: Vec<usize>,
+    pub label: String,
+    pub reason: RejectionReason,
+    pub p_value: Option<f64>,
+    pub heldout_gain: Option<f64>,
+}
+
+/// Why a candidate was not accepted. Figures are those of its test in the round it fell out.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "code", rename_all = "snake_case")]
+pub enum RejectionReason {
+    /// The effect was not searched on this joint.
+    NotSearched { why: NotSearched },
+    /// The current model already explains its columns (VIF above the limit).
+    NotIdentifiable { vif: f64, max_vif: f64 },
+    /// Its p-value is above Holm's threshold in this round.
+    NotSignificant { p_value: f64, threshold: f64, round: usize },
+    /// Significant, but its coefficient has the sign the physical effect cannot have.
+    WrongSign { p_value: f64, coefficient: f64 },
+    /// A cable term where the joint's fitted Coulomb friction is not positive.
+    NoFrictionForACable { p_value: f64, coulomb: f64 },
+    /// A cable term that carries too little of the joint's Coulomb friction to be the cable.
+    TooLittleFrictionForACable { p_value: f64, share: f64, coefficient: f64, coulomb: f64 },
+    /// Significant, but it cuts the held-out error by less than `min_gain`.
+    SmallGain { p_value: f64, gain: f64, min_gain: f64 },
+    /// The accepted effect (`label`) explains it on this data.
+    AliasOf { label: String },
+    /// The search stopped at `max_effects` first.
+    NotReached,
+    /// The best shift of the torque is 0 samples.
+    NoMisalignment,
+    /// The best shift is within a zero-order-hold log's own misalignment; applied as alignment.
+    Alignment { shift: isize },
+    /// The best shift is at the edge of the search.
+    AtSearchEdge { max_shift: isize },
+    /// The predicted torque does not change, so a delay cannot be tested.
+    Untestable,
+    /// The delay's p-value is above α.
+    DelayNotSignificant { p_value: f64, alpha: f64 },
+    /// A shift that cuts the held-out error by less than `min_gain`.
+    DelaySmallGain { shift: isize, gain: f64, min_gain: f64 },
+}
+
+impl RejectionReason {
+    /// The reason's identifier, as in the JSON (`code`).
+    pub fn code(&self) -> &'static str {
+        match self {
+            Self::NotSearched { .. } => "not_searched",
+            Self::NotIdentifiable { .. } => "not_identifiable",
+            Self::NotSignificant { .. } => "not_significant",
+            Self::WrongSign { .. } => "wrong_sign",
+            Self::NoFrictionForACable { .. } => "no_friction_for_a_cable",
+            Self::TooLittleFrictionForACable { .. } => "too_little_friction_for_a_cable",
+            Self::SmallGain { .. } => "small_gain",
+            Self::AliasOf { .. } => "alias_of",
+            Self::NotReached => "not_reached",
+            Self::NoMisalignment => "no_misalignment",
+            Self::Alignment { .. } => "alignment",
+            Self::AtSearchEdge { .. } => "at_search_edge",
+            Self::Untestable => "untestable",
+            Self::DelayNotSignificant { .. } => "delay_not_significant",
+            Self::DelaySmallGain { .. } => "delay_small_gain",
+        }
+    }
+}
+
+impl std::fmt::Display for RejectionReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::NotSearched { why } => write!(f, "{why}"),
+            Self::NotIdentifiable { vif, max_vif } => {
+                write!(f, "not identifiable on this data: the model already explains it (VIF {vif:.1e} > {max_vif})")
+            }
+            Self::NotSignificant { p_value, threshold, round } => {
+                write!(f, "not significant: p = {p_value:.2e} above Holm's threshold {threshold:.2e} in round {round}")
+            }
+            Self::WrongSign { p_value, coefficient } => write!(
+                f,
+                "significant (p = {p_value:.2e}) but with the wrong sign for this effect (coefficient {coefficient:.3e}): some other error correlates with it"
+            ),
+            Self::NoFrictionForACable { p_value, coulomb } => write!(
+                f,
+                "significant (p = {p_value:.2e}) but the joint's fitted Coulomb friction ({coulomb:.3e}) is not positive: no friction for a cable to carry"
+            ),
+            Self::TooLittleFrictionForACable { p_value, share, coefficient, coulomb } => write!(
+                f,
+                "significant (p = {p_value:.2e}) but carries {:.0} % of the joint's Coulomb friction ({coefficient:.3e} against {coulomb:.3e}); a cable would carry most of it",
+                100.0 * share
+            ),
+            Self::SmallGain { p_value, gain, min_gain } => write!(
+                f,
+                "significant (p = {p_value:.2e}) but cuts the held-out error by only {:.1} % (< {:.1} %)",
+                100.0 * gain,
+                100.0 * min_gain
+            ),
+            Self::AliasOf { label } => write!(f, "indistinguishable on this data from the accepted {label}"),
+            Self::NotReached => f.write_str("not reached: the search stopped at max_effects"),
+            Self::NoMisalignment => f.write_str("no misalignment: the best shift of the torque is 0 samples"),
+            Self::Alignment { shift } => write!(
+                f,
+                "the best shift, {shift} sample(s), is within a zero-order-hold log's own misalignment; applied as alignment"
+            ),
+            Self::AtSearchEdge { max_shift } => {
+                write!(f, "the best shift is at the edge of the search (±{max_shift} samples); widen max_delay_s")
+            }
+            Self::Untestable => f.write_str("the predicted torque does not change: a delay cannot be tested"),
+            Self::DelayNotSignificant { p_value, alpha } => {
+                write!(f, "not significant: p = {p_value:.2e} > α = {alpha}")
+            }
+            Self::DelaySmallGain { shift, gain, min_gain } => write!(
+                f,
+                "a shift of {shift} samples cuts the held-out error by only {:.1} % (< {:.1} %)",
+                100.0 * gain,
+                100.0 * min_gain
+            ),
+        }
+    }
+}
+
+/// Fit quality per joint on the training data and on the held-out data.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct ErrorSummary {
+    pub training: Metrics,
+    pub heldout: Metrics,
+}
+
+/// Settings the diagnosis ran with.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct DiagnoseSettings {
+    pub cutoff_hz: f64,
+    pub decimate: usize,
+    pub block_s: f64,
+    pub blocks: usize,
+    pub alpha: f64,
+    pub min_gain: f64,
+    pub max_vif: f64,
+    pub max_delay_s: f64,
+    /// Whether the declared base parameters were refitted (no model given, or `refit`).
+    pub refit: bool,
+    /// What the held-out errors are measured on.
+    pub heldout: String,
+    pub candidates: usize,
+}
+
+/// Signals behind the residual plots: training samples as used (row-major samples × dof, SI).
+#[derive(Clone, Debug, Default)]
+pub struct Series {
+    pub t: Vec<f64>,
+    pub q: Vec<f64>,
+    pub qd: Vec<f64>,
+    pub qdd: Vec<f64>,
+    pub tau: Vec<f64>,
+    pub residual_before: Vec<f64>,
+    pub residual_after: Vec<f64>,
+    /// Each accepted effect's fitted contribution (same layout), in acceptance order.
+    pub contributions: Vec<Vec<f64>>,
+}
+
+/// What [`diagnose`] found.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Diagnosis {
+    /// `"arash-diagnosis/1"`.
+    pub format: String,
+    pub robot_name: String,
+    pub joint_names: Vec<String>,
+    /// Whether each joint is prismatic (units m, N) rather than revolute (rad, N·m).
+    pub prismatic: Vec<bool>,
+    pub accepted: Vec<Finding>,
+    pub rejected: Vec<Rejection>,
+    pub before: ErrorSummary,
+    pub after: ErrorSummary,
+    pub settings: DiagnoseSettings,
+    /// The updated model: the declared parameters (refitted or as given) plus the effects.
+    pub model: ModelFile,
+    #[serde(skip)]
+    pub series: Series,
+}
+
+pub(super) fn effect_joints(term: &EffectTerm, dof: usize) -> Vec<usize> {
+    match term.joint {
+        Some(k) => vec![k],
+        None => (0..dof).collect(),
+    }
+}
+
+pub(super) fn rejection(
+    model: &Model,
+    term: &EffectTerm,
+    reason: RejectionReason,
+    p_value: Option<f64>,
+    gain: Option<f64>,
+) -> Rejection {
+    Rejection {
+        name: term.kind.id().into(),
+        joints: effect_joints(term, model.dof()),
+        label: term.describe(&model.joint_names()),
+        reason,
+        p_value,
+        heldout_gain: gain,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `code()` is the JSON tag, so that Python and the JSON name a reason alike.
+    #[test]
+    fn a_reasons_code_is_its_json_tag() {
+        let reasons = [
+            RejectionReason::NotSearched { why: NotSearched::TransmissionUnknown },
+            RejectionReason::NotIdentifiable { vif: 2e3, max_vif: 1e3 },
+            RejectionReason::NotSignificant { p_value: 0.2, threshold: 0.01, round: 1 },
+            RejectionReason::WrongSign { p_value: 1e-5, coefficient: -1.0 },
+            RejectionReason::NoFrictionForACable { p_value: 1e-5, coulomb: -0.1 },
+            RejectionReason::TooLittleFrictionForACable { p_value: 1e-5, share: 0.1, coefficient: 0.01, coulomb: 0.1 },
+            RejectionReason::SmallGain { p_value: 1e-5, gain: 0.05, min_gain: 0.2 },
+            RejectionReason::AliasOf { label: "offset on yaw".into() },
+            RejectionReason::NotReached,
+            RejectionReason::NoMisalignment,
+            RejectionReason::Alignment { shift: 1 },
+            RejectionReason::AtSearchEdge { max_shift: 20 },
+            RejectionReason::Untestable,
+            RejectionReason::DelayNotSignificant { p_value: 0.5, alpha: 0.01 },
+            RejectionReason::DelaySmallGain { shift: 3, gain: 0.01, min_gain: 0.2 },
+        ];
+        for r in reasons {
+            let json: serde_json::Value = serde_json::to_value(&r).unwrap();
+            assert_eq!(json["code"], r.code(), "{json}");
+            assert_eq!(serde_json::from_value::<RejectionReason>(json).unwrap(), r);
+            assert!(!r.to_string().is_empty());
+        }
+    }
+}

@@ -1,0 +1,136 @@
+//! The settings of a diagnosis: one home for its defaults, and their validation.
+
+use crate::effects::EffectKind;
+use crate::identify::preprocess::PreprocessError;
+use crate::identify::IdentifyError;
+
+/// Settings of [`super::diagnose`]; `Default` gives the documented defaults.
+#[derive(Clone, Debug)]
+pub struct DiagnoseOptions {
+    /// Low-pass cut-off of every signal (Hz). Higher than identification's, so that ripple and
+    /// friction transitions survive; capped at a fifth of the sample rate.
+    pub cutoff_hz: f64,
+    /// Keep every n-th filtered sample (`None`: about five samples per cut-off period).
+    pub decimate: Option<usize>,
+    /// Length of the blocks of time that are the unit of the Wald test and of the held-out split
+    /// (s).
+    pub block_s: f64,
+    /// Family-wise error rate of each round (Holm).
+    pub alpha: f64,
+    /// Smallest relative cut of the held-out squared error (mean over the joints an effect acts
+    /// on) worth a term.
+    pub min_gain: f64,
+    /// A candidate whose columns the current model explains beyond this VIF is not identifiable.
+    pub max_vif: f64,
+    /// Largest torque–position misalignment searched (s).
+    pub max_delay_s: f64,
+    /// Stop after this many accepted effects.
+    pub max_effects: usize,
+    /// Joint motion per motor radian, for the cogging search (`None`: cogging is not searched).
+    pub transmission: Option<Vec<f64>>,
+    /// Ripple periods per motor revolution tried by the cogging search.
+    pub cogging_periods: Vec<f64>,
+    /// The effects searched (default: all of them).
+    pub effects: Vec<EffectKind>,
+    /// Coulomb friction in the declared model switches as `tanh(q̇/ε)` with this ε (rad/s or
+    /// m/s); `None` keeps the model's own shape. A sharp `sign(q̇)` of an estimated velocity
+    /// flips at full amplitude on every noisy zero crossing, which the measured friction does
+    /// not do, and leaves a residual that looks like Stribeck friction.
+    pub coulomb_epsilon: Option<f64>,
+    /// Cut-off of the velocity that switches friction (Hz); `None`: identification's default.
+    pub friction_cutoff_hz: Option<f64>,
+    /// With a given model: hold its friction too (default: refit friction, which drifts with
+    /// temperature and depends on how its velocity was estimated).
+    pub hold_friction: bool,
+    /// With a given model: refit its base parameters together with the effects (default: keep
+    /// them, so that a payload or other change against that model shows).
+    pub refit: bool,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        Self {
+            cutoff_hz: 20.0,
+            decimate: None,
+            block_s: 2.0,
+            alpha: 0.01,
+            min_gain: 0.2,
+            max_vif: 1000.0,
+            max_delay_s: 0.02,
+            max_effects: 6,
+            transmission: None,
+            cogging_periods: (1..=8).map(f64::from).collect(),
+            effects: EffectKind::ALL.to_vec(),
+            hold_friction: false,
+            coulomb_epsilon: Some(1e-3),
+            friction_cutoff_hz: None,
+            refit: false,
+        }
+    }
+}
+
+impl DiagnoseOptions {
+    /// Check every setting before any work starts; `dof` is the robot's.
+    pub fn validate(&self, dof: usize) -> Result<(), OptionsError> {
+        let positive = [
+            ("cutoff_hz", self.cutoff_hz),
+            ("block_s", self.block_s),
+            ("max_vif", self.max_vif),
+            ("coulomb_epsilon", self.coulomb_epsilon.unwrap_or(1.0)),
+            ("friction_cutoff_hz", self.friction_cutoff_hz.unwrap_or(1.0)),
+        ];
+        if let Some((name, value)) = positive.into_iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
+            return Err(OptionsError::NotPositive { name, value });
+        }
+        if !(self.max_delay_s.is_finite() && self.max_delay_s >= 0.0) {
+            return Err(OptionsError::NotPositive { name: "max_delay_s", value: self.max_delay_s });
+        }
+        if !(self.alpha > 0.0 && self.alpha < 1.0) {
+            return Err(OptionsError::OutOfRange { name: "alpha", value: self.alpha, range: "(0, 1)" });
+        }
+        if !(0.0..1.0).contains(&self.min_gain) {
+            return Err(OptionsError::OutOfRange { name: "min_gain", value: self.min_gain, range: "[0, 1)" });
+        }
+        if self.decimate == Some(0) {
+            return Err(OptionsError::OutOfRange { name: "decimate", value: 0.0, range: "≥ 1" });
+        }
+        if let Some(t) = &self.transmission {
+            if t.len() != dof || t.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+                return Err(OptionsError::Transmission { dof, got: t.clone() });
+            }
+        }
+        if let Some(&n) = self.cogging_periods.iter().find(|n| !(n.is_finite() && **n > 0.0)) {
+            return Err(OptionsError::NotPositive { name: "cogging_periods", value: n });
+        }
+        Ok(())
+    }
+}
+
+/// A setting of [`DiagnoseOptions`] that cannot be used, named.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum OptionsError {
+    #[error("{name} must be positive, got {value}")]
+    NotPositive { name: &'static str, value: f64 },
+    #[error("{name} must lie in {range}, got {value}")]
+    OutOfRange { name: &'static str, value: f64, range: &'static str },
+    #[error("transmission needs {dof} positive values, one per joint; got {got:?}")]
+    Transmission { dof: usize, got: Vec<f64> },
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum DiagnoseError {
+    #[error("training log: {0}")]
+    Training(PreprocessError),
+    #[error("validation log: {0}")]
+    Validation(PreprocessError),
+    #[error(transparent)]
+    Identify(#[from] IdentifyError),
+    #[error(transparent)]
+    Options(#[from] OptionsError),
+    #[error("the given model's base parameters were chosen differently from this robot's; identify it again with this version")]
+    BaseMismatch,
+    #[error(
+        "the declared model cannot be fitted to this log: its columns are linearly dependent here (too little motion?)"
+    )]
+    Singular,
+}

@@ -1,0 +1,104 @@
+//! The updated model and the signals behind the plots, once the search is over.
+
+use super::findings::Series;
+use super::options::{DiagnoseError, DiagnoseOptions};
+use super::prepare::Prepared;
+use super::problem::{Candidate, Problem};
+use super::regression::{self, Column};
+use crate::base_parameters::BaseParameters;
+use crate::identify::IdentifyError;
+use crate::model::Model;
+use crate::model_file::{IdentifyMethod, ModelFile};
+
+/// The model file for a refitted declared model: OLS on the samples the diagnosis used, with the
+/// effects found taken out of the torque first (their coefficients are set after). σ%, the fit
+/// and the condition number come from that fit, as `arash identify` reports them.
+pub(super) fn declared_model(
+    model: &Model,
+    base: &BaseParameters,
+    urdf: &str,
+    data: &Prepared,
+    series: &Series,
+    options: &DiagnoseOptions,
+    samples_in: usize,
+) -> Result<ModelFile, DiagnoseError> {
+    use crate::identify::estimate::{fit_stacked, Method};
+    use crate::model_file::{DataSummary, Fitted, Settings};
+    use crate::physical::nearest_standard_parameters;
+    let dof = data.dof;
+    let rows = data.samples() * dof;
+    let w = faer::Mat::<f64>::from_fn(rows, data.declared.len(), |i, j| data.declared[j].at(i / dof, i % dof, dof));
+    let mut tau = series.tau.clone();
+    for contribution in &series.contributions {
+        tau.iter_mut().zip(contribution).for_each(|(t, c)| *t -= c);
+    }
+    let stride = data.stride();
+    let block = ((options.block_s * data.fs / stride as f64).round() as usize).max(1);
+    let fit = fit_stacked(&w, &tau, dof, base, Method::Ols, block)
+        .map_err(|e| DiagnoseError::Identify(IdentifyError::Estimate(e)))?;
+    let nearest = nearest_standard_parameters(model, base, &fit.beta);
+    let fitted = Fitted {
+        beta: fit.beta.clone(),
+        sigma_percent: fit.sigma_percent.clone(),
+        params: None,
+        training: fit.metrics.clone().into(),
+        training_ols: fit.metrics.clone().into(),
+        min_pseudo_inertia_eigenvalue: crate::physical::min_pseudo_inertia_eigenvalues(model, &nearest),
+        condition_number: fit.condition_number,
+    };
+    Ok(ModelFile::new(
+        (model, base, urdf),
+        fitted,
+        Settings {
+            method: IdentifyMethod::Ols,
+            periods: None,
+            cutoff_hz: data.pre.cutoff_hz,
+            order: data.pre.order,
+            decimate: stride,
+            pull: 0.0,
+            stiffness_bounds: (None, None),
+        },
+        DataSummary {
+            sources: vec![],
+            samples_in,
+            samples_used: data.samples(),
+            sample_rate_hz: data.fs,
+            periods_averaged: 1,
+        },
+    ))
+}
+
+/// The signals behind the plots: the training samples as used, the residual of the declared
+/// model (`before`: its columns and coefficients) and of the final one (`after`), and each
+/// accepted effect's contribution.
+pub(super) fn series(
+    data: &Prepared,
+    problem: &Problem,
+    (before_cols, x_before): (&[&Column], &[f64]),
+    (after_cols, x_after): (&[&Column], &[f64]),
+    pool: &[Candidate],
+    chosen: &[usize],
+) -> Series {
+    let dof = data.dof;
+    let mut contributions = Vec::new();
+    let mut offset = after_cols.len() - chosen.iter().map(|&i| pool[i].columns.len()).sum::<usize>();
+    for &i in chosen {
+        let mut v = vec![0.0; data.samples() * dof];
+        for (c, x) in pool[i].columns.iter().zip(&x_after[offset..]) {
+            regression::axpy(&mut v, *x, c, dof);
+        }
+        v.iter_mut().enumerate().for_each(|(r, x)| *x /= problem.weights[r % dof]);
+        offset += pool[i].columns.len();
+        contributions.push(v);
+    }
+    Series {
+        t: data.kept.iter().map(|&i| data.pre.t[i]).collect(),
+        q: data.at_kept(&data.pre.q),
+        qd: data.at_kept(&data.pre.qd),
+        qdd: data.at_kept(&data.pre.qdd),
+        tau: problem.tau.clone(),
+        residual_before: problem.residual(before_cols, x_before),
+        residual_after: problem.residual(after_cols, x_after),
+        contributions,
+    }
+}

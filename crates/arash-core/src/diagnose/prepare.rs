@@ -1,0 +1,208 @@
+//! A log made ready for the diagnosis: filtered, differentiated, trimmed and sampled, with the
+//! declared model's columns and each candidate's columns on it.
+
+use super::options::DiagnoseOptions;
+use super::regression::Column;
+use crate::base_parameters::BaseParameters;
+use crate::data::Data;
+use crate::effects::{EffectKind, EffectTerm, TermState};
+use crate::identify::preprocess::{preprocess, PreprocessError, PreprocessOptions, Preprocessed};
+use crate::identify::Log;
+use crate::model::{CoulombShape, Model};
+use crate::regressor::regressor;
+
+/// A log filtered and sampled for the diagnosis, with the declared model's columns.
+pub(super) struct Prepared {
+    pub(super) dof: usize,
+    pub(super) fs: f64,
+    pub(super) pre: Preprocessed,
+    pub(super) q_raw: Vec<f64>,
+    /// Full-rate sample indices used, every `stride`-th inside the trimmed ends.
+    pub(super) kept: Vec<usize>,
+    /// Base-parameter columns, unweighted.
+    pub(super) declared: Vec<Column>,
+    /// Mass and first-moment columns of each body with mass: (body, columns).
+    pub(super) bodies: Vec<(usize, Vec<Column>)>,
+}
+
+impl Prepared {
+    pub(super) fn samples(&self) -> usize {
+        self.kept.len()
+    }
+
+    /// Full-rate samples between kept ones.
+    pub(super) fn stride(&self) -> usize {
+        self.kept.get(1).map_or(1, |k| k - self.kept[0])
+    }
+
+    /// The filtered torque at the kept samples, shifted by `delay` full-rate samples.
+    pub(super) fn tau(&self, delay: isize) -> Vec<f64> {
+        let dof = self.dof;
+        let mut out = Vec::with_capacity(self.kept.len() * dof);
+        for &i in &self.kept {
+            let j = (i as isize + delay) as usize;
+            out.extend_from_slice(&self.pre.tau[j * dof..(j + 1) * dof]);
+        }
+        out
+    }
+
+    pub(super) fn at_kept(&self, x: &[f64]) -> Vec<f64> {
+        let dof = self.dof;
+        self.kept.iter().flat_map(|&i| x[i * dof..(i + 1) * dof].iter().copied()).collect()
+    }
+}
+
+pub(super) fn prepare(
+    model: &Model,
+    base: &BaseParameters,
+    log: Log,
+    options: &DiagnoseOptions,
+    margin_s: f64,
+) -> Result<Prepared, PreprocessError> {
+    let dof = model.dof();
+    let dt = crate::identify::preprocess::validate_log(log.t, log.q, log.tau, dof)?;
+    let fs = 1.0 / dt;
+    let cutoff_hz = options.cutoff_hz.min(fs / 5.0);
+    let pre_options = PreprocessOptions {
+        cutoff_hz: Some(cutoff_hz),
+        filter_derivatives: false,
+        friction_cutoff_hz: options.friction_cutoff_hz,
+        ..PreprocessOptions::default()
+    };
+    let pre = preprocess(log.t, log.q, log.tau, dof, &pre_options)?;
+    let stride = options.decimate.unwrap_or(((fs / (5.0 * cutoff_hz)).floor() as usize).max(1)).max(1);
+    let n = pre.samples();
+    let margin = ((margin_s * fs).ceil() as usize).max((3.0 * fs / cutoff_hz).ceil() as usize);
+    if n < 2 * margin + 64 * stride {
+        return Err(PreprocessError::TooFewSamples { needed: 2 * margin + 64 * stride, got: n });
+    }
+    let kept: Vec<usize> = (margin..n - margin).step_by(stride).collect();
+    let (declared, bodies) = declared_columns(model, base, &pre, &kept);
+    Ok(Prepared { dof, fs, pre, q_raw: log.q.to_vec(), kept, declared, bodies })
+}
+
+/// Column `c` of a body's mass and first-moment columns, or exact zeros where it is round-off
+/// beside the others (a first moment along an axis the body turns about): the regression pins
+/// such a column's coefficient to zero instead of fitting noise with it.
+pub(super) fn visible(columns: &[Vec<f64>], c: usize) -> Vec<f64> {
+    let size = |v: &[f64]| v.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+    let largest = columns.iter().map(|v| size(v)).fold(0.0, f64::max);
+    if size(&columns[c]) <= 1e-9 * largest {
+        vec![0.0; columns[c].len()]
+    } else {
+        columns[c].clone()
+    }
+}
+
+/// The base-parameter columns at the kept samples, Coulomb columns filtered like the torque (as
+/// identification does), and each body's mass and first-moment columns (payload candidates).
+pub(super) fn declared_columns(
+    model: &Model,
+    base: &BaseParameters,
+    pre: &Preprocessed,
+    kept: &[usize],
+) -> (Vec<Column>, Vec<(usize, Vec<Column>)>) {
+    let dof = model.dof();
+    let mut columns = full_columns(model, pre, kept);
+    let layout = model.layout();
+    let bodies = (0..model.bodies.len())
+        .filter(|&b| columns[layout.body(b).start].iter().any(|v| *v != 0.0))
+        .map(|b| {
+            let mass_and_moments = &columns[layout.mass_and_moments(b)];
+            (b, (0..mass_and_moments.len()).map(|c| Column::dense(visible(mass_and_moments, c), dof)).collect())
+        })
+        .collect();
+    let declared = base.independent.iter().map(|&j| Column::dense(std::mem::take(&mut columns[j]), dof)).collect();
+    (declared, bodies)
+}
+
+/// All P standard-parameter columns at the kept samples (`kept × dof` rows each), the Coulomb
+/// columns filtered like the torque.
+pub(super) fn full_columns(model: &Model, pre: &Preprocessed, kept: &[usize]) -> Vec<Vec<f64>> {
+    let (dof, big_p) = (model.dof(), model.num_params());
+    let mut columns = vec![vec![0.0; kept.len() * dof]; big_p];
+    let mut data = Data::new(model);
+    let mut y = vec![0.0; dof * big_p];
+    for (s, &i) in kept.iter().enumerate() {
+        let range = i * dof..(i + 1) * dof;
+        regressor(model, &mut data, &pre.q[range.clone()], &pre.qd[range.clone()], &pre.qdd[range], &mut y);
+        for k in 0..dof {
+            for (j, column) in columns.iter_mut().enumerate() {
+                column[s * dof + k] = y[k * big_p + j];
+            }
+        }
+    }
+    for k in 0..dof {
+        let j = model.layout().coulomb(k);
+        let shape = friction_shape(model, pre, k);
+        let full: Vec<f64> = (0..pre.samples()).map(|s| shape.eval(pre.qd_friction[s * dof + k])).collect();
+        let filtered = pre.filter_like_torque(&full, 1).expect("the torque was filtered with these settings");
+        for (s, &i) in kept.iter().enumerate() {
+            columns[j][s * dof + k] = filtered[i];
+        }
+    }
+    columns
+}
+
+/// The direction function of joint `k`'s friction terms: the model's `tanh(q̇/ε)`, widened to
+/// the noise of the friction velocity (its RMS difference from the velocity at the main
+/// cut-off). A sign taken of a velocity that noisy flips at full amplitude where the true
+/// velocity is merely small; `tanh(q̇/σ)` is close to the expected sign given the noise, which
+/// is what the filtered torque records.
+pub(super) fn friction_shape(model: &Model, pre: &Preprocessed, k: usize) -> CoulombShape {
+    let dof = pre.dof;
+    let n = pre.samples();
+    let noise =
+        ((0..n).map(|s| (pre.qd_friction[s * dof + k] - pre.qd[s * dof + k]).powi(2)).sum::<f64>() / n as f64).sqrt();
+    match model.coulomb_shape {
+        CoulombShape::Tanh { epsilon } => CoulombShape::Tanh { epsilon: epsilon.max(noise) },
+        CoulombShape::Sign => CoulombShape::Sign,
+    }
+}
+
+/// The columns of `term` on a prepared log.
+pub(super) fn term_columns(model: &Model, term: &EffectTerm, data: &Prepared) -> Vec<Column> {
+    let dof = data.dof;
+    if term.kind == EffectKind::Payload {
+        let body = model.bodies.iter().position(|b| Some(&b.name) == term.body.as_ref());
+        return data.bodies.iter().find(|(b, _)| Some(*b) == body).map(|(_, c)| c.clone()).unwrap_or_default();
+    }
+    let Some(k) = term.joint else {
+        if term.kind == EffectKind::Armature {
+            return (0..dof)
+                .map(|k| Column::Joint(k, data.kept.iter().map(|&i| data.pre.qdd[i * dof + k]).collect()))
+                .collect();
+        }
+        return vec![];
+    };
+    let width = term.width();
+    let pre = &data.pre;
+    let mut state = TermState::default();
+    let mut out = vec![0.0; width];
+    let mut columns = vec![Vec::with_capacity(data.samples()); width];
+    if term.kind.filtered_like_torque() {
+        // Every sample, from the unfiltered position and the friction velocity; then filtered.
+        let n = pre.samples();
+        let mut full = vec![0.0; n * width];
+        for s in 0..n {
+            let (q, v) = (data.q_raw[s * dof + k], pre.qd_friction[s * dof + k]);
+            term.features(q, v, 0.0, pre.t[s], &mut state, &mut out);
+            full[s * width..(s + 1) * width].copy_from_slice(&out);
+        }
+        let filtered = pre.filter_like_torque(&full, width).expect("the torque was filtered with these settings");
+        for &i in &data.kept {
+            for (c, column) in columns.iter_mut().enumerate() {
+                column.push(filtered[i * width + c]);
+            }
+        }
+    } else {
+        for &i in &data.kept {
+            let x = i * dof + k;
+            term.features(pre.q[x], pre.qd[x], pre.qdd[x], pre.t[i], &mut state, &mut out);
+            for (c, column) in columns.iter_mut().enumerate() {
+                column.push(out[c]);
+            }
+        }
+    }
+    columns.into_iter().map(|v| Column::Joint(k, v)).collect()
+}

@@ -1,0 +1,233 @@
+//! The weighted regression a diagnosis solves on one log, its held-out split, and the errors it
+//! reports.
+
+use super::findings::ErrorSummary;
+use super::prepare::Prepared;
+use super::regression::{self, gram, least_squares, residual, rhs, Column, Rows};
+use crate::effects::EffectTerm;
+use crate::identify::estimate::joint_metrics;
+use crate::model_file::Metrics;
+
+/// The held-out split of the training log: fit on the even blocks, judge on the odd ones.
+pub(super) fn block_split(block: &[usize]) -> (Vec<bool>, Vec<bool>) {
+    let train: Vec<bool> = block.iter().map(|b| b % 2 == 0).collect();
+    let test = train.iter().map(|t| !t).collect();
+    (train, test)
+}
+
+/// Block index of each kept sample; the last partial block joins the one before it.
+pub(super) fn blocks(data: &Prepared, block_s: f64) -> (Vec<usize>, usize) {
+    let per = (block_s * data.fs).max(1.0);
+    let first = data.kept[0];
+    let raw: Vec<usize> = data.kept.iter().map(|&i| ((i - first) as f64 / per) as usize).collect();
+    let last = *raw.last().unwrap_or(&0);
+    let count_last = raw.iter().filter(|&&b| b == last).count();
+    let merge = last > 0 && (count_last as f64) < 0.5 * per / (data.kept.get(1).map_or(1, |k| k - first)) as f64;
+    let block: Vec<usize> = raw.iter().map(|&b| if merge && b == last { last - 1 } else { b }).collect();
+    let count = block.last().map_or(0, |b| b + 1);
+    (block, count)
+}
+
+/// The weighted problem on one log: the target `y = w·(τ − τ_given)` and every column scaled by
+/// the joint weights `w`.
+pub(super) struct Problem {
+    pub(super) dof: usize,
+    pub(super) weights: Vec<f64>,
+    pub(super) tau: Vec<f64>,
+    pub(super) y: Vec<f64>,
+    pub(super) declared: Vec<Column>,
+    /// Which declared columns are fitted (the others are held at the given model's values).
+    pub(super) free: Vec<bool>,
+}
+
+impl Problem {
+    pub(super) fn new(data: &Prepared, tau: Vec<f64>, fixed: Vec<f64>, weights: &[f64], free: &[bool]) -> Self {
+        let dof = data.dof;
+        let y = tau.iter().zip(&fixed).enumerate().map(|(i, (t, f))| (t - f) * weights[i % dof]).collect();
+        let declared = data
+            .declared
+            .iter()
+            .map(|c| {
+                let mut c = c.clone();
+                c.scale_rows(weights);
+                c
+            })
+            .collect();
+        Self { dof, weights: weights.to_vec(), tau, y, declared, free: free.to_vec() }
+    }
+
+    pub(super) fn weighted(&self, mut columns: Vec<Column>) -> Vec<Column> {
+        columns.iter_mut().for_each(|c| c.scale_rows(&self.weights));
+        columns
+    }
+
+    /// The declared columns that are fitted.
+    pub(super) fn free_columns(&self) -> impl Iterator<Item = &Column> {
+        self.declared.iter().zip(&self.free).filter(|(_, f)| **f).map(|(c, _)| c)
+    }
+
+    /// Unweighted per-joint metrics of the fit `coefficients` on `columns` over `rows`.
+    pub(super) fn metrics(&self, columns: &[&Column], coefficients: &[f64], rows: Rows) -> Metrics {
+        let e = residual(columns, coefficients, &self.y, self.dof);
+        let (mut tau, mut pred) = (Vec::new(), Vec::new());
+        for s in 0..self.tau.len() / self.dof {
+            if let Rows::Where(m) = rows {
+                if !m[s] {
+                    continue;
+                }
+            }
+            for k in 0..self.dof {
+                let i = s * self.dof + k;
+                tau.push(self.tau[i]);
+                pred.push(self.tau[i] - e[i] / self.weights[k]);
+            }
+        }
+        joint_metrics(&tau, &pred, self.dof).into()
+    }
+
+    /// Unweighted residual of a fit, on every row.
+    pub(super) fn residual(&self, columns: &[&Column], coefficients: &[f64]) -> Vec<f64> {
+        let e = residual(columns, coefficients, &self.y, self.dof);
+        e.iter().enumerate().map(|(i, e)| e / self.weights[i % self.dof]).collect()
+    }
+}
+
+/// Where held-out errors are measured: a validation log, or the odd blocks of the training log
+/// while fitting on the even ones.
+pub(super) enum HeldOut {
+    Validation(Problem),
+    Blocks { train: Vec<bool>, test: Vec<bool> },
+}
+
+/// A candidate in the search: its term and its weighted columns on each log.
+pub(super) struct Candidate {
+    pub(super) term: EffectTerm,
+    pub(super) columns: Vec<Column>,
+    pub(super) validation: Vec<Column>,
+}
+
+/// The model's columns: the declared ones that are fitted, then the chosen effects'.
+pub(super) fn model_columns<'a>(problem: &'a Problem, pool: &'a [Candidate], chosen: &[usize]) -> Vec<&'a Column> {
+    problem.free_columns().chain(chosen.iter().flat_map(|&i| pool[i].columns.iter())).collect()
+}
+
+/// The same columns on the validation log.
+pub(super) fn validation_columns<'a>(
+    validation: &'a Problem,
+    pool: &'a [Candidate],
+    chosen: &[usize],
+) -> Vec<&'a Column> {
+    validation.free_columns().chain(chosen.iter().flat_map(|&i| pool[i].validation.iter())).collect()
+}
+
+/// Weighted squared error per joint of `y − X x` over `rows`.
+pub(super) fn sse(columns: &[&Column], x: &[f64], y: &[f64], dof: usize, rows: Rows) -> Vec<f64> {
+    let e = residual(columns, x, y, dof);
+    let mut out = vec![0.0; dof];
+    for (i, v) in e.iter().enumerate() {
+        if let Rows::Where(m) = rows {
+            if !m[i / dof] {
+                continue;
+            }
+        }
+        out[i % dof] += v * v;
+    }
+    out
+}
+
+/// Held-out squared error per joint of the model `chosen` (+ `extra`), fitted on the training
+/// rows.
+pub(super) fn heldout_sse(problem: &Problem, heldout: &HeldOut, pool: &[Candidate], chosen: &[usize]) -> Vec<f64> {
+    let dof = problem.dof;
+    let cols = model_columns(problem, pool, chosen);
+    match heldout {
+        HeldOut::Blocks { train, test } => {
+            let x = least_squares(&cols, &problem.y, dof, Rows::Where(train)).unwrap_or_else(|| vec![0.0; cols.len()]);
+            sse(&cols, &x, &problem.y, dof, Rows::Where(test))
+        }
+        HeldOut::Validation(v) => {
+            let x = least_squares(&cols, &problem.y, dof, Rows::All).unwrap_or_else(|| vec![0.0; cols.len()]);
+            sse(&validation_columns(v, pool, chosen), &x, &v.y, dof, Rows::All)
+        }
+    }
+}
+
+/// The current model's fit on the rows it is trained on for held-out scoring, computed once per
+/// round so that each candidate costs only its own products with the model.
+pub(super) struct HeldOutBase<'a> {
+    cols: Vec<&'a Column>,
+    gram: nalgebra::DMatrix<f64>,
+    rhs: nalgebra::DVector<f64>,
+    sse: Vec<f64>,
+}
+
+impl<'a> HeldOutBase<'a> {
+    pub(super) fn new(problem: &'a Problem, heldout: &HeldOut, pool: &'a [Candidate], chosen: &[usize]) -> Self {
+        let dof = problem.dof;
+        let cols = model_columns(problem, pool, chosen);
+        let rows = match heldout {
+            HeldOut::Blocks { train, .. } => Rows::Where(train),
+            HeldOut::Validation(_) => Rows::All,
+        };
+        let gram = gram(&cols, dof, rows);
+        let rhs = rhs(&cols, &problem.y, dof, rows);
+        let sse = heldout_sse(problem, heldout, pool, chosen);
+        Self { cols, gram, rhs, sse }
+    }
+
+    /// Relative cut of the held-out squared error from adding candidate `i`: per joint, and over
+    /// all joints together (in the weighted units, where every joint counts by its noise).
+    pub(super) fn gain(
+        &self,
+        problem: &Problem,
+        heldout: &HeldOut,
+        pool: &[Candidate],
+        chosen: &[usize],
+        i: usize,
+    ) -> (Vec<f64>, f64) {
+        let dof = problem.dof;
+        let group: Vec<&Column> = pool[i].columns.iter().collect();
+        let rows = match heldout {
+            HeldOut::Blocks { train, .. } => Rows::Where(train),
+            HeldOut::Validation(_) => Rows::All,
+        };
+        let after = match regression::fit_augmented(&self.cols, &self.gram, &self.rhs, &group, &problem.y, dof, rows) {
+            None => self.sse.clone(),
+            Some(x) => match heldout {
+                HeldOut::Blocks { test, .. } => {
+                    let all: Vec<&Column> = self.cols.iter().copied().chain(group.iter().copied()).collect();
+                    sse(&all, &x, &problem.y, dof, Rows::Where(test))
+                }
+                HeldOut::Validation(v) => {
+                    let all: Vec<&Column> =
+                        validation_columns(v, pool, chosen).into_iter().chain(pool[i].validation.iter()).collect();
+                    sse(&all, &x, &v.y, dof, Rows::All)
+                }
+            },
+        };
+        let before = &self.sse;
+        let per_joint = before.iter().zip(&after).map(|(b, a)| if *b > 0.0 { 1.0 - a / b } else { 0.0 }).collect();
+        let total = 1.0 - after.iter().sum::<f64>() / before.iter().sum::<f64>().max(f64::MIN_POSITIVE);
+        (per_joint, total)
+    }
+}
+
+pub(super) fn error_summary(
+    problem: &Problem,
+    heldout: &HeldOut,
+    pool: &[Candidate],
+    chosen: &[usize],
+) -> ErrorSummary {
+    let dof = problem.dof;
+    let cols = model_columns(problem, pool, chosen);
+    let x_all = least_squares(&cols, &problem.y, dof, Rows::All).unwrap_or_else(|| vec![0.0; cols.len()]);
+    let training = problem.metrics(&cols, &x_all, Rows::All);
+    let heldout = match heldout {
+        HeldOut::Blocks { train, test } => {
+            let x = least_squares(&cols, &problem.y, dof, Rows::Where(train)).unwrap_or_else(|| vec![0.0; cols.len()]);
+            problem.metrics(&cols, &x, Rows::Where(test))
+        }
+        HeldOut::Validation(v) => v.metrics(&validation_columns(v, pool, chosen), &x_all, Rows::All),
+    };
+    ErrorSummary { training, heldout }
+}

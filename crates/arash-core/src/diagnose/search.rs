@@ -1,0 +1,388 @@
+//! The search: set up the weighted problem, align the log, then add the most useful effect per
+//! round until nothing passes (the module documentation of [`super`] lists the rule).
+
+use std::borrow::Cow;
+
+use super::candidates::{candidates, not_the_cable};
+use super::context::{parallel_map, Context};
+use super::delay::search_delay;
+use super::findings::{
+    effect_joints, rejection, DiagnoseSettings, Diagnosis, Finding, Rejection, RejectionReason, Series,
+};
+use super::options::{DiagnoseError, DiagnoseOptions};
+use super::outcome::{declared_model, series};
+use super::problem::{error_summary, model_columns, Candidate, HeldOut, HeldOutBase, Problem};
+use super::regression::{self, gram, least_squares, residual, rhs, test_group, Column, GroupTest, Rows};
+use crate::effects::EffectKind;
+use crate::identify::{Declared, Log};
+use crate::model::{CoulombShape, JointKind, Model};
+use crate::model_file::ModelFile;
+
+/// Diagnose `train` against the declared dynamics (refitted, or `given`), holding out
+/// `validation` when it is given.
+pub fn diagnose(
+    declared: Declared,
+    train: Log,
+    validation: Option<Log>,
+    given: Option<&ModelFile>,
+    options: &DiagnoseOptions,
+) -> Result<Diagnosis, DiagnoseError> {
+    options.validate(declared.model.dof())?;
+    let model = shaped(declared.model, options);
+    let ctx = Context::new(&model, declared.base, train, validation, given, options)?;
+    // 1. Delay.
+    let (delay, delay_outcome) = if options.effects.contains(&EffectKind::Delay) && ctx.max_shift() > 0 {
+        let (delay, outcome) = search_delay(&ctx);
+        (delay, Some(outcome))
+    } else {
+        (0, None)
+    };
+    let mut state = State::default();
+    let mut skipped = Vec::new();
+    match delay_outcome {
+        Some(Ok(finding)) => state.accepted.push(finding),
+        Some(Err(rejection)) => skipped.push(rejection),
+        None => {}
+    }
+    // 2. Forward selection.
+    let problem = ctx.problem(&ctx.train, delay);
+    let heldout = ctx.heldout(delay);
+    let (templates, not_searched) = candidates(&model, &ctx.train, options);
+    skipped.extend(not_searched);
+    let pool = ctx.pool(templates, &problem, &heldout);
+    let search = Search { ctx: &ctx, problem: &problem, heldout: &heldout, pool: &pool };
+    search.select(&mut state)?;
+    // 3. Final joint fit, errors before and after, and the updated model.
+    search.finish(state, delay, skipped, declared.urdf, train.t.len())
+}
+
+/// The declared model with the Coulomb shape the options ask for.
+fn shaped<'a>(model: &'a Model, options: &DiagnoseOptions) -> Cow<'a, Model> {
+    match options.coulomb_epsilon {
+        Some(epsilon) => {
+            let mut shaped = model.clone();
+            shaped.coulomb_shape = CoulombShape::Tanh { epsilon };
+            Cow::Owned(shaped)
+        }
+        None => Cow::Borrowed(model),
+    }
+}
+
+/// Where the search stands: what it accepted, in order, and why each other candidate is out for
+/// now (a rejection without a p-value is final).
+#[derive(Default)]
+struct State {
+    accepted: Vec<Finding>,
+    chosen: Vec<usize>,
+    status: Vec<Option<Rejection>>,
+}
+
+/// A candidate that passed every check of a round.
+struct Passed {
+    /// Index into the round's tests.
+    test: usize,
+    /// Held-out gain on the joint it helps most, per joint, and over the whole robot.
+    gain: f64,
+    gains: Vec<f64>,
+    total: f64,
+    /// The Holm threshold its p-value passed.
+    threshold: f64,
+}
+
+/// The forward selection over one prepared problem.
+struct Search<'a> {
+    ctx: &'a Context<'a>,
+    problem: &'a Problem,
+    heldout: &'a HeldOut,
+    pool: &'a [Candidate],
+}
+
+impl Search<'_> {
+    fn select(&self, state: &mut State) -> Result<(), DiagnoseError> {
+        state.status = vec![None; self.pool.len()];
+        for round in 1.. {
+            if state.accepted.len() >= self.ctx.options.max_effects || !self.round(round, state)? {
+                break;
+            }
+        }
+        Ok(())
+    }
+
+    /// One round: test every open candidate against the current model, judge the significant
+    /// ones, and add the most useful. `false` when nothing was added.
+    fn round(&self, round: usize, state: &mut State) -> Result<bool, DiagnoseError> {
+        let dof = self.problem.dof;
+        let base_cols = model_columns(self.problem, self.pool, &state.chosen);
+        let base_gram = gram(&base_cols, dof, Rows::All);
+        let coef = regression::solve_scaled(&base_gram, &rhs(&base_cols, &self.problem.y, dof, Rows::All))
+            .ok_or(DiagnoseError::Singular)?;
+        let coef: Vec<f64> = coef.iter().copied().collect();
+        let e0 = residual(&base_cols, &coef, &self.problem.y, dof);
+        let tested = self.test_open(&base_cols, &base_gram, &e0, state);
+        if tested.is_empty() {
+            return Ok(false);
+        }
+        let passing = self.judge(round, &tested, &coef, state);
+        let Some(best) = most_useful(passing, |o| self.pool[tested[o].0].columns.len()) else {
+            return Ok(false);
+        };
+        let (winner, test) = tested[best.test].clone();
+        let aliases = self.aliases(winner, &tested, &e0, state);
+        state.chosen.push(winner);
+        let mut term = self.pool[winner].term.clone();
+        term.coefficients = test.coefficients.clone();
+        term.sigma = test.sigma.clone();
+        let model = self.ctx.model;
+        let (mass_kg, body) = if term.kind == EffectKind::Payload {
+            (Some(term.coefficients[0]), term.body.clone())
+        } else {
+            (None, None)
+        };
+        state.accepted.push(Finding {
+            name: term.kind.id().into(),
+            joints: effect_joints(&term, dof),
+            label: term.describe(&model.joint_names()),
+            term,
+            statistic: test.f_statistic,
+            p_value: test.p_value,
+            threshold: best.threshold,
+            heldout_gain: best.gain,
+            heldout_gain_per_joint: best.gains,
+            aliases,
+            mass_kg,
+            body,
+            round,
+        });
+        Ok(true)
+    }
+
+    /// The block Wald test of every open candidate; those the model already explains are set
+    /// aside as not identifiable.
+    fn test_open(
+        &self,
+        base_cols: &[&Column],
+        base_gram: &nalgebra::DMatrix<f64>,
+        e0: &[f64],
+        state: &mut State,
+    ) -> Vec<(usize, GroupTest)> {
+        let ctx = self.ctx;
+        let open: Vec<usize> = (0..self.pool.len())
+            .filter(|i| !state.chosen.contains(i) && state.status[*i].as_ref().is_none_or(|r| r.p_value.is_some()))
+            .collect();
+        let tests = parallel_map(open, |i| {
+            let group: Vec<&Column> = self.pool[i].columns.iter().collect();
+            (i, test_group(base_cols, base_gram, e0, &group, &ctx.block, ctx.block_count, self.problem.dof))
+        });
+        let mut tested = Vec::new();
+        for (i, outcome) in tests {
+            match outcome {
+                Some(t) if t.unexplained * ctx.options.max_vif >= 1.0 => tested.push((i, t)),
+                other => {
+                    let vif = other.map_or(f64::INFINITY, |t| 1.0 / t.unexplained);
+                    let reason = RejectionReason::NotIdentifiable { vif, max_vif: ctx.options.max_vif };
+                    state.status[i] = Some(rejection(ctx.model, &self.pool[i].term, reason, None, None));
+                }
+            }
+        }
+        tested
+    }
+
+    /// Holm's procedure over the round's tests, then the physical checks and the held-out gain;
+    /// what fails is marked with its reason, what passes is returned.
+    fn judge(&self, round: usize, tested: &[(usize, GroupTest)], coef: &[f64], state: &mut State) -> Vec<Passed> {
+        let (ctx, dof) = (self.ctx, self.problem.dof);
+        let alpha = ctx.options.alpha;
+        let p_values: Vec<f64> = tested.iter().map(|(_, t)| t.p_value).collect();
+        let pass = regression::holm(&p_values, alpha);
+        let mut order: Vec<usize> = (0..tested.len()).collect();
+        order.sort_by(|&a, &b| p_values[a].total_cmp(&p_values[b]));
+        let mut passing = Vec::new();
+        let mut scoring: Option<HeldOutBase> = None;
+        for (rank, &o) in order.iter().enumerate() {
+            let (i, t) = &tested[o];
+            let term = &self.pool[*i].term;
+            let threshold = regression::holm_threshold(alpha, tested.len(), rank);
+            let p_value = t.p_value;
+            let verdict = (|| {
+                if !pass[o] {
+                    return Err((RejectionReason::NotSignificant { p_value, threshold, round }, None));
+                }
+                if let Some(sign) = term.kind.physical_sign() {
+                    if t.coefficients[0] * sign < 0.0 {
+                        return Err((RejectionReason::WrongSign { p_value, coefficient: t.coefficients[0] }, None));
+                    }
+                }
+                if let Some(reason) = not_the_cable(ctx.model, ctx.base, &ctx.free, coef, ctx.given, term, t) {
+                    return Err((reason, None));
+                }
+                let scoring = scoring
+                    .get_or_insert_with(|| HeldOutBase::new(self.problem, self.heldout, self.pool, &state.chosen));
+                let (gains, total) = scoring.gain(self.problem, self.heldout, self.pool, &state.chosen, *i);
+                // Accepted on the joint it helps most, ranked by what it does for the whole
+                // robot, so that an effect acting on several joints competes fairly with
+                // one-joint terms.
+                let gain = effect_joints(term, dof).iter().map(|&k| gains[k]).fold(f64::NEG_INFINITY, f64::max);
+                if gain < ctx.options.min_gain {
+                    let reason = RejectionReason::SmallGain { p_value, gain, min_gain: ctx.options.min_gain };
+                    return Err((reason, Some(gain)));
+                }
+                Ok(Passed { test: o, gain, gains, total, threshold })
+            })();
+            match verdict {
+                Ok(passed) => {
+                    state.status[*i] = None;
+                    passing.push(passed);
+                }
+                Err((reason, gain)) => {
+                    state.status[*i] = Some(rejection(ctx.model, term, reason, Some(p_value), gain));
+                }
+            }
+        }
+        passing
+    }
+
+    /// Candidates that passed too but that the winner explains: its aliases, rejected as such.
+    fn aliases(&self, winner: usize, tested: &[(usize, GroupTest)], e0: &[f64], state: &mut State) -> Vec<String> {
+        /// The share of a candidate's unexplained part the winner may leave and still alias it.
+        const ALIAS_LEFT: f64 = 0.05;
+        let (ctx, dof) = (self.ctx, self.problem.dof);
+        let names = ctx.model.joint_names();
+        let mut with_winner = state.chosen.clone();
+        with_winner.push(winner);
+        let next_cols = model_columns(self.problem, self.pool, &with_winner);
+        let next_gram = gram(&next_cols, dof, Rows::All);
+        let mut aliases = Vec::new();
+        for (j, t) in tested {
+            if *j == winner || state.status[*j].is_some() {
+                continue;
+            }
+            let group: Vec<&Column> = self.pool[*j].columns.iter().collect();
+            let after = test_group(&next_cols, &next_gram, e0, &group, &ctx.block, ctx.block_count, dof);
+            if after.map_or(0.0, |a| a.unexplained / t.unexplained) < ALIAS_LEFT {
+                aliases.push(self.pool[*j].term.describe(&names));
+                let reason = RejectionReason::AliasOf { label: self.pool[winner].term.describe(&names) };
+                state.status[*j] = Some(rejection(ctx.model, &self.pool[*j].term, reason, Some(t.p_value), None));
+            }
+        }
+        aliases
+    }
+
+    /// The joint fit of the declared model and the accepted effects, the errors before and
+    /// after, the updated model, and the report.
+    fn finish(
+        &self,
+        mut state: State,
+        delay: isize,
+        mut rejected: Vec<Rejection>,
+        urdf: &str,
+        samples_in: usize,
+    ) -> Result<Diagnosis, DiagnoseError> {
+        let (ctx, problem, pool) = (self.ctx, self.problem, self.pool);
+        let (model, dof) = (ctx.model, problem.dof);
+        let declared_only = model_columns(problem, pool, &[]);
+        let final_cols = model_columns(problem, pool, &state.chosen);
+        let x_before = least_squares(&declared_only, &problem.y, dof, Rows::All).ok_or(DiagnoseError::Singular)?;
+        let x_after = least_squares(&final_cols, &problem.y, dof, Rows::All).ok_or(DiagnoseError::Singular)?;
+        // Coefficients of the effects from the joint fit (they moved as later effects came in).
+        let mut offset = declared_only.len();
+        for (f, &i) in state.accepted.iter_mut().filter(|f| f.term.kind != EffectKind::Delay).zip(&state.chosen) {
+            let width = pool[i].columns.len();
+            f.term.coefficients = x_after[offset..offset + width].to_vec();
+            if f.term.kind == EffectKind::Payload {
+                f.mass_kg = Some(f.term.coefficients[0]);
+            }
+            offset += width;
+        }
+        // Before: the declared model on the data as logged, without any shift found.
+        let before = if delay == 0 {
+            error_summary(problem, self.heldout, pool, &[])
+        } else {
+            error_summary(&ctx.problem(&ctx.train, 0), &ctx.heldout(0), pool, &[])
+        };
+        let after = error_summary(problem, self.heldout, pool, &state.chosen);
+        let series =
+            series(&ctx.train, problem, (&declared_only, &x_before), (&final_cols, &x_after), pool, &state.chosen);
+        let updated = self.updated_model(&state, &x_after, &series, urdf, samples_in)?;
+        for (i, c) in pool.iter().enumerate().filter(|(i, _)| !state.chosen.contains(i)) {
+            rejected.push(
+                state.status[i]
+                    .take()
+                    .unwrap_or_else(|| rejection(model, &c.term, RejectionReason::NotReached, None, None)),
+            );
+        }
+        let options = ctx.options;
+        Ok(Diagnosis {
+            format: "arash-diagnosis/1".into(),
+            robot_name: model.name.clone(),
+            joint_names: model.joint_names(),
+            prismatic: model.joints.iter().map(|j| j.kind == JointKind::Prismatic).collect(),
+            accepted: state.accepted,
+            rejected,
+            before,
+            after,
+            settings: DiagnoseSettings {
+                cutoff_hz: ctx.train.pre.cutoff_hz,
+                decimate: ctx.train.stride(),
+                block_s: options.block_s,
+                blocks: ctx.block_count,
+                alpha: options.alpha,
+                min_gain: options.min_gain,
+                max_vif: options.max_vif,
+                max_delay_s: options.max_delay_s,
+                refit: ctx.refit,
+                heldout: if ctx.validation.is_some() {
+                    "the validation log".into()
+                } else {
+                    "the odd-numbered blocks, fitting on the even ones".into()
+                },
+                candidates: pool.len() + 1,
+            },
+            model: updated,
+            series,
+        })
+    }
+
+    /// The given model with its freed (friction) coefficients from the joint fit, or the
+    /// refitted declared model; then the accepted effects.
+    fn updated_model(
+        &self,
+        state: &State,
+        x_after: &[f64],
+        series: &Series,
+        urdf: &str,
+        samples_in: usize,
+    ) -> Result<ModelFile, DiagnoseError> {
+        let ctx = self.ctx;
+        let mut updated = match ctx.given {
+            Some(g) => g.clone(),
+            None => declared_model(ctx.model, ctx.base, urdf, &ctx.train, series, ctx.options, samples_in)?,
+        };
+        // A refitted model keeps the OLS of `declared_model`, made with the effects taken out.
+        let mut fitted = x_after.iter();
+        let freed = ctx.base.independent.iter().zip(&ctx.free).filter(|(_, f)| **f && !ctx.refit);
+        for (b, (j, _)) in updated.beta.iter_mut().zip(freed) {
+            *b = *fitted.next().expect("one coefficient per free column");
+            // A refitted friction coefficient is a standard parameter of its own.
+            if let Some(params) = updated.params.as_mut() {
+                params[*j] = *b;
+            }
+        }
+        if ctx.refit {
+            updated.params = None;
+        }
+        updated.effects.extend(state.accepted.iter().map(|f| f.term.clone()));
+        Ok(updated)
+    }
+}
+
+/// Of the candidates that passed, the one to add: the largest whole-robot gain, except that a
+/// candidate with fewer columns within 10 % of it is preferred. A payload's four columns can
+/// mimic an offset on one joint; the simpler explanation should win when the data cannot tell
+/// them apart.
+fn most_useful(passing: Vec<Passed>, width: impl Fn(usize) -> usize) -> Option<Passed> {
+    let best = passing.iter().map(|p| p.total).fold(f64::NEG_INFINITY, f64::max);
+    passing
+        .into_iter()
+        .filter(|p| p.total >= 0.9 * best)
+        .min_by(|a, b| width(a.test).cmp(&width(b.test)).then(b.total.total_cmp(&a.total)))
+}

@@ -1,0 +1,376 @@
+//! The effects a declared model may lack, one file per effect: what it adds to the torque (its
+//! columns), the state it carries between samples, the candidates the diagnosis tries for it, and
+//! whether a controller can compensate it. `docs/diagnosis.md` gives the table; these files are
+//! the definition. Depends only on the model.
+//!
+//! A term is evaluated one sample at a time by [`EffectTerm::features`], so that the diagnosis
+//! (in bulk) and a controller (per cycle) compute the same thing. Terms that switch with the
+//! direction of motion or ripple with position change faster than the torque's low-pass filter;
+//! the diagnosis filters those columns exactly like the torque ("parallel filtering", as the
+//! declared Coulomb columns are).
+//!
+//! To add an effect: a file here implementing [`Effect`], a variant of [`EffectKind`] and its
+//! line in [`EffectKind::law`], and its row in `docs/diagnosis.md` (a test checks the row).
+
+mod armature;
+mod cogging;
+mod compliance;
+mod configuration;
+mod coulomb_asymmetry;
+mod delay;
+mod drift;
+mod hysteresis;
+mod offset;
+mod payload;
+mod position_friction;
+mod stribeck;
+mod viscous_nonlinear;
+
+use serde::{Deserialize, Serialize};
+
+pub use armature::every_joint as armature_on_every_joint;
+pub use configuration::CONFIGURATION_HARMONICS;
+pub use payload::on_body as payload_on;
+
+/// The stable identifiers of the effects.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EffectKind {
+    Offset,
+    CoulombAsymmetry,
+    Stribeck,
+    ViscousNonlinear,
+    Armature,
+    ConfigurationDisturbance,
+    PositionFriction,
+    Hysteresis,
+    Compliance,
+    Drift,
+    Cogging,
+    Delay,
+    Payload,
+}
+
+impl EffectKind {
+    /// Every effect, in the order the diagnosis tries a joint's candidates.
+    pub const ALL: [EffectKind; 13] = [
+        Self::Offset,
+        Self::CoulombAsymmetry,
+        Self::Stribeck,
+        Self::ViscousNonlinear,
+        Self::Armature,
+        Self::ConfigurationDisturbance,
+        Self::PositionFriction,
+        Self::Hysteresis,
+        Self::Compliance,
+        Self::Drift,
+        Self::Cogging,
+        Self::Delay,
+        Self::Payload,
+    ];
+
+    /// The file that defines this effect.
+    pub fn law(self) -> &'static dyn Effect {
+        match self {
+            Self::Offset => &offset::Offset,
+            Self::CoulombAsymmetry => &coulomb_asymmetry::CoulombAsymmetry,
+            Self::Stribeck => &stribeck::Stribeck,
+            Self::ViscousNonlinear => &viscous_nonlinear::ViscousNonlinear,
+            Self::Armature => &armature::Armature,
+            Self::ConfigurationDisturbance => &configuration::ConfigurationDisturbance,
+            Self::PositionFriction => &position_friction::PositionFriction,
+            Self::Hysteresis => &hysteresis::Hysteresis,
+            Self::Compliance => &compliance::Compliance,
+            Self::Drift => &drift::Drift,
+            Self::Cogging => &cogging::Cogging,
+            Self::Delay => &delay::Delay,
+            Self::Payload => &payload::Payload,
+        }
+    }
+
+    /// The identifier used in reports, JSON and on the command line.
+    pub fn id(self) -> &'static str {
+        self.law().id()
+    }
+
+    pub fn from_id(id: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.id() == id)
+    }
+
+    /// The effects named by `ids` (surrounding spaces ignored), or the first unknown name.
+    pub fn parse_list(ids: &[String]) -> Result<Vec<Self>, UnknownEffect> {
+        ids.iter().map(|id| Self::from_id(id.trim()).ok_or_else(|| UnknownEffect(id.clone()))).collect()
+    }
+
+    /// Whether the columns change faster than the torque filter passes, and so must be computed
+    /// from the friction velocity and filtered like the torque.
+    pub fn filtered_like_torque(self) -> bool {
+        self.law().filtered_like_torque()
+    }
+
+    /// The sign its (single) coefficient must have to be the physical effect (`None`: either).
+    /// A fit with the other sign is some other error that happens to correlate.
+    pub fn physical_sign(self) -> Option<f64> {
+        self.law().physical_sign()
+    }
+
+    /// The variable a residual plot shows this effect against: `t`, `q`, `qd` or `qdd`.
+    pub fn plotted_against(self) -> &'static str {
+        self.law().plotted_against()
+    }
+
+    /// Whether a controller compensates it at run time. Effects that are properties of a log,
+    /// not of the robot (a delay, a drift on the log's own clock), are not.
+    pub fn at_run_time(self) -> bool {
+        self.law().at_run_time()
+    }
+}
+
+/// An effect identifier that is not one of [`EffectKind::ALL`].
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown effect `{0}` (known: {known})", known = EffectKind::ALL.map(EffectKind::id).join(", "))]
+pub struct UnknownEffect(pub String);
+
+/// One sample of a joint, as an effect's columns see it.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Sample {
+    /// Position (rad or m).
+    pub q: f64,
+    /// The friction velocity (rad/s or m/s).
+    pub v: f64,
+    /// Acceleration (rad/s² or m/s²).
+    pub qdd: f64,
+    /// Time (s).
+    pub t: f64,
+}
+
+/// What the candidate bank of one joint is built from: the training data's range of motion.
+#[derive(Clone, Debug)]
+pub struct JointData<'a> {
+    pub joint: usize,
+    /// Position range (lo, hi) over the training data (rad or m).
+    pub span: (f64, f64),
+    /// RMS velocity (rad/s or m/s).
+    pub speed_rms: f64,
+    /// The `tanh(q̇/ε)` width of the joint's friction direction (`None`: `sign(q̇)`).
+    pub epsilon: Option<f64>,
+    /// First and last time of the training data (s).
+    pub time: (f64, f64),
+    /// Joint motion per motor radian, when known.
+    pub transmission: Option<f64>,
+    /// Ripple periods per motor revolution to try for cogging.
+    pub cogging_periods: &'a [f64],
+}
+
+impl JointData<'_> {
+    /// Joint `k`'s term of `kind` with the data's shaping constants and no coefficients.
+    pub fn term(&self, kind: EffectKind) -> EffectTerm {
+        let mut t = EffectTerm::new(kind, Some(self.joint));
+        t.epsilon = self.epsilon;
+        t.span = Some(self.span);
+        t
+    }
+
+    /// The position range, never zero.
+    pub fn range(&self) -> f64 {
+        (self.span.1 - self.span.0).max(1e-9)
+    }
+
+    fn with_scales(&self, kind: EffectKind, scales: impl IntoIterator<Item = f64>) -> Vec<EffectTerm> {
+        scales
+            .into_iter()
+            .map(|s| {
+                let mut t = self.term(kind);
+                t.scale = Some(s);
+                t
+            })
+            .collect()
+    }
+}
+
+/// Why an effect was not searched on a joint.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NotSearched {
+    /// Cogging needs the motor transmission, which was not given.
+    TransmissionUnknown,
+}
+
+impl std::fmt::Display for NotSearched {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::TransmissionUnknown => {
+                f.write_str("not searched: the motor transmission is unknown (give it with --transmission)")
+            }
+        }
+    }
+}
+
+/// One effect's definition. Implemented once per file of this module.
+pub trait Effect: Sync {
+    /// The stable identifier.
+    fn id(&self) -> &'static str;
+
+    /// Number of sample-wise columns.
+    fn width(&self) -> usize {
+        1
+    }
+
+    /// Column names, for reports.
+    fn column_names(&self) -> Vec<String>;
+
+    /// See [`EffectKind::filtered_like_torque`].
+    fn filtered_like_torque(&self) -> bool {
+        false
+    }
+
+    /// See [`EffectKind::physical_sign`].
+    fn physical_sign(&self) -> Option<f64> {
+        None
+    }
+
+    /// See [`EffectKind::plotted_against`].
+    fn plotted_against(&self) -> &'static str;
+
+    /// See [`EffectKind::at_run_time`].
+    fn at_run_time(&self) -> bool {
+        true
+    }
+
+    /// The term's columns at one sample of its joint, into `out` (`width()` long); `state`
+    /// carries what the effect remembers from sample to sample.
+    fn features(&self, term: &EffectTerm, x: Sample, state: &mut TermState, out: &mut [f64]);
+
+    /// The constants of the term in a report, after its name and joint: `" (v_s = 0.010)"`.
+    fn detail(&self, _term: &EffectTerm) -> String {
+        String::new()
+    }
+
+    /// The candidates the diagnosis tries on one joint.
+    fn joint_candidates(&self, data: &JointData) -> Result<Vec<EffectTerm>, NotSearched>;
+}
+
+/// One effect as it is stored in a model file: its kind, where it acts, the constants that shape
+/// its columns, and the fitted coefficients.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EffectTerm {
+    pub kind: EffectKind,
+    /// The joint it acts on (`None`: every joint, as for a payload or a delay).
+    pub joint: Option<usize>,
+    /// The body a payload sits on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub body: Option<String>,
+    /// The effect's one shape constant; its file says what it is (a Stribeck velocity, a travel
+    /// x₀, cogging periods per motor revolution, a delay in samples).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale: Option<f64>,
+    /// Position range (lo, hi) that normalises configuration and position-friction terms, or
+    /// the time origin and span (s) of a drift.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub span: Option<(f64, f64)>,
+    /// Joint motion per motor radian, for cogging.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transmission: Option<f64>,
+    /// ε of the `tanh(q̇/ε)` direction in friction terms; `None` is `sign(q̇)`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub epsilon: Option<f64>,
+    /// Names of the columns, in coefficient order.
+    pub columns: Vec<String>,
+    pub coefficients: Vec<f64>,
+    /// Standard deviations of the coefficients (block sandwich).
+    pub sigma: Vec<f64>,
+}
+
+/// The state a term needs between samples: `z`, the hysteresis term's Dahl state or the
+/// compliance term's cable stretch, in [−1, 1], and the position it was last updated at.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct TermState {
+    pub z: f64,
+    pub last_q: Option<f64>,
+}
+
+impl TermState {
+    /// The travel from the last position to `q` (zero at the first sample), which becomes the
+    /// last position.
+    fn travel_to(&mut self, q: f64) -> f64 {
+        let dq = self.last_q.map_or(0.0, |last| q - last);
+        self.last_q = Some(q);
+        dq
+    }
+}
+
+impl EffectTerm {
+    /// A term with no coefficients yet.
+    pub fn new(kind: EffectKind, joint: Option<usize>) -> Self {
+        Self {
+            kind,
+            joint,
+            body: None,
+            scale: None,
+            span: None,
+            transmission: None,
+            epsilon: None,
+            columns: vec![],
+            coefficients: vec![],
+            sigma: vec![],
+        }
+    }
+
+    /// Number of columns of the sample-wise features.
+    pub fn width(&self) -> usize {
+        self.kind.law().width()
+    }
+
+    /// Column names, for reports.
+    pub fn column_names(&self) -> Vec<String> {
+        self.kind.law().column_names()
+    }
+
+    /// The direction of motion as the term's friction sees it: `tanh(v/ε)`, or `sign(v)`.
+    fn direction(&self, v: f64) -> f64 {
+        match self.epsilon {
+            Some(eps) => (v / eps).tanh(),
+            None => v.signum() * f64::from(v != 0.0),
+        }
+    }
+
+    /// `q` scaled to [0, 1] over the term's span.
+    fn unit(&self, q: f64) -> f64 {
+        let (lo, hi) = self.span.unwrap_or((0.0, 1.0));
+        (q - lo) / (hi - lo)
+    }
+
+    /// The term's columns at one sample of its joint: position `q`, friction velocity `v`,
+    /// acceleration `qdd` and time `t`. `state` carries the hysteresis and compliance states
+    /// from sample to sample. Payload and delay have no joint-wise features and write nothing.
+    pub fn features(&self, q: f64, v: f64, qdd: f64, t: f64, state: &mut TermState, out: &mut [f64]) {
+        self.kind.law().features(self, Sample { q, v, qdd, t }, state, out);
+    }
+
+    /// A one-line description with units, for reports.
+    pub fn describe(&self, joint_names: &[String]) -> String {
+        let joint = self.joint.map(|k| joint_names.get(k).cloned().unwrap_or_else(|| format!("joint {}", k + 1)));
+        let on = match (joint, self.kind) {
+            (Some(j), _) => format!(" on {j}"),
+            (None, EffectKind::Armature) => " on every joint".into(),
+            (None, _) => String::new(),
+        };
+        format!("{}{on}{}", self.kind.id(), self.kind.law().detail(self))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn identifiers_round_trip_and_are_the_documented_ones() {
+        let doc = include_str!("../../../../docs/diagnosis.md");
+        for k in EffectKind::ALL {
+            assert_eq!(EffectKind::from_id(k.id()), Some(k));
+            assert!(doc.contains(&format!("`{}`", k.id())), "{} is not documented", k.id());
+            let term = EffectTerm::new(k, Some(0));
+            assert_eq!(term.column_names().len(), term.width(), "{}", k.id());
+        }
+    }
+}

@@ -1,0 +1,368 @@
+//! The saved model: what an identification (and a diagnosis) produced, as the JSON file that
+//! `arash identify` writes and the daemon's model-based controllers load. Its format is
+//! `arash-model/1`; the URDF it was identified with is embedded, so the file stands alone.
+//!
+//! A file is never trusted: [`ModelFile::controller_parameters`] checks its shape against the
+//! robot, and [`ModelFile::consistent_controller_parameters`] recomputes its physical consistency.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::base_parameters::BaseParameters;
+use crate::data::Data;
+use crate::model::Model;
+use crate::physical::{min_pseudo_inertia_eigenvalues, nearest_standard_parameters, CONSISTENCY_TOLERANCE};
+use crate::regressor::regressor;
+
+/// The format identifier this version reads and writes.
+pub const FORMAT: &str = "arash-model/1";
+
+/// Why a model file cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelFileError {
+    #[error("model file: not readable as JSON: {0}")]
+    Json(String),
+    #[error("model file: unknown format `{0}` (expected {FORMAT})")]
+    Format(String),
+    #[error("model file: {0}")]
+    Shape(String),
+    #[error(
+        "model file: not physically consistent: body `{body}` has a pseudo-inertia eigenvalue of {eigenvalue:.3e} \
+         recomputed from its parameters (the file states {claimed:.3e}); a model-based controller needs a consistent \
+         model: identify with --method consistent"
+    )]
+    NotConsistent { body: String, eigenvalue: f64, claimed: f64 },
+    #[error(transparent)]
+    Base(#[from] crate::base_parameters::BaseParameterError),
+}
+
+/// The estimation method, as named on the command line and in Python.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum IdentifyMethod {
+    /// Ordinary least squares on the base parameters (the default: the paper's first fit).
+    #[default]
+    Ols,
+    /// Least squares weighted per joint by the inverse residual standard deviation.
+    Wls,
+    /// Full standard parameters with every body physically consistent (SDP).
+    Consistent,
+}
+
+impl IdentifyMethod {
+    /// The name on the command line and in Python.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ols => "ols",
+            Self::Wls => "wls",
+            Self::Consistent => "consistent",
+        }
+    }
+}
+
+impl std::fmt::Display for IdentifyMethod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for IdentifyMethod {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        [Self::Ols, Self::Wls, Self::Consistent]
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| format!("unknown method `{s}` (ols, wls or consistent)"))
+    }
+}
+
+/// Fit quality per joint, serialisable.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Metrics {
+    pub fp_percent: Vec<f64>,
+    pub relative_error: Vec<f64>,
+    pub rms: Vec<f64>,
+}
+
+/// Settings an identification was made with, kept in the model file.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Settings {
+    pub method: IdentifyMethod,
+    pub periods: Option<usize>,
+    pub cutoff_hz: f64,
+    pub order: usize,
+    pub decimate: usize,
+    pub pull: f64,
+    /// Cable stiffness bounds; `None` is unbounded (JSON has no infinity).
+    pub stiffness_bounds: (Option<f64>, Option<f64>),
+}
+
+/// Where the data came from.
+#[derive(Clone, Debug, Serialize, Deserialize, Default)]
+pub struct DataSummary {
+    /// Files (or other sources) the samples were read from.
+    pub sources: Vec<String>,
+    pub samples_in: usize,
+    pub samples_used: usize,
+    pub sample_rate_hz: f64,
+    pub periods_averaged: usize,
+}
+
+/// A saved model: base parameters with their uncertainty, and, when consistent, the full
+/// standard parameter vector. Saved as JSON by [`ModelFile::to_json`].
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct ModelFile {
+    /// [`FORMAT`].
+    pub format: String,
+    pub software_version: String,
+    pub robot_name: String,
+    /// The URDF the model was identified with, so the file stands alone.
+    pub urdf: String,
+    pub parameter_names: Vec<String>,
+    pub base_names: Vec<String>,
+    pub base_expressions: Vec<String>,
+    /// Indices of the standard parameters forming `Y_r`.
+    pub base_independent: Vec<usize>,
+    /// β̂ (for `consistent`, `B π̂`).
+    pub beta: Vec<f64>,
+    /// Relative standard deviation of each β̂ from the least-squares fit (%).
+    pub sigma_percent: Vec<f64>,
+    /// The full standard parameters (only for `consistent`).
+    pub params: Option<Vec<f64>>,
+    /// Fit quality on the training data of the returned model.
+    pub training: Metrics,
+    /// Fit quality of plain OLS on the same data (to show what consistency costs).
+    pub training_ols: Metrics,
+    /// Smallest pseudo-inertia eigenvalue per body: of the consistent estimate, or of the standard
+    /// parameters nearest CAD that reproduce the OLS/WLS β (negative = not physical).
+    pub min_pseudo_inertia_eigenvalue: Vec<f64>,
+    /// Scaled condition number of the stacked reduced regressor.
+    pub condition_number: f64,
+    pub settings: Settings,
+    pub data: DataSummary,
+    /// Effects beyond the declared model, added by `arash diagnose` (see `docs/diagnosis.md`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub effects: Vec<crate::effects::EffectTerm>,
+}
+
+/// Write `text` to `path` through a temporary file and a rename, so that a crash never leaves half
+/// a model or trajectory file behind.
+pub fn write_atomically(path: &Path, text: &str) -> std::io::Result<()> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".partial");
+    std::fs::write(&tmp, text)?;
+    std::fs::rename(&tmp, path)
+}
+
+/// The fitted part of a model file: what an estimator produced.
+#[derive(Clone, Debug)]
+pub struct Fitted {
+    pub beta: Vec<f64>,
+    pub sigma_percent: Vec<f64>,
+    pub params: Option<Vec<f64>>,
+    pub training: Metrics,
+    pub training_ols: Metrics,
+    pub min_pseudo_inertia_eigenvalue: Vec<f64>,
+    pub condition_number: f64,
+}
+
+impl ModelFile {
+    /// A model file of this version for the robot `model` (its base parameters `base`, from the
+    /// URDF text `urdf`), holding `fitted`, made with `settings` from `data`; no effects yet.
+    pub fn new(
+        (model, base, urdf): (&Model, &BaseParameters, &str),
+        fitted: Fitted,
+        settings: Settings,
+        data: DataSummary,
+    ) -> Self {
+        Self {
+            format: FORMAT.into(),
+            software_version: env!("CARGO_PKG_VERSION").into(),
+            robot_name: model.name.clone(),
+            urdf: urdf.to_string(),
+            parameter_names: model.parameter_names(),
+            base_names: base.names.clone(),
+            base_expressions: base.expressions.clone(),
+            base_independent: base.independent.clone(),
+            beta: fitted.beta,
+            sigma_percent: fitted.sigma_percent,
+            params: fitted.params,
+            training: fitted.training,
+            training_ols: fitted.training_ols,
+            min_pseudo_inertia_eigenvalue: fitted.min_pseudo_inertia_eigenvalue,
+            condition_number: fitted.condition_number,
+            settings,
+            data,
+            effects: vec![],
+        }
+    }
+
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("an identification always serialises")
+    }
+
+    /// Write the model file (JSON, URDF embedded), atomically.
+    pub fn save(&self, path: &Path) -> std::io::Result<()> {
+        write_atomically(path, &self.to_json())
+    }
+
+    pub fn from_json(text: &str) -> Result<Self, ModelFileError> {
+        let id: Self = serde_json::from_str(text).map_err(|e| ModelFileError::Json(e.to_string()))?;
+        if id.format != FORMAT {
+            return Err(ModelFileError::Format(id.format));
+        }
+        Ok(id)
+    }
+
+    /// Predicted torques (row-major N × dof) for states (row-major N × dof): `Y π̂` when the full
+    /// parameters are known, else `Y_r β̂`.
+    ///
+    /// Effects added by a diagnosis are included where they are a function of the state: all
+    /// but `delay` (a property of the log), `compliance` (whose proxy needs the measured torque)
+    /// and `drift` (a function of the log's own time).
+    pub fn predict(&self, model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<f64> {
+        let (n, big_p) = (model.dof(), model.num_params());
+        let mut data = Data::new(model);
+        let mut y = vec![0.0; n * big_p];
+        let mut full = self.full_or_base_vector();
+        // The controllers' evaluation of the effects; no ε given, so each term keeps the
+        // direction function it was fitted with.
+        let mut effects = crate::control::EffectFeedforward::new(model, &self.effects, &[], &mut full);
+        let mut out = vec![0.0; q.len() / n * n];
+        for (s, tau) in out.chunks_mut(n).enumerate() {
+            let range = s * n..(s + 1) * n;
+            regressor(model, &mut data, &q[range.clone()], &qd[range.clone()], &qdd[range.clone()], &mut y);
+            for (t, row) in tau.iter_mut().zip(y.chunks(big_p)) {
+                *t = row.iter().zip(&full).map(|(a, b)| a * b).sum::<f64>();
+            }
+            effects.add(&q[range.clone()], &qd[range.clone()], &qdd[range], tau);
+        }
+        out
+    }
+
+    /// The parameter vector a model-based controller needs for `model`: π̂, or β̂ on the
+    /// independent columns. Refused when the file was identified for a different robot or its
+    /// vectors do not fit together (a file edited by hand).
+    pub fn controller_parameters(&self, model: &Model) -> Result<Vec<f64>, ModelFileError> {
+        self.check_shape(model)?;
+        Ok(self.full_or_base_vector())
+    }
+
+    /// [`Self::controller_parameters`] for a law that inverts M(q): also refused unless every
+    /// body's pseudo-inertia, recomputed from the file's own parameters, is positive
+    /// semidefinite (an indefinite one can make M(q) indefinite and the loop unstable). The
+    /// file's `min_pseudo_inertia_eigenvalue` is a report, never trusted.
+    pub fn consistent_controller_parameters(&self, model: &Model) -> Result<Vec<f64>, ModelFileError> {
+        let eigenvalues = self.recomputed_pseudo_inertia_eigenvalues(model)?; // checks the shape too
+        let (body, worst) =
+            eigenvalues.iter().copied().enumerate().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap_or((0, f64::INFINITY));
+        if worst < -CONSISTENCY_TOLERANCE {
+            let claimed = self.min_pseudo_inertia_eigenvalue.iter().copied().fold(f64::INFINITY, f64::min);
+            return Err(ModelFileError::NotConsistent {
+                body: model.bodies[body].name.clone(),
+                eigenvalue: worst,
+                claimed,
+            });
+        }
+        Ok(self.full_or_base_vector())
+    }
+
+    /// The smallest pseudo-inertia eigenvalue of each body from the file's parameters: π̂, or the
+    /// standard parameters nearest CAD that reproduce β̂.
+    pub fn recomputed_pseudo_inertia_eigenvalues(&self, model: &Model) -> Result<Vec<f64>, ModelFileError> {
+        self.check_shape(model)?;
+        if let Some(params) = &self.params {
+            return Ok(min_pseudo_inertia_eigenvalues(model, params));
+        }
+        let base = BaseParameters::compute(model, &Default::default())?;
+        if base.independent != self.base_independent {
+            return Err(ModelFileError::Shape(
+                "its base parameters are not this robot's (independent columns differ)".into(),
+            ));
+        }
+        Ok(min_pseudo_inertia_eigenvalues(model, &nearest_standard_parameters(model, &base, &self.beta)))
+    }
+
+    /// The file's vectors against `model`: same robot, matching lengths, finite values.
+    fn check_shape(&self, model: &Model) -> Result<(), ModelFileError> {
+        let file = |text: String| Err(ModelFileError::Shape(text));
+        if self.parameter_names != model.parameter_names() {
+            return file(format!(
+                "the model was identified for robot `{}` with {} parameters; this robot (`{}`) has {} with other names",
+                self.robot_name,
+                self.parameter_names.len(),
+                model.name,
+                model.num_params()
+            ));
+        }
+        let big_p = model.num_params();
+        if let Some(p) = &self.params {
+            if p.len() != big_p {
+                return file(format!("`params` has {} entries; the robot has {big_p} parameters", p.len()));
+            }
+        }
+        if self.beta.len() != self.base_independent.len() {
+            return file(format!(
+                "`beta` has {} entries but `base_independent` names {} columns",
+                self.beta.len(),
+                self.base_independent.len()
+            ));
+        }
+        if let Some(&j) = self.base_independent.iter().find(|&&j| j >= big_p) {
+            return file(format!("`base_independent` names column {j}; the robot has {big_p} parameters"));
+        }
+        let values = self.beta.iter().chain(self.params.iter().flatten());
+        if let Some(x) = values.copied().find(|x| !x.is_finite()) {
+            return file(format!("a parameter is {x}; every value must be finite"));
+        }
+        Ok(())
+    }
+
+    /// A P-vector whose product with the full regressor is the prediction: π̂, or β̂ placed on the
+    /// independent columns (zeros elsewhere).
+    pub fn full_or_base_vector(&self) -> Vec<f64> {
+        self.params.clone().unwrap_or_else(|| {
+            let mut v = vec![0.0; self.parameter_names.len()];
+            for (&j, b) in self.base_independent.iter().zip(&self.beta) {
+                v[j] = *b;
+            }
+            v
+        })
+    }
+
+    /// Table I shape: each base parameter, its value and σ%, and the training fit.
+    pub fn table(&self) -> String {
+        let mut s = format!(
+            "Identified base parameters ({:?}, {} samples used of {}, cut-off {:.2} Hz, κ = {:.1})\n",
+            self.settings.method,
+            self.data.samples_used,
+            self.data.samples_in,
+            self.settings.cutoff_hz,
+            self.condition_number
+        );
+        // The consistent β is a constrained estimate; its spread is reported from the least squares.
+        let sigma = if self.settings.method == IdentifyMethod::Consistent { "σ% (OLS)" } else { "σ%" };
+        s += &format!("{:<4} {:<34} {:>14} {:>10}\n", "", "parameter", "value", sigma);
+        for (i, name) in self.base_names.iter().enumerate() {
+            s += &format!("β{:<3} {:<34} {:>14.6e} {:>10.2}\n", i + 1, name, self.beta[i], self.sigma_percent[i]);
+        }
+        s += "\nTraining fit per joint:      ";
+        s += &(0..self.training.fp_percent.len())
+            .map(|k| format!("{:>10}", format!("joint {}", k + 1)))
+            .collect::<String>();
+        let row = |label: &str, v: &[f64], fmt: &dyn Fn(f64) -> String| {
+            format!("\n  {label:<26} {}", v.iter().map(|x| format!("{:>10}", fmt(*x))).collect::<String>())
+        };
+        s += &row("FP% (this model)", &self.training.fp_percent, &|x| format!("{x:.2}"));
+        s += &row("FP% (OLS)", &self.training_ols.fp_percent, &|x| format!("{x:.2}"));
+        s += &row("‖τ − τ̂‖/‖τ‖", &self.training.relative_error, &|x| format!("{x:.4}"));
+        s += &row("RMS (N·m or N)", &self.training.rms, &|x| format!("{x:.2e}"));
+        let worst = self.min_pseudo_inertia_eigenvalue.iter().copied().fold(f64::INFINITY, f64::min);
+        s += &format!(
+            "\n\nSmallest pseudo-inertia eigenvalue over bodies: {worst:.3e} ({})\n",
+            if worst >= -CONSISTENCY_TOLERANCE { "physical" } else { "NOT physical" }
+        );
+        s
+    }
+}
