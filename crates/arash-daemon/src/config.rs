@@ -137,44 +137,46 @@ impl Default for SocketConfig {
 
 impl SocketConfig {
     /// The socket's file mode, parsed from its octal text.
-    pub fn mode_bits(&self) -> Result<u32, String> {
+    pub fn mode_bits(&self) -> Result<u32, ConfigError> {
         u32::from_str_radix(self.mode.trim_start_matches("0o"), 8)
-            .map_err(|_| format!("socket.mode must be octal, like \"0660\", not {:?}", self.mode))
+            .map_err(|_| ConfigError::SocketMode(self.mode.clone()))
     }
 }
 
 /// The daemon's name for a control law (configuration and `arash ctl controller`).
-pub fn controller_kind(name: &str) -> Result<arash_core::control::ControllerKind, String> {
+pub fn controller_kind(name: &str) -> Result<arash_core::control::ControllerKind, UnknownController> {
     use arash_core::control::ControllerKind;
     match name {
         "pd" => Ok(ControllerKind::Pd),
         "idc" => Ok(ControllerKind::Idc),
         "robust" => Ok(ControllerKind::Robust),
-        other => Err(format!("must be pd, idc or robust, not {other:?}")),
+        other => Err(UnknownController(other.to_string())),
     }
 }
 
 impl DaemonConfig {
     /// Read and check a configuration file.
-    pub fn load(path: &Path) -> anyhow::Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| anyhow::anyhow!("reading the configuration {}: {e}", path.display()))?;
-        Self::parse(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let read = |e: std::io::Error| ConfigError::Read(path.display().to_string(), e);
+        let text = std::fs::read_to_string(path).map_err(read)?;
+        Self::parse(&text).map_err(|e| match e {
+            ConfigError::Toml(_, source) => ConfigError::Toml(path.display().to_string(), source),
+            other => other,
+        })
     }
 
-    pub fn parse(text: &str) -> anyhow::Result<Self> {
-        let config: DaemonConfig = toml::from_str(text)?;
-        Ok(config)
+    pub fn parse(text: &str) -> Result<Self, ConfigError> {
+        toml::from_str(text).map_err(|e| ConfigError::Toml("the configuration".into(), e))
     }
 
-    /// Checks against the robot; the message names the offending key.
-    pub fn validate(&self, model: &Model) -> Result<(), String> {
+    /// Checks against the robot; the error names the offending key.
+    pub fn validate(&self, model: &Model) -> Result<(), ConfigError> {
         let dof = model.dof();
-        let positive = |key: &str, v: f64| -> Result<(), String> {
-            if v.is_finite() && v > 0.0 {
+        let positive = |key: &'static str, value: f64| -> Result<(), ConfigError> {
+            if value.is_finite() && value > 0.0 {
                 Ok(())
             } else {
-                Err(format!("{key} must be positive and finite, not {v}"))
+                Err(ConfigError::NotPositive { key, value })
             }
         };
         positive("link.timeout_ms", self.link.timeout_ms)?;
@@ -187,28 +189,25 @@ impl DaemonConfig {
         positive("log.rotate_s", self.log.rotate_s)?;
         positive("log.blackbox_s", self.log.blackbox_s)?;
         if self.log.queue < 16 {
-            return Err(format!("log.queue must be at least 16 cycles, not {}", self.log.queue));
+            return Err(ConfigError::Queue(self.log.queue));
         }
         if self.link.timeout_ms * self.control.rate_hz / 1000.0 < 1.0 {
-            return Err(format!("link.timeout_ms = {} is shorter than one control period", self.link.timeout_ms));
+            return Err(ConfigError::TimeoutBelowPeriod(self.link.timeout_ms));
         }
         if !(1..=99).contains(&self.rt.priority) {
-            return Err(format!("rt.priority must be 1–99 (SCHED_FIFO), not {}", self.rt.priority));
+            return Err(ConfigError::Priority(self.rt.priority.into()));
         }
         self.socket.mode_bits()?;
         self.controller()?;
-        self.control
-            .gain_units
-            .parse::<arash_core::control::gains::PaperUnits>()
-            .map_err(|e| format!("control.gain_units: {e}"))?;
+        self.control.gain_units.parse::<arash_core::control::gains::PaperUnits>().map_err(ConfigError::GainUnits)?;
         self.drive.validate(dof)?;
-        self.safety_limits(model)?.validate(dof).map_err(|e| format!("safety: {e}"))?;
+        self.safety_limits(model)?.validate(dof)?;
         self.following_error(model)?;
         Ok(())
     }
 
-    pub fn controller(&self) -> Result<arash_core::control::ControllerKind, String> {
-        controller_kind(&self.control.controller).map_err(|e| format!("control.controller {e}"))
+    pub fn controller(&self) -> Result<arash_core::control::ControllerKind, ConfigError> {
+        Ok(controller_kind(&self.control.controller)?)
     }
 
     /// Cycles of the link timeout and of the ramp.
@@ -217,7 +216,7 @@ impl DaemonConfig {
         (cycles(self.link.timeout_ms), cycles(self.link.ramp_ms))
     }
 
-    pub fn safety_limits(&self, model: &Model) -> Result<SafetyLimits, String> {
+    pub fn safety_limits(&self, model: &Model) -> Result<SafetyLimits, ConfigError> {
         let mut limits = SafetyLimits::from_model(model);
         let s = &self.safety;
         for (key, over, target) in [
@@ -228,7 +227,7 @@ impl DaemonConfig {
         ] {
             if let Some(v) = over {
                 if v.len() != model.dof() {
-                    return Err(format!("{key} has {} entries; the robot has {} joints", v.len(), model.dof()));
+                    return Err(ConfigError::Length { key, got: v.len(), dof: model.dof() });
                 }
                 target.clone_from(v);
             }
@@ -237,7 +236,7 @@ impl DaemonConfig {
     }
 
     /// What the control cycle runs with.
-    pub fn cycle_config(&self, model: &Model) -> Result<crate::rt::cycle::CycleConfig, String> {
+    pub fn cycle_config(&self, model: &Model) -> Result<crate::rt::cycle::CycleConfig, ConfigError> {
         let (link_timeout, ramp) = self.link_cycles();
         Ok(crate::rt::cycle::CycleConfig {
             dt: 1.0 / self.control.rate_hz,
@@ -253,7 +252,7 @@ impl DaemonConfig {
         })
     }
 
-    pub fn following_error(&self, model: &Model) -> Result<Vec<f64>, String> {
+    pub fn following_error(&self, model: &Model) -> Result<Vec<f64>, ConfigError> {
         let v = self.safety.following_error.clone().unwrap_or_else(|| {
             model
                 .joints
@@ -262,10 +261,46 @@ impl DaemonConfig {
                 .collect()
         });
         if v.len() != model.dof() || v.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
-            return Err(format!("safety.following_error must be {} positive numbers, not {v:?}", model.dof()));
+            return Err(ConfigError::FollowingError { dof: model.dof(), got: v });
         }
         Ok(v)
     }
+}
+
+/// A control law's name that is not one of the daemon's.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("must be pd, idc or robust, not {0:?}")]
+pub struct UnknownController(pub String);
+
+/// Why a configuration cannot run the rig; each names the key.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("reading the configuration {0}: {1}")]
+    Read(String, #[source] std::io::Error),
+    #[error("{0}: {1}")]
+    Toml(String, #[source] toml::de::Error),
+    #[error("{key} must be positive and finite, not {value}")]
+    NotPositive { key: &'static str, value: f64 },
+    #[error("log.queue must be at least 16 cycles, not {0}")]
+    Queue(usize),
+    #[error("link.timeout_ms = {0} is shorter than one control period")]
+    TimeoutBelowPeriod(f64),
+    #[error("rt.priority must be 1–99 (SCHED_FIFO), not {0}")]
+    Priority(i64),
+    #[error("socket.mode must be octal, like \"0660\", not {0:?}")]
+    SocketMode(String),
+    #[error("control.controller {0}")]
+    Controller(#[from] UnknownController),
+    #[error("control.gain_units: {0}")]
+    GainUnits(String),
+    #[error(transparent)]
+    Drive(#[from] crate::drive_config::DriveConfigError),
+    #[error("safety: {0}")]
+    Safety(#[from] arash_core::control::LimitsError),
+    #[error("{key} has {got} entries; the robot has {dof} joints")]
+    Length { key: &'static str, got: usize, dof: usize },
+    #[error("safety.following_error must be {dof} positive numbers, not {got:?}")]
+    FollowingError { dof: usize, got: Vec<f64> },
 }
 
 #[cfg(test)]
@@ -282,13 +317,13 @@ mod tests {
     fn a_bad_value_is_named() {
         let model = arash_core::arash_asist();
         let c = DaemonConfig::parse("[link]\ntimeout_ms = -1\n").unwrap();
-        assert!(c.validate(&model).unwrap_err().contains("link.timeout_ms"));
+        assert!(c.validate(&model).unwrap_err().to_string().contains("link.timeout_ms"));
         let c = DaemonConfig::parse("[drive]\ntorque_constant = [1.0, 2.0]\n").unwrap();
-        assert!(c.validate(&model).unwrap_err().contains("drive.torque_constant"));
+        assert!(c.validate(&model).unwrap_err().to_string().contains("drive.torque_constant"));
         let c = DaemonConfig::parse("[control]\ncontroller = \"lqr\"\n").unwrap();
-        assert!(c.validate(&model).unwrap_err().contains("control.controller"));
+        assert!(c.validate(&model).unwrap_err().to_string().contains("control.controller"));
         let c = DaemonConfig::parse("[socket]\nmode = \"rw\"\n").unwrap();
-        assert!(c.validate(&model).unwrap_err().contains("socket.mode"));
+        assert!(c.validate(&model).unwrap_err().to_string().contains("socket.mode"));
     }
 
     #[test]

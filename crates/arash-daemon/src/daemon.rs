@@ -15,7 +15,7 @@ use anyhow::Context;
 use arash_core::control::{
     controller_with_effects, Controller, ControllerKind, Faults, PlanLimits, RobustGains, Trajectory,
 };
-use arash_core::identify::Identification;
+use arash_core::model_file::ModelFile;
 use arash_core::record::Mode;
 use arash_core::Model;
 use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
@@ -66,7 +66,7 @@ pub fn build_controller(
         None => (model.cad_parameters(), vec![]),
         Some(path) => {
             let text = read_file(path, MAX_INPUT_FILE_BYTES).context("reading the model file")?;
-            let id = Identification::from_json(&text).with_context(|| format!("loading {}", path.display()))?;
+            let id = ModelFile::from_json(&text).with_context(|| format!("loading {}", path.display()))?;
             let params = if kind == ControllerKind::Pd {
                 id.controller_parameters(model)
             } else {
@@ -118,7 +118,7 @@ fn open_link(config: &DaemonConfig, dof: usize) -> anyhow::Result<Box<dyn MotorL
 /// Run the daemon until SIGTERM or SIGINT.
 pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     let DaemonOptions { config, config_text, model, urdf } = options;
-    config.validate(&model).map_err(anyhow::Error::msg).context("invalid configuration")?;
+    config.validate(&model).context("invalid configuration")?;
     let dof = model.dof();
     // First of all, before anything slow: a drive left powered by a crashed daemon keeps applying
     // its last current until told otherwise. The control cycle goes on sending DISABLE until an
@@ -138,9 +138,9 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
 
     let units = config.control.gain_units.parse().map_err(anyhow::Error::msg)?;
     let gains = RobustGains::from_paper(&model, units).ok();
-    let kind = config.controller().map_err(anyhow::Error::msg)?;
+    let kind = config.controller()?;
     let controller = build_controller(&model, kind, config.control.model.as_deref(), gains.as_ref())?;
-    let cycle = ControlCycle::new(config.cycle_config(&model).map_err(anyhow::Error::msg)?, controller);
+    let cycle = ControlCycle::new(config.cycle_config(&model)?, controller);
 
     let (request_tx, request_rx) = rtrb::RingBuffer::new(64);
     let (garbage_tx, mut garbage_rx) = rtrb::RingBuffer::new(64);
@@ -445,7 +445,7 @@ async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::Result<serd
             Ok(serde_json::json!({ "run_id": id, "duration_s": duration_s }))
         }
         CtlRequest::Controller { kind, model } => {
-            let kind = crate::config::controller_kind(&kind).map_err(|e| anyhow::anyhow!("controller kind {e}"))?;
+            let kind = crate::config::controller_kind(&kind).context("controller kind")?;
             let path = model.map(PathBuf::from);
             let controller = build_controller(&operator.model, kind, path.as_deref(), operator.gains.as_ref())?;
             applied(operator, send(operator, Request::Controller(controller))?).await?;

@@ -37,20 +37,29 @@ impl DriveConfig {
         2.0 * std::f64::consts::PI * self.transmission[joint] / self.counts_per_rev[joint]
     }
 
-    /// Checks lengths and signs; the message names the key (`drive.<name>`).
-    pub fn validate(&self, dof: usize) -> Result<(), String> {
+    /// Checks lengths and signs; the error names the key (`drive.<name>`).
+    pub fn validate(&self, dof: usize) -> Result<(), DriveConfigError> {
         for (name, v) in [
             ("counts_per_rev", &self.counts_per_rev),
             ("transmission", &self.transmission),
             ("torque_constant", &self.torque_constant),
         ] {
             if v.len() != dof {
-                return Err(format!("drive.{name} has {} entries; the robot has {dof} joints", v.len()));
+                return Err(DriveConfigError::Length { name, got: v.len(), dof });
             }
             if let Some((k, x)) = v.iter().enumerate().find(|(_, x)| !(x.is_finite() && **x > 0.0)) {
-                return Err(format!("drive.{name}[{k}] must be positive and finite, not {x}"));
+                return Err(DriveConfigError::NotPositive { name, joint: k, value: *x });
             }
         }
         Ok(())
     }
+}
+
+/// A [`DriveConfig`] that does not fit the robot, named by its key.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum DriveConfigError {
+    #[error("drive.{name} has {got} entries; the robot has {dof} joints")]
+    Length { name: &'static str, got: usize, dof: usize },
+    #[error("drive.{name}[{joint}] must be positive and finite, not {value}")]
+    NotPositive { name: &'static str, joint: usize, value: f64 },
 }

@@ -1,7 +1,9 @@
 //! `arash`: the command-line front of the ARASH:ASiST software. Each subcommand lives in
-//! `commands/`; this file only parses arguments and reports errors.
+//! `cli/`, the reports and figures they write in `report/`; this file only parses arguments and
+//! reports errors.
 
-mod commands;
+mod cli;
+mod report;
 mod runlog;
 
 use clap::{Parser, Subcommand};
@@ -17,23 +19,23 @@ struct Cli {
 enum Command {
     /// The paper end to end on the simulated rig, through the daemon: excitation, calibration,
     /// diagnosis, tracking three ways, and a report under logs/<run>/report/.
-    Demo(commands::demo::Args),
+    Demo(cli::demo::Args),
     /// Describe a robot: bodies, joints, parameter count and base parameters.
-    Model(commands::model::Args),
+    Model(cli::model::Args),
     /// Design a persistently exciting Fourier trajectory and write it as JSON.
-    Excite(commands::excite::Args),
+    Excite(cli::excite::Args),
     /// Identify the dynamic parameters from logged runs and write a model file.
-    Identify(commands::identify::Args),
+    Identify(cli::identify::Args),
     /// Find what the declared model lacks in logged runs: report, figures and an updated model.
-    Diagnose(commands::diagnose::Args),
+    Diagnose(cli::diagnose::Args),
     /// Run the simulated rig with a controller on a trajectory and write the flight log (MCAP).
-    Simulate(commands::simulate::Args),
+    Simulate(cli::simulate::Args),
     /// Run the rig: the 1 kHz control loop over the motor link (starts with the motors disabled).
-    Daemon(commands::daemon::Args),
+    Daemon(cli::daemon::Args),
     /// Command a running daemon: status, enable, disable, reset, hold, run, controller.
-    Ctl(commands::ctl::Args),
+    Ctl(cli::ctl::Args),
     /// Serve the simulated rig behind the motor protocol on a pseudo-terminal.
-    MockMotor(commands::mock_motor::Args),
+    MockMotor(cli::mock_motor::Args),
 }
 
 /// Errors are for the person at the rig: the message and its causes on one line, without the
@@ -75,14 +77,14 @@ fn report_bug(info: &std::panic::PanicHookInfo) {
 
 fn run(command: Command) -> anyhow::Result<()> {
     match command {
-        Command::Demo(args) => commands::demo::run(args),
-        Command::Model(args) => commands::model::run(args),
-        Command::Excite(args) => commands::excite::run(args),
-        Command::Identify(args) => commands::identify::run(args),
-        Command::Diagnose(args) => commands::diagnose::run(args),
-        Command::Simulate(args) => commands::simulate::run(args),
-        Command::Daemon(args) => commands::daemon::run(args),
-        Command::Ctl(args) => commands::ctl::run(args),
-        Command::MockMotor(args) => commands::mock_motor::run(args),
+        Command::Demo(args) => cli::demo::run(args),
+        Command::Model(args) => cli::model::run(args),
+        Command::Excite(args) => cli::excite::run(args),
+        Command::Identify(args) => cli::identify::run(args),
+        Command::Diagnose(args) => cli::diagnose::run(args),
+        Command::Simulate(args) => cli::simulate::run(args),
+        Command::Daemon(args) => cli::daemon::run(args),
+        Command::Ctl(args) => cli::ctl::run(args),
+        Command::MockMotor(args) => cli::mock_motor::run(args),
     }
 }

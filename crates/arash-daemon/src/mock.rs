@@ -48,21 +48,34 @@ pub struct FaultPlan {
 }
 
 impl FaultPlan {
-    pub fn validate(&self, dof: usize) -> Result<(), String> {
+    pub fn validate(&self, dof: usize) -> Result<(), MockError> {
         for (name, p) in
             [("drop", self.drop), ("corrupt", self.corrupt), ("delay", self.delay), ("reorder", self.reorder)]
         {
             if !(0.0..=1.0).contains(&p) {
-                return Err(format!("fault `{name}` is a probability in [0, 1], not {p}"));
+                return Err(MockError::Probability { name, value: p });
             }
         }
         for (name, j) in [("stuck_joint", self.stuck_joint), ("mismatch_joint", self.mismatch_joint)] {
             if j >= dof {
-                return Err(format!("fault `{name}` = {j}, but the robot has joints 0..{}", dof - 1));
+                return Err(MockError::Joint { name, joint: j, dof });
             }
         }
         Ok(())
     }
+}
+
+/// Why a mock motor cannot be built.
+#[derive(Debug, thiserror::Error)]
+pub enum MockError {
+    #[error("fault `{name}` is a probability in [0, 1], not {value}")]
+    Probability { name: &'static str, value: f64 },
+    #[error("fault `{name}` = {joint}, but the robot has joints 0..{}", dof - 1)]
+    Joint { name: &'static str, joint: usize, dof: usize },
+    #[error(transparent)]
+    Drive(#[from] crate::drive_config::DriveConfigError),
+    #[error(transparent)]
+    Plant(#[from] arash_core::sim::PlantError),
 }
 
 /// The mock drive behind one link endpoint.
@@ -93,10 +106,10 @@ pub struct MockMotor {
 }
 
 impl MockMotor {
-    pub fn new(model: &Model, scenario: &Scenario, config: DriveConfig, faults: FaultPlan) -> anyhow::Result<Self> {
+    pub fn new(model: &Model, scenario: &Scenario, config: DriveConfig, faults: FaultPlan) -> Result<Self, MockError> {
         let dof = model.dof();
-        config.validate(dof).map_err(anyhow::Error::msg)?;
-        faults.validate(dof).map_err(anyhow::Error::msg)?;
+        config.validate(dof)?;
+        faults.validate(dof)?;
         let mut sensed = scenario.clone();
         sensed.sensors.counts_per_rev.clone_from(&config.counts_per_rev);
         sensed.sensors.transmission.clone_from(&config.transmission);

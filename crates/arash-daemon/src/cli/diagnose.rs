@@ -5,24 +5,21 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
-use arash_core::diagnose::{consistent_with_effects, diagnose, DiagnoseOptions, Diagnosis, EffectKind, Log};
+use arash_core::diagnose::{consistent_with_effects, diagnose, DiagnoseOptions, Diagnosis, EffectKind};
 use arash_core::identify::consistent::ConsistentOptions;
-use arash_core::identify::Identification;
+use arash_core::identify::{Declared, Log};
+use arash_core::model_file::ModelFile;
 use arash_core::BaseParameters;
 
+use crate::report::figures;
 use arash_daemon::drive_config::DriveConfig;
-use arash_daemon::figures;
 
 use crate::runlog;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Logged runs (MCAP flight logs, or CSV with columns t, q.<joint>, tau.<joint>), concatenated in order.
-    #[arg(required = true)]
-    logs: Vec<PathBuf>,
-    /// The robot's URDF; default: the bundled ARASH:ASiST.
-    #[arg(long)]
-    robot: Option<PathBuf>,
+    #[command(flatten)]
+    runs: super::Runs,
     /// A model file (from `arash identify` or an earlier diagnosis) to diagnose against; its
     /// inertial parameters are held, friction is refitted. Default: refit the declared model.
     #[arg(long)]
@@ -42,16 +39,16 @@ pub struct Args {
     #[arg(long, value_delimiter = ',')]
     transmission: Option<Vec<f64>>,
     /// Low-pass cut-off (Hz).
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = DiagnoseOptions::default().cutoff_hz)]
     cutoff: f64,
     /// Length of the blocks of time the tests and the held-out split use (s).
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = DiagnoseOptions::default().block_s)]
     block: f64,
     /// Family-wise error rate per search round (Holm).
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = DiagnoseOptions::default().alpha)]
     alpha: f64,
     /// Smallest cut of a joint's held-out squared error worth a term (fraction).
-    #[arg(long, default_value_t = 0.2)]
+    #[arg(long, default_value_t = DiagnoseOptions::default().min_gain)]
     min_gain: f64,
     /// Search only these effects (comma-separated identifiers; see docs/diagnosis.md).
     #[arg(long, value_delimiter = ',')]
@@ -71,7 +68,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (model, urdf) = super::load_robot(args.robot.as_deref())?;
+    let (model, urdf) = super::load_robot(args.runs.robot.as_deref())?;
     anyhow::ensure!(
         args.model.is_some() || !(args.refit || args.hold_friction),
         "--refit and --hold-friction apply to a model given with --model"
@@ -81,28 +78,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let logs = paths.iter().map(|p| runlog::read(p, &model)).collect::<anyhow::Result<Vec<_>>>()?;
         Ok(runlog::concatenate(logs))
     };
-    let train = read(&args.logs)?;
+    let train = read(&args.runs.logs)?;
     let validation = if args.validate.is_empty() { None } else { Some(read(&args.validate)?) };
     let given = args
         .model
         .as_ref()
-        .map(|p| -> anyhow::Result<Identification> {
+        .map(|p| -> anyhow::Result<ModelFile> {
             let text = std::fs::read_to_string(p).with_context(|| format!("reading model {}", p.display()))?;
-            Identification::from_json(&text).with_context(|| format!("model {}", p.display()))
+            ModelFile::from_json(&text).with_context(|| format!("model {}", p.display()))
         })
         .transpose()?;
     eprintln!(
         "diagnosing {} samples ({} file(s)){} ...",
         train.t.len(),
-        args.logs.len(),
+        args.runs.logs.len(),
         validation.as_ref().map_or(String::new(), |v| format!(", holding out {} samples", v.t.len()))
     );
     let started = std::time::Instant::now();
     let base = BaseParameters::compute(&model, &BaseParameterOptions::default())?;
     let diagnosis = diagnose(
-        &model,
-        &base,
-        &urdf,
+        Declared { model: &model, base: &base, urdf: &urdf },
         Log { t: &train.t, q: &train.q, tau: &train.tau },
         validation.as_ref().map(|v| Log { t: &v.t, q: &v.q, tau: &v.tau }),
         given.as_ref(),
@@ -123,51 +118,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The diagnosis's settings from the command line, whose defaults are `DiagnoseOptions::default`.
 fn options(args: &Args, model: &arash_core::Model) -> anyhow::Result<DiagnoseOptions> {
-    for (name, v) in [
-        ("--cutoff", args.cutoff),
-        ("--block", args.block),
-        ("--consistent-cutoff", args.consistent_cutoff.unwrap_or(1.0)),
-    ] {
-        anyhow::ensure!(v.is_finite() && v > 0.0, "{name} must be positive, not {v}");
-    }
-    anyhow::ensure!(args.alpha > 0.0 && args.alpha < 1.0, "--alpha must lie in (0, 1), not {}", args.alpha);
-    anyhow::ensure!((0.0..1.0).contains(&args.min_gain), "--min-gain is a fraction in [0, 1), not {}", args.min_gain);
-    let effects = match &args.effects {
-        None => EffectKind::ALL.to_vec(),
-        Some(ids) => ids
-            .iter()
-            .map(|id| {
-                EffectKind::from_id(id.trim()).ok_or_else(|| {
-                    let known: Vec<&str> = EffectKind::ALL.iter().map(|k| k.id()).collect();
-                    anyhow::anyhow!("--effects: unknown effect `{id}` (known: {})", known.join(", "))
-                })
-            })
-            .collect::<anyhow::Result<_>>()?,
-    };
-    let transmission = match &args.transmission {
-        Some(t) => {
-            anyhow::ensure!(
-                t.len() == model.dof() && t.iter().all(|v| v.is_finite() && *v > 0.0),
-                "--transmission needs {} positive values, one per joint; got {t:?}",
-                model.dof()
-            );
-            Some(t.clone())
-        }
-        None if model.name == arash_core::arash_asist().name => Some(DriveConfig::default().transmission),
-        None => None,
-    };
-    Ok(DiagnoseOptions {
+    let mut options = DiagnoseOptions {
         cutoff_hz: args.cutoff,
         block_s: args.block,
         alpha: args.alpha,
         min_gain: args.min_gain,
-        effects,
-        transmission,
-        refit: args.refit,
-        hold_friction: args.hold_friction,
         ..DiagnoseOptions::default()
-    })
+    };
+    if let Some(ids) = &args.effects {
+        options.effects = EffectKind::parse_list(ids).context("--effects")?;
+    }
+    options.transmission = match &args.transmission {
+        Some(t) => Some(t.clone()),
+        None if model.name == arash_core::arash_asist().name => Some(DriveConfig::default().transmission),
+        None => None,
+    };
+    options.refit = args.refit;
+    options.hold_friction = args.hold_friction;
+    options.validate(model.dof())?;
+    if let Some(v) = args.consistent_cutoff {
+        anyhow::ensure!(v.is_finite() && v > 0.0, "--consistent-cutoff must be positive, not {v}");
+    }
+    Ok(options)
 }
 
 /// Fit the physically consistent model together with the effects `diagnosis` found, on `train`
@@ -180,17 +154,17 @@ pub fn write_consistent(
     diagnosis: &Diagnosis,
     options: &DiagnoseOptions,
     cutoff_hz: f64,
-) -> anyhow::Result<(Identification, PathBuf)> {
+) -> anyhow::Result<(ModelFile, PathBuf)> {
     let options = DiagnoseOptions { cutoff_hz, ..options.clone() };
     let refit = consistent_with_effects(model, base, train, &diagnosis.model, &options, &ConsistentOptions::default())
         .context("the consistent fit with the effects found failed")?;
     let path = dir.join("model_consistent.json");
-    super::write_atomically(&path, &refit.to_json())?;
+    crate::report::write_atomically(&path, &refit.to_json())?;
     Ok((refit, path))
 }
 
 /// One paragraph on the consistent refit: its fit and its effects' coefficients.
-pub fn consistent_summary(refit: &Identification, joint_names: &[String]) -> String {
+pub fn consistent_summary(refit: &ModelFile, joint_names: &[String]) -> String {
     let fp: Vec<String> = refit.training.fp_percent.iter().map(|f| format!("{f:.2}")).collect();
     let worst = refit.min_pseudo_inertia_eigenvalue.iter().copied().fold(f64::INFINITY, f64::min);
     let mut s = format!(
@@ -207,9 +181,9 @@ pub fn consistent_summary(refit: &Identification, joint_names: &[String]) -> Str
 /// Write report.txt, diagnosis.json, model.json and the figures into `dir`.
 pub fn write_outputs(dir: &Path, diagnosis: &Diagnosis, report: &str) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    super::write_atomically(&dir.join("report.txt"), report)?;
-    super::write_atomically(&dir.join("diagnosis.json"), &diagnosis.to_json())?;
-    super::write_atomically(&dir.join("model.json"), &diagnosis.model.to_json())?;
+    crate::report::write_atomically(&dir.join("report.txt"), report)?;
+    crate::report::write_atomically(&dir.join("diagnosis.json"), &diagnosis.to_json())?;
+    crate::report::write_atomically(&dir.join("model.json"), &diagnosis.model.to_json())?;
     for path in write_figures(dir, diagnosis)? {
         eprintln!("figure {}", path.display());
     }

@@ -5,7 +5,8 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
-use arash_core::identify::excitation::{design_excitation, Excitation, ExcitationOptions};
+use arash_core::control::fourier::{Excitation, DEFAULT_SAMPLE_RATE_HZ};
+use arash_core::identify::excitation::{design_excitation, ExcitationOptions};
 use arash_core::BaseParameters;
 use serde::Serialize;
 
@@ -15,22 +16,22 @@ pub struct Args {
     #[arg(long)]
     robot: Option<PathBuf>,
     /// Harmonics L.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = ExcitationOptions::default().harmonics)]
     harmonics: usize,
     /// Base period T (s).
-    #[arg(long, default_value_t = 15.0)]
+    #[arg(long, default_value_t = ExcitationOptions::default().period_s)]
     period: f64,
     /// Seeded optimiser restarts.
-    #[arg(long, default_value_t = 6)]
+    #[arg(long, default_value_t = ExcitationOptions::default().restarts)]
     restarts: usize,
     /// Seed: the same seed gives the same trajectory.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = ExcitationOptions::default().seed)]
     seed: u64,
     /// Acceleration limit per joint, comma-separated (rad/s² or m/s²); default 5 × speed limit/s.
     #[arg(long, value_delimiter = ',')]
     acceleration_limits: Option<Vec<f64>>,
     /// Sample rate of the written trajectory (Hz).
-    #[arg(long, default_value_t = 1000.0)]
+    #[arg(long, default_value_t = DEFAULT_SAMPLE_RATE_HZ)]
     rate: f64,
     /// Output file.
     #[arg(short, long)]
@@ -109,7 +110,7 @@ pub fn write(
         qd: rows(&qd, model.dof()),
         qdd: rows(&qdd, model.dof()),
     };
-    super::write_atomically(path, &serde_json::to_string(&file)?)?;
+    crate::report::write_atomically(path, &serde_json::to_string(&file)?)?;
     Ok(file.t.len())
 }
 

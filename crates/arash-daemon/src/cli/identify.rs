@@ -6,8 +6,9 @@ use std::path::PathBuf;
 use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::identify::consistent::ConsistentOptions;
-use arash_core::identify::preprocess::PreprocessOptions;
-use arash_core::identify::{identify, validate, validation_table, IdentifyMethod, IdentifyOptions};
+use arash_core::identify::preprocess::{PreprocessOptions, CUTOFF_PER_BANDWIDTH};
+use arash_core::identify::{identify, validate, validation_table, Declared, IdentifyOptions, Log};
+use arash_core::model_file::IdentifyMethod;
 
 use arash_core::BaseParameters;
 
@@ -15,14 +16,10 @@ use crate::runlog;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Logged runs (MCAP flight logs, or CSV with columns t, q.<joint>, tau.<joint>), concatenated in order.
-    #[arg(required = true)]
-    logs: Vec<PathBuf>,
-    /// The robot's URDF; default: the bundled ARASH:ASiST.
-    #[arg(long)]
-    robot: Option<PathBuf>,
+    #[command(flatten)]
+    runs: super::Runs,
     /// ols, wls or consistent.
-    #[arg(long, default_value = "ols")]
+    #[arg(long, default_value_t)]
     method: IdentifyMethod,
     /// Whole excitation periods in the training data (averaged); omit for non-periodic data.
     #[arg(long)]
@@ -32,7 +29,7 @@ pub struct Args {
     #[arg(long)]
     cutoff: Option<f64>,
     /// Butterworth order (applied forward and backward).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = PreprocessOptions::default().order)]
     order: usize,
     /// Cut-off of the velocity that switches Coulomb friction (Hz); default 20.
     #[arg(long)]
@@ -42,10 +39,10 @@ pub struct Args {
     #[arg(long)]
     coulomb_epsilon: Option<f64>,
     /// Keep every k-th sample after filtering.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = PreprocessOptions::default().decimate)]
     decimate: usize,
     /// Pull toward CAD in the consistent fit, relative to the data.
-    #[arg(long, default_value_t = 1e-4)]
+    #[arg(long, default_value_t = ConsistentOptions::default().pull)]
     pull: f64,
     /// Validation runs (MCAP or CSV), each cross-validated like the paper's Table II.
     #[arg(long, num_args = 1..)]
@@ -59,16 +56,16 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (mut model, urdf) = super::load_robot(args.robot.as_deref())?;
+    let (mut model, urdf) = super::load_robot(args.runs.robot.as_deref())?;
     if let Some(epsilon) = args.coulomb_epsilon {
         anyhow::ensure!(epsilon.is_finite() && epsilon > 0.0, "--coulomb-epsilon must be positive, not {epsilon}");
         model.coulomb_shape = arash_core::model::CoulombShape::Tanh { epsilon };
     }
-    let logs = args.logs.iter().map(|p| runlog::read(p, &model)).collect::<anyhow::Result<Vec<_>>>()?;
+    let logs = args.runs.logs.iter().map(|p| runlog::read(p, &model)).collect::<anyhow::Result<Vec<_>>>()?;
     let log = runlog::concatenate(logs);
     let cutoff = args.cutoff.or_else(|| {
-        let cutoff = default_cutoff(&log)?;
-        eprintln!("cut-off {cutoff:.2} Hz: 5 × the logged trajectory's top frequency");
+        let cutoff = log.trajectory_cutoff_hz()?;
+        eprintln!("cut-off {cutoff:.2} Hz: {CUTOFF_PER_BANDWIDTH} × the logged trajectory's top frequency");
         Some(cutoff)
     });
     let options = IdentifyOptions {
@@ -82,11 +79,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         consistent: ConsistentOptions { pull: args.pull, ..Default::default() },
     };
-    eprintln!("identifying from {} samples ({} file(s)) with {:?} ...", log.t.len(), args.logs.len(), args.method);
+    eprintln!("identifying from {} samples ({} file(s)) with {:?} ...", log.t.len(), args.runs.logs.len(), args.method);
     let base = BaseParameters::compute(&model, &BaseParameterOptions::default())?;
-    let mut identification = identify(&model, &base, &urdf, &log.t, &log.q, &log.tau, args.method, &options)
-        .context("identification failed")?;
-    identification.data.sources = args.logs.iter().map(|p| p.display().to_string()).collect();
+    let mut identification = identify(
+        Declared { model: &model, base: &base, urdf: &urdf },
+        Log { t: &log.t, q: &log.q, tau: &log.tau },
+        args.method,
+        &options,
+    )
+    .context("identification failed")?;
+    identification.data.sources = args.runs.logs.iter().map(|p| p.display().to_string()).collect();
     println!("{}", identification.table());
     if !args.validate.is_empty() {
         let joints = model.joint_names();
@@ -107,14 +109,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         println!("Cross-validation (FP% per joint, one column per run):\n{}", validation_table(&joints, &labels, &fp));
     }
-    super::write_atomically(&args.output, &identification.to_json())?;
+    crate::report::write_atomically(&args.output, &identification.to_json())?;
     println!("wrote {}", args.output.display());
     Ok(())
-}
-
-/// The low-pass cut-off for a log of a known trajectory: five times its top frequency (at least
-/// 1 Hz). Closed-loop positions carry controller dither that fools a cut-off read off their
-/// spectrum. `None` when the log names no trajectory (or a hold).
-pub fn default_cutoff(log: &runlog::Log) -> Option<f64> {
-    Some((5.0 * log.trajectory.as_ref()?.bandwidth_hz()?).max(1.0))
 }

@@ -12,6 +12,17 @@ use std::path::Path;
 
 use anyhow::Context;
 
+/// The logged runs a command reads and the robot they come from.
+#[derive(clap::Args)]
+pub struct Runs {
+    /// Logged runs (MCAP flight logs, or CSV with columns t, q.<joint>, tau.<joint>), concatenated in order.
+    #[arg(required = true)]
+    pub logs: Vec<std::path::PathBuf>,
+    /// The robot's URDF; default: the bundled ARASH:ASiST.
+    #[arg(long)]
+    pub robot: Option<std::path::PathBuf>,
+}
+
 /// Load a robot model and keep its URDF text (model files and logs embed it). `None` is the
 /// ARASH:ASiST description built into the binary.
 pub fn load_robot(path: Option<&Path>) -> anyhow::Result<(arash_core::Model, String)> {
@@ -21,9 +32,4 @@ pub fn load_robot(path: Option<&Path>) -> anyhow::Result<(arash_core::Model, Str
     let text = std::fs::read_to_string(path).with_context(|| format!("reading URDF {}", path.display()))?;
     let model = arash_core::parse_urdf(&text).with_context(|| format!("loading {}", path.display()))?;
     Ok((model, text))
-}
-
-/// Write a file atomically (see [`arash_core::identify::write_atomically`]), naming it on failure.
-pub fn write_atomically(path: &Path, text: &str) -> anyhow::Result<()> {
-    arash_core::identify::write_atomically(path, text).with_context(|| format!("writing {}", path.display()))
 }

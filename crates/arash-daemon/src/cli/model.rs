@@ -11,10 +11,10 @@ pub struct Args {
     /// The robot's URDF (mimic joints describe closed chains).
     urdf: PathBuf,
     /// Random states stacked to find the base parameters.
-    #[arg(long, default_value_t = 400)]
+    #[arg(long, default_value_t = BaseParameterOptions::default().samples)]
     samples: usize,
     /// Seed of the state sampler.
-    #[arg(long, default_value_t = 0x5eed)]
+    #[arg(long, default_value_t = BaseParameterOptions::default().seed)]
     seed: u64,
 }
 

@@ -8,7 +8,7 @@ use arash_core::control::gains::PaperUnits;
 use arash_core::control::{RobustGains, Trajectory};
 use arash_core::diagnose::EffectTerm;
 use arash_core::flightlog::LogWriter;
-use arash_core::identify::Identification;
+use arash_core::model_file::ModelFile;
 use arash_core::sim::{named_parameters, ControllerChoice, RunSpec, Scenario};
 use arash_core::Model;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -62,7 +62,7 @@ fn controller_parameters(args: &Args, model: &Model, scenario: &Scenario) -> any
         Some(params) => (params, vec![]),
         None => {
             let text = std::fs::read_to_string(source).with_context(|| format!("reading model file {source}"))?;
-            let identification = Identification::from_json(&text).with_context(|| format!("loading {source}"))?;
+            let identification = ModelFile::from_json(&text).with_context(|| format!("loading {source}"))?;
             let params = identification.controller_parameters(model).with_context(|| format!("using {source}"))?;
             (params, identification.effects)
         }

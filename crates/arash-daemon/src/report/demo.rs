@@ -7,18 +7,19 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use crate::report::figures::{panels, Panel};
+use arash_core::control::fourier::Excitation;
 use arash_core::diagnose::Diagnosis;
 use arash_core::flightlog::read_log;
-use arash_core::identify::excitation::Excitation;
-use arash_core::identify::{Identification, ValidationSeries};
+use arash_core::identify::ValidationSeries;
 use arash_core::model::JointKind;
+use arash_core::model_file::ModelFile;
 use arash_core::Model;
-use arash_daemon::figures::{panels, Panel};
 
 /// What the calibration step produced.
 pub struct Calibration {
-    pub ols: Identification,
-    pub consistent: Identification,
+    pub ols: ModelFile,
+    pub consistent: ModelFile,
     /// Where the consistent model was written.
     pub consistent_file: std::path::PathBuf,
     /// Table II, as printed.
@@ -284,8 +285,8 @@ pub fn write(
     let diagnosis_figures = list_pngs(&dir.join("diagnosis"))?;
     let figures = [excitation_figure, calibration_figures, tracking_figures];
     let markdown = markdown(model, excitation, calibration, diagnosis, tracking, &figures, &diagnosis_figures);
-    super::super::write_atomically(&dir.join("report.md"), &markdown)?;
-    super::super::write_atomically(&dir.join("summary.json"), &summary(model, calibration, diagnosis, tracking))?;
+    super::write_atomically(&dir.join("report.md"), &markdown)?;
+    super::write_atomically(&dir.join("summary.json"), &summary(model, calibration, diagnosis, tracking))?;
     Ok(figures.iter().map(Vec::len).sum::<usize>() + diagnosis_figures.len())
 }
 

@@ -145,23 +145,6 @@ pub fn bars_before_after(
     Ok(())
 }
 
-/// Lines `y(x)`, one per named series.
-pub fn lines(
-    path: &Path,
-    title: &str,
-    x_label: &str,
-    y_label: &str,
-    series: &[(&str, &[f64], &[f64])],
-) -> anyhow::Result<()> {
-    let root = canvas(path)?;
-    let (x0, x1) = range(series.iter().flat_map(|s| s.1.iter()));
-    let (y0, y1) = range(series.iter().flat_map(|s| s.2.iter()));
-    let mut chart = axes(&root, title, x0..x1, y0..y1)?;
-    chart.configure_mesh().x_desc(x_label).y_desc(y_label).label_style(("sans-serif", 15)).draw()?;
-    draw_lines(&mut chart, series.iter().map(|(name, x, y)| (*name, *x, *y)))?;
-    finish(chart, &root, path)
-}
-
 /// Named lines `y(x)`, thinned, in the palette's colours by order, with legend entries.
 fn draw_lines<'s>(
     chart: &mut Chart<'_, '_>,
@@ -227,13 +210,11 @@ mod tests {
         scatter_before_after(&scatter, "residual", "q (rad)", "N·m", &x, &y, &z).unwrap();
         let bars = dir.join("bars.png");
         bars_before_after(&bars, "FP%", "%", &["yaw".into(), "pitch".into()], &[80.0, 90.0], &[95.0, 99.0]).unwrap();
-        let line = dir.join("line.png");
-        lines(&line, "q", "t (s)", "rad", &[("q", &x, &y)]).unwrap();
         let stacked = dir.join("panels.png");
         let panel =
             |label: &str| Panel { y_label: label.into(), series: vec![("a", &x[..], y.clone()), ("b", &x, z.clone())] };
         panels(&stacked, "two joints", "t (s)", &[panel("rad"), panel("m")]).unwrap();
-        for path in [scatter, bars, line, stacked] {
+        for path in [scatter, bars, stacked] {
             let bytes = std::fs::read(&path).unwrap();
             assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{}", path.display());
             assert!(bytes.len() > 5000, "{} is suspiciously small", path.display());

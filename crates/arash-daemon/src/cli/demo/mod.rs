@@ -4,22 +4,22 @@
 //! I and II), diagnose the residual, track the ω = 0.5 validation trajectory three ways, and
 //! write a report with figures. Everything goes to `logs/<run>/`.
 
-mod report;
+use crate::report::demo as report;
 mod rig;
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
+use arash_core::control::fourier::Excitation;
 use arash_core::control::Trajectory;
-use arash_core::diagnose::{diagnose, DiagnoseOptions, Diagnosis, Log};
+use arash_core::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use arash_core::identify::consistent::ConsistentOptions;
 use arash_core::identify::estimate::joint_metrics;
-use arash_core::identify::excitation::{design_excitation, Excitation, ExcitationOptions};
+use arash_core::identify::excitation::{design_excitation, ExcitationOptions};
 use arash_core::identify::preprocess::PreprocessOptions;
-use arash_core::identify::{
-    identify, validate, validation_series, validation_table, Identification, IdentifyMethod, IdentifyOptions,
-};
+use arash_core::identify::{identify, validate, validation_series, validation_table, Declared, IdentifyOptions, Log};
+use arash_core::model_file::{IdentifyMethod, ModelFile};
 use arash_core::{BaseParameters, Model};
 use arash_daemon::drive_config::DriveConfig;
 use arash_daemon::rt::clock::RtPolicy;
@@ -134,7 +134,7 @@ fn steps(args: &Args, plan: &Plan) -> anyhow::Result<()> {
         Some(path) => path.clone(),
         None => {
             let path = dir.join("scenario.toml");
-            super::write_atomically(&path, DEMO_SCENARIO)?;
+            crate::report::write_atomically(&path, DEMO_SCENARIO)?;
             path
         }
     };
@@ -233,7 +233,7 @@ fn experiment(
 /// The paper's validation trajectory at `omega`, as a file the daemon reads.
 fn trajectory_file(dir: &Path, omega: f64) -> anyhow::Result<PathBuf> {
     let path = dir.join(format!("paper_validation_{omega}.json"));
-    super::write_atomically(&path, &Trajectory::PaperValidation { omega }.to_json())?;
+    crate::report::write_atomically(&path, &Trajectory::PaperValidation { omega }.to_json())?;
     Ok(path)
 }
 
@@ -259,17 +259,18 @@ fn calibrate(
     let options = IdentifyOptions {
         preprocess: PreprocessOptions {
             periods: Some(plan.periods),
-            cutoff_hz: super::identify::default_cutoff(log),
+            cutoff_hz: log.trajectory_cutoff_hz(),
             ..Default::default()
         },
         consistent: ConsistentOptions::default(),
     };
-    let fit = |method| -> anyhow::Result<(Identification, PathBuf)> {
-        let mut id = identify(model, base, urdf, &log.t, &log.q, &log.tau, method, &options)
-            .with_context(|| format!("identification ({method:?}) failed"))?;
+    let fit = |method| -> anyhow::Result<(ModelFile, PathBuf)> {
+        let mut id =
+            identify(Declared { model, base, urdf }, Log { t: &log.t, q: &log.q, tau: &log.tau }, method, &options)
+                .with_context(|| format!("identification ({method:?}) failed"))?;
         id.data.sources = vec![training.display().to_string()];
         let path = plan.dir.join(format!("model_{}.json", format!("{method:?}").to_lowercase()));
-        super::write_atomically(&path, &id.to_json())?;
+        crate::report::write_atomically(&path, &id.to_json())?;
         Ok((id, path))
     };
     let (ols, _) = fit(IdentifyMethod::Ols)?;
@@ -323,7 +324,7 @@ fn diagnose_run(
     let log = Log { t: &log.t, q: &log.q, tau: &log.tau };
     let options =
         DiagnoseOptions { transmission: Some(DriveConfig::default().transmission), ..DiagnoseOptions::default() };
-    let diagnosis = diagnose(model, base, urdf, log, None, None, &options).context("diagnosis failed")?;
+    let diagnosis = diagnose(Declared { model, base, urdf }, log, None, None, &options).context("diagnosis failed")?;
     let report = diagnosis.report();
     super::diagnose::write_outputs(out, &diagnosis, &report)?;
     println!("{}", indent(&report));
