@@ -1,53 +1,311 @@
-//! `arash._diagnose` and the `_Diagnosis` it returns; `arash.diagnose` (Python) wraps them into the
-//! documented `Diagnosis`.
+//! `arash.DiagnoseOptions`, `arash._diagnose` and the `Diagnosis` and `Effect` it returns.
+//! `arash.diagnose` (Python) takes typed keywords and passes only those the caller set; every
+//! default is `arash_core::diagnose::DiagnoseOptions::default()`.
 
 use std::sync::Arc;
 
 use arash_core::diagnose::{
-    consistent_with_effects, diagnose as core_diagnose, DiagnoseOptions, Diagnosis as CoreDiagnosis, EffectKind, Log,
+    consistent_with_effects, diagnose as core_diagnose, DiagnoseOptions as CoreOptions, Diagnosis as CoreDiagnosis,
+    ErrorSummary, Finding,
 };
+use arash_core::effects::EffectKind;
 use arash_core::identify::consistent::ConsistentOptions;
+use arash_core::identify::{Declared, Log};
+use arash_core::model_file::{Metrics, ModelFile};
 use numpy::PyReadonlyArrayDyn;
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
 use crate::identify::{log_arrays, Identification};
 use crate::{to_numpy, value_error, NumpyArray, Robot};
 
-/// What the diagnosis found (the Rust side; see `arash.Diagnosis`).
-#[pyclass(module = "arash._arash", frozen)]
-pub(crate) struct RawDiagnosis {
-    model: Arc<arash_core::Model>,
-    inner: CoreDiagnosis,
-    consistent: Option<arash_core::identify::Identification>,
+/// The diagnosis's settings. `DiagnoseOptions()` holds the defaults; `DiagnoseOptions(alpha=0.05)`
+/// changes one. `consistent` and `consistent_cutoff_hz` ask for the physically consistent refit
+/// with the effects found (its cut-off defaults to `cutoff_hz`).
+#[pyclass(module = "arash._arash", name = "DiagnoseOptions")]
+#[derive(Clone)]
+pub(crate) struct DiagnoseOptions {
+    inner: CoreOptions,
+    consistent: bool,
+    consistent_cutoff_hz: Option<f64>,
 }
 
 #[pymethods]
-impl RawDiagnosis {
-    fn report(&self) -> String {
-        self.inner.report()
+impl DiagnoseOptions {
+    #[new]
+    #[pyo3(signature = (**kwargs))]
+    fn new(kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        let mut options = Self { inner: CoreOptions::default(), consistent: false, consistent_cutoff_hz: None };
+        for (key, value) in kwargs.into_iter().flatten() {
+            let key: String = key.extract()?;
+            options.set(&key, &value)?;
+        }
+        Ok(options)
     }
-    fn to_json(&self) -> String {
-        self.inner.to_json()
+    #[getter]
+    fn cutoff_hz(&self) -> f64 {
+        self.inner.cutoff_hz
+    }
+    #[getter]
+    fn block_s(&self) -> f64 {
+        self.inner.block_s
+    }
+    #[getter]
+    fn alpha(&self) -> f64 {
+        self.inner.alpha
+    }
+    #[getter]
+    fn min_gain(&self) -> f64 {
+        self.inner.min_gain
+    }
+    #[getter]
+    fn max_effects(&self) -> usize {
+        self.inner.max_effects
+    }
+    #[getter]
+    fn max_delay_s(&self) -> f64 {
+        self.inner.max_delay_s
+    }
+    #[getter]
+    fn max_vif(&self) -> f64 {
+        self.inner.max_vif
+    }
+    #[getter]
+    fn transmission(&self) -> Option<Vec<f64>> {
+        self.inner.transmission.clone()
+    }
+    #[getter]
+    fn effects(&self) -> Vec<&'static str> {
+        self.inner.effects.iter().map(|k| k.id()).collect()
+    }
+    #[getter]
+    fn refit(&self) -> bool {
+        self.inner.refit
+    }
+    #[getter]
+    fn hold_friction(&self) -> bool {
+        self.inner.hold_friction
+    }
+    #[getter]
+    fn consistent(&self) -> bool {
+        self.consistent
+    }
+    #[getter]
+    fn consistent_cutoff_hz(&self) -> Option<f64> {
+        self.consistent_cutoff_hz
+    }
+    fn __repr__(&self) -> String {
+        format!(
+            "DiagnoseOptions(cutoff_hz={}, block_s={}, alpha={}, min_gain={}, effects={:?})",
+            self.inner.cutoff_hz,
+            self.inner.block_s,
+            self.inner.alpha,
+            self.inner.min_gain,
+            self.effects()
+        )
+    }
+}
+
+impl DiagnoseOptions {
+    /// Set the option `key`; a name that is not an option is a `TypeError`, as a wrong keyword
+    /// argument is.
+    fn set(&mut self, key: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let o = &mut self.inner;
+        match key {
+            "cutoff_hz" => o.cutoff_hz = value.extract()?,
+            "block_s" => o.block_s = value.extract()?,
+            "alpha" => o.alpha = value.extract()?,
+            "min_gain" => o.min_gain = value.extract()?,
+            "max_effects" => o.max_effects = value.extract()?,
+            "max_delay_s" => o.max_delay_s = value.extract()?,
+            "max_vif" => o.max_vif = value.extract()?,
+            "transmission" => o.transmission = value.extract()?,
+            "effects" => {
+                let ids: Vec<String> = value.extract()?;
+                o.effects = EffectKind::parse_list(&ids).map_err(value_error)?;
+            }
+            "refit" => o.refit = value.extract()?,
+            "hold_friction" => o.hold_friction = value.extract()?,
+            "consistent" => self.consistent = value.extract()?,
+            "consistent_cutoff_hz" => self.consistent_cutoff_hz = value.extract()?,
+            other => return Err(PyTypeError::new_err(format!("DiagnoseOptions has no option `{other}`"))),
+        }
+        Ok(())
+    }
+}
+
+/// An effect the diagnosis accepted, with its evidence.
+#[pyclass(module = "arash._arash", frozen)]
+pub(crate) struct Effect {
+    finding: Finding,
+}
+
+#[pymethods]
+impl Effect {
+    /// The effect's identifier (docs/diagnosis.md).
+    #[getter]
+    fn name(&self) -> &str {
+        &self.finding.name
+    }
+    #[getter]
+    fn joints(&self) -> Vec<usize> {
+        self.finding.joints.clone()
+    }
+    #[getter]
+    fn label(&self) -> &str {
+        &self.finding.label
+    }
+    #[getter]
+    fn columns(&self) -> Vec<String> {
+        self.finding.term.columns.clone()
+    }
+    #[getter]
+    fn coefficients<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
+        let c = &self.finding.term.coefficients;
+        to_numpy(py, c.clone(), false, c.len(), &[])
+    }
+    #[getter]
+    fn sigma<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
+        let s = &self.finding.term.sigma;
+        to_numpy(py, s.clone(), false, s.len(), &[])
+    }
+    #[getter]
+    fn statistic(&self) -> f64 {
+        self.finding.statistic
+    }
+    #[getter]
+    fn p_value(&self) -> f64 {
+        self.finding.p_value
+    }
+    #[getter]
+    fn threshold(&self) -> f64 {
+        self.finding.threshold
+    }
+    #[getter]
+    fn heldout_gain(&self) -> f64 {
+        self.finding.heldout_gain
+    }
+    #[getter]
+    fn aliases(&self) -> Vec<String> {
+        self.finding.aliases.clone()
+    }
+    #[getter]
+    fn mass_kg(&self) -> Option<f64> {
+        self.finding.mass_kg
+    }
+    #[getter]
+    fn body(&self) -> Option<String> {
+        self.finding.body.clone()
+    }
+    #[getter]
+    fn round(&self) -> usize {
+        self.finding.round
+    }
+    fn __repr__(&self) -> String {
+        format!(
+            "Effect({:?}, p={:.2e}, heldout_gain={:.3})",
+            self.finding.label, self.finding.p_value, self.finding.heldout_gain
+        )
+    }
+}
+
+/// What `arash.diagnose` found (docs/diagnosis.md).
+#[pyclass(module = "arash._arash", frozen)]
+pub(crate) struct Diagnosis {
+    robot: Arc<arash_core::Model>,
+    inner: CoreDiagnosis,
+    consistent: Option<ModelFile>,
+}
+
+#[pymethods]
+impl Diagnosis {
+    /// The effects accepted, in the order they were added.
+    #[getter]
+    fn accepted(&self) -> Vec<Effect> {
+        self.inner.accepted.iter().map(|f| Effect { finding: f.clone() }).collect()
+    }
+    /// One dict per candidate not accepted: `name`, `joints`, `label`, `reason` (text), `code`
+    /// (the reason's identifier), `p_value` and `heldout_gain` (None where not reached).
+    #[getter]
+    fn rejected<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        self.inner
+            .rejected
+            .iter()
+            .map(|r| {
+                let d = PyDict::new(py);
+                d.set_item("name", &r.name)?;
+                d.set_item("joints", r.joints.clone())?;
+                d.set_item("label", &r.label)?;
+                d.set_item("reason", r.reason.to_string())?;
+                d.set_item("code", r.reason.code())?;
+                d.set_item("p_value", r.p_value)?;
+                d.set_item("heldout_gain", r.heldout_gain)?;
+                Ok(d)
+            })
+            .collect()
+    }
+    /// The settings it ran with, as a dict.
+    #[getter]
+    fn settings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = &self.inner.settings;
+        let d = PyDict::new(py);
+        d.set_item("cutoff_hz", s.cutoff_hz)?;
+        d.set_item("decimate", s.decimate)?;
+        d.set_item("block_s", s.block_s)?;
+        d.set_item("blocks", s.blocks)?;
+        d.set_item("alpha", s.alpha)?;
+        d.set_item("min_gain", s.min_gain)?;
+        d.set_item("max_vif", s.max_vif)?;
+        d.set_item("max_delay_s", s.max_delay_s)?;
+        d.set_item("refit", s.refit)?;
+        d.set_item("heldout", &s.heldout)?;
+        d.set_item("candidates", s.candidates)?;
+        Ok(d)
+    }
+    #[getter]
+    fn joint_names(&self) -> Vec<String> {
+        self.inner.joint_names.clone()
+    }
+    /// Per-joint errors of the declared model on the held-out data: `rms`, `fp_percent`, `rel`
+    /// (‖e‖/‖τ‖), numpy arrays.
+    #[getter]
+    fn error_before<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        errors(py, &self.inner.before, Held::Out)
+    }
+    /// The same after the effects were added.
+    #[getter]
+    fn error_after<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        errors(py, &self.inner.after, Held::Out)
+    }
+    /// `error_before` on the training data.
+    #[getter]
+    fn error_before_training<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        errors(py, &self.inner.before, Held::In)
+    }
+    /// `error_after` on the training data.
+    #[getter]
+    fn error_after_training<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        errors(py, &self.inner.after, Held::In)
     }
     /// The updated model (declared parameters plus the effects found).
     #[getter]
     fn model(&self) -> Identification {
-        Identification::new(Arc::clone(&self.model), self.inner.model.clone())
+        Identification::new(Arc::clone(&self.robot), self.inner.model.clone())
     }
     /// The physically consistent model fitted together with the effects found (with
     /// `consistent=True`), else None.
     #[getter]
     fn model_consistent(&self) -> Option<Identification> {
-        self.consistent.as_ref().map(|c| Identification::new(Arc::clone(&self.model), c.clone()))
+        self.consistent.as_ref().map(|c| Identification::new(Arc::clone(&self.robot), c.clone()))
     }
     /// The signals behind the residual plots: t (N,), and q, qd, qdd, tau, residual_before,
     /// residual_after (N, dof), and one (N, dof) contribution per accepted effect.
     #[getter]
-    fn series<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+    fn series<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let s = &self.inner.series;
-        let dof = self.model.dof();
-        let d = pyo3::types::PyDict::new(py);
+        let dof = self.robot.dof();
+        let d = PyDict::new(py);
         let table = |v: &[f64]| to_numpy(py, v.to_vec(), false, v.len() / dof.max(1), &[dof]);
         d.set_item("t", to_numpy(py, s.t.clone(), false, s.t.len(), &[])?)?;
         for (name, v) in [
@@ -64,74 +322,54 @@ impl RawDiagnosis {
         d.set_item("contributions", contributions)?;
         Ok(d)
     }
+    /// The report as text: effects with evidence, errors before and after, rejections.
+    fn report(&self) -> String {
+        self.inner.report()
+    }
+    fn to_json(&self) -> String {
+        self.inner.to_json()
+    }
+    fn __repr__(&self) -> String {
+        let labels: Vec<&str> = self.inner.accepted.iter().map(|f| f.label.as_str()).collect();
+        format!("Diagnosis(accepted={labels:?})")
+    }
 }
 
-/// Diagnose a log against the robot's declared model (see `arash.diagnose`).
+/// Which half of an [`ErrorSummary`].
+enum Held {
+    In,
+    Out,
+}
+
+fn errors<'py>(py: Python<'py>, summary: &ErrorSummary, held: Held) -> PyResult<Bound<'py, PyDict>> {
+    let m: &Metrics = match held {
+        Held::In => &summary.training,
+        Held::Out => &summary.heldout,
+    };
+    let d = PyDict::new(py);
+    for (name, v) in [("rms", &m.rms), ("fp_percent", &m.fp_percent), ("rel", &m.relative_error)] {
+        d.set_item(name, to_numpy(py, v.clone(), false, v.len(), &[])?)?;
+    }
+    Ok(d)
+}
+
+type Arrays<'py> = (PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>);
+
+/// Diagnose the log `(t, q, tau)` against the robot's declared model (see `arash.diagnose`).
 #[pyfunction]
-#[pyo3(signature = (robot, t, q, tau, *, model=None, validation=None, transmission=None, cutoff_hz=20.0,
-                    block_s=2.0, alpha=0.01, min_gain=0.2, effects=None, refit=false,
-                    hold_friction=false, consistent=false, consistent_cutoff_hz=None))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (robot, log, options, model=None, validation=None))]
 fn _diagnose<'py>(
     py: Python<'py>,
     robot: &Robot,
-    t: PyReadonlyArrayDyn<'py, f64>,
-    q: PyReadonlyArrayDyn<'py, f64>,
-    tau: PyReadonlyArrayDyn<'py, f64>,
+    log: Arrays<'py>,
+    options: &DiagnoseOptions,
     model: Option<&Identification>,
-    validation: Option<(PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>)>,
-    transmission: Option<Vec<f64>>,
-    cutoff_hz: f64,
-    block_s: f64,
-    alpha: f64,
-    min_gain: f64,
-    effects: Option<Vec<String>>,
-    refit: bool,
-    hold_friction: bool,
-    consistent: bool,
-    consistent_cutoff_hz: Option<f64>,
-) -> PyResult<RawDiagnosis> {
+    validation: Option<Arrays<'py>>,
+) -> PyResult<Diagnosis> {
     let dof = robot.model.dof();
-    let (t, q, tau) = log_arrays(&t, &q, &tau, dof)?;
+    let (t, q, tau) = log_arrays(&log.0, &log.1, &log.2, dof)?;
     let held = validation.as_ref().map(|(vt, vq, vtau)| log_arrays(vt, vq, vtau, dof)).transpose()?;
-    if let Some(tr) = &transmission {
-        if tr.len() != dof || tr.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
-            return Err(PyValueError::new_err(format!(
-                "transmission needs {dof} positive values, one per joint; got {tr:?}"
-            )));
-        }
-    }
-    for (name, v) in
-        [("cutoff_hz", cutoff_hz), ("block_s", block_s), ("consistent_cutoff_hz", consistent_cutoff_hz.unwrap_or(1.0))]
-    {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(PyValueError::new_err(format!("{name} must be positive, got {v}")));
-        }
-    }
-    let valid = alpha > 0.0 && alpha < 1.0 && (0.0..1.0).contains(&min_gain);
-    if !valid {
-        return Err(PyValueError::new_err(format!(
-            "alpha must lie in (0, 1) and min_gain in [0, 1); got {alpha}, {min_gain}"
-        )));
-    }
-    let effects = match effects {
-        None => EffectKind::ALL.to_vec(),
-        Some(ids) => ids
-            .iter()
-            .map(|id| EffectKind::from_id(id).ok_or_else(|| PyValueError::new_err(format!("unknown effect `{id}`"))))
-            .collect::<PyResult<_>>()?,
-    };
-    let options = DiagnoseOptions {
-        cutoff_hz,
-        block_s,
-        alpha,
-        min_gain,
-        effects,
-        transmission,
-        refit,
-        hold_friction,
-        ..Default::default()
-    };
+    options.inner.validate(dof).map_err(value_error)?;
     let base = robot.default_base()?;
     let robot_model = Arc::clone(&robot.model);
     let given = model.map(|m| m.inner().clone());
@@ -139,11 +377,13 @@ fn _diagnose<'py>(
         .detach(|| {
             let train = Log { t: &t, q: &q, tau: &tau };
             let held = held.as_ref().map(|(t, q, tau)| Log { t, q, tau });
-            let inner = core_diagnose(&robot_model, base, &robot.urdf, train, held, given.as_ref(), &options)?;
-            let consistent = consistent
+            let declared = Declared { model: &robot_model, base, urdf: &robot.urdf };
+            let inner = core_diagnose(declared, train, held, given.as_ref(), &options.inner)?;
+            let consistent = options
+                .consistent
                 .then(|| {
-                    let refit =
-                        DiagnoseOptions { cutoff_hz: consistent_cutoff_hz.unwrap_or(cutoff_hz), ..options.clone() };
+                    let cutoff_hz = options.consistent_cutoff_hz.unwrap_or(options.inner.cutoff_hz);
+                    let refit = CoreOptions { cutoff_hz, ..options.inner.clone() };
                     let solver = ConsistentOptions::default();
                     consistent_with_effects(&robot_model, base, train, &inner.model, &refit, &solver)
                 })
@@ -151,11 +391,13 @@ fn _diagnose<'py>(
             Ok::<_, arash_core::diagnose::DiagnoseError>((inner, consistent))
         })
         .map_err(value_error)?;
-    Ok(RawDiagnosis { model: robot_model, inner, consistent })
+    Ok(Diagnosis { robot: robot_model, inner, consistent })
 }
 
 pub(crate) fn register(module: &Bound<'_, PyModule>) -> PyResult<()> {
-    module.add_class::<RawDiagnosis>()?;
+    module.add_class::<DiagnoseOptions>()?;
+    module.add_class::<Diagnosis>()?;
+    module.add_class::<Effect>()?;
     module.add_function(wrap_pyfunction!(_diagnose, module)?)?;
     Ok(())
 }

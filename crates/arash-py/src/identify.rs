@@ -5,12 +5,11 @@ use std::borrow::Cow;
 use std::sync::Arc;
 
 use arash_core::base_parameters::{BaseParameterOptions, BaseParameters as CoreBase};
+use arash_core::control::trajectory::paper_validation_state;
 use arash_core::identify::consistent::{identify_consistent, ConsistentOptions};
 use arash_core::identify::preprocess::PreprocessOptions;
-use arash_core::identify::{
-    identify as core_identify, paper_validation_state, validate, Identification as CoreIdentification, IdentifyMethod,
-    IdentifyOptions,
-};
+use arash_core::identify::{identify as core_identify, validate, Declared, IdentifyOptions, Log};
+use arash_core::model_file::{IdentifyMethod, ModelFile as CoreIdentification};
 use arash_core::Model;
 use faer::Mat;
 use numpy::{PyReadonlyArrayDyn, PyUntypedArrayMethods};
@@ -80,7 +79,7 @@ impl Identification {
 impl Identification {
     #[getter]
     fn method(&self) -> String {
-        format!("{:?}", self.inner.settings.method).to_lowercase()
+        self.inner.settings.method.name().to_string()
     }
     #[getter]
     fn beta<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
@@ -196,38 +195,42 @@ impl Identification {
     }
 }
 
-/// Identify the robot's parameters from a log.
+/// Identify the robot's parameters from the log `(t, q, tau)` (see `arash.identify`): `options`
+/// holds only what the caller set; the rest are `arash_core`'s defaults.
 #[pyfunction]
-#[pyo3(signature = (robot, t, q, tau, *, method="ols", periods=None, cutoff_hz=None, order=5, decimate=1,
-                    pull=1e-4, stiffness_bounds=(0.0, f64::INFINITY)))]
-#[allow(clippy::too_many_arguments)]
-fn identify<'py>(
+#[pyo3(signature = (robot, log, method, options))]
+fn _identify<'py>(
     py: Python<'py>,
     robot: &Robot,
-    t: PyReadonlyArrayDyn<'py, f64>,
-    q: PyReadonlyArrayDyn<'py, f64>,
-    tau: PyReadonlyArrayDyn<'py, f64>,
-    method: &str,
-    periods: Option<usize>,
-    cutoff_hz: Option<f64>,
-    order: usize,
-    decimate: usize,
-    pull: f64,
-    stiffness_bounds: (f64, f64),
+    log: (PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>),
+    method: Option<&str>,
+    options: &Bound<'py, PyDict>,
 ) -> PyResult<Identification> {
-    let method: IdentifyMethod = method.parse().map_err(PyValueError::new_err)?;
+    let method: IdentifyMethod =
+        method.map_or(Ok(IdentifyMethod::default()), str::parse).map_err(PyValueError::new_err)?;
+    let mut o = IdentifyOptions::default();
+    crate::each_option(options, |key, value| {
+        match key {
+            "periods" => o.preprocess.periods = value.extract()?,
+            "cutoff_hz" => o.preprocess.cutoff_hz = value.extract()?,
+            "order" => o.preprocess.order = value.extract()?,
+            "decimate" => o.preprocess.decimate = value.extract()?,
+            "pull" => o.consistent.pull = value.extract()?,
+            "stiffness_bounds" => o.consistent.stiffness_bounds = value.extract()?,
+            _ => return Ok(false),
+        }
+        Ok(true)
+    })?;
+    let pull = o.consistent.pull;
     if !(pull >= 0.0 && pull.is_finite()) {
         return Err(PyValueError::new_err(format!("pull must be a non-negative number, got {pull}")));
     }
-    let (t, q, tau) = log_arrays(&t, &q, &tau, robot.model.dof())?;
-    let options = IdentifyOptions {
-        preprocess: PreprocessOptions { periods, cutoff_hz, order, decimate, ..Default::default() },
-        consistent: ConsistentOptions { pull, stiffness_bounds, ..Default::default() },
-    };
+    let (t, q, tau) = log_arrays(&log.0, &log.1, &log.2, robot.model.dof())?;
     let model = Arc::clone(&robot.model);
     let base = robot.default_base()?;
+    let declared = Declared { model: &model, base, urdf: &robot.urdf };
     let inner =
-        py.detach(|| core_identify(&model, base, &robot.urdf, &t, &q, &tau, method, &options)).map_err(value_error)?;
+        py.detach(|| core_identify(declared, Log { t: &t, q: &q, tau: &tau }, method, &o)).map_err(value_error)?;
     Ok(Identification { model, inner })
 }
 
@@ -244,14 +247,14 @@ fn load_model(path: std::path::PathBuf) -> PyResult<Identification> {
 /// The physically consistent least-squares problem on a given stacked full regressor W (m, P)
 /// and torque vector tau (m,): returns π.
 #[pyfunction]
-#[pyo3(signature = (robot, w, tau, *, pull=1e-4, stiffness_bounds=(0.0, f64::INFINITY)))]
+#[pyo3(signature = (robot, w, tau, *, pull=None, stiffness_bounds=None))]
 fn consistent_least_squares<'py>(
     py: Python<'py>,
     robot: &Robot,
     w: PyReadonlyArrayDyn<'py, f64>,
     tau: PyReadonlyArrayDyn<'py, f64>,
-    pull: f64,
-    stiffness_bounds: (f64, f64),
+    pull: Option<f64>,
+    stiffness_bounds: Option<(f64, f64)>,
 ) -> PyResult<NumpyArray<'py>> {
     let p = robot.model.num_params();
     let w = batch("w", &w, p)?;
@@ -260,7 +263,12 @@ fn consistent_least_squares<'py>(
         return Err(PyValueError::new_err(format!("w has {} rows but tau has {}", w.n, tau.len())));
     }
     let mat = Mat::<f64>::from_fn(w.n, p, |i, j| w.values[i * p + j]);
-    let options = ConsistentOptions { pull, stiffness_bounds, ..Default::default() };
+    let defaults = ConsistentOptions::default();
+    let options = ConsistentOptions {
+        pull: pull.unwrap_or(defaults.pull),
+        stiffness_bounds: stiffness_bounds.unwrap_or(defaults.stiffness_bounds),
+        ..defaults
+    };
     let fit = py.detach(|| identify_consistent(&robot.model, &mat, &tau, &options)).map_err(value_error)?;
     to_numpy(py, fit.params, false, p, &[])
 }
@@ -287,8 +295,8 @@ fn paper_validation_trajectory<'py>(
 pub(crate) fn register(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_class::<Identification>()?;
     module.add_class::<Excitation>()?;
-    module.add_function(wrap_pyfunction!(design_excitation, module)?)?;
-    module.add_function(wrap_pyfunction!(identify, module)?)?;
+    module.add_function(wrap_pyfunction!(_design_excitation, module)?)?;
+    module.add_function(wrap_pyfunction!(_identify, module)?)?;
     module.add_function(wrap_pyfunction!(load_model, module)?)?;
     module.add_function(wrap_pyfunction!(consistent_least_squares, module)?)?;
     module.add_function(wrap_pyfunction!(paper_validation_trajectory, module)?)?;
@@ -298,7 +306,7 @@ pub(crate) fn register(module: &Bound<'_, PyModule>) -> PyResult<()> {
 /// A designed excitation trajectory (Fourier coefficients and the condition number achieved).
 #[pyclass(module = "arash._arash", frozen)]
 pub(crate) struct Excitation {
-    inner: arash_core::identify::excitation::Excitation,
+    inner: arash_core::control::fourier::Excitation,
 }
 
 #[pymethods]
@@ -316,13 +324,15 @@ impl Excitation {
         self.inner.harmonics
     }
     /// (t, q, qd, qdd) over `periods` periods at `rate_hz`; q and its rates are (N, dof).
-    #[pyo3(signature = (rate_hz=1000.0, periods=1))]
+    /// `rate_hz` defaults to the rig's control rate.
+    #[pyo3(signature = (rate_hz=None, periods=1))]
     fn sample<'py>(
         &self,
         py: Python<'py>,
-        rate_hz: f64,
+        rate_hz: Option<f64>,
         periods: usize,
     ) -> PyResult<(NumpyArray<'py>, NumpyArray<'py>, NumpyArray<'py>, NumpyArray<'py>)> {
+        let rate_hz = rate_hz.unwrap_or(arash_core::control::fourier::DEFAULT_SAMPLE_RATE_HZ);
         if !(rate_hz.is_finite() && rate_hz > 0.0) {
             return Err(PyValueError::new_err(format!("rate_hz must be positive, got {rate_hz}")));
         }
@@ -348,33 +358,27 @@ impl Excitation {
 }
 
 /// Design a persistently exciting Fourier trajectory (minimum normalised condition number within
-/// the limits, at rest at both ends). Progress goes to stderr unless `quiet`.
+/// the limits, at rest at both ends); `options` holds only what the caller set. Progress goes to
+/// stderr unless `quiet`.
 #[pyfunction]
-#[pyo3(signature = (robot, *, harmonics=5, period_s=15.0, restarts=6, seed=1, iterations=4000,
-                    acceleration_limits=None, quiet=false))]
-#[allow(clippy::too_many_arguments)]
-fn design_excitation(
-    py: Python<'_>,
-    robot: &Robot,
-    harmonics: usize,
-    period_s: f64,
-    restarts: usize,
-    seed: u64,
-    iterations: u64,
-    acceleration_limits: Option<Vec<f64>>,
-    quiet: bool,
-) -> PyResult<Excitation> {
+#[pyo3(signature = (robot, options, quiet))]
+fn _design_excitation(py: Python<'_>, robot: &Robot, options: &Bound<'_, PyDict>, quiet: bool) -> PyResult<Excitation> {
     use arash_core::identify::excitation::{design_excitation as design, ExcitationOptions};
     let base = robot.default_base()?;
-    let options = ExcitationOptions {
-        harmonics,
-        period_s,
-        restarts,
-        seed,
-        iterations,
-        acceleration_limits,
-        ..Default::default()
-    };
+    let mut o = ExcitationOptions::default();
+    crate::each_option(options, |key, value| {
+        match key {
+            "harmonics" => o.harmonics = value.extract()?,
+            "period_s" => o.period_s = value.extract()?,
+            "restarts" => o.restarts = value.extract()?,
+            "seed" => o.seed = value.extract()?,
+            "iterations" => o.iterations = value.extract()?,
+            "acceleration_limits" => o.acceleration_limits = value.extract()?,
+            _ => return Ok(false),
+        }
+        Ok(true)
+    })?;
+    let options = o;
     let model = Arc::clone(&robot.model);
     let inner = py
         .detach(|| {

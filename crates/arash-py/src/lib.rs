@@ -401,9 +401,15 @@ impl Robot {
     }
 
     /// The base parameters (identifiable combinations), from `samples` random states.
-    #[pyo3(signature = (samples=400, seed=0x5eed))]
-    fn base_parameters(&self, samples: usize, seed: u64) -> PyResult<BaseParameters> {
-        let options = BaseParameterOptions { samples, seed, ..Default::default() };
+    /// None keeps the default of each.
+    #[pyo3(signature = (samples=None, seed=None))]
+    fn base_parameters(&self, samples: Option<usize>, seed: Option<u64>) -> PyResult<BaseParameters> {
+        let defaults = BaseParameterOptions::default();
+        let options = BaseParameterOptions {
+            samples: samples.unwrap_or(defaults.samples),
+            seed: seed.unwrap_or(defaults.seed),
+            ..defaults
+        };
         let base = CoreBase::compute(&self.model, &options).map_err(|e| PyValueError::new_err(e.to_string()))?;
         Ok(BaseParameters { model: Arc::clone(&self.model), base })
     }
@@ -538,14 +544,16 @@ fn butter<'py>(
 /// Zero-phase Butterworth low-pass of each column of `x` (shape (N,) or (N, k)), as
 /// `scipy.signal.filtfilt(*butter(order, cutoff_hz, fs=sample_rate_hz), x, axis=0)`.
 #[pyfunction]
-#[pyo3(signature = (x, cutoff_hz, sample_rate_hz, order=5))]
+#[pyo3(signature = (x, cutoff_hz, sample_rate_hz, order=None))]
 fn filtfilt<'py>(
     py: Python<'py>,
     x: PyReadonlyArrayDyn<'py, f64>,
     cutoff_hz: f64,
     sample_rate_hz: f64,
-    order: usize,
+    order: Option<usize>,
 ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    // Identification's order unless told otherwise.
+    let order = order.unwrap_or(arash_core::identify::preprocess::PreprocessOptions::default().order);
     let filter = Butterworth::lowpass(order, cutoff_hz, sample_rate_hz).map_err(value_error)?;
     let view = x.as_array();
     let shape = view.shape().to_vec();
@@ -562,6 +570,21 @@ fn filtfilt<'py>(
     filter.filtfilt_rows(&values, k, &mut out).map_err(value_error)?;
     let array = ArrayD::from_shape_vec(IxDyn(&shape), out).map_err(value_error)?;
     Ok(array.into_pyarray(py))
+}
+
+/// Call `set` on each (key, value) of a front end's options; a key `set` does not know (it
+/// returns `false`) is a `TypeError`, as a wrong keyword argument is.
+pub(crate) fn each_option(
+    options: &Bound<'_, pyo3::types::PyDict>,
+    mut set: impl FnMut(&str, &Bound<'_, PyAny>) -> PyResult<bool>,
+) -> PyResult<()> {
+    for (key, value) in options.iter() {
+        let key: String = key.extract()?;
+        if !set(&key, &value)? {
+            return Err(pyo3::exceptions::PyTypeError::new_err(format!("unexpected option `{key}`")));
+        }
+    }
+    Ok(())
 }
 
 pub(crate) fn value_error(e: impl std::fmt::Display) -> PyErr {

@@ -132,24 +132,26 @@ fn controller_params(
     Ok(("array".into(), b.values, vec![]))
 }
 
-/// Run the simulated rig; see `arash.simulate`.
+/// Run the simulated rig; see `arash.simulate`. `scenario` is its TOML and the name it gets when
+/// the TOML has none; `control` the controller, its parameters and the gains' units; `run` the
+/// duration and seed (None: the trajectory's and the scenario's); `output` the flight log's path
+/// and whether it records the true state too.
 #[pyfunction]
-#[pyo3(signature = (robot, scenario_toml, scenario_name, trajectory_json, controller, params, duration, seed, gain_units, log, log_truth))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (robot, scenario, trajectory_json, control, run, output))]
 fn _simulate<'py>(
     py: Python<'py>,
     robot: &Robot,
-    scenario_toml: &str,
-    scenario_name: &str,
+    scenario: (String, String),
     trajectory_json: &str,
-    controller: &str,
-    params: Option<&Bound<'py, PyAny>>,
-    duration: Option<f64>,
-    seed: Option<u64>,
-    gain_units: &str,
-    log: Option<PathBuf>,
-    log_truth: bool,
+    control: (String, Option<Bound<'py, PyAny>>, String),
+    run: (Option<f64>, Option<u64>),
+    output: (Option<PathBuf>, bool),
 ) -> PyResult<Bound<'py, PyDict>> {
+    let ((scenario_toml, scenario_name), (controller, params, gain_units)) = (scenario, control);
+    let ((duration, seed), (log, log_truth)) = (run, output);
+    let (scenario_toml, scenario_name, controller, gain_units) =
+        (scenario_toml.as_str(), scenario_name.as_str(), controller.as_str(), gain_units.as_str());
+    let params = params.as_ref();
     let model = &robot.model;
     let mut scenario = Scenario::from_toml(scenario_toml).map_err(value_error)?;
     if scenario.name.is_empty() {

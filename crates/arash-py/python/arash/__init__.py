@@ -9,22 +9,26 @@ array; a single ``(dof,)`` vector gives a result without the batch axis.
 23
 """
 
+from __future__ import annotations
+
 import json as _json
 import os as _os
 from pathlib import Path as _Path
+from typing import Any, Optional, Sequence, Union
 
-from ._arash import _diagnose, _simulate
+from ._arash import _design_excitation, _diagnose, _identify, _simulate
 from ._arash import (
     BaseParameters,
+    DiagnoseOptions,
+    Diagnosis,
+    Effect,
     Excitation,
     Identification,
     Robot,
     __version__,
     butter,
     consistent_least_squares,
-    design_excitation,
     filtfilt,
-    identify,
     load_model,
     paper_validation_trajectory,
     read_log,
@@ -32,6 +36,7 @@ from ._arash import (
 
 __all__ = [
     "BaseParameters",
+    "DiagnoseOptions",
     "Diagnosis",
     "Effect",
     "Excitation",
@@ -51,19 +56,25 @@ __all__ = [
 ]
 
 
+def _given(**options: Any) -> dict[str, Any]:
+    """The options the caller set: the rest keep arash's own defaults, which live in one place
+    (``arash_core``; ``DiagnoseOptions()`` shows the diagnosis's)."""
+    return {k: v for k, v in options.items() if v is not None}
+
+
 def simulate(
-    scenario=None,
-    trajectory=None,
+    scenario: Optional[Union[str, "_os.PathLike[str]"]] = None,
+    trajectory: Optional[Union[str, "_os.PathLike[str]", dict[str, Any]]] = None,
     *,
-    controller="robust",
-    params=None,
-    duration=None,
-    seed=None,
-    robot=None,
-    gain_units="si",
-    log=None,
-    log_truth=False,
-):
+    controller: str = "robust",
+    params: Any = None,
+    duration: Optional[float] = None,
+    seed: Optional[int] = None,
+    robot: Optional[Robot] = None,
+    gain_units: str = "si",
+    log: Optional[Union[str, "_os.PathLike[str]"]] = None,
+    log_truth: bool = False,
+) -> dict[str, Any]:
     """Run the simulated rig and return the cycles as a dict of numpy arrays.
 
     scenario: a scenario TOML file (``scenarios/*.toml``), or None for the nominal rig.
@@ -96,104 +107,95 @@ def simulate(
     else:
         trajectory_text = _Path(_os.fspath(trajectory)).read_text()
     log = None if log is None else _os.fspath(log)
-    return _simulate(robot, scenario_text, scenario_name, trajectory_text, controller, params,
-                     duration, seed, gain_units, log, log_truth)
+    return _simulate(robot, (scenario_text, scenario_name), trajectory_text, (controller, params, gain_units),
+                     (duration, seed), (log, log_truth))
 
 
-class Effect:
-    """An effect the diagnosis accepted: ``name`` (catalogue identifier), ``joints`` (0-based),
-    ``coefficients`` and ``sigma`` (numpy), ``columns``, ``p_value``, ``statistic``,
-    ``heldout_gain`` (relative cut of the held-out squared error), ``aliases`` (candidates it
-    cannot be told from), ``label``, and for a payload ``mass_kg`` and ``body``."""
+def identify(
+    robot: Robot,
+    t: Any,
+    q: Any,
+    tau: Any,
+    *,
+    method: Optional[str] = None,
+    periods: Optional[int] = None,
+    cutoff_hz: Optional[float] = None,
+    order: Optional[int] = None,
+    decimate: Optional[int] = None,
+    pull: Optional[float] = None,
+    stiffness_bounds: Optional[tuple[float, float]] = None,
+) -> Identification:
+    """Identify the robot's parameters from a log: t (N,), q and tau (N, dof), SI units.
 
-    def __init__(self, finding):
-        import numpy as np
-
-        term = finding["term"]
-        self.name = finding["name"]
-        self.joints = list(finding["joints"])
-        self.label = finding["label"]
-        self.columns = list(term["columns"])
-        self.coefficients = np.asarray(term["coefficients"], dtype=float)
-        self.sigma = np.asarray(term["sigma"], dtype=float)
-        self.statistic = finding["statistic"]
-        self.p_value = finding["p_value"]
-        self.heldout_gain = finding["heldout_gain"]
-        self.aliases = list(finding["aliases"])
-        self.mass_kg = finding.get("mass_kg")
-        self.body = finding.get("body")
-
-    def __repr__(self):
-        return f"Effect({self.label!r}, p={self.p_value:.2e}, heldout_gain={self.heldout_gain:.3f})"
-
-
-class Diagnosis:
-    """What ``arash.diagnose`` found (docs/diagnosis.md).
-
-    accepted: list of ``Effect``, in the order they were added.
-    rejected: list of dicts with ``name``, ``joints``, ``label`` and ``reason``.
-    error_before, error_after: per-joint numpy arrays keyed ``rms``, ``fp_percent`` and ``rel``
-        (‖e‖/‖τ‖), on the held-out data; ``error_before_training`` and ``error_after_training``
-        are the same on the training data.
-    model: the updated model (an ``Identification`` with the effects).
-    model_consistent: with ``consistent=True``, the physically consistent model fitted together
-        with the effects found (the model the model-based controllers accept); else None.
-    series: the signals behind the residual plots (dict of numpy arrays).
+    method: "ols" (the default), "wls" or "consistent" (docs/identification.md). periods: whole excitation
+    periods in the log, averaged (None: not periodic). cutoff_hz: the low-pass cut-off (None: read
+    off the position spectrum). order: Butterworth order. decimate: keep every k-th filtered
+    sample. pull: the consistent fit's pull toward CAD. stiffness_bounds: the cable stiffness's
+    (lower, upper). None keeps arash's default for each (docs/identification.md).
     """
-
-    def __init__(self, raw):
-        import numpy as np
-
-        self._raw = raw
-        data = _json.loads(raw.to_json())
-        self.accepted = [Effect(f) for f in data["accepted"]]
-        self.rejected = data["rejected"]
-        self.settings = data["settings"]
-        self.joint_names = data["joint_names"]
-
-        def errors(metrics):
-            return {
-                "rms": np.asarray(metrics["rms"], dtype=float),
-                "fp_percent": np.asarray(metrics["fp_percent"], dtype=float),
-                "rel": np.asarray(metrics["relative_error"], dtype=float),
-            }
-
-        self.error_before = errors(data["before"]["heldout"])
-        self.error_after = errors(data["after"]["heldout"])
-        self.error_before_training = errors(data["before"]["training"])
-        self.error_after_training = errors(data["after"]["training"])
-        self.model = raw.model
-        self.model_consistent = raw.model_consistent
-
-    @property
-    def series(self):
-        return self._raw.series
-
-    def report(self):
-        """The report as text: effects with evidence, errors before and after, rejections."""
-        return self._raw.report()
-
-    def to_json(self):
-        return self._raw.to_json()
-
-    def __repr__(self):
-        return f"Diagnosis(accepted={[e.label for e in self.accepted]})"
+    options = _given(periods=periods, cutoff_hz=cutoff_hz, order=order, decimate=decimate, pull=pull,
+                     stiffness_bounds=stiffness_bounds)
+    return _identify(robot, (t, q, tau), method, options)
 
 
-def diagnose(robot, t, q, tau, *, model=None, validation=None, **options):
+def design_excitation(
+    robot: Robot,
+    *,
+    harmonics: Optional[int] = None,
+    period_s: Optional[float] = None,
+    restarts: Optional[int] = None,
+    seed: Optional[int] = None,
+    iterations: Optional[int] = None,
+    acceleration_limits: Optional[Sequence[float]] = None,
+    quiet: bool = False,
+) -> Excitation:
+    """Design a persistently exciting Fourier trajectory: the paper's L harmonics over a period
+    T, at rest at both ends, minimising the normalised condition number within the limits.
+    None keeps arash's default for each (docs/identification.md); progress goes to stderr unless
+    ``quiet``."""
+    options = _given(harmonics=harmonics, period_s=period_s, restarts=restarts, seed=seed,
+                     iterations=iterations,
+                     acceleration_limits=None if acceleration_limits is None else list(acceleration_limits))
+    return _design_excitation(robot, options, quiet)
+
+
+def diagnose(
+    robot: Robot,
+    t: Any,
+    q: Any,
+    tau: Any,
+    *,
+    model: Optional[Identification] = None,
+    validation: Optional[tuple[Any, Any, Any]] = None,
+    transmission: Optional[Sequence[float]] = None,
+    cutoff_hz: Optional[float] = None,
+    block_s: Optional[float] = None,
+    alpha: Optional[float] = None,
+    min_gain: Optional[float] = None,
+    effects: Optional[Sequence[str]] = None,
+    refit: Optional[bool] = None,
+    hold_friction: Optional[bool] = None,
+    consistent: Optional[bool] = None,
+    consistent_cutoff_hz: Optional[float] = None,
+) -> Diagnosis:
     """Find what the declared model lacks in a log, and the error before and after.
 
     robot: a ``Robot``. t (N,), q and tau (N, dof), SI units, uniformly sampled.
     model: an ``Identification`` to diagnose against (its inertial parameters held, friction
         refitted); default: refit the declared model.
     validation: a tuple ``(t, q, tau)`` held out for ranking and the held-out errors; default:
-        the odd-numbered 2 s blocks of the training log.
-    options: ``transmission`` (joint motion per motor radian, per joint; enables the cogging
-        search), ``cutoff_hz`` (20), ``block_s`` (2), ``alpha`` (0.01), ``min_gain`` (0.2),
-        ``effects`` (list of identifiers to search), ``refit`` (False: with a model, refit only
-        its friction), ``hold_friction`` (False: with a model, True holds its friction too),
-        ``consistent`` (False: True also fits the physically consistent model with the effects
-        found, as ``model_consistent``), ``consistent_cutoff_hz`` (that fit's cut-off; default
-        ``cutoff_hz``; the calibration's own is the better choice, see docs/diagnosis.md).
+        the odd-numbered blocks of the training log.
+    transmission: joint motion per motor radian, per joint (enables the cogging search).
+    effects: identifiers to search (docs/diagnosis.md). refit: with a model, refit all its base
+    parameters too. hold_friction: with a model, hold its friction too. consistent: also fit the
+    physically consistent model with the effects found (``Diagnosis.model_consistent``), at
+    ``consistent_cutoff_hz`` (default ``cutoff_hz``; the calibration's own is the better choice).
+    The other options are the decision rule's (docs/diagnosis.md). None keeps arash's default for
+    each; ``DiagnoseOptions()`` shows them.
     """
-    return Diagnosis(_diagnose(robot, t, q, tau, model=model, validation=validation, **options))
+    options = DiagnoseOptions(**_given(
+        transmission=None if transmission is None else list(transmission), cutoff_hz=cutoff_hz,
+        block_s=block_s, alpha=alpha, min_gain=min_gain, effects=None if effects is None else list(effects),
+        refit=refit, hold_friction=hold_friction, consistent=consistent,
+        consistent_cutoff_hz=consistent_cutoff_hz))
+    return _diagnose(robot, (t, q, tau), options, model, validation)
