@@ -1,0 +1,183 @@
+//! Modules depend only downward (docs/architecture.md): each layer below lists the modules of a
+//! crate, or the files of a folder module, lowest first, and no file may name a module listed
+//! after its own. Read from the source: `crate::<module>` (and `arash_daemon::<module>` in the
+//! binary), and `super::<sibling>` inside a folder. Comments and `#[cfg(test)]` sections are left
+//! out: a test may use anything.
+//!
+//! `cargo test -p arash-core --test layers` runs it.
+
+use std::path::{Path, PathBuf};
+
+/// arash-core, leaf first.
+const CORE: &[&str] = &[
+    "spatial",
+    "params",
+    "model",
+    "urdf",
+    "data",
+    "kinematics",
+    "regressor",
+    "dynamics",
+    "base_parameters",
+    "physical",
+    "effects",
+    "control",
+    "record",
+    "model_file",
+    "identify",
+    "diagnose",
+    "flightlog",
+    "sim",
+];
+
+/// The files of arash-core's folder modules, leaf first (`mod.rs` is the folder's own face).
+const FOLDERS: &[(&str, &[&str])] = &[
+    ("control", &["gains", "safety", "fourier", "trajectory", "estimator", "feedforward", "laws"]),
+    ("identify", &["filter", "preprocess", "estimate", "consistent", "excitation"]),
+    (
+        "diagnose",
+        &[
+            "options",
+            "findings",
+            "regression",
+            "prepare",
+            "problem",
+            "candidates",
+            "context",
+            "delay",
+            "outcome",
+            "search",
+            "refit",
+            "report",
+        ],
+    ),
+    ("flightlog", &["schema", "reader", "writer", "recover"]),
+    ("sim", &["scenario", "truth", "plant", "drive", "rig", "run"]),
+];
+
+/// arash-daemon: the rig library, then the binary's own modules (`main.rs` declares them).
+const DAEMON: &[&str] =
+    &["link", "drive_config", "ctl", "rt", "logger", "config", "mock", "daemon", "runlog", "report", "cli"];
+
+fn src(krate: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(krate).join("src")
+}
+
+/// The code of a file without comments and test sections.
+fn code(path: &Path) -> String {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let text = text.split("#[cfg(test)]").next().unwrap_or_default();
+    text.lines().filter(|l| !l.trim_start().starts_with("//")).collect::<Vec<_>>().join("\n")
+}
+
+/// Every `.rs` file of `module` under `root` (a file or a folder).
+fn files_of(root: &Path, module: &str) -> Vec<PathBuf> {
+    let file = root.join(format!("{module}.rs"));
+    if file.exists() {
+        return vec![file];
+    }
+    let mut out = Vec::new();
+    let mut stack = vec![root.join(module)];
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display())) {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                out.push(path);
+            }
+        }
+    }
+    out
+}
+
+/// The names that follow `prefix` in `code`, including each first segment of a `prefix{a, b::c}`
+/// group.
+fn named_after(code: &str, prefix: &str) -> Vec<String> {
+    let ident = |s: &str| s.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect::<String>();
+    let mut names = Vec::new();
+    for (at, _) in code.match_indices(prefix) {
+        let rest = &code[at + prefix.len()..];
+        if let Some(group) = rest.strip_prefix('{') {
+            let inner = &group[..group.find('}').unwrap_or(group.len())];
+            names.extend(inner.split(',').map(|item| ident(item.trim())));
+        } else {
+            names.push(ident(rest));
+        }
+    }
+    names
+}
+
+/// The upward references among `layers`: (file, the module it names).
+fn upward(root: &Path, layers: &[&str], prefixes: &[&str]) -> Vec<(String, String)> {
+    let mut found = Vec::new();
+    for (level, module) in layers.iter().enumerate() {
+        for file in files_of(root, module) {
+            let code = code(&file);
+            for prefix in prefixes {
+                for name in named_after(&code, prefix) {
+                    if layers[level + 1..].contains(&name.as_str()) {
+                        found.push((file.display().to_string(), name));
+                    }
+                }
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn arash_core_modules_depend_only_downward() {
+    let found = upward(&src("arash-core"), CORE, &["crate::"]);
+    assert!(found.is_empty(), "upward references: {found:#?}");
+}
+
+#[test]
+fn files_inside_a_folder_module_depend_only_downward() {
+    let root = src("arash-core");
+    for (folder, files) in FOLDERS {
+        let found = upward(&root.join(folder), files, &["super::"]);
+        assert!(found.is_empty(), "upward references in {folder}/: {found:#?}");
+        let listed: Vec<String> = files_of(&root, folder)
+            .iter()
+            .filter_map(|p| p.file_stem().map(|s| s.to_string_lossy().into_owned()))
+            .filter(|s| s != "mod")
+            .collect();
+        for file in &listed {
+            assert!(files.contains(&file.as_str()), "{folder}/{file}.rs is not in its layer list");
+        }
+    }
+}
+
+#[test]
+fn arash_daemon_modules_depend_only_downward() {
+    let found = upward(&src("arash-daemon"), DAEMON, &["crate::", "arash_daemon::"]);
+    assert!(found.is_empty(), "upward references: {found:#?}");
+}
+
+#[test]
+fn every_module_is_in_a_layer() {
+    for (krate, layers) in [("arash-core", CORE), ("arash-daemon", DAEMON)] {
+        for entry in std::fs::read_dir(src(krate)).unwrap() {
+            let path = entry.unwrap().path();
+            let stem = path.file_stem().unwrap().to_string_lossy().into_owned();
+            if ["lib", "main"].contains(&stem.as_str()) {
+                continue;
+            }
+            assert!(layers.contains(&stem.as_str()), "{krate}/src/{stem} is not in a layer of tests/layers.rs");
+        }
+    }
+}
+
+/// The check can fail: an upward reference planted in a copy is found.
+#[test]
+fn an_upward_reference_is_found() {
+    let dir = std::env::temp_dir().join(format!("arash-layers-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("low.rs"), "use crate::high::Thing;\n// crate::ignored\n").unwrap();
+    std::fs::write(dir.join("high.rs"), "use crate::low::{a, b::C};\n").unwrap();
+    let found = upward(&dir, &["low", "high"], &["crate::"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert_eq!(found[0].1, "high");
+}
