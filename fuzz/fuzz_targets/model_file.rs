@@ -2,7 +2,7 @@
 //! consistency recomputed from its parameters) without a panic; what is accepted is finite.
 #![no_main]
 
-use arash_core::identify::Identification;
+use arash_core::model_file::ModelFile;
 use libfuzzer_sys::fuzz_target;
 
 #[path = "robot.rs"]
@@ -11,7 +11,7 @@ use robot::model;
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else { return };
-    let Ok(id) = Identification::from_json(text) else { return };
+    let Ok(id) = ModelFile::from_json(text) else { return };
     if let Ok(params) = id.controller_parameters(model()) {
         assert!(params.iter().all(|x| x.is_finite()));
         let _ = id.consistent_controller_parameters(model());
