@@ -25,6 +25,14 @@ def kuka_urdf():
     return path
 
 
+def tx40_urdf():
+    """Upstream's Stäubli TX40 description: its link_6 has a mass and no rotational inertia."""
+    path = SHARED_DATA / "staubli_tx40" / "tx40_mdh_modified.urdf"
+    if not path.exists():
+        pytest.skip(f"measured-data URDF not found at {path}; ../shared/data is absent")
+    return path
+
+
 def urdf_couplings(path):
     """Independent reading of the URDF's joints: name -> (type, mimic target, multiplier, offset)."""
     joints = {}

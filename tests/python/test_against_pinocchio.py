@@ -13,7 +13,7 @@ import pytest
 pin = pytest.importorskip("pinocchio")
 import arash  # noqa: E402
 
-from conftest import ROBOT_FILES, kuka_urdf, random_physical_params, random_states, urdf_couplings  # noqa: E402
+from conftest import ROBOT_FILES, kuka_urdf, random_physical_params, random_states, tx40_urdf, urdf_couplings  # noqa: E402
 
 STATES = 1000
 TOLERANCE = 1e-9
@@ -154,3 +154,15 @@ def test_measured_robot_urdf_agrees_with_pinocchio():
     """The KUKA LWR4+ URDF from ../shared/data: a real 7-DOF description nobody here wrote."""
     worst = check_against_pinocchio(kuka_urdf(), seed=7)
     print("\nkuka_lwr4: " + ", ".join(f"{k} {v:.1e}" for k, v in worst.items()))
+
+
+def test_a_link_with_only_semidefinite_inertia_loads_with_a_warning_and_agrees_with_pinocchio():
+    """The TX40 URDF from ../shared/data gives link_6 0.2 kg and a zero inertia tensor, as generated
+    URDFs often do. Pinocchio loads it; so must arash, saying which link, with the same dynamics."""
+    path = tx40_urdf()
+    with pytest.warns(UserWarning, match="link `link_6`: inertia tensor is only positive semidefinite"):
+        robot = arash.Robot.from_urdf(path)
+    assert len(robot.warnings) == 1 and "link_6" in robot.warnings[0], robot.warnings
+    with pytest.warns(UserWarning):
+        worst = check_against_pinocchio(path, seed=11)
+    print("\ntx40: " + ", ".join(f"{k} {v:.1e}" for k, v in worst.items()))

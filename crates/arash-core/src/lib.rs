@@ -34,7 +34,7 @@ pub use dynamics::{
     DynamicsError,
 };
 pub use kinematics::forward_kinematics;
-pub use model::{ActuatedJoint, Body, CoulombShape, JointKind, Model};
+pub use model::{ActuatedJoint, Body, CoulombShape, JointKind, Model, ModelWarning};
 pub use model_file::ModelFile;
 pub use params::ParamLayout;
 pub use regressor::{regressor, regressor_of_bodies, slotine_li_regressor};

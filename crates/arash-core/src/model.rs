@@ -105,6 +105,27 @@ pub struct Model {
     /// Gravity acceleration in the base frame (m/s²).
     pub gravity: Vec3,
     pub coulomb_shape: CoulombShape,
+    /// What the URDF declared that loads but deserves a look (empty for a clean description).
+    pub warnings: Vec<ModelWarning>,
+}
+
+/// Something a robot description declares that arash loads, but that its user should know.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ModelWarning {
+    /// A link whose rotational inertia about its centre of mass is only positive semidefinite:
+    /// a point mass (all three principal moments zero) or a thin rod (one zero).
+    SemidefiniteInertia { link: String, eigenvalues: [f64; 3] },
+}
+
+impl std::fmt::Display for ModelWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::SemidefiniteInertia { link, eigenvalues: [a, b, c] } => write!(
+                f,
+                "link `{link}`: inertia tensor is only positive semidefinite (principal moments {a:.3e}, {b:.3e}, {c:.3e} kg·m²); loaded as a point mass or rod"
+            ),
+        }
+    }
 }
 
 impl Model {

@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 use std::path::Path;
 
-use crate::model::{ActuatedJoint, Body, CoulombShape, Coupling, JointKind, Model};
+use crate::model::{ActuatedJoint, Body, CoulombShape, Coupling, JointKind, Model, ModelWarning};
 use crate::spatial::{params_from_com, rpy_to_rotation, Mat3, Vec3};
 
 /// Why a URDF could not become a [`Model`]. Every variant names the offending element.
@@ -307,6 +307,7 @@ impl TreeBuilder {
         let mut bodies: Vec<Body> = Vec::new();
         let mut mimics: Vec<(usize, String, f64, f64)> = Vec::new();
         let mut actuated: Vec<ActuatedJoint> = Vec::new();
+        let mut warnings: Vec<ModelWarning> = Vec::new();
         let identity = Attachment { body: None, rot: Mat3::identity(), pos: Vec3::zeros() };
         // Depth first, children in document order, so bodies are numbered parents first, as
         // Pinocchio numbers its joints.
@@ -316,7 +317,8 @@ impl TreeBuilder {
             let joint = &self.joints[j];
             let placed =
                 Attachment { body: at.body, rot: at.rot * joint.origin_rot, pos: at.pos + at.rot * joint.origin_pos };
-            let child_at = self.attach(joint, placed, &mut bodies, &mut mimics, &mut actuated)?;
+            let (child_at, warning) = self.attach(joint, placed, &mut bodies, &mut mimics, &mut actuated)?;
+            warnings.extend(warning);
             self.push_children(&joint.child, child_at, &mut stack);
         }
         if actuated.is_empty() {
@@ -340,6 +342,7 @@ impl TreeBuilder {
             joints: actuated,
             gravity: Vec3::new(0.0, 0.0, -9.81),
             coulomb_shape: CoulombShape::Sign,
+            warnings,
         })
     }
 
@@ -349,7 +352,8 @@ impl TreeBuilder {
         }
     }
 
-    /// Create the body (if any) that `joint` brings in, and say where its child link sits.
+    /// Create the body (if any) that `joint` brings in, and say where its child link sits and
+    /// what about the link deserves a warning.
     fn attach(
         &self,
         joint: &RawJoint,
@@ -357,7 +361,7 @@ impl TreeBuilder {
         bodies: &mut Vec<Body>,
         mimics: &mut Vec<(usize, String, f64, f64)>,
         actuated: &mut Vec<ActuatedJoint>,
-    ) -> Result<Attachment, UrdfError> {
+    ) -> Result<(Attachment, Option<ModelWarning>), UrdfError> {
         let inertial = self.links[&joint.child].as_ref();
         let link_err = |what: String| UrdfError::Link { link: joint.child.clone(), what };
         if joint.kind == JointKind::Fixed {
@@ -366,12 +370,14 @@ impl TreeBuilder {
             }
             let is_frame = at.body.is_none() || inertial.is_none_or(|i| i.mass == 0.0 && i.tensor.norm() == 0.0);
             if is_frame {
-                return Ok(at);
+                return Ok((at, None));
             }
         }
         let inertial =
             inertial.ok_or_else(|| link_err(format!("is moved by joint `{}` but has no <inertial>", joint.name)))?;
-        let params = validated_params(inertial).map_err(link_err)?;
+        let (params, semidefinite) = validated_params(inertial).map_err(link_err)?;
+        let warning = semidefinite
+            .map(|eigenvalues| ModelWarning::SemidefiniteInertia { link: joint.child.clone(), eigenvalues });
         let index = bodies.len();
         let coupling = match (&joint.mimic, joint.kind) {
             (_, JointKind::Fixed) => None,
@@ -395,7 +401,7 @@ impl TreeBuilder {
             coupling,
             inertial: params,
         });
-        Ok(Attachment { body: Some(index), rot: Mat3::identity(), pos: Vec3::zeros() })
+        Ok((Attachment { body: Some(index), rot: Mat3::identity(), pos: Vec3::zeros() }, warning))
     }
 }
 
@@ -419,19 +425,34 @@ fn actuated_joint(joint: &RawJoint, kind: JointKind, body: usize) -> ActuatedJoi
     }
 }
 
-fn validated_params(inertial: &Inertial) -> Result<[f64; 10], String> {
+/// A link's ten parameters, and its principal moments when the inertia is only positive
+/// semidefinite (a point mass, a thin rod). Generated URDFs often give a small link no rotational
+/// inertia, and Pinocchio loads it; a tensor no body can have (negative, or principal moments
+/// that break the triangle inequality) is refused.
+fn validated_params(inertial: &Inertial) -> Result<([f64; 10], Option<[f64; 3]>), String> {
     if inertial.mass.is_nan() || inertial.mass <= 0.0 {
         return Err(format!("mass {} kg is not positive", inertial.mass));
     }
-    let eig = inertial.tensor.symmetric_eigenvalues();
-    if eig.iter().any(|&e| e.is_nan() || e <= 0.0) {
+    let mut eig: Vec<f64> = inertial.tensor.symmetric_eigenvalues().iter().copied().collect();
+    eig.sort_by(f64::total_cmp);
+    let (named, largest) = ([eig[0], eig[1], eig[2]], eig[2].abs());
+    // Round-off of a tensor typed with a few digits, relative to its size.
+    let tolerance = 1e-9 * largest;
+    if eig.iter().any(|e| e.is_nan()) || eig[0] < -tolerance {
         return Err(format!(
-            "inertia tensor is not positive definite (eigenvalues {:.3e}, {:.3e}, {:.3e} kg·m²)",
-            eig[0], eig[1], eig[2]
+            "inertia tensor is not positive definite, not even semidefinite (eigenvalues {:.3e}, {:.3e}, {:.3e} kg·m²)",
+            named[0], named[1], named[2]
+        ));
+    }
+    if eig[0] + eig[1] < eig[2] - tolerance {
+        return Err(format!(
+            "principal moments {:.3e}, {:.3e}, {:.3e} kg·m² break the triangle inequality (the two smaller must add up to the largest): no body has them",
+            named[0], named[1], named[2]
         ));
     }
     let tensor = inertial.rot * inertial.tensor * inertial.rot.transpose();
-    Ok(params_from_com(inertial.mass, &inertial.com, &tensor))
+    let semidefinite = (eig[0] <= tolerance).then_some(named);
+    Ok((params_from_com(inertial.mass, &inertial.com, &tensor), semidefinite))
 }
 
 #[cfg(test)]
@@ -516,6 +537,34 @@ mod tests {
             let e = error_of(&robot(&[("base", ""), ("l1", &inner)], &joint("a", "revolute", "base", "l1", "")));
             assert!(e.contains("`l1`") && e.contains("not positive"), "{e}");
         }
+    }
+
+    #[test]
+    fn a_point_mass_or_a_rod_loads_with_a_warning_that_names_the_link() {
+        for (inertia, zeros) in [(r#"ixx="0" iyy="0" izz="0""#, 3), (r#"ixx="0.1" iyy="0.1" izz="0""#, 1)] {
+            let inner = format!(r#"<inertial><mass value="0.2"/><inertia {inertia}/></inertial>"#);
+            let text = robot(
+                &[("base", ""), ("l1", LINK), ("tip", &inner)],
+                &(joint("a", "revolute", "base", "l1", "") + &joint("b", "revolute", "l1", "tip", "")),
+            );
+            let model = parse_urdf(&text).unwrap();
+            assert_eq!(model.warnings.len(), 1, "{:?}", model.warnings);
+            let ModelWarning::SemidefiniteInertia { link, eigenvalues } = &model.warnings[0];
+            assert_eq!(link, "tip");
+            assert_eq!(eigenvalues.iter().filter(|e| **e == 0.0).count(), zeros);
+            assert!(model.warnings[0].to_string().contains("link `tip`"));
+            assert_eq!(model.bodies[1].inertial[0], 0.2);
+        }
+        let clean =
+            parse_urdf(&robot(&[("base", ""), ("l1", LINK)], &joint("a", "revolute", "base", "l1", ""))).unwrap();
+        assert!(clean.warnings.is_empty());
+    }
+
+    #[test]
+    fn principal_moments_that_break_the_triangle_inequality_are_refused() {
+        let inner = r#"<inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.3"/></inertial>"#;
+        let e = error_of(&robot(&[("base", ""), ("l1", inner)], &joint("a", "revolute", "base", "l1", "")));
+        assert!(e.contains("`l1`") && e.contains("triangle inequality"), "{e}");
     }
 
     #[test]

@@ -67,6 +67,20 @@ fn model_reports_a_malformed_urdf_with_the_offending_element() {
 }
 
 #[test]
+fn model_loads_a_point_mass_link_and_warns_with_its_name() {
+    let dir = Scratch::new("cli", "point-mass-urdf");
+    let path = dir.file(
+        "point.urdf",
+        r#"<robot name="p"><link name="a"/><link name="b"><inertial><mass value="0.2"/><inertia ixx="0" iyy="0" izz="0"/></inertial></link>
+           <joint name="j" type="revolute"><parent link="a"/><child link="b"/><origin xyz="0.1 0 0"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="1" effort="1"/></joint></robot>"#,
+    );
+    let out = arash(&["model", path.to_str().unwrap()]);
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("warning:") && err.contains("link `b`") && err.contains("semidefinite"), "{err}");
+}
+
+#[test]
 fn identify_names_a_missing_column_and_a_bad_cell() {
     let robot = repo_file("robots/arash_asist.urdf");
     let dir = Scratch::new("cli", "identify-bad-cells");

@@ -187,14 +187,27 @@ impl Robot {
 #[pymethods]
 impl Robot {
     /// Load a robot from a URDF file. `coulomb_epsilon` (rad/s or m/s) switches the Coulomb
-    /// friction columns from sign(q̇) to tanh(q̇/ε).
+    /// friction columns from sign(q̇) to tanh(q̇/ε). What the file declares that loads but
+    /// deserves a look (a link with only semidefinite inertia) is raised as a `UserWarning`
+    /// and kept in `warnings`.
     #[staticmethod]
     #[pyo3(signature = (path, coulomb_epsilon=None))]
-    fn from_urdf(path: std::path::PathBuf, coulomb_epsilon: Option<f64>) -> PyResult<Self> {
+    fn from_urdf(py: Python<'_>, path: std::path::PathBuf, coulomb_epsilon: Option<f64>) -> PyResult<Self> {
         let text = std::fs::read_to_string(&path)
             .map_err(|source| core::UrdfError::Io { path: path.display().to_string(), source })
             .map_err(value_error)?;
-        Self::from_text(&text, coulomb_epsilon)
+        let robot = Self::from_text(&text, coulomb_epsilon)?;
+        for warning in &robot.model.warnings {
+            let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+            PyErr::warn(py, &category, &std::ffi::CString::new(format!("{}: {warning}", path.display()))?, 1)?;
+        }
+        Ok(robot)
+    }
+
+    /// What the URDF declared that loads but deserves a look, one line each.
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.model.warnings.iter().map(ToString::to_string).collect()
     }
 
     /// The bundled ARASH:ASiST reconstruction.

@@ -31,5 +31,8 @@ pub fn load_robot(path: Option<&Path>) -> anyhow::Result<(arash_core::Model, Str
     };
     let text = std::fs::read_to_string(path).with_context(|| format!("reading URDF {}", path.display()))?;
     let model = arash_core::parse_urdf(&text).with_context(|| format!("loading {}", path.display()))?;
+    for warning in &model.warnings {
+        eprintln!("warning: {}: {warning}", path.display());
+    }
     Ok((model, text))
 }
