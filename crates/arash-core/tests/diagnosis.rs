@@ -312,6 +312,29 @@ fn a_validation_log_is_used_for_the_heldout_errors() {
 
 /// The updated model carries the effects found, and its prediction includes them: with offsets
 /// found, the prediction moves by each offset on its joint and nowhere else.
+/// Against a given model only its friction is refitted: every other base parameter of the
+/// updated model is the given one, and each friction coefficient that moved moved in the full
+/// parameters too.
+#[test]
+fn against_a_given_model_only_its_friction_is_refitted() {
+    let model = arash_asist();
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
+    let given = true_model(&model, &base, 41);
+    let d = diagnose_scenario("", 41, Against::Truth, false);
+    let friction = model.layout().friction();
+    let updated = &d.model;
+    let mut moved = 0;
+    for (i, &j) in base.independent.iter().enumerate() {
+        if friction.contains(&j) {
+            moved += usize::from(updated.beta[i] != given.beta[i]);
+            assert_eq!(updated.params.as_ref().unwrap()[j], updated.beta[i], "{}", base.names[i]);
+        } else {
+            assert_eq!(updated.beta[i], given.beta[i], "{} is held", base.names[i]);
+        }
+    }
+    assert!(moved > 0, "no friction coefficient was refitted");
+}
+
 #[test]
 fn the_updated_model_predicts_with_the_effects_found() {
     let d = diagnose_scenario("[effects.torque_offset]\n", 1, Against::Refit, false);

@@ -357,18 +357,21 @@ impl Search<'_> {
             Some(g) => g.clone(),
             None => declared_model(ctx.model, ctx.base, urdf, &ctx.train, series, ctx.options, samples_in)?,
         };
-        // A refitted model keeps the OLS of `declared_model`, made with the effects taken out.
-        let mut fitted = x_after.iter();
-        let freed = ctx.base.independent.iter().zip(&ctx.free).filter(|(_, f)| **f && !ctx.refit);
-        for (b, (j, _)) in updated.beta.iter_mut().zip(freed) {
-            *b = *fitted.next().expect("one coefficient per free column");
-            // A refitted friction coefficient is a standard parameter of its own.
-            if let Some(params) = updated.params.as_mut() {
-                params[*j] = *b;
-            }
-        }
         if ctx.refit {
+            // A refitted model keeps the OLS of `declared_model`, made with the effects taken out.
             updated.params = None;
+        } else {
+            // Against a given model its freed (friction) coefficients take the joint fit's values,
+            // which come first in `x_after`, in the order of the base parameters.
+            let mut fitted = x_after.iter();
+            let freed = updated.beta.iter_mut().zip(&ctx.base.independent).zip(&ctx.free).filter(|(_, f)| **f);
+            for ((b, j), _) in freed {
+                *b = *fitted.next().expect("one coefficient per free column");
+                // A refitted friction coefficient is a standard parameter of its own.
+                if let Some(params) = updated.params.as_mut() {
+                    params[*j] = *b;
+                }
+            }
         }
         updated.effects.extend(state.accepted.iter().map(|f| f.term.clone()));
         Ok(updated)
