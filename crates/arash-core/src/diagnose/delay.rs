@@ -69,7 +69,7 @@ fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
     let x0 = least_squares(&declared_refs, &zero.y, dof, Rows::All).unwrap_or_else(|| vec![0.0; declared_refs.len()]);
     let e0 = residual(&declared_refs, &x0, &zero.y, dof);
     let predicted: Vec<f64> = zero.y.iter().zip(&e0).map(|(y, e)| y - e).collect();
-    let h = (train.kept[1] - train.kept[0]) as f64 / train.fs;
+    let h = train.stride() as f64 / train.fs;
     let column = Column::dense(central_difference(&predicted, dof, h, false), dof);
     let test = test_group(&declared_refs, &g, &e0, &[&column], block, block_count, dof);
     let Some(test) = test else {

@@ -22,7 +22,7 @@ pub(super) fn blocks(data: &Prepared, block_s: f64) -> (Vec<usize>, usize) {
     let raw: Vec<usize> = data.kept.iter().map(|&i| ((i - first) as f64 / per) as usize).collect();
     let last = *raw.last().unwrap_or(&0);
     let count_last = raw.iter().filter(|&&b| b == last).count();
-    let merge = last > 0 && (count_last as f64) < 0.5 * per / (data.kept.get(1).map_or(1, |k| k - first)) as f64;
+    let merge = last > 0 && (count_last as f64) < 0.5 * per / data.stride() as f64;
     let block: Vec<usize> = raw.iter().map(|&b| if merge && b == last { last - 1 } else { b }).collect();
     let count = block.last().map_or(0, |b| b + 1);
     (block, count)
