@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use arash_core::diagnose::{
     consistent_with_effects, diagnose as core_diagnose, DiagnoseOptions as CoreOptions, Diagnosis as CoreDiagnosis,
-    ErrorSummary, Finding,
+    Finding,
 };
 use arash_core::effects::EffectKind;
 use arash_core::identify::consistent::ConsistentOptions;
@@ -271,22 +271,22 @@ impl Diagnosis {
     /// (‖e‖/‖τ‖), numpy arrays.
     #[getter]
     fn error_before<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        errors(py, &self.inner.before, Held::Out)
+        errors(py, &self.inner.before.heldout)
     }
     /// The same after the effects were added.
     #[getter]
     fn error_after<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        errors(py, &self.inner.after, Held::Out)
+        errors(py, &self.inner.after.heldout)
     }
     /// `error_before` on the training data.
     #[getter]
     fn error_before_training<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        errors(py, &self.inner.before, Held::In)
+        errors(py, &self.inner.before.training)
     }
     /// `error_after` on the training data.
     #[getter]
     fn error_after_training<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        errors(py, &self.inner.after, Held::In)
+        errors(py, &self.inner.after.training)
     }
     /// The updated model (declared parameters plus the effects found).
     #[getter]
@@ -335,17 +335,8 @@ impl Diagnosis {
     }
 }
 
-/// Which half of an [`ErrorSummary`].
-enum Held {
-    In,
-    Out,
-}
-
-fn errors<'py>(py: Python<'py>, summary: &ErrorSummary, held: Held) -> PyResult<Bound<'py, PyDict>> {
-    let m: &Metrics = match held {
-        Held::In => &summary.training,
-        Held::Out => &summary.heldout,
-    };
+/// Per-joint errors as numpy arrays: `rms`, `fp_percent`, `rel` (‖e‖/‖τ‖).
+fn errors<'py>(py: Python<'py>, m: &Metrics) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     for (name, v) in [("rms", &m.rms), ("fp_percent", &m.fp_percent), ("rel", &m.relative_error)] {
         d.set_item(name, to_numpy(py, v.clone(), false, v.len(), &[])?)?;
