@@ -85,17 +85,32 @@ pub struct Metrics {
     pub rms: Vec<f64>,
 }
 
-/// Settings an identification was made with, kept in the model file.
+/// Settings an identification was made with, kept in the model file: the values used, whether
+/// the user set them or the data chose them (`reasons` says which, and why).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Settings {
     pub method: IdentifyMethod,
+    /// Periods averaged; `None` when the data were not treated as periodic.
     pub periods: Option<usize>,
+    /// The period averaged over (s).
+    #[serde(default)]
+    pub period_s: Option<f64>,
     pub cutoff_hz: f64,
+    /// Cut-off of the velocity that switches Coulomb friction (Hz).
+    #[serde(default)]
+    pub friction_cutoff_hz: Option<f64>,
     pub order: usize,
     pub decimate: usize,
     pub pull: f64,
     /// Cable stiffness bounds; `None` is unbounded (JSON has no infinity).
     pub stiffness_bounds: (Option<f64>, Option<f64>),
+    /// One line per preprocessing choice: its value and why (files before these fields read as
+    /// empty).
+    #[serde(default)]
+    pub reasons: Vec<String>,
+    /// Choices the data support only weakly.
+    #[serde(default)]
+    pub warnings: Vec<String>,
 }
 
 /// Where the data came from.
@@ -343,6 +358,8 @@ impl ModelFile {
         );
         // The consistent β is a constrained estimate; its spread is reported from the least squares.
         let sigma = if self.settings.method == IdentifyMethod::Consistent { "σ% (OLS)" } else { "σ%" };
+        s += &self.settings.reasons.iter().map(|r| format!("  {r}\n")).collect::<String>();
+        s += &self.settings.warnings.iter().map(|w| format!("  warning: {w}\n")).collect::<String>();
         s += &format!("{:<4} {:<34} {:>14} {:>10}\n", "", "parameter", "value", sigma);
         for (i, name) in self.base_names.iter().enumerate() {
             s += &format!("β{:<3} {:<34} {:>14.6e} {:>10.2}\n", i + 1, name, self.beta[i], self.sigma_percent[i]);

@@ -12,6 +12,7 @@ use rand::RngExt;
 
 /// A random 5-harmonic Fourier trajectory with period `period`, scaled into 80 % of the joint
 /// range and the speed limits: returns (q, q̇, q̈) at time t.
+#[derive(Clone)]
 struct Fourier {
     w: f64,
     centre: Vec<f64>,
@@ -215,12 +216,25 @@ fn data_that_does_not_move_a_joint_is_refused_naming_the_parameters() {
     let model = arash_asist();
     let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
     let mut rng = rng(23);
-    let mut traj = Fourier::random(&model, 15.0, &mut rng);
-    traj.a[2] = [0.0; 5]; // the insertion never moves
-    traj.b[2] = [0.0; 5];
+    let traj = Fourier::random(&model, 15.0, &mut rng);
     let pi = true_parameters(&model, &mut rng);
+    let options = PreprocessOptions { periods: Some(2), ..Default::default() };
+    // An insertion that never moves is refused before any fit, by joint.
+    let mut still = traj.clone();
+    still.a[2] = [0.0; 5];
+    still.b[2] = [0.0; 5];
+    let (t, q, tau) = simulated_log(&model, &pi, &still, 2, &mut rng);
+    let refused = preprocess(&t, &q, &tau, 3, &options).unwrap_err().to_string();
+    assert!(refused.contains("joint 3 never moves"), "{refused}");
+    // Signals that reach the fit without moving it (held at its start after preprocessing)
+    // leave parameters undetermined, and the fit names them.
     let (t, q, tau) = simulated_log(&model, &pi, &traj, 2, &mut rng);
-    let pre = preprocess(&t, &q, &tau, 3, &PreprocessOptions { periods: Some(2), ..Default::default() }).unwrap();
+    let mut pre = preprocess(&t, &q, &tau, 3, &options).unwrap();
+    let held = pre.q[2];
+    for signal in [&mut pre.q, &mut pre.qd, &mut pre.qdd, &mut pre.qd_friction] {
+        signal.iter_mut().skip(2).step_by(3).for_each(|v| *v = 0.0);
+    }
+    pre.q.iter_mut().skip(2).step_by(3).for_each(|v| *v = held);
     let err = fit(&model, &base, &pre, Method::Ols).unwrap_err();
     let text = err.to_string();
     assert!(matches!(err, EstimateError::NotExcited(_) | EstimateError::IllConditioned { .. }), "{text}");

@@ -8,7 +8,6 @@ use std::path::Path;
 
 use anyhow::{bail, Context};
 use arash_core::control::Trajectory;
-use arash_core::identify::preprocess::cutoff_for_bandwidth;
 use arash_core::Model;
 
 /// A log: `t` (N) and row-major `q`, `tau` (N × dof).
@@ -19,14 +18,6 @@ pub struct Log {
     /// The reference the run followed, when the log says (flight logs of `arash simulate` and
     /// of daemon runs).
     pub trajectory: Option<Trajectory>,
-}
-
-impl Log {
-    /// The low-pass cut-off for this log when it names the trajectory it followed
-    /// ([`cutoff_for_bandwidth`] of that trajectory's top frequency).
-    pub fn trajectory_cutoff_hz(&self) -> Option<f64> {
-        Some(cutoff_for_bandwidth(self.trajectory.as_ref()?.bandwidth_hz()?))
-    }
 }
 
 /// Read a run, by extension: `.mcap` is a flight log, anything else CSV.

@@ -156,6 +156,7 @@ fn an_excitation_run_through_the_daemon_identifies_the_mock() {
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let model: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    eprintln!("preprocessing: {}", model["settings"]["reasons"]);
     // OLS is the criterion (≥ 90 %); the consistent fit trades a little fit for physical
     // parameters (91–95 % in repeated runs here).
     for (fit, bound) in [("training_ols", 90.0), ("training", 85.0)] {

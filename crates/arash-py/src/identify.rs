@@ -119,6 +119,24 @@ impl Identification {
     fn cutoff_hz(&self) -> f64 {
         self.inner.settings.cutoff_hz
     }
+    /// The preprocessing as used: periods averaged (None: not periodic), period_s, cutoff_hz,
+    /// friction_cutoff_hz, order, decimate, and `reasons` (one line per choice: the user's, or
+    /// what in the data made it) and `warnings` (choices the data support only weakly).
+    #[getter]
+    fn settings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = &self.inner.settings;
+        let d = PyDict::new(py);
+        d.set_item("method", s.method.name())?;
+        d.set_item("periods", s.periods)?;
+        d.set_item("period_s", s.period_s)?;
+        d.set_item("cutoff_hz", s.cutoff_hz)?;
+        d.set_item("friction_cutoff_hz", s.friction_cutoff_hz)?;
+        d.set_item("order", s.order)?;
+        d.set_item("decimate", s.decimate)?;
+        d.set_item("reasons", s.reasons.clone())?;
+        d.set_item("warnings", s.warnings.clone())?;
+        Ok(d)
+    }
     #[getter]
     fn condition_number(&self) -> f64 {
         self.inner.condition_number
@@ -215,6 +233,7 @@ fn _identify<'py>(
             "cutoff_hz" => o.preprocess.cutoff_hz = value.extract()?,
             "order" => o.preprocess.order = value.extract()?,
             "decimate" => o.preprocess.decimate = value.extract()?,
+            "friction_cutoff_hz" => o.preprocess.friction_cutoff_hz = value.extract()?,
             "pull" => o.consistent.pull = value.extract()?,
             "stiffness_bounds" => o.consistent.stiffness_bounds = value.extract()?,
             _ => return Ok(false),

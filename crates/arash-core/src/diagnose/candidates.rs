@@ -2,7 +2,7 @@
 
 use super::findings::{Rejection, RejectionReason};
 use super::options::DiagnoseOptions;
-use super::prepare::{friction_shape, Prepared};
+use super::prepare::Prepared;
 use super::regression::GroupTest;
 use crate::base_parameters::BaseParameters;
 use crate::effects::{EffectKind, EffectTerm, JointData};
@@ -34,7 +34,7 @@ pub(super) fn candidates(
             joint: k,
             span: (lo, hi),
             speed_rms: (vk.iter().map(|v| v * v).sum::<f64>() / vk.len() as f64).sqrt(),
-            epsilon: match friction_shape(model, &train.pre, k) {
+            epsilon: match train.pre.coulomb_shape(model.coulomb_shape, k) {
                 CoulombShape::Tanh { epsilon } => Some(epsilon),
                 CoulombShape::Sign => None,
             },

@@ -52,11 +52,15 @@ pub(super) fn declared_model(
         Settings {
             method: IdentifyMethod::Ols,
             periods: None,
+            period_s: None,
             cutoff_hz: data.pre.cutoff_hz,
+            friction_cutoff_hz: Some(data.pre.friction_cutoff_hz),
             order: data.pre.order,
             decimate: stride,
             pull: 0.0,
             stiffness_bounds: (None, None),
+            reasons: data.pre.choices.reasons.clone(),
+            warnings: data.pre.choices.warnings.clone(),
         },
         DataSummary {
             sources: vec![],

@@ -8,7 +8,7 @@ use crate::data::Data;
 use crate::effects::{EffectKind, EffectTerm, TermState};
 use crate::identify::preprocess::{preprocess, PreprocessError, PreprocessOptions, Preprocessed};
 use crate::identify::Log;
-use crate::model::{CoulombShape, Model};
+use crate::model::Model;
 use crate::regressor::regressor;
 
 /// A log filtered and sampled for the diagnosis, with the declared model's columns.
@@ -63,7 +63,9 @@ pub(super) fn prepare(
     let dt = crate::identify::preprocess::validate_log(log.t, log.q, log.tau, dof)?;
     let fs = 1.0 / dt;
     let cutoff_hz = options.cutoff_hz.min(fs / 5.0);
+    // The diagnosis reads residuals in time (blocks, delays), so it never averages periods.
     let pre_options = PreprocessOptions {
+        periods: Some(1),
         cutoff_hz: Some(cutoff_hz),
         filter_derivatives: false,
         friction_cutoff_hz: options.friction_cutoff_hz,
@@ -134,7 +136,7 @@ pub(super) fn full_columns(model: &Model, pre: &Preprocessed, kept: &[usize]) ->
     }
     for k in 0..dof {
         let j = model.layout().coulomb(k);
-        let shape = friction_shape(model, pre, k);
+        let shape = pre.coulomb_shape(model.coulomb_shape, k);
         let full: Vec<f64> = (0..pre.samples()).map(|s| shape.eval(pre.qd_friction[s * dof + k])).collect();
         let filtered = pre.filter_like_torque(&full, 1).expect("the torque was filtered with these settings");
         for (s, &i) in kept.iter().enumerate() {
@@ -142,22 +144,6 @@ pub(super) fn full_columns(model: &Model, pre: &Preprocessed, kept: &[usize]) ->
         }
     }
     columns
-}
-
-/// The direction function of joint `k`'s friction terms: the model's `tanh(q̇/ε)`, widened to
-/// the noise of the friction velocity (its RMS difference from the velocity at the main
-/// cut-off). A sign taken of a velocity that noisy flips at full amplitude where the true
-/// velocity is merely small; `tanh(q̇/σ)` is close to the expected sign given the noise, which
-/// is what the filtered torque records.
-pub(super) fn friction_shape(model: &Model, pre: &Preprocessed, k: usize) -> CoulombShape {
-    let dof = pre.dof;
-    let n = pre.samples();
-    let noise =
-        ((0..n).map(|s| (pre.qd_friction[s * dof + k] - pre.qd[s * dof + k]).powi(2)).sum::<f64>() / n as f64).sqrt();
-    match model.coulomb_shape {
-        CoulombShape::Tanh { epsilon } => CoulombShape::Tanh { epsilon: epsilon.max(noise) },
-        CoulombShape::Sign => CoulombShape::Sign,
-    }
 }
 
 /// The columns of `term` on a prepared log.

@@ -118,7 +118,8 @@ fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f
     if coulomb.is_empty() {
         return w;
     }
-    let shapes: Vec<f64> = data.qd_friction.iter().map(|v| model.coulomb_shape.eval(*v)).collect();
+    let laws: Vec<_> = (0..n).map(|k| data.coulomb_shape(model.coulomb_shape, k)).collect();
+    let shapes: Vec<f64> = data.qd_friction.iter().enumerate().map(|(i, v)| laws[i % n].eval(*v)).collect();
     let filtered = data.filter_like_torque(&shapes, n).expect("the torque was filtered with these settings");
     for (k, c) in coulomb {
         for s in 0..samples {

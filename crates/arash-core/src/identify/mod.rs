@@ -3,6 +3,8 @@
 //! printed as the paper's tables and used for prediction.
 
 pub mod consistent;
+pub mod cutoff;
+pub mod decide;
 pub mod estimate;
 pub mod excitation;
 pub mod filter;
@@ -67,9 +69,9 @@ pub fn identify(
     method: IdentifyMethod,
     options: &IdentifyOptions,
 ) -> Result<ModelFile, IdentifyError> {
+    let pre = cutoff::preprocess_for_fit(declared, log, &options.preprocess)?;
     let Declared { model, base, urdf } = declared;
-    let Log { t, q, tau } = log;
-    let pre = preprocess(t, q, tau, model.dof(), &options.preprocess)?;
+    let samples_in = log.t.len();
     let ls_method = if method == IdentifyMethod::Wls { Method::Wls } else { Method::Ols };
     let ls = fit(model, base, &pre, ls_method)?;
     let ols_metrics: Metrics = if ls_method == Method::Ols {
@@ -104,8 +106,10 @@ pub fn identify(
         fitted,
         Settings {
             method,
-            periods: options.preprocess.periods,
+            periods: pre.periodic.then_some(pre.periods_averaged),
+            period_s: pre.period_s,
             cutoff_hz: pre.cutoff_hz,
+            friction_cutoff_hz: Some(pre.friction_cutoff_hz),
             order: options.preprocess.order,
             decimate: options.preprocess.decimate,
             pull: options.consistent.pull,
@@ -113,10 +117,12 @@ pub fn identify(
                 let finite = |x: f64| x.is_finite().then_some(x);
                 (finite(options.consistent.stiffness_bounds.0), finite(options.consistent.stiffness_bounds.1))
             },
+            reasons: pre.choices.reasons.clone(),
+            warnings: pre.choices.warnings.clone(),
         },
         DataSummary {
             sources: vec![],
-            samples_in: t.len(),
+            samples_in,
             samples_used: pre.samples(),
             sample_rate_hz: pre.sample_rate_hz,
             periods_averaged: pre.periods_averaged,

@@ -6,15 +6,23 @@
 //! differentiated circularly (three periods side by side, the middle kept): one period of a
 //! periodic signal has no ends, so it gets no end effects.
 
+use super::decide::{bandwidth, find_period, harmonic_bandwidth, PERIODIC_MISMATCH};
 use super::filter::{Butterworth, FilterError};
+use crate::model::CoulombShape;
 
-/// Settings for [`preprocess`]. `Default` gives the paper's: order 5, cut-off from the bandwidth.
-#[derive(Clone, Debug)]
+/// Settings for [`preprocess`]: the one home of the preprocessing defaults, which every front end
+/// (CLI, Python, diagnosis, demo) starts from, overriding only what its user set. `Default` leaves
+/// the period and the cut-off to the data ([`super::decide`]) and keeps the paper's order 5.
+#[derive(Clone, Debug, PartialEq)]
 pub struct PreprocessOptions {
-    /// Number of whole excitation periods in the log; `None` means not periodic (no averaging).
+    /// Number of whole excitation periods in the log: `None` finds them from the data (and finds
+    /// whether the log is periodic at all); `Some(1)` says it is not periodic (no averaging).
     pub periods: Option<usize>,
-    /// Low-pass cut-off (Hz); `None` derives it from the trajectory's bandwidth (see
-    /// [`default_cutoff_hz`]).
+    /// The period (s), when known but not the number of periods: the log is averaged over as many
+    /// whole periods as it holds. Takes precedence over `periods`.
+    pub period_s: Option<f64>,
+    /// Low-pass cut-off (Hz); `None` takes [`CUTOFF_PER_BANDWIDTH`] times the highest frequency
+    /// of the motion, read from the positions' spectrum against their noise floor.
     pub cutoff_hz: Option<f64>,
     /// Butterworth order, applied forward and backward.
     pub order: usize,
@@ -35,16 +43,50 @@ pub struct PreprocessOptions {
 /// costs). 20 Hz keeps the dither and still rejects most encoder quantisation noise.
 pub const DEFAULT_FRICTION_CUTOFF_HZ: f64 = 20.0;
 
+/// The highest Butterworth order accepted: beyond it a zero-phase pass rings more than it gains.
+pub const MAX_ORDER: usize = 12;
+
 impl Default for PreprocessOptions {
     fn default() -> Self {
         Self {
             periods: None,
+            period_s: None,
             cutoff_hz: None,
             order: 5,
             decimate: 1,
             friction_cutoff_hz: None,
             filter_derivatives: true,
         }
+    }
+}
+
+impl PreprocessOptions {
+    /// Check every setting before any work starts.
+    pub fn validate(&self) -> Result<(), PreprocessError> {
+        let positive = [
+            ("cutoff_hz", self.cutoff_hz),
+            ("friction_cutoff_hz", self.friction_cutoff_hz),
+            ("period_s", self.period_s),
+        ];
+        for (name, value) in positive {
+            if let Some(v) = value.filter(|v| !(v.is_finite() && *v > 0.0)) {
+                return Err(PreprocessError::Setting { name, value: v.to_string(), expected: "a positive number" });
+            }
+        }
+        if self.periods == Some(0) {
+            return Err(PreprocessError::Setting { name: "periods", value: "0".into(), expected: "1 (not periodic) or more" });
+        }
+        if !(1..=MAX_ORDER).contains(&self.order) {
+            return Err(PreprocessError::Setting {
+                name: "order",
+                value: self.order.to_string(),
+                expected: "an order from 1 to 12",
+            });
+        }
+        if self.decimate == 0 {
+            return Err(PreprocessError::BadDecimation);
+        }
+        Ok(())
     }
 }
 
@@ -57,10 +99,18 @@ pub enum PreprocessError {
     NotFinite { name: &'static str, sample: usize },
     #[error("need at least {needed} samples, got {got}")]
     TooFewSamples { needed: usize, got: usize },
+    #[error("t does not increase at sample {index}: {before} s is followed by {after} s")]
+    TimeNotIncreasing { index: usize, before: f64, after: f64 },
     #[error("t is not uniformly sampled: step {index} is {step:.6} s where the median step is {median:.6} s")]
     NonUniformTime { index: usize, step: f64, median: f64 },
-    #[error("{periods} period(s) requested: averaging needs at least 2 whole periods")]
-    TooFewPeriods { periods: usize },
+    #[error(
+        "joint {joint} never moves (its position spans {span:.3e}, {steps:.0} encoder steps): nothing about it can be identified"
+    )]
+    JointStill { joint: usize, span: f64, steps: f64 },
+    #[error("the log holds {periods} period(s) of {period_s:.4} s: averaging needs at least 2 whole periods")]
+    TooFewPeriods { periods: usize, period_s: f64 },
+    #[error("{name} = {value} cannot be used: expected {expected}")]
+    Setting { name: &'static str, value: String, expected: &'static str },
     #[error("decimation factor must be at least 1")]
     BadDecimation,
     #[error(
@@ -69,6 +119,15 @@ pub enum PreprocessError {
     DecimationAliases { factor: usize, nyquist_hz: f64, cutoff_hz: f64 },
     #[error(transparent)]
     Filter(#[from] FilterError),
+}
+
+/// What preprocessing chose, each with its reason, and the choices it is unsure of.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Choices {
+    /// One line per choice: the value, and whether the user set it or what in the data set it.
+    pub reasons: Vec<String>,
+    /// Choices the data support only weakly (too few periods, bandwidth near the cap, ...).
+    pub warnings: Vec<String>,
 }
 
 /// Preprocessed signals, row-major `samples × dof`, ready for the regressor.
@@ -84,16 +143,23 @@ pub struct Preprocessed {
     pub tau: Vec<f64>,
     /// The cut-off actually used (Hz).
     pub cutoff_hz: f64,
-    /// Sample rate of the input (Hz).
+    /// The cut-off of the friction velocity actually used (Hz).
+    pub friction_cutoff_hz: f64,
+    /// Rate of the signals before decimation (Hz): the log's, or, for a period that is not a
+    /// whole number of samples, that of the period resampled to a whole number.
     pub sample_rate_hz: f64,
     /// Periods averaged (1 when not periodic).
     pub periods_averaged: usize,
+    /// The period averaged over (s), when periodic.
+    pub period_s: Option<f64>,
     /// Butterworth order used.
     pub order: usize,
     /// Whether the signals are one period of a periodic average (filtered circularly).
     pub periodic: bool,
     /// Decimation factor applied after filtering.
     pub decimate: usize,
+    /// What was chosen, and why.
+    pub choices: Choices,
 }
 
 impl Preprocessed {
@@ -111,6 +177,24 @@ impl Preprocessed {
     pub fn filter_like_torque(&self, x: &[f64], width: usize) -> Result<Vec<f64>, FilterError> {
         let filter = Butterworth::lowpass(self.order, self.cutoff_hz, self.rate_hz())?;
         filter_columns(&filter, x, width, self.periodic)
+    }
+
+    /// The law joint `k`'s Coulomb column follows, given the model's: `tanh(q̇/ε)` widened to the
+    /// noise of the friction velocity (its RMS difference from the velocity at the main cut-off),
+    /// and a sharp sign made that `tanh`. A sign taken of a velocity that noisy flips at full
+    /// amplitude where the true velocity is merely small; `tanh(q̇/σ)` is close to the expected
+    /// sign given the noise, which is what the filtered torque records. Identification and the
+    /// diagnosis both build their Coulomb columns with it.
+    pub fn coulomb_shape(&self, declared: CoulombShape, k: usize) -> CoulombShape {
+        let (dof, n) = (self.dof, self.samples());
+        let noise = ((0..n).map(|s| (self.qd_friction[s * dof + k] - self.qd[s * dof + k]).powi(2)).sum::<f64>()
+            / n as f64)
+            .sqrt();
+        match declared {
+            CoulombShape::Tanh { epsilon } => CoulombShape::Tanh { epsilon: epsilon.max(noise) },
+            CoulombShape::Sign if noise > 0.0 => CoulombShape::Tanh { epsilon: noise },
+            CoulombShape::Sign => CoulombShape::Sign,
+        }
     }
 }
 
@@ -130,6 +214,9 @@ pub fn validate_log(t: &[f64], q: &[f64], tau: &[f64], dof: usize) -> Result<f64
     if n < 64 {
         return Err(PreprocessError::TooFewSamples { needed: 64, got: n });
     }
+    if let Some(i) = t.windows(2).position(|w| w[1] <= w[0]) {
+        return Err(PreprocessError::TimeNotIncreasing { index: i + 1, before: t[i], after: t[i + 1] });
+    }
     let step = |w: &[f64]| w[1] - w[0];
     let mut steps: Vec<f64> = t.windows(2).map(step).collect();
     let middle = steps.len() / 2;
@@ -139,10 +226,153 @@ pub fn validate_log(t: &[f64], q: &[f64], tau: &[f64], dof: usize) -> Result<f64
     if let Some((index, step)) = t.windows(2).map(step).enumerate().find(|(_, s)| (s - median).abs() > 0.01 * median) {
         return Err(PreprocessError::NonUniformTime { index, step, median });
     }
-    if median <= 0.0 {
-        return Err(PreprocessError::NonUniformTime { index: 0, step: median, median });
-    }
     Ok(median)
+}
+
+/// A joint spanning fewer encoder steps than this has not moved: what it shows is noise.
+pub const STILL_STEPS: f64 = 20.0;
+
+/// Refuse a joint that never moves: its span is within [`STILL_STEPS`] of its typical
+/// sample-to-sample change (an encoder step, or the noise).
+fn check_every_joint_moves(q: &[f64], dof: usize) -> Result<(), PreprocessError> {
+    for joint in 0..dof {
+        let column: Vec<f64> = q.iter().skip(joint).step_by(dof).copied().collect();
+        let (lo, hi) = column.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
+        let mut changes: Vec<f64> = column.windows(2).map(|w| (w[1] - w[0]).abs()).filter(|d| *d > 0.0).collect();
+        let step = match changes.len() {
+            0 => f64::INFINITY,
+            len => *changes.select_nth_unstable_by(len / 2, f64::total_cmp).1,
+        };
+        let span = hi - lo;
+        if span < STILL_STEPS * step || span == 0.0 {
+            let steps = if step.is_finite() { span / step } else { 0.0 };
+            return Err(PreprocessError::JointStill { joint: joint + 1, span, steps });
+        }
+    }
+    Ok(())
+}
+
+/// How the log is averaged: not at all, or over `count` periods of `samples` (fractional) samples.
+#[derive(Clone, Copy, Debug)]
+struct Averaging {
+    count: usize,
+    samples: f64,
+}
+
+impl Averaging {
+    /// Samples in one averaged period.
+    fn per(self) -> usize {
+        self.samples.round() as usize
+    }
+}
+
+/// Decide whether and over what to average, from the options or the data.
+fn choose_periods(
+    q: &[f64],
+    dof: usize,
+    fs: f64,
+    (periods, period): (Option<usize>, Option<f64>),
+    choices: &mut Choices,
+) -> Result<Option<Averaging>, PreprocessError> {
+    let n = q.len() / dof;
+    if let Some(period_s) = period {
+        let samples = period_s * fs;
+        let whole = (samples - samples.round()).abs() < 1e-6;
+        let samples = if whole { samples.round() } else { samples };
+        let room = if whole { n as f64 } else { n as f64 - 2.0 };
+        let count = (room / samples).floor() as usize;
+        if count < 2 {
+            return Err(PreprocessError::TooFewPeriods { periods: count, period_s });
+        }
+        choices.reasons.push(format!("{count} periods of {period_s:.4} s: period set by the user"));
+        return Ok(Some(Averaging { count, samples }));
+    }
+    match periods {
+        Some(1) => {
+            choices.reasons.push("not averaged over periods: periods = 1 was given".into());
+            Ok(None)
+        }
+        Some(count) => {
+            let per = n / count;
+            if per < 2 {
+                return Err(PreprocessError::TooFewSamples { needed: 2 * count, got: n });
+            }
+            let period_s = per as f64 / fs;
+            let mismatch = super::decide::mismatch_of_columns(q, dof, per);
+            choices.reasons.push(format!("{count} periods of {period_s:.4} s: set by the user"));
+            if mismatch > PERIODIC_MISMATCH {
+                choices.warnings.push(format!(
+                    "the {count} periods given do not repeat: consecutive ones differ by {:.1} % of the motion's variance",
+                    100.0 * mismatch
+                ));
+            }
+            Ok(Some(Averaging { count, samples: per as f64 }))
+        }
+        None => {
+            let search = find_period(q, dof, fs);
+            choices.reasons.push(search.reason);
+            let Some(period) = search.period else { return Ok(None) };
+            // Cubic interpolation reads two samples past the last point of the last period.
+            let whole = period.samples.fract() == 0.0;
+            let room = if whole { n as f64 } else { (n - 2) as f64 };
+            let count = period.count.min((room / period.samples).floor() as usize);
+            if count < 2 {
+                return Err(PreprocessError::TooFewPeriods { periods: count, period_s: period.samples / fs });
+            }
+            if count < super::decide::FEW_PERIODS {
+                choices.warnings.push(format!(
+                    "only {count} periods to average: the noise falls by √{count} only, and a period found from {count} repeats is uncertain"
+                ));
+            }
+            Ok(Some(Averaging { count, samples: period.samples }))
+        }
+    }
+}
+
+/// The cut-off: the user's, or [`CUTOFF_PER_BANDWIDTH`] times the motion's bandwidth.
+///
+/// A periodic log's bandwidth is its highest harmonic that repeats from period to period
+/// ([`harmonic_bandwidth`]); any other's, the highest frequency above the position noise floor
+/// ([`bandwidth`]).
+fn choose_cutoff(
+    q: &[f64],
+    periods: Option<&[Vec<f64>]>,
+    (dof, fs): (usize, f64),
+    user: Option<f64>,
+    choices: &mut Choices,
+) -> f64 {
+    if let Some(cutoff) = user {
+        choices.reasons.push(format!("cut-off {cutoff:.3} Hz: set by the user"));
+        return cutoff;
+    }
+    let cap = fs / 4.0;
+    let periodic = periods.is_some();
+    let found = match periods {
+        Some(periods) => harmonic_bandwidth(periods, dof, fs),
+        None => bandwidth(q, dof, fs, false),
+    };
+    let Some(signal) = found else {
+        choices.reasons.push(format!("cut-off {MIN_CUTOFF_HZ:.3} Hz: no motion above the noise, the lowest cut-off"));
+        return MIN_CUTOFF_HZ;
+    };
+    let wanted = CUTOFF_PER_BANDWIDTH * signal;
+    let cutoff = wanted.clamp(MIN_CUTOFF_HZ, cap);
+    let what = match periodic {
+        true => format!("highest harmonic that repeats from period to period {signal:.3} Hz"),
+        false => format!("the motion stands above the position noise floor up to {signal:.3} Hz"),
+    };
+    let why = match wanted < MIN_CUTOFF_HZ {
+        true => format!("the {MIN_CUTOFF_HZ} Hz floor ({what})"),
+        false => format!("{CUTOFF_PER_BANDWIDTH} × the bandwidth ({what})"),
+    };
+    choices.reasons.push(format!("cut-off {cutoff:.3} Hz: {why}"));
+    if wanted > cap {
+        choices.warnings.push(format!(
+            "the motion reaches {signal:.1} Hz, so {CUTOFF_PER_BANDWIDTH} × it is beyond a quarter of the {fs:.1} Hz sample \
+             rate: the cut-off is capped at {cap:.1} Hz and the filter bends the highest harmonics"
+        ));
+    }
+    cutoff
 }
 
 /// Run the whole pipeline on a log (`t`: N; `q`, `tau`: N × dof, row-major).
@@ -154,23 +384,25 @@ pub fn preprocess(
     options: &PreprocessOptions,
 ) -> Result<Preprocessed, PreprocessError> {
     let dt = validate_log(t, q, tau, dof)?;
-    if options.decimate == 0 {
-        return Err(PreprocessError::BadDecimation);
-    }
+    options.validate()?;
+    check_every_joint_moves(q, dof)?;
+    let mut choices = Choices::default();
+    let averaging = choose_periods(q, dof, 1.0 / dt, (options.periods, options.period_s), &mut choices)?;
+    let periodic = averaging.is_some();
+    // A period that is not a whole number of samples is resampled to the nearest whole number.
+    let dt = averaging.map_or(dt, |a| dt * a.samples / a.per() as f64);
     let fs = 1.0 / dt;
-    let (periodic, periods) = match options.periods {
-        Some(p) if p < 2 => return Err(PreprocessError::TooFewPeriods { periods: p }),
-        Some(p) => (true, p),
-        None => (false, 1),
-    };
-    let averaged = |x| averaged(x, dof, periods, t.len() / periods);
+    let averaged = |x| averaged(x, dof, averaging);
     // q is needed for the cut-off and by both chains below; τ only by its own, which averages it.
-    let q = averaged(q);
-    let n = t.len() / periods;
-    let cutoff_hz = match options.cutoff_hz {
-        Some(c) => c,
-        None => default_cutoff_hz(&q, dof, fs, periodic),
+    let (q, cutoff_hz) = match averaging {
+        Some(a) => {
+            let periods = periods_of(q, dof, a);
+            let cutoff = choose_cutoff(&[], Some(&periods), (dof, fs), options.cutoff_hz, &mut choices);
+            (mean_of(&periods, dof).into(), cutoff)
+        }
+        None => (std::borrow::Cow::Borrowed(q), choose_cutoff(q, None, (dof, fs), options.cutoff_hz, &mut choices)),
     };
+    let n = q.len() / dof;
     let filter = Butterworth::lowpass(options.order, cutoff_hz, fs)?;
     let decimated_nyquist = 0.5 * fs / options.decimate as f64;
     if cutoff_hz >= decimated_nyquist {
@@ -180,8 +412,14 @@ pub fn preprocess(
             cutoff_hz,
         });
     }
-    let friction_cutoff_hz =
-        options.friction_cutoff_hz.unwrap_or(DEFAULT_FRICTION_CUTOFF_HZ).max(cutoff_hz).min(0.25 * fs);
+    let friction_cutoff_hz = friction_cutoff_hz(options.friction_cutoff_hz, cutoff_hz, fs);
+    choices.reasons.push(format!(
+        "Coulomb columns switch with the velocity filtered at {friction_cutoff_hz:.3} Hz ({})",
+        match options.friction_cutoff_hz {
+            Some(_) => "set by the user, kept within [cut-off, fs/4]",
+            None => "the default, kept within [cut-off, fs/4]",
+        }
+    ));
     let friction_filter = Butterworth::lowpass(options.order, friction_cutoff_hz, fs)?;
     let positions = || -> Result<_, FilterError> {
         let q_f = filter_columns(&filter, &q, dof, periodic)?;
@@ -219,20 +457,70 @@ pub fn preprocess(
         qd_friction: keep(&qd_friction),
         tau: keep(&tau_f),
         cutoff_hz,
+        friction_cutoff_hz,
         sample_rate_hz: fs,
-        periods_averaged: periods,
+        periods_averaged: averaging.map_or(1, |a| a.count),
+        period_s: averaging.map(|a| a.per() as f64 * dt),
         order: options.order,
         periodic,
         decimate: options.decimate,
+        choices,
     })
 }
 
-/// `x` averaged over its periods, or `x` itself (borrowed, not copied) for a single period.
-fn averaged(x: &[f64], dof: usize, periods: usize, per: usize) -> std::borrow::Cow<'_, [f64]> {
-    match periods {
-        1 => x.into(),
-        _ => average_periods(x, dof, periods, per).into(),
+/// The friction velocity's cut-off: the user's or [`DEFAULT_FRICTION_CUTOFF_HZ`], never below the
+/// main cut-off nor above a quarter of the sample rate.
+pub fn friction_cutoff_hz(user: Option<f64>, cutoff_hz: f64, fs: f64) -> f64 {
+    user.unwrap_or(DEFAULT_FRICTION_CUTOFF_HZ).max(cutoff_hz).min(0.25 * fs)
+}
+
+/// `x` averaged over its periods, or `x` itself (borrowed, not copied) when not periodic.
+fn averaged(x: &[f64], dof: usize, averaging: Option<Averaging>) -> std::borrow::Cow<'_, [f64]> {
+    match averaging {
+        None => x.into(),
+        Some(a) => mean_of(&periods_of(x, dof, a), dof).into(),
     }
+}
+
+/// The log's periods, each resampled at `per()` evenly spaced points by cubic (Catmull–Rom)
+/// interpolation, whose error on a signal sampled well above its bandwidth is far below encoder
+/// resolution. A period of a whole number of samples is copied exactly (every point falls on a
+/// sample).
+fn periods_of(x: &[f64], dof: usize, a: Averaging) -> Vec<Vec<f64>> {
+    let n = x.len() / dof;
+    let points = a.per();
+    let step = a.samples / points as f64;
+    let at = |i: isize, j: usize| x[(i.clamp(0, n as isize - 1) as usize) * dof + j];
+    (0..a.count)
+        .map(|p| {
+            let mut period = vec![0.0; points * dof];
+            for i in 0..points {
+                let position = p as f64 * a.samples + i as f64 * step;
+                let (k, u) = (position.floor() as isize, position.fract());
+                for j in 0..dof {
+                    period[i * dof + j] = match u {
+                        0.0 => at(k, j),
+                        _ => {
+                            let (a, b, c, d) = (at(k - 1, j), at(k, j), at(k + 1, j), at(k + 2, j));
+                            b + 0.5 * u * (c - a + u * (2.0 * a - 5.0 * b + 4.0 * c - d + u * (3.0 * (b - c) + d - a)))
+                        }
+                    };
+                }
+            }
+            period
+        })
+        .collect()
+}
+
+/// The sample-by-sample mean of equally long periods. Averaging `P` periods divides uncorrelated
+/// noise variance by `P`.
+fn mean_of(periods: &[Vec<f64>], dof: usize) -> Vec<f64> {
+    let mut mean = vec![0.0; periods.first().map_or(0, Vec::len)];
+    for period in periods {
+        mean.iter_mut().zip(period).for_each(|(m, v)| *m += v / periods.len() as f64);
+    }
+    debug_assert_eq!(mean.len() % dof.max(1), 0);
+    mean
 }
 
 /// Mean over `periods` consecutive blocks of `per` samples (trailing samples beyond whole periods
@@ -279,59 +567,13 @@ fn filter_columns(filter: &Butterworth, x: &[f64], dof: usize, periodic: bool) -
     Ok(out)
 }
 
-/// The cut-off for a log of a known trajectory whose highest frequency is `bandwidth_hz`: five
-/// times it, at least 1 Hz. Closed-loop positions carry controller dither that fools a cut-off
-/// read off their spectrum ([`default_cutoff_hz`]), so a log that names its trajectory uses this.
-pub fn cutoff_for_bandwidth(bandwidth_hz: f64) -> f64 {
-    (CUTOFF_PER_BANDWIDTH * bandwidth_hz).max(MIN_CUTOFF_HZ)
-}
-
-/// The cut-off over the highest frequency of the trajectory: the filter then passes the
-/// trajectory's harmonics with a phase-free (forward–backward) gain near one.
+/// The cut-off over the highest frequency of the motion: the filter then passes the motion's
+/// harmonics, and the products of two of them that the dynamics make, with a phase-free
+/// (forward–backward) gain near one.
 pub const CUTOFF_PER_BANDWIDTH: f64 = 5.0;
 
-/// The lowest cut-off either rule gives (Hz).
+/// The lowest cut-off chosen from the data (Hz).
 pub const MIN_CUTOFF_HZ: f64 = 1.0;
-
-/// Cut-off from the trajectory's bandwidth: five times the highest frequency that carries at least
-/// 0.1 % of the largest spectral amplitude of any joint's position, kept within [1 Hz, fs/4].
-///
-/// For a periodic average the spectrum is taken at the period's harmonics; otherwise at 200
-/// logarithmically spaced frequencies from 0.05 Hz to fs/4 (a direct DFT on at most ~20,000
-/// evenly strided samples).
-pub fn default_cutoff_hz(q: &[f64], dof: usize, fs: f64, periodic: bool) -> f64 {
-    let n = q.len() / dof;
-    let duration = n as f64 / fs;
-    let frequencies: Vec<f64> = if periodic {
-        (1..=(n / 2).min(400)).map(|k| k as f64 / duration).collect()
-    } else {
-        let (lo, hi) = (0.05f64.max(2.0 / duration), fs / 4.0);
-        (0..200).map(|i| lo * (hi / lo).powf(i as f64 / 199.0)).collect()
-    };
-    let stride = if periodic { 1 } else { (n / 20_000).max(1) };
-    let mut highest = 0.0_f64;
-    let mut spectrum = vec![0.0; frequencies.len()];
-    for j in 0..dof {
-        let column: Vec<f64> = q.iter().skip(j).step_by(dof).step_by(stride).copied().collect();
-        let mean = column.iter().sum::<f64>() / column.len() as f64;
-        let dt = stride as f64 / fs;
-        for (s, f) in spectrum.iter_mut().zip(&frequencies) {
-            let w = 2.0 * std::f64::consts::PI * f * dt;
-            let (mut re, mut im) = (0.0, 0.0);
-            for (k, v) in column.iter().enumerate() {
-                let (sin, cos) = (w * k as f64).sin_cos();
-                re += (v - mean) * cos;
-                im -= (v - mean) * sin;
-            }
-            *s = (re * re + im * im).sqrt();
-        }
-        let peak = spectrum.iter().copied().fold(0.0, f64::max);
-        if let Some(i) = spectrum.iter().rposition(|s| *s >= 1e-3 * peak && peak > 0.0) {
-            highest = highest.max(frequencies[i]);
-        }
-    }
-    (CUTOFF_PER_BANDWIDTH * highest).clamp(MIN_CUTOFF_HZ, fs / 4.0)
-}
 
 #[cfg(test)]
 mod tests {
@@ -403,7 +645,13 @@ mod tests {
         let mut jumpy = t.clone();
         jumpy[500..].iter_mut().for_each(|x| *x += 0.01);
         assert!(err(preprocess(&jumpy, &q, &tau, 3, &opts)).contains("step 499"));
-        let one = PreprocessOptions { periods: Some(1), ..Default::default() };
-        assert!(err(preprocess(&t, &q, &tau, 3, &one)).contains("at least 2 whole periods"));
+        let zero = PreprocessOptions { periods: Some(0), ..Default::default() };
+        assert!(err(preprocess(&t, &q, &tau, 3, &zero)).contains("periods = 0 cannot be used"));
+        let mut repeated = t.clone();
+        repeated[700] = repeated[699];
+        assert!(err(preprocess(&repeated, &q, &tau, 3, &opts)).contains("t does not increase at sample 700"));
+        let mut still = q.clone();
+        still.chunks_mut(3).for_each(|row| row[1] = 0.25);
+        assert!(err(preprocess(&t, &still, &tau, 3, &opts)).contains("joint 2 never moves"));
     }
 }

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::identify::consistent::ConsistentOptions;
-use arash_core::identify::preprocess::{PreprocessOptions, CUTOFF_PER_BANDWIDTH};
+use arash_core::identify::preprocess::PreprocessOptions;
 use arash_core::identify::{identify, validate, validation_table, Declared, IdentifyOptions, Log};
 use arash_core::model_file::IdentifyMethod;
 
@@ -21,11 +21,12 @@ pub struct Args {
     /// ols, wls or consistent.
     #[arg(long, default_value_t)]
     method: IdentifyMethod,
-    /// Whole excitation periods in the training data (averaged); omit for non-periodic data.
+    /// Whole excitation periods in the training data (averaged); default: found from the data;
+    /// 1 says the data are not periodic.
     #[arg(long)]
     periods: Option<usize>,
-    /// Low-pass cut-off (Hz); default 5 × the top frequency of the trajectory the log names, or
-    /// else read off the position spectrum.
+    /// Low-pass cut-off (Hz); default: 5 × the highest frequency of the motion, read from the
+    /// positions' spectrum against their noise floor.
     #[arg(long)]
     cutoff: Option<f64>,
     /// Butterworth order (applied forward and backward).
@@ -47,7 +48,7 @@ pub struct Args {
     /// Validation runs (MCAP or CSV), each cross-validated like the paper's Table II.
     #[arg(long, num_args = 1..)]
     validate: Vec<PathBuf>,
-    /// Whole periods in each validation run (averaged); omit for none.
+    /// Whole periods in each validation run (averaged); default: found from the data; 1 for none.
     #[arg(long)]
     validate_periods: Option<usize>,
     /// Model file to write.
@@ -63,15 +64,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let logs = args.runs.logs.iter().map(|p| runlog::read(p, &model)).collect::<anyhow::Result<Vec<_>>>()?;
     let log = runlog::concatenate(logs);
-    let cutoff = args.cutoff.or_else(|| {
-        let cutoff = log.trajectory_cutoff_hz()?;
-        eprintln!("cut-off {cutoff:.2} Hz: {CUTOFF_PER_BANDWIDTH} × the logged trajectory's top frequency");
-        Some(cutoff)
-    });
     let options = IdentifyOptions {
         preprocess: PreprocessOptions {
             periods: args.periods,
-            cutoff_hz: cutoff,
+            cutoff_hz: args.cutoff,
             order: args.order,
             decimate: args.decimate,
             friction_cutoff_hz: args.friction_cutoff,
@@ -89,6 +85,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     )
     .context("identification failed")?;
     identification.data.sources = args.runs.logs.iter().map(|p| p.display().to_string()).collect();
+    for warning in &identification.settings.warnings {
+        eprintln!("warning: {warning}");
+    }
     println!("{}", identification.table());
     if !args.validate.is_empty() {
         let joints = model.joint_names();

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json as _json
 import os as _os
+import warnings as _warnings
 from pathlib import Path as _Path
 from typing import Any, Optional, Sequence, Union
 
@@ -122,20 +123,29 @@ def identify(
     cutoff_hz: Optional[float] = None,
     order: Optional[int] = None,
     decimate: Optional[int] = None,
+    friction_cutoff_hz: Optional[float] = None,
     pull: Optional[float] = None,
     stiffness_bounds: Optional[tuple[float, float]] = None,
 ) -> Identification:
     """Identify the robot's parameters from a log: t (N,), q and tau (N, dof), SI units.
 
-    method: "ols" (the default), "wls" or "consistent" (docs/identification.md). periods: whole excitation
-    periods in the log, averaged (None: not periodic). cutoff_hz: the low-pass cut-off (None: read
-    off the position spectrum). order: Butterworth order. decimate: keep every k-th filtered
-    sample. pull: the consistent fit's pull toward CAD. stiffness_bounds: the cable stiffness's
-    (lower, upper). None keeps arash's default for each (docs/identification.md).
+    method: "ols" (the default), "wls" or "consistent" (docs/identification.md). periods: whole
+    excitation periods in the log, averaged (None: found from the data; 1: not periodic).
+    cutoff_hz: the low-pass cut-off (None: 5 × the highest frequency of the motion, read from the
+    positions' spectrum against their noise floor). order: Butterworth order. decimate: keep
+    every k-th filtered sample. friction_cutoff_hz: the cut-off of the velocity that switches
+    Coulomb friction. pull: the consistent fit's pull toward CAD. stiffness_bounds: the cable
+    stiffness's (lower, upper). None keeps arash's default for each (docs/identification.md).
+
+    ``Identification.settings`` says what was chosen and why; a choice the data support only
+    weakly is also raised as a ``UserWarning``.
     """
-    options = _given(periods=periods, cutoff_hz=cutoff_hz, order=order, decimate=decimate, pull=pull,
-                     stiffness_bounds=stiffness_bounds)
-    return _identify(robot, (t, q, tau), method, options)
+    options = _given(periods=periods, cutoff_hz=cutoff_hz, order=order, decimate=decimate,
+                     friction_cutoff_hz=friction_cutoff_hz, pull=pull, stiffness_bounds=stiffness_bounds)
+    identification = _identify(robot, (t, q, tau), method, options)
+    for warning in identification.settings["warnings"]:
+        _warnings.warn(f"arash.identify: {warning}", UserWarning, stacklevel=2)
+    return identification
 
 
 def design_excitation(

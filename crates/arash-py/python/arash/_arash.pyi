@@ -120,6 +120,9 @@ class Identification:
     @property
     def cutoff_hz(self) -> float: ...
     @property
+    def settings(self) -> dict[str, Any]:
+        """The preprocessing as used, with ``reasons`` (what chose each value) and ``warnings``."""
+    @property
     def condition_number(self) -> float: ...
     @property
     def base(self) -> BaseParameters: ...

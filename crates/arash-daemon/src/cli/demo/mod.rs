@@ -14,7 +14,6 @@ use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::control::fourier::Excitation;
 use arash_core::control::Trajectory;
 use arash_core::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
-use arash_core::identify::consistent::ConsistentOptions;
 use arash_core::identify::estimate::joint_metrics;
 use arash_core::identify::excitation::{design_excitation, ExcitationOptions};
 use arash_core::identify::preprocess::PreprocessOptions;
@@ -256,14 +255,9 @@ fn calibrate(
     (training, log): (&Path, &runlog::Log),
     validation: &[(f64, PathBuf)],
 ) -> anyhow::Result<report::Calibration> {
-    let options = IdentifyOptions {
-        preprocess: PreprocessOptions {
-            periods: Some(plan.periods),
-            cutoff_hz: log.trajectory_cutoff_hz(),
-            ..Default::default()
-        },
-        consistent: ConsistentOptions::default(),
-    };
+    // Every preprocessing choice is left to the data, as for a user's first log; the table
+    // printed below says what was chosen and why.
+    let options = IdentifyOptions::default();
     let fit = |method| -> anyhow::Result<(ModelFile, PathBuf)> {
         let mut id =
             identify(Declared { model, base, urdf }, Log { t: &log.t, q: &log.q, tau: &log.tau }, method, &options)

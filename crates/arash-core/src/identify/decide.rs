@@ -1,0 +1,401 @@
+//! The preprocessing choices made from the data when the user leaves them open: whether the log
+//! is periodic and with what period, the low-pass cut-off, and the cut-off of the velocity the
+//! Coulomb columns see. Each comes back with its reason, and an uncertain one with a warning, so
+//! that the model file, `table()` and every front end can say what was chosen and why
+//! (docs/identification.md, "Choices made from the data").
+//!
+//! Both rules read the positions only: they are what the regressor is built from, and a joint's
+//! encoder noise is white where the motion has ended, which gives a floor to measure against.
+
+use realfft::num_complex::Complex;
+use realfft::RealFftPlanner;
+
+/// Consecutive periods of a periodic log differ by at most this share of the motion's variance
+/// (10 % in RMS): far above encoder noise, far below two unrelated stretches of motion (~100 %).
+pub const PERIODIC_MISMATCH: f64 = 0.01;
+
+/// A spectral line is motion when its power is at least this many times the noise floor (20 dB):
+/// the largest of thousands of noise-only lines stays below ~12 times their median.
+pub const SIGNAL_OVER_FLOOR: f64 = 100.0;
+
+/// ... and at least this share of the joint's strongest line (−60 dB of power, 0.1 % of the
+/// amplitude): what lies below moves the fit less than the noise does.
+pub const SIGNAL_OVER_PEAK: f64 = 1e-6;
+
+/// Fewer whole periods than this leave the average noisy enough to say so.
+pub const FEW_PERIODS: usize = 4;
+
+/// A period found in the data.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Period {
+    /// Length in samples (fractional: the period need not be a whole number of samples).
+    pub samples: f64,
+    /// Whole periods in the log.
+    pub count: usize,
+    /// Mean squared difference between consecutive periods over the motion's variance.
+    pub mismatch: f64,
+}
+
+/// What [`find_period`] concluded, with the reason in words.
+#[derive(Clone, Debug)]
+pub struct PeriodSearch {
+    pub period: Option<Period>,
+    pub reason: String,
+}
+
+/// Joints whose position moves: the others carry no spectrum or period to read.
+fn moving_columns(q: &[f64], dof: usize) -> Vec<Vec<f64>> {
+    (0..dof)
+        .map(|j| q.iter().skip(j).step_by(dof).copied().collect::<Vec<f64>>())
+        .filter(|c| c.iter().any(|v| *v != c[0]))
+        .map(|mut c| {
+            let mean = c.iter().sum::<f64>() / c.len() as f64;
+            c.iter_mut().for_each(|v| *v -= mean);
+            c
+        })
+        .collect()
+}
+
+/// `Σ_k x_k x_{k+L}` for every lag `L < n`, by FFT.
+fn autocorrelation(x: &[f64]) -> Vec<f64> {
+    let n = x.len();
+    let m = (2 * n).next_power_of_two();
+    let mut planner = RealFftPlanner::<f64>::new();
+    let (forward, inverse) = (planner.plan_fft_forward(m), planner.plan_fft_inverse(m));
+    let mut buffer = vec![0.0; m];
+    buffer[..n].copy_from_slice(x);
+    let mut spectrum = forward.make_output_vec();
+    forward.process(&mut buffer, &mut spectrum).expect("buffer sizes come from the plan");
+    spectrum.iter_mut().for_each(|c| *c = Complex::new(c.norm_sqr(), 0.0));
+    inverse.process(&mut spectrum, &mut buffer).expect("buffer sizes come from the plan");
+    buffer.truncate(n);
+    buffer.iter_mut().for_each(|v| *v /= m as f64);
+    buffer
+}
+
+/// Mean over the moving joints of `Σ (x_k − x_{k+L})² / (2 (n − L) var)` for `L ≤ n/2`: 0 where
+/// the motion repeats after `L` samples, about 1 between unrelated stretches.
+fn mismatch_by_lag(columns: &[Vec<f64>]) -> Vec<f64> {
+    let n = columns[0].len();
+    let half = n / 2;
+    let mut mismatch = vec![0.0; half + 1];
+    for x in columns {
+        let r = autocorrelation(x);
+        let mut prefix = vec![0.0; n + 1];
+        for (i, v) in x.iter().enumerate() {
+            prefix[i + 1] = prefix[i] + v * v;
+        }
+        let var = prefix[n] / n as f64;
+        for (lag, m) in mismatch.iter_mut().enumerate().skip(1) {
+            let squares = prefix[n - lag] + (prefix[n] - prefix[lag]);
+            *m += (squares - 2.0 * r[lag]).max(0.0) / (2.0 * (n - lag) as f64 * var) / columns.len() as f64;
+        }
+    }
+    mismatch
+}
+
+/// The same mismatch at one lag, summed directly (for lags beyond `n/2`).
+fn mismatch_at(columns: &[Vec<f64>], lag: usize) -> f64 {
+    let n = columns[0].len();
+    columns
+        .iter()
+        .map(|x| {
+            let var = x.iter().map(|v| v * v).sum::<f64>() / n as f64;
+            let d: f64 = (0..n - lag).map(|k| (x[k] - x[k + lag]).powi(2)).sum();
+            d / (2.0 * (n - lag) as f64 * var)
+        })
+        .sum::<f64>()
+        / columns.len() as f64
+}
+
+/// The mismatch between the positions (`N × dof`, row-major) and themselves `lag` samples later.
+pub fn mismatch_of_columns(q: &[f64], dof: usize, lag: usize) -> f64 {
+    let columns = moving_columns(q, dof);
+    if columns.is_empty() || lag >= columns[0].len() {
+        return f64::NAN;
+    }
+    mismatch_at(&columns, lag)
+}
+
+/// The vertex of the parabola through three equally spaced points, as an offset from the middle
+/// one (in steps); 0 where they are collinear.
+fn parabola_vertex(left: f64, middle: f64, right: f64) -> f64 {
+    let curvature = left - 2.0 * middle + right;
+    if curvature > 0.0 {
+        (0.5 * (left - right) / curvature).clamp(-0.5, 0.5)
+    } else {
+        0.0
+    }
+}
+
+/// The period of a periodic log (`q`: `N × dof`, row-major, at `fs` Hz), or why there is none.
+///
+/// The shortest lag after which the motion repeats to within [`PERIODIC_MISMATCH`], searched
+/// among lags where the motion has first moved away from itself (so that a slow signal is not
+/// "periodic" at a lag of one sample). The lag is then refined over the longest whole multiple
+/// the log holds, which brings the error to a fraction of a sample over the whole log.
+pub fn find_period(q: &[f64], dof: usize, fs: f64) -> PeriodSearch {
+    let columns = moving_columns(q, dof);
+    let aperiodic = |reason: String| PeriodSearch { period: None, reason };
+    if columns.is_empty() || columns[0].len() < 8 {
+        return aperiodic("not periodic: no joint moves".into());
+    }
+    let n = columns[0].len();
+    let mismatch = mismatch_by_lag(&columns);
+    let Some(apart) = mismatch.iter().position(|m| *m > 0.5) else {
+        return aperiodic(format!(
+            "not periodic: the motion never moves away from itself within half the log ({:.1} s)",
+            n as f64 / fs / 2.0
+        ));
+    };
+    let (best_lag, best) = (apart..mismatch.len())
+        .map(|l| (l, mismatch[l]))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .expect("apart < len");
+    if best > PERIODIC_MISMATCH {
+        return aperiodic(format!(
+            "not periodic: the closest repeat (after {:.3} s) differs by {:.1} % of the motion's variance (periodic is ≤ {:.0} %)",
+            best_lag as f64 / fs,
+            100.0 * best,
+            100.0 * PERIODIC_MISMATCH
+        ));
+    }
+    // The fundamental is the first lag that repeats about as well as the best (a multiple of it).
+    let good_enough = (2.0 * best).max(best + 0.1 * PERIODIC_MISMATCH);
+    let mut lag = (apart..mismatch.len()).find(|&l| mismatch[l] <= good_enough).expect("best_lag qualifies");
+    while lag + 1 < mismatch.len() && mismatch[lag + 1] < mismatch[lag] {
+        lag += 1;
+    }
+    let count = n / lag;
+    let samples = refine(&columns, &mismatch, lag, count);
+    let count = (n as f64 / samples).floor() as usize;
+    PeriodSearch {
+        period: Some(Period { samples, count, mismatch: mismatch[lag] }),
+        reason: format!(
+            "{count} periods of {:.4} s detected (consecutive periods differ by {:.3} % of the motion's variance)",
+            samples / fs,
+            100.0 * mismatch[lag]
+        ),
+    }
+}
+
+/// The period to a fraction of a sample: the minimum of the mismatch at the longest whole
+/// multiple of `lag` the log holds, divided by that multiple.
+fn refine(columns: &[Vec<f64>], mismatch: &[f64], lag: usize, count: usize) -> f64 {
+    let multiple = count.saturating_sub(1).max(1);
+    let centre = lag * multiple;
+    let at = |l: usize| if l < mismatch.len() { mismatch[l] } else { mismatch_at(columns, l) };
+    let n = columns[0].len();
+    let candidates = (centre.saturating_sub(multiple).max(1)..=(centre + multiple).min(n - 2)).collect::<Vec<_>>();
+    let values: Vec<f64> = candidates.iter().map(|&l| at(l)).collect();
+    let i = values.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1)).map_or(0, |(i, _)| i);
+    let offset = if i > 0 && i + 1 < values.len() { parabola_vertex(values[i - 1], values[i], values[i + 1]) } else { 0.0 };
+    let samples = (candidates[i] as f64 + offset) / multiple as f64;
+    // A period within a thousandth of a sample of a whole number is that number: averaging then
+    // needs no interpolation.
+    if (samples - samples.round()).abs() < 1e-3 {
+        samples.round()
+    } else {
+        samples
+    }
+}
+
+/// Power spectrum of each moving joint's position, pre-whitened by a first difference so that
+/// a window's leakage from the large low-frequency lines cannot mask the small high ones, then
+/// divided back by the difference's gain. A periodic average is one exact period: its DFT lines
+/// are the harmonics, with no window. Otherwise Welch's estimate with a Hann window.
+fn position_spectra(q: &[f64], dof: usize, fs: f64, periodic: bool) -> (Vec<f64>, Vec<Vec<f64>>) {
+    let columns = moving_columns(q, dof);
+    let n = columns.first().map_or(0, Vec::len);
+    let segment = if periodic { n } else { n.min((20.0 * fs) as usize).max(16) };
+    let segment = segment - segment % 2;
+    let step = segment / 2;
+    let window: Vec<f64> = match periodic {
+        true => vec![1.0; segment],
+        false => (0..segment).map(|i| (std::f64::consts::PI * i as f64 / segment as f64).sin().powi(2)).collect(),
+    };
+    let mut planner = RealFftPlanner::<f64>::new();
+    let fft = planner.plan_fft_forward(segment);
+    let frequencies: Vec<f64> = (0..=segment / 2).map(|k| k as f64 * fs / segment as f64).collect();
+    let spectra = columns
+        .iter()
+        .map(|x| {
+            let diff: Vec<f64> = match periodic {
+                true => (0..n).map(|k| x[(k + 1) % n] - x[k]).collect(),
+                false => x.windows(2).map(|w| w[1] - w[0]).collect(),
+            };
+            let mut power = vec![0.0; segment / 2 + 1];
+            let starts: Vec<usize> = (0..).map(|s| s * step).take_while(|s| s + segment <= diff.len()).collect();
+            let starts = if starts.is_empty() { vec![0] } else { starts };
+            for &start in &starts {
+                let mut buffer: Vec<f64> = (0..segment).map(|i| diff.get(start + i).copied().unwrap_or(0.0)).collect();
+                let mean = buffer.iter().sum::<f64>() / segment as f64;
+                buffer.iter_mut().zip(&window).for_each(|(v, w)| *v = (*v - mean) * w);
+                let mut spectrum = fft.make_output_vec();
+                fft.process(&mut buffer, &mut spectrum).expect("buffer sizes come from the plan");
+                power.iter_mut().zip(&spectrum).for_each(|(p, c)| *p += c.norm_sqr());
+            }
+            for (k, p) in power.iter_mut().enumerate().skip(1) {
+                let gain = 2.0 * (std::f64::consts::PI * k as f64 / segment as f64).sin();
+                *p /= starts.len() as f64 * gain * gain;
+            }
+            power[0] = 0.0;
+            power
+        })
+        .collect();
+    (frequencies, spectra)
+}
+
+/// The highest frequency where any joint's motion stands out of its position spectrum (Hz). The
+/// noise floor is the median power over the top half of the band, where trajectories have no
+/// content; a line is motion above [`SIGNAL_OVER_FLOOR`] times it and [`SIGNAL_OVER_PEAK`] times
+/// the joint's strongest line. `None` when no joint moves.
+///
+/// Encoder quantisation is not white noise (a slow joint's error is a staircase whose content
+/// sits near its crossing rate), so where the floor is reached is not itself used for anything:
+/// the relative threshold keeps that structure out of the bandwidth.
+pub fn bandwidth(q: &[f64], dof: usize, fs: f64, periodic: bool) -> Option<f64> {
+    let (frequencies, spectra) = position_spectra(q, dof, fs, periodic);
+    let lines = frequencies.len();
+    let mut signal_hz = f64::NAN;
+    for power in &spectra {
+        let mut upper: Vec<f64> = power[lines / 2..].to_vec();
+        let middle = upper.len() / 2;
+        let floor = *upper.select_nth_unstable_by(middle, f64::total_cmp).1;
+        let peak = power.iter().copied().fold(0.0, f64::max);
+        let threshold = (SIGNAL_OVER_FLOOR * floor).max(SIGNAL_OVER_PEAK * peak);
+        // f64::max ignores the NaN it starts from.
+        if let Some(f) = power.iter().rposition(|p| *p >= threshold && *p > 0.0).map(|k| frequencies[k]) {
+            signal_hz = signal_hz.max(f);
+        }
+    }
+    (!signal_hz.is_nan()).then_some(signal_hz)
+}
+
+/// Lines on each side over which the between-period noise is pooled: its per-line estimate from
+/// a few periods scatters by a factor of several, a median over 17 lines by far less.
+const FLOOR_HALF_WIDTH: usize = 8;
+
+/// The highest harmonic of a periodic log that repeats from period to period (Hz): the average
+/// of the periods' spectra stands above the scatter between them by [`SIGNAL_OVER_FLOOR`] (and
+/// above [`SIGNAL_OVER_PEAK`] of the joint's strongest line). `periods` are the log's periods,
+/// each resampled to the same `points × dof` samples at `fs`.
+///
+/// What differs between periods (a controller's dither, torque-noise-driven motion, encoder
+/// noise) is measured here, at every frequency, rather than assumed white: a closed-loop log's
+/// dither stands far above the encoder's floor, but not above its own scatter.
+pub fn harmonic_bandwidth(periods: &[Vec<f64>], dof: usize, fs: f64) -> Option<f64> {
+    let count = periods.len();
+    let points = periods.first()?.len() / dof;
+    if count < 2 || points < 8 {
+        return None;
+    }
+    let mut planner = RealFftPlanner::<f64>::new();
+    let fft = planner.plan_fft_forward(points);
+    let lines = points / 2 + 1;
+    let mut signal_hz = f64::NAN;
+    for j in 0..dof {
+        let spectra: Vec<Vec<Complex<f64>>> = periods
+            .iter()
+            .map(|x| {
+                // Pre-whitened like `position_spectra`, against leakage from a period that is not
+                // exactly a whole number of samples.
+                let mut diff: Vec<f64> = (0..points).map(|k| x[((k + 1) % points) * dof + j] - x[k * dof + j]).collect();
+                let mut spectrum = fft.make_output_vec();
+                fft.process(&mut diff, &mut spectrum).expect("buffer sizes come from the plan");
+                spectrum
+            })
+            .collect();
+        let mean: Vec<Complex<f64>> =
+            (0..lines).map(|k| spectra.iter().map(|s| s[k]).sum::<Complex<f64>>() / count as f64).collect();
+        // Variance of the mean at each line, from the scatter of the periods about it.
+        let scatter: Vec<f64> = (0..lines)
+            .map(|k| spectra.iter().map(|s| (s[k] - mean[k]).norm_sqr()).sum::<f64>() / ((count - 1) * count) as f64)
+            .collect();
+        // Back to position units (the difference's gain), where lines compare with the peak.
+        let gain = |k: usize| (2.0 * (std::f64::consts::PI * k as f64 / points as f64).sin()).powi(2).max(f64::MIN_POSITIVE);
+        let scatter: Vec<f64> = scatter.iter().enumerate().map(|(k, v)| v / gain(k)).collect();
+        let power: Vec<f64> = mean.iter().enumerate().map(|(k, c)| c.norm_sqr() / gain(k)).collect();
+        let peak = power.iter().skip(1).copied().fold(0.0, f64::max);
+        if peak == 0.0 {
+            continue;
+        }
+        let repeats = |k: usize| {
+            let mut window: Vec<f64> =
+                scatter[k.saturating_sub(FLOOR_HALF_WIDTH).max(1)..(k + FLOOR_HALF_WIDTH + 1).min(lines)].to_vec();
+            let middle = window.len() / 2;
+            let floor = *window.select_nth_unstable_by(middle, f64::total_cmp).1;
+            power[k] >= SIGNAL_OVER_FLOOR * floor && power[k] >= SIGNAL_OVER_PEAK * peak
+        };
+        if let Some(k) = (1..lines).rev().find(|&k| repeats(k)) {
+            signal_hz = signal_hz.max(k as f64 * fs / points as f64);
+        }
+    }
+    (!signal_hz.is_nan()).then_some(signal_hz)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `dof` joints of a Fourier series with period `period_s` (harmonics 1..=5 of it), sampled
+    /// at `fs` for `duration_s`, quantised to `bits` over one turn.
+    fn fourier_log(fs: f64, period_s: f64, duration_s: f64, bits: u32) -> Vec<f64> {
+        let w = 2.0 * std::f64::consts::PI / period_s;
+        let quantum = 2.0 * std::f64::consts::PI / f64::from(1u32 << bits);
+        let n = (fs * duration_s) as usize;
+        (0..n)
+            .flat_map(|i| {
+                let t = i as f64 / fs;
+                (0..3).map(move |j| {
+                    let q: f64 = (1..=5).map(|h| 0.2 / h as f64 * (h as f64 * w * t + j as f64 + h as f64).sin()).sum();
+                    (q / quantum).round() * quantum
+                })
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_period_of_a_quantised_fourier_log_is_found_to_a_fraction_of_a_sample() {
+        // 10 s at 1 kHz (a whole number of samples) and 7.3 s at 200 Hz (1,460 samples) and
+        // 3.33 s at 100 Hz (333 samples): a third of a sample per period short.
+        for (fs, period, duration, expected_count) in [(1000.0, 10.0, 80.0, 8), (200.0, 7.3, 30.0, 4), (100.0, 3.3333, 40.0, 12)]
+        {
+            let q = fourier_log(fs, period, duration, 16);
+            let found = find_period(&q, 3, fs);
+            let p = found.period.unwrap_or_else(|| panic!("{fs} Hz: {}", found.reason));
+            assert!((p.samples / fs - period).abs() < 1e-3 / fs * 10.0, "{fs} Hz: {} s", p.samples / fs);
+            assert_eq!(p.count, expected_count, "{}", found.reason);
+        }
+    }
+
+    #[test]
+    fn a_log_without_repeats_is_said_to_be_aperiodic() {
+        // Incommensurate frequencies: no lag within half the log brings it back.
+        let fs = 500.0;
+        let q: Vec<f64> = (0..20_000)
+            .flat_map(|i| {
+                let t = i as f64 / fs;
+                [(0.37 * t).sin() + (1.0 * t * std::f64::consts::E).sin(), (0.23 * t * 2f64.sqrt()).cos()]
+            })
+            .collect();
+        let found = find_period(&q, 2, fs);
+        assert!(found.period.is_none(), "{:?}", found.period);
+        assert!(found.reason.starts_with("not periodic"), "{}", found.reason);
+    }
+
+    #[test]
+    fn the_bandwidth_is_the_highest_harmonic_however_fine_the_encoder() {
+        // Harmonics up to 0.5 Hz, at 100 Hz to 5 kHz, 12- to 20-bit encoders, periodic or not.
+        for fs in [100.0, 1000.0, 5000.0] {
+            for bits in [12, 16, 20] {
+                let q = fourier_log(fs, 10.0, 40.0, bits);
+                let b = bandwidth(&q, 3, fs, false).unwrap();
+                assert!((0.45..=0.75).contains(&b), "{fs} Hz {bits} bit: {b} Hz");
+                let period = &q[..(10.0 * fs) as usize * 3];
+                let b = bandwidth(period, 3, fs, true).unwrap();
+                assert!((b - 0.5).abs() < 1e-9, "{fs} Hz {bits} bit periodic: {b} Hz");
+            }
+        }
+    }
+}
