@@ -13,81 +13,11 @@ import pytest
 pin = pytest.importorskip("pinocchio")
 import arash  # noqa: E402
 
-from conftest import ROBOT_FILES, kuka_urdf, random_physical_params, random_states, tx40_urdf, urdf_couplings  # noqa: E402
+from conftest import ROBOT_FILES, kuka_urdf, random_physical_params, random_states, tx40_urdf  # noqa: E402
+from independent import Expanded, joint_torques  # noqa: E402
 
 STATES = 1000
 TOLERANCE = 1e-9
-# ours [m, mx, my, mz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz]  <-  Pinocchio's index for each entry
-OURS_FROM_PIN = [0, 1, 2, 3, 4, 6, 9, 5, 7, 8]
-
-
-class Expanded:
-    """Pinocchio's view of a robot: the expanded tree, the coupling G and the parameter map T."""
-
-    def __init__(self, path, robot):
-        self.robot = robot
-        self.model = pin.buildModelFromUrdf(str(path))
-        self.data = self.model.createData()
-        couplings = urdf_couplings(path)
-        actuated = robot.joint_names()
-        nv = self.model.nv
-        self.G = np.zeros((nv, robot.dof))
-        self.offset = np.zeros(nv)
-        for jid in range(1, self.model.njoints):
-            name = self.model.names[jid]
-            _, target, mult, off = couplings[name]
-            k = actuated.index(target if target is not None else name)
-            self.G[self.model.joints[jid].idx_v, k] = mult
-            self.offset[self.model.joints[jid].idx_v] = off
-        self.T = self._parameter_map()
-
-    def _parameter_map(self):
-        """T with π_pin (10 per Pinocchio joint) = T π_ours (rigid part)."""
-        names = self.robot.body_names()
-        T = np.zeros((10 * (self.model.njoints - 1), 10 * len(names)))
-        for b, link in enumerate(names):
-            frame = self.model.frames[self.model.getFrameId(link)]
-            jid = frame.parentJoint
-            rows = slice(10 * (jid - 1), 10 * jid)
-            # The link's inertia lands in its joint's frame through the frame placement (identity
-            # for a link moved by its own joint, a fixed offset for a link on a fixed joint).
-            # Inertia.se3Action is linear in the dynamic parameters; take it column by column.
-            base = pin.Inertia.FromDynamicParameters(np.array([1, 0, 0, 0, 1, 0, 1, 0, 0, 1.0]))
-            base_moved = frame.placement.act(base).toDynamicParameters()
-            for i in range(10):
-                e = np.zeros(10)
-                e[OURS_FROM_PIN[i]] = 1.0
-                moved = frame.placement.act(pin.Inertia.FromDynamicParameters(base.toDynamicParameters() + e))
-                T[rows, 10 * b + i] = moved.toDynamicParameters() - base_moved
-        return T
-
-    def set_parameters(self, params):
-        pi_pin = self.T @ params[: self.T.shape[1]]
-        for jid in range(1, self.model.njoints):
-            self.model.inertias[jid] = pin.Inertia.FromDynamicParameters(pi_pin[10 * (jid - 1) : 10 * jid])
-
-    def tree(self, q, qd, qdd):
-        """Tree configuration in Pinocchio's encoding: a continuous joint is (cos θ, sin θ)."""
-        angles = self.G @ q + self.offset
-        config = np.zeros(self.model.nq)
-        for jid in range(1, self.model.njoints):
-            joint = self.model.joints[jid]
-            theta = angles[joint.idx_v]
-            if joint.nq == 2:
-                config[joint.idx_q : joint.idx_q + 2] = (np.cos(theta), np.sin(theta))
-            else:
-                config[joint.idx_q] = theta
-        return config, self.G @ qd, self.G @ qdd
-
-
-def joint_torques(robot, q, qd, params):
-    """Friction and elastic torques, which Pinocchio's rigid-body algorithms leave out."""
-    n, nb = robot.dof, len(robot.body_names())
-    fv, fc = params[10 * nb : 10 * nb + 2 * n : 2], params[10 * nb + 1 : 10 * nb + 2 * n : 2]
-    ke = params[10 * nb + 2 * n :]
-    return fv * qd + fc * np.sign(qd) + ke * q
-
-
 def robot_cases():
     cases = [(name, path) for name, path in ROBOT_FILES.items()]
     return cases

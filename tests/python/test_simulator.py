@@ -134,7 +134,9 @@ def test_the_cli_log_identifies_like_the_python_arrays(tmp_path):
     q = np.array([list(m.q) for m in cycles])
     tau = np.array([list(m.tau_meas) for m in cycles])
     cli = arash.load_model(model)
-    # The CLI takes the cut-off from the logged trajectory: 5 × ω/2π, at least 1 Hz.
-    assert cli.cutoff_hz == pytest.approx(max(1.0, 5 * 0.5 / (2 * np.pi)))
-    ident = arash.identify(arash.Robot.arash_asist(), t, q, tau, cutoff_hz=cli.cutoff_hz)
+    # Both front ends make every choice from the data, by the same code: no option is passed to
+    # either, and they must agree on the choices, their reasons and the fitted model.
+    ident = arash.identify(arash.Robot.arash_asist(), t, q, tau)
+    assert cli.cutoff_hz == ident.cutoff_hz
+    assert cli.settings["reasons"] == ident.settings["reasons"]
     np.testing.assert_allclose(cli.beta, ident.beta, rtol=1e-9, atol=1e-12)

@@ -25,6 +25,7 @@ pub mod record;
 pub mod regressor;
 pub mod sim;
 pub mod spatial;
+pub mod transmission;
 pub mod urdf;
 
 pub use base_parameters::{BaseParameterError, BaseParameters};

@@ -230,6 +230,7 @@ fn _identify<'py>(
     crate::each_option(options, |key, value| {
         match key {
             "periods" => o.preprocess.periods = value.extract()?,
+            "period_s" => o.preprocess.period_s = value.extract()?,
             "cutoff_hz" => o.preprocess.cutoff_hz = value.extract()?,
             "order" => o.preprocess.order = value.extract()?,
             "decimate" => o.preprocess.decimate = value.extract()?,

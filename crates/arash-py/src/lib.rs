@@ -607,12 +607,14 @@ pub(crate) fn value_error(e: impl std::fmt::Display) -> PyErr {
 mod diagnose;
 mod identify;
 mod simulate;
+mod transmission;
 
 #[pymodule]
 fn _arash(module: &Bound<'_, PyModule>) -> PyResult<()> {
     identify::register(module)?;
     diagnose::register(module)?;
     simulate::register(module)?;
+    transmission::register(module)?;
     module.add_function(wrap_pyfunction!(butter, module)?)?;
     module.add_function(wrap_pyfunction!(filtfilt, module)?)?;
     module.add_class::<Robot>()?;

@@ -74,7 +74,7 @@ pub(super) fn prepare(
     let pre = preprocess(log.t, log.q, log.tau, dof, &pre_options)?;
     let stride = options.decimate.unwrap_or(((fs / (5.0 * cutoff_hz)).floor() as usize).max(1)).max(1);
     let n = pre.samples();
-    let margin = ((margin_s * fs).ceil() as usize).max((3.0 * fs / cutoff_hz).ceil() as usize);
+    let margin = ((margin_s * fs).ceil() as usize).max(pre.settled.start);
     if n < 2 * margin + 64 * stride {
         return Err(PreprocessError::TooFewSamples { needed: 2 * margin + 64 * stride, got: n });
     }

@@ -22,6 +22,9 @@ pub const SIGNAL_OVER_FLOOR: f64 = 100.0;
 /// amplitude): what lies below moves the fit less than the noise does.
 pub const SIGNAL_OVER_PEAK: f64 = 1e-6;
 
+/// A detected period counts as whole when the log is at most this many samples short of it.
+pub const SHORT_BY: usize = 2;
+
 /// Fewer whole periods than this leave the average noisy enough to say so.
 pub const FEW_PERIODS: usize = 4;
 
@@ -148,10 +151,8 @@ pub fn find_period(q: &[f64], dof: usize, fs: f64) -> PeriodSearch {
             n as f64 / fs / 2.0
         ));
     };
-    let (best_lag, best) = (apart..mismatch.len())
-        .map(|l| (l, mismatch[l]))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .expect("apart < len");
+    let (best_lag, best) =
+        (apart..mismatch.len()).map(|l| (l, mismatch[l])).min_by(|a, b| a.1.total_cmp(&b.1)).expect("apart < len");
     if best > PERIODIC_MISMATCH {
         return aperiodic(format!(
             "not periodic: the closest repeat (after {:.3} s) differs by {:.1} % of the motion's variance (periodic is ≤ {:.0} %)",
@@ -168,7 +169,9 @@ pub fn find_period(q: &[f64], dof: usize, fs: f64) -> PeriodSearch {
     }
     let count = n / lag;
     let samples = refine(&columns, &mismatch, lag, count);
-    let count = (n as f64 / samples).floor() as usize;
+    // A log cut a sample or two short of its last period still holds it: the missing samples are
+    // the next period's first, which the ends' clamping in averaging stands in for.
+    let count = ((n + SHORT_BY) as f64 / samples).floor() as usize;
     PeriodSearch {
         period: Some(Period { samples, count, mismatch: mismatch[lag] }),
         reason: format!(
@@ -189,7 +192,8 @@ fn refine(columns: &[Vec<f64>], mismatch: &[f64], lag: usize, count: usize) -> f
     let candidates = (centre.saturating_sub(multiple).max(1)..=(centre + multiple).min(n - 2)).collect::<Vec<_>>();
     let values: Vec<f64> = candidates.iter().map(|&l| at(l)).collect();
     let i = values.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1)).map_or(0, |(i, _)| i);
-    let offset = if i > 0 && i + 1 < values.len() { parabola_vertex(values[i - 1], values[i], values[i + 1]) } else { 0.0 };
+    let offset =
+        if i > 0 && i + 1 < values.len() { parabola_vertex(values[i - 1], values[i], values[i + 1]) } else { 0.0 };
     let samples = (candidates[i] as f64 + offset) / multiple as f64;
     // A period within a thousandth of a sample of a whole number is that number: averaging then
     // needs no interpolation.
@@ -300,7 +304,8 @@ pub fn harmonic_bandwidth(periods: &[Vec<f64>], dof: usize, fs: f64) -> Option<f
             .map(|x| {
                 // Pre-whitened like `position_spectra`, against leakage from a period that is not
                 // exactly a whole number of samples.
-                let mut diff: Vec<f64> = (0..points).map(|k| x[((k + 1) % points) * dof + j] - x[k * dof + j]).collect();
+                let mut diff: Vec<f64> =
+                    (0..points).map(|k| x[((k + 1) % points) * dof + j] - x[k * dof + j]).collect();
                 let mut spectrum = fft.make_output_vec();
                 fft.process(&mut diff, &mut spectrum).expect("buffer sizes come from the plan");
                 spectrum
@@ -313,7 +318,8 @@ pub fn harmonic_bandwidth(periods: &[Vec<f64>], dof: usize, fs: f64) -> Option<f
             .map(|k| spectra.iter().map(|s| (s[k] - mean[k]).norm_sqr()).sum::<f64>() / ((count - 1) * count) as f64)
             .collect();
         // Back to position units (the difference's gain), where lines compare with the peak.
-        let gain = |k: usize| (2.0 * (std::f64::consts::PI * k as f64 / points as f64).sin()).powi(2).max(f64::MIN_POSITIVE);
+        let gain =
+            |k: usize| (2.0 * (std::f64::consts::PI * k as f64 / points as f64).sin()).powi(2).max(f64::MIN_POSITIVE);
         let scatter: Vec<f64> = scatter.iter().enumerate().map(|(k, v)| v / gain(k)).collect();
         let power: Vec<f64> = mean.iter().enumerate().map(|(k, c)| c.norm_sqr() / gain(k)).collect();
         let peak = power.iter().skip(1).copied().fold(0.0, f64::max);
@@ -359,7 +365,8 @@ mod tests {
     fn the_period_of_a_quantised_fourier_log_is_found_to_a_fraction_of_a_sample() {
         // 10 s at 1 kHz (a whole number of samples) and 7.3 s at 200 Hz (1,460 samples) and
         // 3.33 s at 100 Hz (333 samples): a third of a sample per period short.
-        for (fs, period, duration, expected_count) in [(1000.0, 10.0, 80.0, 8), (200.0, 7.3, 30.0, 4), (100.0, 3.3333, 40.0, 12)]
+        for (fs, period, duration, expected_count) in
+            [(1000.0, 10.0, 80.0, 8), (200.0, 7.3, 30.0, 4), (100.0, 3.3333, 40.0, 12)]
         {
             let q = fourier_log(fs, period, duration, 16);
             let found = find_period(&q, 3, fs);

@@ -86,18 +86,21 @@ pub const CONDITION_LIMIT: f64 = 1e8;
 /// velocity (`Preprocessed::qd_friction`, which keeps the fast dither of a controlled joint around
 /// zero speed) and filtered exactly like the torque ("parallel filtering"). The other columns are smooth functions of signals already
 /// filtered far below the cut-off, and the filter leaves them unchanged.
+///
+/// Only the [`Preprocessed::settled`] samples are stacked: near the ends of a log that is not
+/// periodic the filter's start-up transient would be fitted as if it were dynamics.
 pub fn stack(model: &Model, base: &BaseParameters, data: &Preprocessed) -> (Mat<f64>, Vec<f64>) {
-    (stack_columns(model, data, &base.independent), data.tau.clone())
+    (stack_columns(model, data, &base.independent), data.settled_rows(&data.tau, data.dof).to_vec())
 }
 
 /// The full regressor (all P standard parameters) stacked like [`stack`].
 pub fn stack_full(model: &Model, data: &Preprocessed) -> (Mat<f64>, Vec<f64>) {
     let all: Vec<usize> = (0..model.num_params()).collect();
-    (stack_columns(model, data, &all), data.tau.clone())
+    (stack_columns(model, data, &all), data.settled_rows(&data.tau, data.dof).to_vec())
 }
 
 fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f64> {
-    let (n, samples) = (model.dof(), data.samples());
+    let (n, samples, start) = (model.dof(), data.settled.len(), data.settled.start);
     let mut w = Mat::<f64>::zeros(samples * n, columns.len());
     // Each thread fills a band of consecutive samples.
     let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
@@ -110,7 +113,7 @@ fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f
             let (band, tail) = rest.split_at_row_mut(count * n);
             rest = tail;
             let bodies = &bodies;
-            scope.spawn(move || fill_band(model, data, columns, bodies, first, band));
+            scope.spawn(move || fill_band(model, data, columns, bodies, start + first, band));
         }
     });
     let coulomb: Vec<(usize, usize)> =
@@ -121,6 +124,7 @@ fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f
     let laws: Vec<_> = (0..n).map(|k| data.coulomb_shape(model.coulomb_shape, k)).collect();
     let shapes: Vec<f64> = data.qd_friction.iter().enumerate().map(|(i, v)| laws[i % n].eval(*v)).collect();
     let filtered = data.filter_like_torque(&shapes, n).expect("the torque was filtered with these settings");
+    let filtered = data.settled_rows(&filtered, n);
     for (k, c) in coulomb {
         for s in 0..samples {
             w[(s * n + k, c)] = filtered[s * n + k];

@@ -123,7 +123,7 @@ pub fn identify(
         DataSummary {
             sources: vec![],
             samples_in,
-            samples_used: pre.samples(),
+            samples_used: pre.settled.len(),
             sample_rate_hz: pre.sample_rate_hz,
             periods_averaged: pre.periods_averaged,
         },
@@ -181,12 +181,16 @@ pub fn validation_series(
     tau: &[f64],
     preprocess_options: &PreprocessOptions,
 ) -> Result<ValidationSeries, IdentifyError> {
-    let options =
-        PreprocessOptions { cutoff_hz: Some(identification.settings.cutoff_hz), ..preprocess_options.clone() };
+    // The validation run is filtered as the training run was, unless the caller says otherwise.
+    let options = PreprocessOptions {
+        cutoff_hz: Some(identification.settings.cutoff_hz),
+        friction_cutoff_hz: preprocess_options.friction_cutoff_hz.or(identification.settings.friction_cutoff_hz),
+        ..preprocess_options.clone()
+    };
     let pre = preprocess(t, q, tau, model.dof(), &options)?;
     // Through the stacked regressor, so that the Coulomb columns are filtered like the torque.
     let (w, measured) = stack_full(model, &pre);
     let full = identification.full_or_base_vector();
     let predicted: Vec<f64> = estimate::apply(&w, &full);
-    Ok(ValidationSeries { t: pre.t.clone(), measured, predicted })
+    Ok(ValidationSeries { t: pre.settled_rows(&pre.t, 1).to_vec(), measured, predicted })
 }

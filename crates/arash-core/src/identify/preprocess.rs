@@ -74,7 +74,11 @@ impl PreprocessOptions {
             }
         }
         if self.periods == Some(0) {
-            return Err(PreprocessError::Setting { name: "periods", value: "0".into(), expected: "1 (not periodic) or more" });
+            return Err(PreprocessError::Setting {
+                name: "periods",
+                value: "0".into(),
+                expected: "1 (not periodic) or more",
+            });
         }
         if !(1..=MAX_ORDER).contains(&self.order) {
             return Err(PreprocessError::Setting {
@@ -101,7 +105,10 @@ pub enum PreprocessError {
     TooFewSamples { needed: usize, got: usize },
     #[error("t does not increase at sample {index}: {before} s is followed by {after} s")]
     TimeNotIncreasing { index: usize, before: f64, after: f64 },
-    #[error("t is not uniformly sampled: step {index} is {step:.6} s where the median step is {median:.6} s")]
+    #[error(
+        "t is not uniformly sampled: step {index} is {step:.6} s where the median step is {median:.6} s (a gap or a \
+         reordering; jitter under half a step is accepted)"
+    )]
     NonUniformTime { index: usize, step: f64, median: f64 },
     #[error(
         "joint {joint} never moves (its position spans {span:.3e}, {steps:.0} encoder steps): nothing about it can be identified"
@@ -109,6 +116,12 @@ pub enum PreprocessError {
     JointStill { joint: usize, span: f64, steps: f64 },
     #[error("the log holds {periods} period(s) of {period_s:.4} s: averaging needs at least 2 whole periods")]
     TooFewPeriods { periods: usize, period_s: f64 },
+    #[error(
+        "the log is {duration_s:.2} s long and not periodic: at a cut-off of {cutoff_hz:.3} Hz the filter's start-up \
+         transients fill {edge_s:.2} s at each end, more than a quarter of it; use a cut-off of at least {lowest_hz:.3} Hz \
+         or a longer log"
+    )]
+    TooShortForCutoff { duration_s: f64, cutoff_hz: f64, edge_s: f64, lowest_hz: f64 },
     #[error("{name} = {value} cannot be used: expected {expected}")]
     Setting { name: &'static str, value: String, expected: &'static str },
     #[error("decimation factor must be at least 1")]
@@ -158,6 +171,9 @@ pub struct Preprocessed {
     pub periodic: bool,
     /// Decimation factor applied after filtering.
     pub decimate: usize,
+    /// The samples clear of the zero-phase filter's start-up transients (all of them for a
+    /// periodic average, which is filtered circularly): what identification fits and scores.
+    pub settled: std::ops::Range<usize>,
     /// What was chosen, and why.
     pub choices: Choices,
 }
@@ -165,6 +181,11 @@ pub struct Preprocessed {
 impl Preprocessed {
     pub fn samples(&self) -> usize {
         self.t.len()
+    }
+
+    /// `x` (`samples × width`) restricted to the [`Self::settled`] samples.
+    pub fn settled_rows<'a>(&self, x: &'a [f64], width: usize) -> &'a [f64] {
+        &x[self.settled.start * width..self.settled.end * width]
     }
 
     /// Rate of the preprocessed samples (Hz): the input rate over the decimation factor.
@@ -221,12 +242,33 @@ pub fn validate_log(t: &[f64], q: &[f64], tau: &[f64], dof: usize) -> Result<f64
     let mut steps: Vec<f64> = t.windows(2).map(step).collect();
     let middle = steps.len() / 2;
     let median = *steps.select_nth_unstable_by(middle, f64::total_cmp).1;
-    // Logged timestamps jitter; a step more than 1 % off the median is a gap or a reordering.
+    // A fixed-rate stream stamped by its host jitters around the step (the KUKA LWR4+ logs of
+    // ../shared/data: ±35 %); a step off by half the median or more is a gap or a reordering.
     // `steps` is reordered by the selection, so the first such step is found in `t` itself.
-    if let Some((index, step)) = t.windows(2).map(step).enumerate().find(|(_, s)| (s - median).abs() > 0.01 * median) {
+    let off = |s: f64| (s - median).abs() / median;
+    if let Some((index, step)) = t.windows(2).map(step).enumerate().find(|(_, s)| off(*s) >= MAX_JITTER) {
         return Err(PreprocessError::NonUniformTime { index, step, median });
     }
-    Ok(median)
+    // The stream's step is the slope of a line through the stamps: jitter, even at the ends,
+    // does not bias it.
+    let (mean_i, mean_t) = ((n - 1) as f64 / 2.0, t.iter().sum::<f64>() / n as f64);
+    let (mut num, mut den) = (0.0, 0.0);
+    for (i, ti) in t.iter().enumerate() {
+        num += (i as f64 - mean_i) * (ti - mean_t);
+        den += (i as f64 - mean_i).powi(2);
+    }
+    Ok(num / den)
+}
+
+/// Time stamps may jitter by less than this share of the step: more is a gap (refused).
+pub const MAX_JITTER: f64 = 0.5;
+
+/// Jitter beyond this share of the step is reported among the choices.
+const REPORTED_JITTER: f64 = 0.01;
+
+/// The largest deviation of a time step from `dt`, as a share of `dt`.
+fn jitter(t: &[f64], dt: f64) -> f64 {
+    t.windows(2).map(|w| ((w[1] - w[0]) - dt).abs() / dt).fold(0.0, f64::max)
 }
 
 /// A joint spanning fewer encoder steps than this has not moved: what it shows is noise.
@@ -279,8 +321,7 @@ fn choose_periods(
         let samples = period_s * fs;
         let whole = (samples - samples.round()).abs() < 1e-6;
         let samples = if whole { samples.round() } else { samples };
-        let room = if whole { n as f64 } else { n as f64 - 2.0 };
-        let count = (room / samples).floor() as usize;
+        let count = ((n + super::decide::SHORT_BY) as f64 / samples).floor() as usize;
         if count < 2 {
             return Err(PreprocessError::TooFewPeriods { periods: count, period_s });
         }
@@ -312,12 +353,14 @@ fn choose_periods(
             let search = find_period(q, dof, fs);
             choices.reasons.push(search.reason);
             let Some(period) = search.period else { return Ok(None) };
-            // Cubic interpolation reads two samples past the last point of the last period.
-            let whole = period.samples.fract() == 0.0;
-            let room = if whole { n as f64 } else { (n - 2) as f64 };
-            let count = period.count.min((room / period.samples).floor() as usize);
+            let count = period.count;
             if count < 2 {
-                return Err(PreprocessError::TooFewPeriods { periods: count, period_s: period.samples / fs });
+                choices.warnings.push(format!(
+                    "the motion repeats after {:.4} s, but the log holds {:.2} such periods: not averaged",
+                    period.samples / fs,
+                    n as f64 / period.samples
+                ));
+                return Ok(None);
             }
             if count < super::decide::FEW_PERIODS {
                 choices.warnings.push(format!(
@@ -347,22 +390,27 @@ fn choose_cutoff(
     }
     let cap = fs / 4.0;
     let periodic = periods.is_some();
+    let samples = match periods {
+        Some(periods) => periods.first().map_or(0, Vec::len) / dof.max(1),
+        None => q.len() / dof.max(1),
+    };
+    let floor = lowest_cutoff_hz(samples, fs, periodic);
     let found = match periods {
         Some(periods) => harmonic_bandwidth(periods, dof, fs),
         None => bandwidth(q, dof, fs, false),
     };
     let Some(signal) = found else {
-        choices.reasons.push(format!("cut-off {MIN_CUTOFF_HZ:.3} Hz: no motion above the noise, the lowest cut-off"));
-        return MIN_CUTOFF_HZ;
+        choices.reasons.push(format!("cut-off {floor:.3} Hz: no motion above the noise, the lowest cut-off"));
+        return floor;
     };
     let wanted = CUTOFF_PER_BANDWIDTH * signal;
-    let cutoff = wanted.clamp(MIN_CUTOFF_HZ, cap);
+    let cutoff = wanted.max(floor).min(cap);
     let what = match periodic {
         true => format!("highest harmonic that repeats from period to period {signal:.3} Hz"),
         false => format!("the motion stands above the position noise floor up to {signal:.3} Hz"),
     };
-    let why = match wanted < MIN_CUTOFF_HZ {
-        true => format!("the {MIN_CUTOFF_HZ} Hz floor ({what})"),
+    let why = match wanted < floor {
+        true => format!("the lowest cut-off the log allows, {floor:.3} Hz ({what})"),
         false => format!("{CUTOFF_PER_BANDWIDTH} × the bandwidth ({what})"),
     };
     choices.reasons.push(format!("cut-off {cutoff:.3} Hz: {why}"));
@@ -387,6 +435,15 @@ pub fn preprocess(
     options.validate()?;
     check_every_joint_moves(q, dof)?;
     let mut choices = Choices::default();
+    let shake = jitter(t, dt);
+    if shake > REPORTED_JITTER {
+        choices.reasons.push(format!(
+            "time stamps jitter by up to {:.0} % of the step with no gap: the samples are taken as a uniform {:.3} Hz stream \
+             (the mean rate)",
+            100.0 * shake,
+            1.0 / dt
+        ));
+    }
     let averaging = choose_periods(q, dof, 1.0 / dt, (options.periods, options.period_s), &mut choices)?;
     let periodic = averaging.is_some();
     // A period that is not a whole number of samples is resampled to the nearest whole number.
@@ -412,6 +469,27 @@ pub fn preprocess(
             cutoff_hz,
         });
     }
+    let edge = match periodic {
+        true => 0,
+        false => (EDGE_CUTOFF_PERIODS * fs / cutoff_hz).ceil() as usize,
+    };
+    if 4 * edge > n {
+        return Err(PreprocessError::TooShortForCutoff {
+            duration_s: n as f64 * dt,
+            cutoff_hz,
+            edge_s: edge as f64 * dt,
+            lowest_hz: lowest_cutoff_hz(n, fs, false),
+        });
+    }
+    if edge > 0 {
+        choices.reasons.push(format!(
+            "not periodic: {:.3} s ({EDGE_CUTOFF_PERIODS} cut-off periods) at each end left out of the fit, where the \
+             zero-phase filter starts up",
+            edge as f64 * dt
+        ));
+    }
+    // Decimated indices whose samples lie at least `edge` samples from either end.
+    let settled = edge.div_ceil(options.decimate)..(n - edge).div_ceil(options.decimate);
     let friction_cutoff_hz = friction_cutoff_hz(options.friction_cutoff_hz, cutoff_hz, fs);
     choices.reasons.push(format!(
         "Coulomb columns switch with the velocity filtered at {friction_cutoff_hz:.3} Hz ({})",
@@ -464,6 +542,7 @@ pub fn preprocess(
         order: options.order,
         periodic,
         decimate: options.decimate,
+        settled,
         choices,
     })
 }
@@ -575,6 +654,22 @@ pub const CUTOFF_PER_BANDWIDTH: f64 = 5.0;
 /// The lowest cut-off chosen from the data (Hz).
 pub const MIN_CUTOFF_HZ: f64 = 1.0;
 
+/// Samples within this many cut-off periods of either end of a log that is not periodic are left
+/// out: a zero-phase Butterworth started from an odd extension of the log rings there, and the
+/// two differences amplify it. On a smooth motion filtered at 1–20 Hz the error of q̈ there falls
+/// from about the motion's RMS at the end to under 1 % of it at 5 periods (docs/identification.md).
+pub const EDGE_CUTOFF_PERIODS: f64 = 5.0;
+
+/// The lowest cut-off a log of `samples` at `fs` allows: [`MIN_CUTOFF_HZ`], raised for a log that
+/// is not periodic so that the filter's end transients ([`EDGE_CUTOFF_PERIODS`]) take at most a
+/// quarter of it at each end.
+pub fn lowest_cutoff_hz(samples: usize, fs: f64, periodic: bool) -> f64 {
+    match periodic {
+        true => MIN_CUTOFF_HZ,
+        false => MIN_CUTOFF_HZ.max(4.0 * EDGE_CUTOFF_PERIODS * fs / samples.saturating_sub(4).max(1) as f64),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -645,6 +740,12 @@ mod tests {
         let mut jumpy = t.clone();
         jumpy[500..].iter_mut().for_each(|x| *x += 0.01);
         assert!(err(preprocess(&jumpy, &q, &tau, 3, &opts)).contains("step 499"));
+        // Host-stamped jitter of up to 40 % of the step, without a gap, is a uniform stream.
+        let shaky: Vec<f64> =
+            t.iter().enumerate().map(|(i, x)| x + 2e-4 * ((i * 7919 % 13) as f64 / 6.0 - 1.0)).collect();
+        let out = preprocess(&shaky, &q, &tau, 3, &opts).unwrap();
+        assert!(out.choices.reasons.iter().any(|r| r.contains("jitter by up to")), "{:?}", out.choices.reasons);
+        assert!((out.sample_rate_hz - 1000.0).abs() < 1e-3, "{}", out.sample_rate_hz);
         let zero = PreprocessOptions { periods: Some(0), ..Default::default() };
         assert!(err(preprocess(&t, &q, &tau, 3, &zero)).contains("periods = 0 cannot be used"));
         let mut repeated = t.clone();

@@ -14,8 +14,6 @@ use arash_core::BaseParameters;
 use crate::report::figures;
 use arash_daemon::drive_config::DriveConfig;
 
-use crate::runlog;
-
 #[derive(clap::Args)]
 pub struct Args {
     #[command(flatten)]
@@ -74,10 +72,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "--refit and --hold-friction apply to a model given with --model"
     );
     let options = options(&args, &model)?;
-    let read = |paths: &[PathBuf]| -> anyhow::Result<runlog::Log> {
-        let logs = paths.iter().map(|p| runlog::read(p, &model)).collect::<anyhow::Result<Vec<_>>>()?;
-        Ok(runlog::concatenate(logs))
-    };
+    let read = |paths: &[PathBuf]| args.runs.read(paths, &model);
     let train = read(&args.runs.logs)?;
     let validation = if args.validate.is_empty() { None } else { Some(read(&args.validate)?) };
     let given = args

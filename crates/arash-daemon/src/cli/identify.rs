@@ -12,8 +12,6 @@ use arash_core::model_file::IdentifyMethod;
 
 use arash_core::BaseParameters;
 
-use crate::runlog;
-
 #[derive(clap::Args)]
 pub struct Args {
     #[command(flatten)]
@@ -25,14 +23,18 @@ pub struct Args {
     /// 1 says the data are not periodic.
     #[arg(long)]
     periods: Option<usize>,
-    /// Low-pass cut-off (Hz); default: 5 × the highest frequency of the motion, read from the
-    /// positions' spectrum against their noise floor.
+    /// The excitation period (s), when known but not how many periods the log holds.
+    #[arg(long)]
+    period: Option<f64>,
+    /// Low-pass cut-off (Hz); default: the best fit over cut-offs around 5 × the highest
+    /// frequency of the motion (docs/identification.md, "Preprocessing").
     #[arg(long)]
     cutoff: Option<f64>,
     /// Butterworth order (applied forward and backward).
     #[arg(long, default_value_t = PreprocessOptions::default().order)]
     order: usize,
-    /// Cut-off of the velocity that switches Coulomb friction (Hz); default 20.
+    /// Cut-off of the velocity that switches Coulomb friction (Hz); default: chosen by the fit,
+    /// from the main cut-off up to a quarter of the sample rate.
     #[arg(long)]
     friction_cutoff: Option<f64>,
     /// Coulomb friction as tanh(q̇/ε) with this ε (rad/s or m/s) instead of sign(q̇); the
@@ -62,11 +64,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         anyhow::ensure!(epsilon.is_finite() && epsilon > 0.0, "--coulomb-epsilon must be positive, not {epsilon}");
         model.coulomb_shape = arash_core::model::CoulombShape::Tanh { epsilon };
     }
-    let logs = args.runs.logs.iter().map(|p| runlog::read(p, &model)).collect::<anyhow::Result<Vec<_>>>()?;
-    let log = runlog::concatenate(logs);
+    let log = args.runs.read(&args.runs.logs, &model)?;
     let options = IdentifyOptions {
         preprocess: PreprocessOptions {
             periods: args.periods,
+            period_s: args.period,
             cutoff_hz: args.cutoff,
             order: args.order,
             decimate: args.decimate,
@@ -94,13 +96,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mut labels = Vec::new();
         let mut fp = Vec::new();
         for path in &args.validate {
-            let v = runlog::read(path, &model)?;
-            let pre = PreprocessOptions {
-                periods: args.validate_periods,
-                order: args.order,
-                friction_cutoff_hz: args.friction_cutoff,
-                ..Default::default()
-            };
+            let v = args.runs.read(std::slice::from_ref(path), &model)?;
+            let pre = PreprocessOptions { periods: args.validate_periods, order: args.order, ..Default::default() };
             let metrics = validate(&model, &identification, &v.t, &v.q, &v.tau, &pre)
                 .with_context(|| format!("validating on {}", path.display()))?;
             labels.push(path.file_stem().map_or("run".into(), |s| s.to_string_lossy().into_owned()));

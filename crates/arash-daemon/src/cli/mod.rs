@@ -11,6 +11,7 @@ pub mod simulate;
 use std::path::Path;
 
 use anyhow::Context;
+use arash_core::transmission::Transmission;
 
 /// The logged runs a command reads and the robot they come from.
 #[derive(clap::Args)]
@@ -21,6 +22,50 @@ pub struct Runs {
     /// The robot's URDF; default: the bundled ARASH:ASiST.
     #[arg(long)]
     pub robot: Option<std::path::PathBuf>,
+    /// The logs are motor-side: motor radians per joint radian, one per joint (the TX40's
+    /// 32,32,45,-48,45,32). Angles map to q = R⁻¹θ + q₀, torques to τ = Rᵀτ_m (docs/real-data.md).
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    pub gear_ratios: Option<Vec<f64>>,
+    /// A motor that another joint turns too, as MOTOR,JOINT,RATIO (1-based; the TX40's wrist:
+    /// 6,5,32). Repeat for more.
+    #[arg(long, requires = "gear_ratios", value_parser = parse_coupling)]
+    pub coupling: Vec<(usize, usize, f64)>,
+    /// Joint angle offsets q₀ of a motor-side log (degrees), one per joint.
+    #[arg(long, value_delimiter = ',', requires = "gear_ratios", allow_negative_numbers = true)]
+    pub joint_offsets_deg: Option<Vec<f64>>,
+}
+
+impl Runs {
+    /// The declared transmission of motor-side logs, if any.
+    pub fn transmission(&self, dof: usize) -> anyhow::Result<Option<Transmission>> {
+        let Some(ratios) = &self.gear_ratios else { return Ok(None) };
+        let offsets = self.joint_offsets_deg.as_ref().map(|d| d.iter().map(|v| v.to_radians()).collect::<Vec<_>>());
+        Transmission::new(dof, ratios, &self.coupling, offsets.as_deref()).context("--gear-ratios/--coupling").map(Some)
+    }
+
+    /// Read `paths` (the training logs or validation runs), mapped to joint space when the logs
+    /// are motor-side, and concatenate them.
+    pub fn read(&self, paths: &[std::path::PathBuf], model: &arash_core::Model) -> anyhow::Result<crate::runlog::Log> {
+        let transmission = self.transmission(model.dof())?;
+        let mut logs = Vec::with_capacity(paths.len());
+        for path in paths {
+            let mut log = crate::runlog::read(path, model)?;
+            if let Some(t) = &transmission {
+                (log.q, log.tau) = t.to_joints(&log.q, &log.tau).with_context(|| format!("{}", path.display()))?;
+            }
+            logs.push(log);
+        }
+        Ok(crate::runlog::concatenate(logs))
+    }
+}
+
+fn parse_coupling(text: &str) -> Result<(usize, usize, f64), String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let bad = || format!("`{text}`: expected MOTOR,JOINT,RATIO such as 6,5,32");
+    match parts.as_slice() {
+        [m, j, r] => Ok((m.parse().map_err(|_| bad())?, j.parse().map_err(|_| bad())?, r.parse().map_err(|_| bad())?)),
+        _ => Err(bad()),
+    }
 }
 
 /// Load a robot model and keep its URDF text (model files and logs embed it). `None` is the

@@ -26,6 +26,7 @@ from ._arash import (
     Excitation,
     Identification,
     Robot,
+    Transmission,
     __version__,
     butter,
     consistent_least_squares,
@@ -43,6 +44,7 @@ __all__ = [
     "Excitation",
     "Identification",
     "Robot",
+    "Transmission",
     "__version__",
     "butter",
     "consistent_least_squares",
@@ -120,28 +122,34 @@ def identify(
     *,
     method: Optional[str] = None,
     periods: Optional[int] = None,
+    period_s: Optional[float] = None,
     cutoff_hz: Optional[float] = None,
     order: Optional[int] = None,
     decimate: Optional[int] = None,
     friction_cutoff_hz: Optional[float] = None,
     pull: Optional[float] = None,
     stiffness_bounds: Optional[tuple[float, float]] = None,
+    motor_side: Optional[Transmission] = None,
 ) -> Identification:
     """Identify the robot's parameters from a log: t (N,), q and tau (N, dof), SI units.
 
     method: "ols" (the default), "wls" or "consistent" (docs/identification.md). periods: whole
     excitation periods in the log, averaged (None: found from the data; 1: not periodic).
-    cutoff_hz: the low-pass cut-off (None: 5 × the highest frequency of the motion, read from the
-    positions' spectrum against their noise floor). order: Butterworth order. decimate: keep
-    every k-th filtered sample. friction_cutoff_hz: the cut-off of the velocity that switches
-    Coulomb friction. pull: the consistent fit's pull toward CAD. stiffness_bounds: the cable
-    stiffness's (lower, upper). None keeps arash's default for each (docs/identification.md).
+    period_s: the period, when it is known but not how many the log holds.
+    cutoff_hz: the low-pass cut-off (None: the best fit over cut-offs around 5 × the highest
+    frequency of the motion). order: Butterworth order. decimate: keep every k-th filtered
+    sample. friction_cutoff_hz: the cut-off of the velocity that switches Coulomb friction (None:
+    chosen by the fit too). pull: the consistent fit's pull toward CAD. stiffness_bounds: the
+    cable stiffness's (lower, upper). None keeps arash's default for each (docs/identification.md).
+    motor_side: a ``Transmission`` when q and tau are motor angles and motor torques.
 
     ``Identification.settings`` says what was chosen and why; a choice the data support only
     weakly is also raised as a ``UserWarning``.
     """
-    options = _given(periods=periods, cutoff_hz=cutoff_hz, order=order, decimate=decimate,
+    options = _given(periods=periods, period_s=period_s, cutoff_hz=cutoff_hz, order=order, decimate=decimate,
                      friction_cutoff_hz=friction_cutoff_hz, pull=pull, stiffness_bounds=stiffness_bounds)
+    if motor_side is not None:
+        q, tau = motor_side.to_joints(q, tau)
     identification = _identify(robot, (t, q, tau), method, options)
     for warning in identification.settings["warnings"]:
         _warnings.warn(f"arash.identify: {warning}", UserWarning, stacklevel=2)
@@ -187,6 +195,7 @@ def diagnose(
     hold_friction: Optional[bool] = None,
     consistent: Optional[bool] = None,
     consistent_cutoff_hz: Optional[float] = None,
+    motor_side: Optional[Transmission] = None,
 ) -> Diagnosis:
     """Find what the declared model lacks in a log, and the error before and after.
 
@@ -201,8 +210,13 @@ def diagnose(
     physically consistent model with the effects found (``Diagnosis.model_consistent``), at
     ``consistent_cutoff_hz`` (default ``cutoff_hz``; the calibration's own is the better choice).
     The other options are the decision rule's (docs/diagnosis.md). None keeps arash's default for
-    each; ``DiagnoseOptions()`` shows them.
+    each; ``DiagnoseOptions()`` shows them. motor_side: a ``Transmission`` when q and tau (and the
+    validation's) are motor angles and motor torques.
     """
+    if motor_side is not None:
+        q, tau = motor_side.to_joints(q, tau)
+        if validation is not None:
+            validation = (validation[0], *motor_side.to_joints(validation[1], validation[2]))
     options = DiagnoseOptions(**_given(
         transmission=None if transmission is None else list(transmission), cutoff_hz=cutoff_hz,
         block_s=block_s, alpha=alpha, min_gain=min_gain, effects=None if effects is None else list(effects),

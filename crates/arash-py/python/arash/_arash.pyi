@@ -1,7 +1,7 @@
 """Type stubs of the compiled module; ``python -m mypy.stubtest arash`` checks them against it."""
 
 from os import PathLike
-from typing import Any, Optional, Union, final
+from typing import Any, Optional, Sequence, Union, final
 
 import numpy as np
 import numpy.typing as npt
@@ -17,6 +17,7 @@ __all__ = [
     "Excitation",
     "Identification",
     "Robot",
+    "Transmission",
     "__version__",
     "_design_excitation",
     "_diagnose",
@@ -31,6 +32,19 @@ __all__ = [
 ]
 
 __version__: str
+
+@final
+class Transmission:
+    """Motor angles and torques to joint space: θ = R (q − q₀), τ = Rᵀ τ_m; a singular R is refused."""
+    def __new__(
+        cls,
+        gear_ratios: Sequence[float],
+        coupling: Optional[Sequence[tuple[int, int, float]]] = None,
+        offsets: Optional[Sequence[float]] = None,
+    ) -> Transmission: ...
+    @property
+    def matrix(self) -> _Array: ...
+    def to_joints(self, theta: _ArrayLike, tau_motor: _ArrayLike) -> tuple[_Array, _Array]: ...
 
 @final
 class Robot:

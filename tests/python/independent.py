@@ -1,0 +1,224 @@
+"""An independent source of robot logs: Pinocchio's dynamics, not arash's.
+
+``Expanded`` is Pinocchio's view of a robot (mimic joints expanded into a tree, the coupling G,
+the parameter map T); ``make_log`` turns a ``Condition`` (robot, sample rate, encoder resolution,
+torque noise, Coulomb law, periods, duration) into the log a user would record of the declared
+model: quantised positions and noisy torques. arash is used only to read the URDF's limits and
+parameter layout, never to compute a torque.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+import pinocchio as pin
+
+import arash
+from conftest import ROBOT_FILES, kuka_urdf, tx40_urdf, urdf_couplings
+
+# ours [m, mx, my, mz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz]  <-  Pinocchio's index for each entry
+OURS_FROM_PIN = [0, 1, 2, 3, 4, 6, 9, 5, 7, 8]
+
+
+class Expanded:
+    """Pinocchio's view of a robot: the expanded tree, the coupling G and the parameter map T."""
+
+    def __init__(self, path, robot):
+        self.robot = robot
+        self.model = pin.buildModelFromUrdf(str(path))
+        self.data = self.model.createData()
+        couplings = urdf_couplings(path)
+        actuated = robot.joint_names()
+        nv = self.model.nv
+        self.G = np.zeros((nv, robot.dof))
+        self.offset = np.zeros(nv)
+        for jid in range(1, self.model.njoints):
+            name = self.model.names[jid]
+            _, target, mult, off = couplings[name]
+            k = actuated.index(target if target is not None else name)
+            self.G[self.model.joints[jid].idx_v, k] = mult
+            self.offset[self.model.joints[jid].idx_v] = off
+        self.T = self._parameter_map()
+
+    def _parameter_map(self):
+        """T with π_pin (10 per Pinocchio joint) = T π_ours (rigid part)."""
+        names = self.robot.body_names()
+        T = np.zeros((10 * (self.model.njoints - 1), 10 * len(names)))
+        for b, link in enumerate(names):
+            frame = self.model.frames[self.model.getFrameId(link)]
+            jid = frame.parentJoint
+            rows = slice(10 * (jid - 1), 10 * jid)
+            # The link's inertia lands in its joint's frame through the frame placement (identity
+            # for a link moved by its own joint, a fixed offset for a link on a fixed joint).
+            # Inertia.se3Action is linear in the dynamic parameters; take it column by column.
+            base = pin.Inertia.FromDynamicParameters(np.array([1, 0, 0, 0, 1, 0, 1, 0, 0, 1.0]))
+            base_moved = frame.placement.act(base).toDynamicParameters()
+            for i in range(10):
+                e = np.zeros(10)
+                e[OURS_FROM_PIN[i]] = 1.0
+                moved = frame.placement.act(pin.Inertia.FromDynamicParameters(base.toDynamicParameters() + e))
+                T[rows, 10 * b + i] = moved.toDynamicParameters() - base_moved
+        return T
+
+    def set_parameters(self, params):
+        pi_pin = self.T @ params[: self.T.shape[1]]
+        for jid in range(1, self.model.njoints):
+            self.model.inertias[jid] = pin.Inertia.FromDynamicParameters(pi_pin[10 * (jid - 1) : 10 * jid])
+
+    def tree(self, q, qd, qdd):
+        """Tree configuration in Pinocchio's encoding: a continuous joint is (cos θ, sin θ)."""
+        angles = self.G @ q + self.offset
+        config = np.zeros(self.model.nq)
+        for jid in range(1, self.model.njoints):
+            joint = self.model.joints[jid]
+            theta = angles[joint.idx_v]
+            if joint.nq == 2:
+                config[joint.idx_q : joint.idx_q + 2] = (np.cos(theta), np.sin(theta))
+            else:
+                config[joint.idx_q] = theta
+        return config, self.G @ qd, self.G @ qdd
+
+
+def joint_torques(robot, q, qd, params):
+    """Friction and elastic torques, which Pinocchio's rigid-body algorithms leave out."""
+    n, nb = robot.dof, len(robot.body_names())
+    fv, fc = params[10 * nb : 10 * nb + 2 * n : 2], params[10 * nb + 1 : 10 * nb + 2 * n : 2]
+    ke = params[10 * nb + 2 * n :]
+    return fv * qd + fc * np.sign(qd) + ke * q
+
+
+# Coulomb friction and viscous friction each give this share of a joint's RMS rigid-body torque.
+FRICTION_SHARE = 0.05
+# No joint's torque scale is below this share of the largest joint's.
+RMS_FLOOR_SHARE = 0.01
+# A tanh Coulomb law's velocity scale (rad/s or m/s).
+TANH_EPSILON = 0.01
+# A linear encoder's stroke over its counts (m), for prismatic joints.
+LINEAR_STROKE_M = 0.2
+HARMONICS = 5
+
+
+@dataclass(frozen=True)
+class Condition:
+    robot: str  # "arash_asist", "kuka" or "tx40"
+    fs: float  # Hz
+    bits: int  # encoder counts per turn (or per stroke) = 2**bits
+    noise: float  # torque noise, as a share of each joint's RMS torque
+    coulomb: str  # "sign" or "tanh"
+    periods: Optional[int]  # whole periods in the log; None: not periodic
+    duration: float  # s
+    seed: int = 0
+    # Follow arash's designed excitation (trajectories/excitation_L5_T15.json, evaluated here from
+    # the paper's formula) instead of a random Fourier series; `duration / periods` must be its period.
+    designed: bool = False
+
+    @property
+    def label(self) -> str:
+        shape = f"{self.periods}x{self.duration / self.periods:g}s" if self.periods else f"aperiodic {self.duration:g}s"
+        source = " designed" if self.designed else ""
+        return f"{self.robot} {self.fs:g}Hz {self.bits}bit {100 * self.noise:g}% {self.coulomb} {shape}{source}"
+
+
+def urdf_path(name):
+    return {"arash_asist": lambda: ROBOT_FILES["arash_asist"], "kuka": kuka_urdf, "tx40": tx40_urdf}[name]()
+
+
+def limits(robot):
+    """Position range and speed limit per joint, with the fallbacks conftest.random_states uses."""
+    lo, hi, vmax = [], [], []
+    for (a, b), v in zip(robot.position_limits(), robot.velocity_limits()):
+        lo.append(a if math.isfinite(a) else -math.pi)
+        hi.append(b if math.isfinite(b) else math.pi)
+        vmax.append(v if math.isfinite(v) else 2.0)
+    return np.array(lo), np.array(hi), np.array(vmax)
+
+
+DESIGNED = Path(__file__).resolve().parents[2] / "trajectories" / "excitation_L5_T15.json"
+
+
+def designed_excitation(t):
+    """The paper's Fourier form, q = q₀ + Σₗ aₗ/(ωl) sin(ωlt) − bₗ/(ωl) cos(ωlt), of the stored
+    excitation; returns q, q̇, q̈ at the times ``t``."""
+    spec = json.loads(DESIGNED.read_text())
+    a, b, q0 = np.array(spec["a"]), np.array(spec["b"]), np.array(spec["q0"])
+    w = 2 * np.pi / spec["period_s"] * np.arange(1, a.shape[1] + 1)
+    s, c = np.sin(t[:, None, None] * w), np.cos(t[:, None, None] * w)
+    q = q0 + (a / w * s - b / w * c).sum(axis=2)
+    qd = (a * c + b * s).sum(axis=2)
+    qdd = (w * (-a * s + b * c)).sum(axis=2)
+    return q, qd, qdd
+
+
+def trajectory(robot, condition, rng):
+    """A Fourier series of the log's period, or, for an aperiodic log, sines at incommensurate
+    random frequencies; scaled into 80 % of the ranges and speed limits. Returns t, q, q̇, q̈."""
+    lo, hi, vmax = limits(robot)
+    n, dof = int(round(condition.duration * condition.fs)), robot.dof
+    t = np.arange(n) / condition.fs
+    if condition.designed:
+        return (t, *designed_excitation(t))
+    if condition.periods:
+        base = condition.periods / condition.duration
+        freqs = np.tile(base * np.arange(1, HARMONICS + 1), (dof, 1))
+        amps = rng.uniform(0.3, 1.0, (dof, HARMONICS)) / np.arange(1, HARMONICS + 1)
+    else:
+        freqs = rng.uniform(0.05, 0.5, (dof, HARMONICS))
+        amps = rng.uniform(0.3, 1.0, (dof, HARMONICS))
+    phases = rng.uniform(0, 2 * np.pi, (dof, HARMONICS))
+    w = 2 * np.pi * freqs
+    scale = np.minimum(0.4 * (hi - lo) / amps.sum(axis=1), 0.8 * vmax / (amps * w).sum(axis=1))
+    amps = amps * scale[:, None]
+    arg = t[:, None, None] * w[None] + phases[None]
+    q = 0.5 * (hi + lo) + (amps * np.sin(arg)).sum(axis=2)
+    qd = (amps * w * np.cos(arg)).sum(axis=2)
+    qdd = -(amps * w * w * np.sin(arg)).sum(axis=2)
+    return t, q, qd, qdd
+
+
+def rigid_torques(expanded, q, qd, qdd):
+    """Gᵀ · Pinocchio's RNEA on the expanded tree, sample by sample."""
+    out = np.empty_like(q)
+    for i in range(len(q)):
+        qt, vt, at = expanded.tree(q[i], qd[i], qdd[i])
+        out[i] = expanded.G.T @ pin.rnea(expanded.model, expanded.data, qt, vt, at)
+    return out
+
+
+def quantum(path, robot):
+    """Encoder step per joint: a turn over 2**bits for revolute joints, the stroke for prismatic."""
+    kinds = urdf_couplings(path)
+    return np.array([LINEAR_STROKE_M if kinds[name][0] == "prismatic" else 2 * np.pi for name in robot.joint_names()])
+
+
+def make_log(condition, states=None, truth=None):
+    """The log of ``condition``: t, quantised q, noisy τ, and the truth (params, joint terms).
+
+    ``states`` (t, q, q̇, q̈) replaces the generated trajectory; ``truth`` reuses a previous log's
+    parameters, so that a validation log comes from the same robot.
+    """
+    rng = np.random.default_rng(condition.seed)
+    path = urdf_path(condition.robot)
+    robot = arash.Robot.from_urdf(path)
+    expanded = Expanded(path, robot)
+    t, q, qd, qdd = states if states is not None else trajectory(robot, condition, rng)
+    params = robot.cad_parameters().copy() if truth is None else truth["params"]
+    expanded.set_parameters(params)
+    rigid = rigid_torques(expanded, q, qd, qdd)
+    if truth is None:
+        # A joint whose rigid-body torque is nil (a link declared massless) still has friction
+        # and noise, sized from the other joints.
+        rms = np.maximum(np.sqrt(np.mean(rigid**2, axis=0)), RMS_FLOOR_SHARE * np.sqrt(np.mean(rigid**2, axis=0)).max())
+        speed = np.sqrt(np.mean(qd**2, axis=0))
+        truth = {"params": params, "fv": FRICTION_SHARE * rms / speed, "fc": FRICTION_SHARE * rms,
+                 "noise": condition.noise * rms}
+    shape = np.sign(qd) if condition.coulomb == "sign" else np.tanh(qd / TANH_EPSILON)
+    tau = rigid + truth["fv"] * qd + truth["fc"] * shape
+    tau = tau + truth["noise"] * rng.normal(size=tau.shape)
+    step = quantum(path, robot) / 2**condition.bits
+    q_measured = np.round(q / step) * step
+    return robot, (t, q_measured, tau), truth

@@ -1,0 +1,142 @@
+"""Measured logs arash did not make (../shared/data, README there): the TX40's motor-side log
+mapped through a declared transmission, the KUKA LWR4+'s torque-sensor runs, each identified with
+the defaults. Skips with a message when the data are absent."""
+
+import csv
+import subprocess
+import warnings
+
+import numpy as np
+import pytest
+
+import arash
+from conftest import ROOT, SHARED_DATA
+
+TX40 = SHARED_DATA / "staubli_tx40"
+KUKA = SHARED_DATA / "kuka_lwr4"
+# Upstream's gear ratios (T40X_config.yaml) and its MDH offsets for joints 2 and 3 (README).
+TX40_RATIOS = [32.0, 32.0, 45.0, -48.0, 45.0, 32.0]
+TX40_OFFSETS = [0.0, -np.pi / 2, np.pi / 2, 0.0, 0.0, 0.0]
+TX40_FS = 5000.0
+
+
+def need(path):
+    if not path.exists():
+        pytest.skip(f"{path} not found: ../shared/data is absent (see its README)")
+    return path
+
+
+def read_csv(path):
+    with open(path) as f:
+        rows = list(csv.reader(f))
+    return np.array(rows[1:], dtype=float)
+
+
+def tx40_motor_log():
+    theta = read_csv(need(TX40 / "pos_read_data.csv"))
+    tau_m = read_csv(need(TX40 / "curr_data.csv"))
+    return np.arange(len(theta)) / TX40_FS, theta, tau_m
+
+
+def tx40_transmission():
+    return arash.Transmission(TX40_RATIOS, coupling=[(6, 5, 32.0)], offsets=TX40_OFFSETS)
+
+
+def test_the_tx40_transmission_maps_as_upstream_does():
+    """Upstream's mapping, written out by hand from its README: q = R⁻¹θ with R = diag(N) and
+    R[5,4] = N[5], then the MDH offsets; τ = T τ_m with T = diag(N) and T[4,5] = N[5]."""
+    _, theta, tau_m = tx40_motor_log()
+    N = np.array(TX40_RATIOS)
+    R = np.diag(N)
+    R[5, 4] = N[5]
+    T = np.diag(N)
+    T[4, 5] = N[5]
+    q_ref = np.linalg.solve(R, theta.T).T + TX40_OFFSETS
+    tau_ref = (T @ tau_m.T).T
+    q, tau = tx40_transmission().to_joints(theta, tau_m)
+    np.testing.assert_allclose(q, q_ref, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(tau, tau_ref, rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(tx40_transmission().matrix, R)
+
+
+def test_a_singular_transmission_is_refused_by_name():
+    with pytest.raises(ValueError, match="transmission matrix is singular"):
+        arash.Transmission([1.0, 1.0], coupling=[(1, 2, 1.0), (2, 1, 1.0)])
+    with pytest.raises(ValueError, match="gear ratio of joint 2 is 0"):
+        arash.Transmission([1.0, 0.0])
+    with pytest.raises(ValueError, match=r"theta must have shape \(N, 2\)"):
+        arash.Transmission([1.0, 2.0]).to_joints(np.zeros((5, 3)), np.zeros((5, 2)))
+
+
+def test_the_tx40_identifies_from_its_motor_side_log_with_the_defaults():
+    """The motor-side log through ``motor_side=`` gives the model the hand-mapped arrays give, and
+    the defaults choose from the data and say why."""
+    t, theta, tau_m = tx40_motor_log()
+    robot = arash.Robot.from_urdf(need(TX40 / "tx40_mdh_modified.urdf"))
+    with pytest.warns(UserWarning):  # link_6 has no rotational inertia, as upstream's URDF says
+        robot = arash.Robot.from_urdf(TX40 / "tx40_mdh_modified.urdf")
+    ident = arash.identify(robot, t, theta, tau_m, motor_side=tx40_transmission())
+    q, tau = tx40_transmission().to_joints(theta, tau_m)
+    by_hand = arash.identify(robot, t, q, tau)
+    np.testing.assert_allclose(ident.beta, by_hand.beta, rtol=1e-12, atol=0)
+    reasons = "\n".join(ident.settings["reasons"])
+    print(f"\nTX40 defaults: cut-off {ident.cutoff_hz:.2f} Hz, FP% {np.round(ident.fp_percent, 1)}\n{reasons}")
+    assert "not periodic" in reasons and "cut-off" in reasons and "Coulomb" in reasons
+    # The issue's symptom was a 313 Hz cut-off; the motion of this log is below a few hertz.
+    assert ident.cutoff_hz < 50.0
+    # The arm's big joints are explained by the declared model with friction.
+    assert np.all(ident.fp_percent[:3] > 90.0), ident.fp_percent
+
+
+def test_the_cli_reads_a_motor_side_log_like_python(tmp_path):
+    """`arash identify --gear-ratios --coupling --joint-offsets-deg` on a CSV of motor angles and
+    motor torques gives the model `arash.identify(..., motor_side=...)` gives."""
+    binary = ROOT / "target" / "release" / "arash"
+    if not binary.exists():
+        pytest.skip(f"{binary} is not built")
+    t, theta, tau_m = tx40_motor_log()
+    urdf = need(TX40 / "tx40_mdh_modified.urdf")
+    with pytest.warns(UserWarning):
+        robot = arash.Robot.from_urdf(urdf)
+    names = robot.joint_names()
+    log, model = tmp_path / "tx40_motor.csv", tmp_path / "model.json"
+    header = ["t"] + [f"q.{n}" for n in names] + [f"tau.{n}" for n in names]
+    np.savetxt(log, np.column_stack([t, theta, tau_m]), delimiter=",", header=",".join(header), comments="",
+               fmt="%.17g")
+    offsets = ",".join(f"{np.degrees(o):.17g}" for o in TX40_OFFSETS)
+    subprocess.run([binary, "identify", log, "--robot", urdf, "--gear-ratios", ",".join(map(str, TX40_RATIOS)),
+                    "--coupling", "6,5,32", "--joint-offsets-deg", offsets, "-o", model], check=True,
+                   capture_output=True)
+    cli = arash.load_model(model)
+    python = arash.identify(robot, t, theta, tau_m, motor_side=tx40_transmission())
+    assert cli.cutoff_hz == python.cutoff_hz
+    np.testing.assert_allclose(cli.beta, python.beta, rtol=1e-9, atol=1e-12)
+    singular = subprocess.run([binary, "identify", log, "--robot", urdf, "--gear-ratios", "1,1,1,1,1,1",
+                               "--coupling", "1,2,1", "--coupling", "2,1,1", "-o", model], capture_output=True,
+                              text=True)
+    assert singular.returncode != 0 and "singular" in singular.stderr, singular.stderr
+
+
+def kuka_run(i):
+    data = np.load(need(KUKA / f"measurements_{i}.npz"))
+    t = data["times"] - data["times"][0]
+    return t, data["positions"], data["torques"]
+
+
+def test_the_kuka_model_from_run_1_predicts_run_2_as_well_as_a_hand_set_cutoff():
+    """Train on run 1 with the defaults, predict run 2 (upstream's validation run). The declared
+    model has no torque-sensor offset, which joints 1, 6 and 7 need (issue 19), so the bar is not
+    the README's 65–99 %: it is that no hand-set cut-off predicts run 2 better by more than a point
+    (mean FP% over joints), and that the joints the model explains (2–4) are predicted at ≥ 85 %.
+    bench/real_data.py prints the full table (runs 2 and 3, ‖e‖/‖τ‖ and FP%)."""
+    robot = arash.Robot.from_urdf(need(KUKA / "kuka_lwr4.urdf"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # two periods only, said in settings["warnings"]
+        default = arash.identify(robot, *kuka_run(1))
+        by_hand = [arash.identify(robot, *kuka_run(1), cutoff_hz=c) for c in (1.0, 2.0, 4.0, 8.0, 16.0, 32.0)]
+    run2 = default.validate(*kuka_run(2))["fp_percent"]
+    hand = np.array([i.validate(*kuka_run(2))["fp_percent"] for i in by_hand])
+    print(f"\nKUKA run 2 FP%: defaults (cut-off {default.cutoff_hz:.2f} Hz) {np.round(run2, 1)}; "
+          f"best hand-set mean {hand.mean(axis=1).max():.1f}")
+    assert run2.mean() >= hand.mean(axis=1).max() - 1.0, (run2, hand)
+    assert np.all(run2[1:4] >= 85.0), run2
