@@ -1,5 +1,5 @@
 """What the data-driven choices cost (issue 17): `arash.identify` with the defaults (period found,
-cut-off and friction cut-off searched) against the same cut-offs set by hand, on the issue's
+cut-off searched) against the same cut-offs set by hand, on the issue's
 independent log (tests/python/independent.py: Pinocchio, ARASH:ASiST, 8 × 10 s at 1 kHz, 16-bit
 encoders, 1 % torque noise). Medians of 7 calls.
 

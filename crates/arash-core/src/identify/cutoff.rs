@@ -4,8 +4,9 @@
 //! is what the model explains: a closed-loop log repeats, period after period, a controller's
 //! response at several hertz that the rigid-body model with friction does not reproduce, and that
 //! costs the fit more than the noise a lower cut-off would let through. So the cut-off is chosen
-//! by the fit itself: ordinary least squares at cut-offs from [`MIN_CUTOFF_HZ`] up to the
-//! spectral rule's value, the one that explains the filtered torque best. A cut-off below the
+//! by the fit itself: ordinary least squares at cut-offs from the lowest the log allows
+//! ([`lowest_cutoff_hz`]) up to [`SEARCH_ABOVE_SPECTRAL`] times the spectral rule's value, the one
+//! that explains the filtered torque best. A cut-off below the
 //! motion's bandwidth bends the signal, which the fit shows at once, so the choice cannot run off
 //! to the lowest value; between cut-offs that fit alike the highest is kept.
 //! docs/identification.md ("Choices made from the data") gives the measurements.
@@ -33,8 +34,12 @@ pub const EQUAL_FIT_POINTS: f64 = 0.1;
 /// several times faster on long logs.
 const SEARCH_SAMPLES_PER_CUTOFF: f64 = 20.0;
 
-/// The log preprocessed at the cut-offs that fit best, its choices saying why. A cut-off the
-/// user set is kept; the one the user left is searched.
+/// The log preprocessed at the cut-off that fits best, its choices saying why. A cut-off the user
+/// set is kept.
+///
+/// The friction velocity's cut-off is not searched: on the demo's closed-loop log a search by the
+/// same criterion picked 26.8 Hz for a fit within 0.1 point of 20 Hz's, and the robust controller
+/// with that model lost the paper's halving of the insertion error (docs/identification.md).
 pub fn preprocess_for_fit(
     declared: Declared,
     log: Log,
@@ -45,79 +50,44 @@ pub fn preprocess_for_fit(
     // The period found once is kept for every candidate.
     let fixed = PreprocessOptions { period_s: spectral.period_s, periods: Some(1), ..options.clone() };
     let floor = lowest_cutoff_hz(log.t.len(), spectral.sample_rate_hz, spectral.periodic);
-    let main = match options.cutoff_hz {
+    let top = search_top(&spectral);
+    let searched = match options.cutoff_hz {
         Some(_) => None,
         None => {
-            let scored = score(declared, log, &fixed, &candidate_cutoffs(floor, search_top(&spectral)), |c| (c, None))?;
-            best_of(&scored, Prefer::Highest).map(|chosen| (chosen, scored))
+            let scored = score(declared, log, &fixed, spectral.sample_rate_hz, &candidate_cutoffs(floor, top))?;
+            best_of(&scored).map(|chosen| (chosen, scored))
         }
     };
-    let cutoff = main.as_ref().map_or(spectral.cutoff_hz, |m| m.0);
-    let friction = match options.friction_cutoff_hz {
-        Some(_) => None,
-        None if !SEARCH_FRICTION => None,
-        None => {
-            let candidates = friction_candidates(cutoff, spectral.sample_rate_hz);
-            let scored = score(declared, log, &fixed, &candidates, |f| (cutoff, Some(f)))?;
-            best_of(&scored, Prefer::Lowest).map(|chosen| (chosen, scored))
-        }
-    };
-    let final_options = PreprocessOptions {
-        cutoff_hz: Some(cutoff),
-        friction_cutoff_hz: friction.as_ref().map(|f| f.0).or(options.friction_cutoff_hz),
-        ..fixed
-    };
-    let mut pre = preprocess(log.t, log.q, log.tau, dof, &final_options)?;
-    let span = (floor, spectral.cutoff_hz, search_top(&spectral));
-    pre.choices = explain(&spectral.choices, &pre.choices, span, (&main, &friction));
+    let cutoff = searched.as_ref().map_or(spectral.cutoff_hz, |m| m.0);
+    let mut pre = preprocess(log.t, log.q, log.tau, dof, &PreprocessOptions { cutoff_hz: Some(cutoff), ..fixed })?;
+    pre.choices = explain(&spectral.choices, &pre.choices, (floor, spectral.cutoff_hz, top), &searched);
     Ok(pre)
 }
 
-/// The highest main cut-off tried: [`SEARCH_ABOVE_SPECTRAL`] times the spectral rule's, within a
+/// The highest cut-off tried: [`SEARCH_ABOVE_SPECTRAL`] times the spectral rule's, within a
 /// quarter of the sample rate.
 fn search_top(spectral: &Preprocessed) -> f64 {
     (SEARCH_ABOVE_SPECTRAL * spectral.cutoff_hz).min(0.25 * spectral.sample_rate_hz)
 }
 
-/// Whether the friction velocity's cut-off is searched like the main one. Off: on the demo's
-/// closed-loop log the search picked 26.8 Hz for a fit within 0.1 point of 20 Hz's, and the robust
-/// controller with that model lost the paper's halving of the insertion error (docs/identification.md).
-const SEARCH_FRICTION: bool = false;
-
-/// Which of the cut-offs that fit alike is kept.
-#[derive(Clone, Copy)]
-enum Prefer {
-    /// The main cut-off: the highest bends the signal least.
-    Highest,
-    /// The friction velocity's: the lowest carries the least noise into the Coulomb columns.
-    Lowest,
-}
-
-/// Mean training FP% of an OLS fit at each candidate, whose (main, friction) cut-offs `at` gives;
-/// candidates that cannot be filtered or fitted are left out.
+/// Mean training FP% of an OLS fit at each candidate cut-off (`fs`: the rate `fixed` preprocesses
+/// at); candidates that cannot be filtered or fitted are left out.
 fn score(
     declared: Declared,
     log: Log,
     fixed: &PreprocessOptions,
+    fs: f64,
     candidates: &[f64],
-    at: impl Fn(f64) -> (f64, Option<f64>),
 ) -> Result<Vec<(f64, f64)>, IdentifyError> {
     let Declared { model, base, .. } = declared;
     let dof = model.dof();
-    let fs = log.t.len().saturating_sub(1) as f64 / (log.t[log.t.len() - 1] - log.t[0]);
     let mut scored = Vec::with_capacity(candidates.len());
-    for &candidate in candidates {
-        let (cutoff, friction) = at(candidate);
+    for &cutoff in candidates {
         // The Coulomb columns are shaped from the friction velocity after thinning, so the thinned
         // rate must carry that velocity too, not only the cut-off.
-        let friction_hz = friction_cutoff_hz(friction.or(fixed.friction_cutoff_hz), cutoff, fs);
+        let friction_hz = friction_cutoff_hz(fixed.friction_cutoff_hz, cutoff, fs);
         let thin = ((fs / (SEARCH_SAMPLES_PER_CUTOFF * friction_hz)).floor() as usize).max(1);
-        let trial = PreprocessOptions {
-            cutoff_hz: Some(cutoff),
-            friction_cutoff_hz: friction.or(fixed.friction_cutoff_hz),
-            decimate: thin,
-            ..fixed.clone()
-        };
+        let trial = PreprocessOptions { cutoff_hz: Some(cutoff), decimate: thin, ..fixed.clone() };
         let pre = match preprocess(log.t, log.q, log.tau, dof, &trial) {
             Ok(pre) => pre,
             Err(PreprocessError::DecimationAliases { .. } | PreprocessError::TooShortForCutoff { .. }) => continue,
@@ -125,32 +95,17 @@ fn score(
         };
         // A cut-off at which the parameters cannot be fitted is simply not a candidate.
         if let Ok(f) = fit(model, base, &pre, Method::Ols) {
-            scored.push((candidate, f.metrics.fp_percent.iter().sum::<f64>() / dof as f64));
+            scored.push((cutoff, f.metrics.fp_percent.iter().sum::<f64>() / dof as f64));
         }
     }
     Ok(scored)
 }
 
-/// The candidate kept among those within [`EQUAL_FIT_POINTS`] of the best; `None` when none fitted.
-fn best_of(scored: &[(f64, f64)], prefer: Prefer) -> Option<f64> {
+/// The highest candidate within [`EQUAL_FIT_POINTS`] of the best (it bends the signal least);
+/// `None` when none fitted.
+fn best_of(scored: &[(f64, f64)]) -> Option<f64> {
     let best = scored.iter().map(|s| s.1).reduce(f64::max)?;
-    let alike = |s: &&(f64, f64)| s.1 >= best - EQUAL_FIT_POINTS;
-    match prefer {
-        Prefer::Highest => scored.iter().rev().find(alike),
-        Prefer::Lowest => scored.iter().find(alike),
-    }
-    .map(|s| s.0)
-}
-
-/// The friction velocity's candidate cut-offs: the main cut-off (the velocity the rigid-body
-/// columns see), then doublings up to a quarter of the sample rate, which let through the fast
-/// dither of a joint held by a controller.
-fn friction_candidates(cutoff: f64, fs: f64) -> Vec<f64> {
-    let top = 0.25 * fs;
-    let mut out: Vec<f64> = std::iter::successors(Some(cutoff), |c| Some(2.0 * c)).take_while(|c| *c < top).collect();
-    out.push(top.max(cutoff));
-    out.dedup_by(|a, b| (*a - *b).abs() < 1e-9 * b.abs());
-    out
+    scored.iter().rev().find(|s| s.1 >= best - EQUAL_FIT_POINTS).map(|s| s.0)
 }
 
 /// Geometric steps from `floor` to `top` (both included).
@@ -162,35 +117,29 @@ fn candidate_cutoffs(floor: f64, top: f64) -> Vec<f64> {
     (0..=steps).map(|i| floor * (top / floor).powf(i as f64 / steps as f64)).collect()
 }
 
-/// The spectral choices (period, bandwidth) with the cut-off line replaced by the search's and
-/// the friction line by its search's, the lines that depend on the cut-off from the final
-/// preprocessing, and a warning when the best fit sits at the lowest cut-off tried.
-type Searched = Option<(f64, Vec<(f64, f64)>)>;
-
+/// The spectral choices (period, bandwidth) with the cut-off line replaced by the search's, the
+/// lines that depend on the cut-off from the final preprocessing, and a warning when the best fit
+/// sits at the lowest cut-off tried.
 fn explain(
     spectral: &Choices,
     last: &Choices,
     (floor, rule, top): (f64, f64, f64),
-    (main, friction): (&Searched, &Searched),
+    searched: &Option<(f64, Vec<(f64, f64)>)>,
 ) -> Choices {
-    let figures = |scored: &[(f64, f64)]| {
-        scored.iter().map(|(c, fp)| format!("{c:.2} Hz {fp:.2}")).collect::<Vec<_>>().join(", ")
-    };
-    let fp_at = |scored: &[(f64, f64)], x: f64| scored.iter().find(|s| s.0 == x).map_or(f64::NAN, |s| s.1);
     // The lines that depend on the cut-off come from the final preprocessing.
     let from_last = |r: &String| r.starts_with("Coulomb") || r.contains("left out of the fit");
     let mut reasons: Vec<String> = spectral.reasons.iter().filter(|r| !from_last(r)).cloned().collect();
     let mut warnings = spectral.warnings.clone();
-    if let Some((chosen, scored)) = main {
+    if let Some((chosen, scored)) = searched {
         let at = reasons.iter().position(|r| r.starts_with("cut-off")).unwrap_or(reasons.len());
         let spectral_line = reasons.get(at).cloned().unwrap_or_default();
         let line = format!(
             "cut-off {chosen:.3} Hz: the best least-squares fit (mean FP% {:.2}) of {} cut-offs from {floor:.2} to {top:.2} Hz, \
              around the spectral rule's {rule:.2} Hz ({}); mean FP% by cut-off: {}",
-            fp_at(scored, *chosen),
+            scored.iter().find(|s| s.0 == *chosen).map_or(f64::NAN, |s| s.1),
             scored.len(),
             spectral_line.trim_start_matches(&format!("cut-off {rule:.3} Hz: ")),
-            figures(scored),
+            scored.iter().map(|(c, fp)| format!("{c:.2} Hz {fp:.2}")).collect::<Vec<_>>().join(", "),
         );
         match at < reasons.len() {
             true => reasons[at] = line,
@@ -203,17 +152,7 @@ fn explain(
             ));
         }
     }
-    for line in last.reasons.iter().filter(|r| from_last(r)) {
-        match (line.starts_with("Coulomb"), friction) {
-            (true, Some((chosen, scored))) => reasons.push(format!(
-                "Coulomb columns switch with the velocity filtered at {chosen:.3} Hz: the lowest of the cut-offs that fit \
-                 best (mean FP% {:.2}); mean FP% by friction cut-off: {}",
-                fp_at(scored, *chosen),
-                figures(scored),
-            )),
-            _ => reasons.push(line.clone()),
-        }
-    }
+    reasons.extend(last.reasons.iter().filter(|r| from_last(r)).cloned());
     Choices { reasons, warnings }
 }
 
@@ -222,17 +161,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn friction_candidates_double_from_the_cutoff_to_a_quarter_of_the_rate() {
-        assert_eq!(friction_candidates(3.0, 100.0), vec![3.0, 6.0, 12.0, 24.0, 25.0]);
-        assert_eq!(friction_candidates(25.0, 100.0), vec![25.0]);
-    }
-
-    #[test]
-    fn alike_fits_keep_the_highest_main_and_the_lowest_friction_cutoff() {
+    fn alike_fits_keep_the_highest_cutoff() {
         let scored = [(1.0, 90.0), (2.0, 99.0), (4.0, 99.05), (8.0, 98.0)];
-        assert_eq!(best_of(&scored, Prefer::Highest), Some(4.0));
-        assert_eq!(best_of(&scored, Prefer::Lowest), Some(2.0));
-        assert_eq!(best_of(&[], Prefer::Lowest), None);
+        assert_eq!(best_of(&scored), Some(4.0));
+        assert_eq!(best_of(&[]), None);
     }
 
     #[test]

@@ -33,8 +33,8 @@ pub struct Args {
     /// Butterworth order (applied forward and backward).
     #[arg(long, default_value_t = PreprocessOptions::default().order)]
     order: usize,
-    /// Cut-off of the velocity that switches Coulomb friction (Hz); default: chosen by the fit,
-    /// from the main cut-off up to a quarter of the sample rate.
+    /// Cut-off of the velocity that switches Coulomb friction (Hz); default 20, kept within
+    /// [cut-off, a quarter of the sample rate].
     #[arg(long)]
     friction_cutoff: Option<f64>,
     /// Coulomb friction as tanh(q̇/ε) with this ε (rad/s or m/s) instead of sign(q̇); the

@@ -138,9 +138,9 @@ def identify(
     period_s: the period, when it is known but not how many the log holds.
     cutoff_hz: the low-pass cut-off (None: the best fit over cut-offs around 5 × the highest
     frequency of the motion). order: Butterworth order. decimate: keep every k-th filtered
-    sample. friction_cutoff_hz: the cut-off of the velocity that switches Coulomb friction (None:
-    chosen by the fit too). pull: the consistent fit's pull toward CAD. stiffness_bounds: the
-    cable stiffness's (lower, upper). None keeps arash's default for each (docs/identification.md).
+    sample. friction_cutoff_hz: the cut-off of the velocity that switches Coulomb friction
+    (None: 20 Hz, kept within [cut-off, fs/4]). pull: the consistent fit's pull toward CAD.
+    stiffness_bounds: the cable stiffness's (lower, upper). None keeps arash's default for each (docs/identification.md).
     motor_side: a ``Transmission`` when q and tau are motor angles and motor torques.
 
     ``Identification.settings`` says what was chosen and why; a choice the data support only
