@@ -5,7 +5,8 @@ make, against hand-set cut-offs and, for the TX40, upstream's published friction
 
 KUKA LWR4+: train on run 1, predict runs 2 and 3 (‖e‖/‖τ‖ and FP% per joint). TX40: the
 motor-side log through the declared transmission; identified viscous and Coulomb friction against
-TX40_bp_5.csv (value and its stated σ%). Prints Markdown tables for docs/real-data.md.
+TX40_bp_5.csv (value and its stated σ%), z being the difference over the two σ combined. Prints
+Markdown tables for docs/real-data.md.
 """
 
 import csv
@@ -69,19 +70,22 @@ def tx40():
     print(f"\n### Stäubli TX40 ({seconds:.2f} s to identify with the defaults)\n")
     print(f"defaults: cut-off {default.cutoff_hz:.2f} Hz, training FP% {np.round(default.fp_percent, 1)}; "
           f"best hand-set cut-off {best_c:g} Hz, FP% {np.round(hand[best_c].fp_percent, 1)}\n")
-    print("| parameter | published (σ%) | defaults (σ%) | hand-set (σ%) | within published 3σ |")
-    print("|---|---|---|---|---|")
+    print("| parameter | published (σ%) | defaults (σ%) | z | hand-set (σ%) | z |")
+    print("|---|---|---|---|---|---|")
+
+    def z(ident, j, value, sigma):
+        combined = np.hypot(sigma / 100 * abs(value), ident.sigma_percent[j] / 100 * abs(ident.beta[j]))
+        return (ident.beta[j] - value) / combined
+
     for k in range(1, 7):
         for ours, theirs in ((f"joint_{k}.fv", f"fv{k}"), (f"joint_{k}.fc", f"fs{k}")):
             if ours not in names:
                 continue
             j = names.index(ours)
             value, sigma = published[theirs]
-            got, got_sigma = default.beta[j], default.sigma_percent[j]
-            h, h_sigma = hand[best_c].beta[j], hand[best_c].sigma_percent[j]
-            within = abs(got - value) <= 3 * sigma / 100 * abs(value)
-            print(f"| {ours} | {value:.3f} ({sigma:.1f}) | {got:.3f} ({got_sigma:.1f}) | {h:.3f} ({h_sigma:.1f}) | "
-                  f"{'yes' if within else 'no'} |")
+            cells = [f"{i.beta[j]:.3f} ({i.sigma_percent[j]:.1f}) | {z(i, j, value, sigma):+.1f}"
+                     for i in (default, hand[best_c])]
+            print(f"| {ours} | {value:.3f} ({sigma:.1f}) | " + " | ".join(cells) + " |")
     print("\nreasons:\n" + "\n".join(f"- {r}" for r in default.settings["reasons"]))
 
 

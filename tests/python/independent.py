@@ -101,6 +101,8 @@ TANH_EPSILON = 0.01
 # A linear encoder's stroke over its counts (m), for prismatic joints.
 LINEAR_STROKE_M = 0.2
 HARMONICS = 5
+# An aperiodic log's sines have random frequencies up to this (Hz).
+APERIODIC_TOP_HZ = 0.5
 
 
 @dataclass(frozen=True)
@@ -116,6 +118,16 @@ class Condition:
     # Follow arash's designed excitation (trajectories/excitation_L5_T15.json, evaluated here from
     # the paper's formula) instead of a random Fourier series; `duration / periods` must be its period.
     designed: bool = False
+
+    @property
+    def top_frequency(self) -> float:
+        """The highest frequency of the trajectory's positions (Hz)."""
+        if self.designed:
+            spec = json.loads(DESIGNED.read_text())
+            return spec["harmonics"] / spec["period_s"]
+        if self.periods:
+            return HARMONICS * self.periods / self.duration
+        return APERIODIC_TOP_HZ
 
     @property
     def label(self) -> str:
@@ -167,7 +179,7 @@ def trajectory(robot, condition, rng):
         freqs = np.tile(base * np.arange(1, HARMONICS + 1), (dof, 1))
         amps = rng.uniform(0.3, 1.0, (dof, HARMONICS)) / np.arange(1, HARMONICS + 1)
     else:
-        freqs = rng.uniform(0.05, 0.5, (dof, HARMONICS))
+        freqs = rng.uniform(0.05, APERIODIC_TOP_HZ, (dof, HARMONICS))
         amps = rng.uniform(0.3, 1.0, (dof, HARMONICS))
     phases = rng.uniform(0, 2 * np.pi, (dof, HARMONICS))
     w = 2 * np.pi * freqs

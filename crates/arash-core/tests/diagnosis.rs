@@ -5,6 +5,7 @@
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::control::{standard_controller, ControllerKind, RobustGains, Trajectory};
 use arash_core::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
+use arash_core::identify::preprocess::PreprocessOptions;
 use arash_core::identify::{identify, Declared, IdentifyOptions, Log};
 use arash_core::model_file::{IdentifyMethod, ModelFile};
 use arash_core::sim::{Rig, Scenario};
@@ -87,7 +88,6 @@ fn diagnose_scenario(scenario: &str, seed: u64, against: Against, validation: bo
     let options = DiagnoseOptions {
         transmission: Some(transmission()),
         hold_friction: against == Against::TruthWithFriction,
-        friction_cutoff_hz: std::env::var("FCUT").ok().map(|x| x.parse().unwrap()),
         ..DiagnoseOptions::default()
     };
     diagnose(
@@ -427,7 +427,8 @@ fn the_consistent_refit_with_the_effects_found_is_physical_and_tracks_the_wiring
     assert_eq!(d.accepted[0].name, "configuration_disturbance", "{}", d.report());
     assert_eq!(d.accepted[0].joints, vec![1]);
     let consistent = arash_core::identify::consistent::ConsistentOptions::default();
-    let refit_options = DiagnoseOptions { cutoff_hz: plain.settings.cutoff_hz, ..options };
+    let preprocess = PreprocessOptions { cutoff_hz: Some(plain.settings.cutoff_hz), ..options.preprocess.clone() };
+    let refit_options = DiagnoseOptions { preprocess, ..options };
     let refit =
         arash_core::diagnose::consistent_with_effects(&model, &base, log, &d.model, &refit_options, &consistent)
             .unwrap();

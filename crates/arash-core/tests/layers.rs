@@ -34,7 +34,10 @@ const CORE: &[&str] = &[
 /// The files of arash-core's folder modules, leaf first (`mod.rs` is the folder's own face).
 const FOLDERS: &[(&str, &[&str])] = &[
     ("control", &["gains", "safety", "fourier", "trajectory", "estimator", "feedforward", "laws"]),
-    ("identify", &["filter", "decide", "preprocess", "estimate", "cutoff", "consistent", "excitation"]),
+    (
+        "identify",
+        &["filter", "decide", "signals", "friction", "preprocess", "estimate", "cutoff", "consistent", "excitation"],
+    ),
     (
         "diagnose",
         &[

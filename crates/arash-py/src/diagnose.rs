@@ -19,10 +19,11 @@ use pyo3::types::PyDict;
 
 use crate::identify::{log_arrays, Identification};
 use crate::{to_numpy, value_error, NumpyArray, Robot};
+use arash_core::identify::preprocess::PreprocessOptions;
 
 /// The diagnosis's settings. `DiagnoseOptions()` holds the defaults; `DiagnoseOptions(alpha=0.05)`
 /// changes one. `consistent` and `consistent_cutoff_hz` ask for the physically consistent refit
-/// with the effects found (its cut-off defaults to `cutoff_hz`).
+/// with the effects found (its cut-off defaults to the diagnosis's).
 #[pyclass(module = "arash._arash", name = "DiagnoseOptions")]
 #[derive(Clone)]
 pub(crate) struct DiagnoseOptions {
@@ -43,9 +44,19 @@ impl DiagnoseOptions {
         }
         Ok(options)
     }
+    /// The cut-off set, or None: the diagnosis's own (20 Hz, at most a fifth of the rate).
     #[getter]
-    fn cutoff_hz(&self) -> f64 {
-        self.inner.cutoff_hz
+    fn cutoff_hz(&self) -> Option<f64> {
+        self.inner.preprocess.cutoff_hz
+    }
+    /// The friction velocity's cut-off set, or None: chosen by the fit.
+    #[getter]
+    fn friction_cutoff_hz(&self) -> Option<f64> {
+        self.inner.preprocess.friction_cutoff_hz
+    }
+    #[getter]
+    fn order(&self) -> usize {
+        self.inner.preprocess.order
     }
     #[getter]
     fn block_s(&self) -> f64 {
@@ -97,8 +108,8 @@ impl DiagnoseOptions {
     }
     fn __repr__(&self) -> String {
         format!(
-            "DiagnoseOptions(cutoff_hz={}, block_s={}, alpha={}, min_gain={}, effects={:?})",
-            self.inner.cutoff_hz,
+            "DiagnoseOptions(cutoff_hz={:?}, block_s={}, alpha={}, min_gain={}, effects={:?})",
+            self.inner.preprocess.cutoff_hz,
             self.inner.block_s,
             self.inner.alpha,
             self.inner.min_gain,
@@ -113,7 +124,9 @@ impl DiagnoseOptions {
     fn set(&mut self, key: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
         let o = &mut self.inner;
         match key {
-            "cutoff_hz" => o.cutoff_hz = value.extract()?,
+            "cutoff_hz" => o.preprocess.cutoff_hz = value.extract()?,
+            "friction_cutoff_hz" => o.preprocess.friction_cutoff_hz = value.extract()?,
+            "order" => o.preprocess.order = value.extract()?,
             "block_s" => o.block_s = value.extract()?,
             "alpha" => o.alpha = value.extract()?,
             "min_gain" => o.min_gain = value.extract()?,
@@ -373,8 +386,10 @@ fn _diagnose<'py>(
             let consistent = options
                 .consistent
                 .then(|| {
-                    let cutoff_hz = options.consistent_cutoff_hz.unwrap_or(options.inner.cutoff_hz);
-                    let refit = CoreOptions { cutoff_hz, ..options.inner.clone() };
+                    let cutoff_hz = options.consistent_cutoff_hz.unwrap_or(inner.settings.cutoff_hz);
+                    let preprocess =
+                        PreprocessOptions { cutoff_hz: Some(cutoff_hz), ..options.inner.preprocess.clone() };
+                    let refit = CoreOptions { preprocess, ..options.inner.clone() };
                     let solver = ConsistentOptions::default();
                     consistent_with_effects(&robot_model, base, train, &inner.model, &refit, &solver)
                 })

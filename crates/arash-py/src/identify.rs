@@ -180,9 +180,11 @@ impl Identification {
     ) -> PyResult<Bound<'py, PyDict>> {
         let (t, q, tau) = log_arrays(&t, &q, &tau, self.model.dof())?;
         let options = PreprocessOptions { periods, order: self.inner.settings.order, ..Default::default() };
-        let m = py.detach(|| validate(&self.model, &self.inner, &t, &q, &tau, &options)).map_err(value_error)?;
+        let v = py.detach(|| validate(&self.model, &self.inner, &t, &q, &tau, &options)).map_err(value_error)?;
+        let (m, dof) = (v.metrics, self.model.dof());
         let dict = PyDict::new(py);
-        let dof = self.model.dof();
+        dict.set_item("cutoff_hz", v.cutoff_hz)?;
+        dict.set_item("reasons", v.reasons)?;
         dict.set_item("fp_percent", to_numpy(py, m.fp_percent, false, dof, &[])?)?;
         dict.set_item("rel", to_numpy(py, m.relative_error, false, dof, &[])?)?;
         dict.set_item("rms", to_numpy(py, m.rms, false, dof, &[])?)?;

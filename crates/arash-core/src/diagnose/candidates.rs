@@ -34,7 +34,7 @@ pub(super) fn candidates(
             joint: k,
             span: (lo, hi),
             speed_rms: (vk.iter().map(|v| v * v).sum::<f64>() / vk.len() as f64).sqrt(),
-            epsilon: match train.pre.coulomb_shape(model.coulomb_shape, k) {
+            epsilon: match model.coulomb_shape {
                 CoulombShape::Tanh { epsilon } => Some(epsilon),
                 CoulombShape::Sign => None,
             },

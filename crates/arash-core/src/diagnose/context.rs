@@ -41,9 +41,11 @@ impl<'a> Context<'a> {
         options: &'a DiagnoseOptions,
     ) -> Result<Self, DiagnoseError> {
         let margin = options.max_delay_s;
-        let train = prepare(model, base, train, options, margin).map_err(DiagnoseError::Training)?;
+        let train = prepare(model, base, train, (options, None), margin).map_err(DiagnoseError::Training)?;
+        // The held-out log's friction switches with the velocity chosen on the training log.
+        let friction = Some(train.pre.friction_cutoff_hz);
         let validation = validation
-            .map(|v| prepare(model, base, v, options, margin))
+            .map(|v| prepare(model, base, v, (options, friction), margin))
             .transpose()
             .map_err(DiagnoseError::Validation)?;
         if let Some(g) = given {

@@ -8,7 +8,7 @@ use super::prepare::Prepared;
 use super::problem::{block_split, sse, Problem};
 use super::regression::{gram, least_squares, residual, rhs, solve_scaled, test_group, Column, Rows};
 use crate::effects::{EffectKind, EffectTerm};
-use crate::identify::preprocess::central_difference;
+use crate::identify::signals::central_difference;
 
 /// Search an integer shift of the torque against the position, and accept it only if it is
 /// significant (a block Wald test of the linearised delay, the derivative of the predicted

@@ -170,6 +170,12 @@ pub struct ErrorSummary {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct DiagnoseSettings {
     pub cutoff_hz: f64,
+    /// The cut-off of the velocity the Coulomb columns switch with (Hz).
+    #[serde(default)]
+    pub friction_cutoff_hz: Option<f64>,
+    /// The preprocessing's choices and why (as in a model file).
+    #[serde(default)]
+    pub reasons: Vec<String>,
     pub decimate: usize,
     pub block_s: f64,
     pub blocks: usize,

@@ -1,15 +1,27 @@
 //! The settings of a diagnosis: one home for its defaults, and their validation.
 
 use crate::effects::EffectKind;
-use crate::identify::preprocess::PreprocessError;
+use crate::identify::preprocess::{PreprocessError, PreprocessOptions};
 use crate::identify::IdentifyError;
+
+/// The diagnosis's cut-off when the user sets none (Hz), at most [`DIAGNOSIS_CUTOFF_SHARE`] of
+/// the sample rate: far above identification's, so that ripple, friction transitions and delays
+/// survive the filter; where the diagnosis's false-positive rate was measured (docs/diagnosis.md).
+pub const DIAGNOSIS_CUTOFF_HZ: f64 = 20.0;
+
+/// ... and at most this share of the sample rate, so that the residual keeps five samples per
+/// cut-off period after thinning.
+pub const DIAGNOSIS_CUTOFF_SHARE: f64 = 0.2;
 
 /// Settings of [`super::diagnose`]; `Default` gives the documented defaults.
 #[derive(Clone, Debug)]
 pub struct DiagnoseOptions {
-    /// Low-pass cut-off of every signal (Hz). Higher than identification's, so that ripple and
-    /// friction transitions survive; capped at a fifth of the sample rate.
-    pub cutoff_hz: f64,
+    /// Preprocessing, in the settings identification takes: `cutoff_hz` (`None`:
+    /// [`DIAGNOSIS_CUTOFF_HZ`], at most [`DIAGNOSIS_CUTOFF_SHARE`] of the sample rate),
+    /// `friction_cutoff_hz` (`None`: chosen by the fit, as identification chooses it) and `order`.
+    /// The diagnosis reads residuals in time, so it never averages periods, and it thins with
+    /// `decimate` below.
+    pub preprocess: PreprocessOptions,
     /// Keep every n-th filtered sample (`None`: about five samples per cut-off period).
     pub decimate: Option<usize>,
     /// Length of the blocks of time that are the unit of the Wald test and of the held-out split
@@ -37,8 +49,6 @@ pub struct DiagnoseOptions {
     /// flips at full amplitude on every noisy zero crossing, which the measured friction does
     /// not do, and leaves a residual that looks like Stribeck friction.
     pub coulomb_epsilon: Option<f64>,
-    /// Cut-off of the velocity that switches friction (Hz); `None`: identification's default.
-    pub friction_cutoff_hz: Option<f64>,
     /// With a given model: hold its friction too (default: refit friction, which drifts with
     /// temperature and depends on how its velocity was estimated).
     pub hold_friction: bool,
@@ -50,7 +60,7 @@ pub struct DiagnoseOptions {
 impl Default for DiagnoseOptions {
     fn default() -> Self {
         Self {
-            cutoff_hz: 20.0,
+            preprocess: PreprocessOptions::default(),
             decimate: None,
             block_s: 2.0,
             alpha: 0.01,
@@ -63,7 +73,6 @@ impl Default for DiagnoseOptions {
             effects: EffectKind::ALL.to_vec(),
             hold_friction: false,
             coulomb_epsilon: Some(1e-3),
-            friction_cutoff_hz: None,
             refit: false,
         }
     }
@@ -72,12 +81,11 @@ impl Default for DiagnoseOptions {
 impl DiagnoseOptions {
     /// Check every setting before any work starts; `dof` is the robot's.
     pub fn validate(&self, dof: usize) -> Result<(), OptionsError> {
+        self.preprocess.validate().map_err(OptionsError::Preprocess)?;
         let positive = [
-            ("cutoff_hz", self.cutoff_hz),
             ("block_s", self.block_s),
             ("max_vif", self.max_vif),
             ("coulomb_epsilon", self.coulomb_epsilon.unwrap_or(1.0)),
-            ("friction_cutoff_hz", self.friction_cutoff_hz.unwrap_or(1.0)),
         ];
         if let Some((name, value)) = positive.into_iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
             return Err(OptionsError::NotPositive { name, value });
@@ -115,6 +123,24 @@ pub enum OptionsError {
     OutOfRange { name: &'static str, value: f64, range: &'static str },
     #[error("transmission needs {dof} positive values, one per joint; got {got:?}")]
     Transmission { dof: usize, got: Vec<f64> },
+    #[error(transparent)]
+    Preprocess(PreprocessError),
+}
+
+impl DiagnoseOptions {
+    /// The preprocessing a log at `fs` Hz gets: the user's settings, the diagnosis's cut-off
+    /// when none is set, no averaging, derivatives not filtered again (they pass the filter once,
+    /// as the torque does), and no thinning before the diagnosis's own.
+    pub fn preprocessing(&self, fs: f64) -> PreprocessOptions {
+        PreprocessOptions {
+            periods: Some(1),
+            period_s: None,
+            cutoff_hz: Some(self.preprocess.cutoff_hz.unwrap_or(DIAGNOSIS_CUTOFF_HZ.min(DIAGNOSIS_CUTOFF_SHARE * fs))),
+            decimate: 1,
+            filter_derivatives: false,
+            ..self.preprocess.clone()
+        }
+    }
 }
 
 #[derive(Debug, thiserror::Error)]

@@ -6,8 +6,9 @@ use super::regression::Column;
 use crate::base_parameters::BaseParameters;
 use crate::data::Data;
 use crate::effects::{EffectKind, EffectTerm, TermState};
-use crate::identify::preprocess::{preprocess, PreprocessError, PreprocessOptions, Preprocessed};
-use crate::identify::Log;
+use crate::identify::cutoff::preprocess_for_fit;
+use crate::identify::preprocess::{PreprocessError, PreprocessOptions, Preprocessed};
+use crate::identify::{Declared, Log};
 use crate::model::Model;
 use crate::regressor::regressor;
 
@@ -52,26 +53,26 @@ impl Prepared {
     }
 }
 
+/// Prepare `log` for the diagnosis: filtered at the diagnosis's cut-off, its Coulomb columns
+/// switching with `friction_hz` or, when `None`, with the velocity the fit chooses (exactly as
+/// identification chooses it), and trimmed by `margin_s` at each end.
 pub(super) fn prepare(
     model: &Model,
     base: &BaseParameters,
     log: Log,
-    options: &DiagnoseOptions,
+    (options, friction_hz): (&DiagnoseOptions, Option<f64>),
     margin_s: f64,
 ) -> Result<Prepared, PreprocessError> {
     let dof = model.dof();
     let dt = crate::identify::preprocess::validate_log(log.t, log.q, log.tau, dof)?;
     let fs = 1.0 / dt;
-    let cutoff_hz = options.cutoff_hz.min(fs / 5.0);
-    // The diagnosis reads residuals in time (blocks, delays), so it never averages periods.
     let pre_options = PreprocessOptions {
-        periods: Some(1),
-        cutoff_hz: Some(cutoff_hz),
-        filter_derivatives: false,
-        friction_cutoff_hz: options.friction_cutoff_hz,
-        ..PreprocessOptions::default()
+        friction_cutoff_hz: friction_hz.or(options.preprocess.friction_cutoff_hz),
+        ..options.preprocessing(fs)
     };
-    let pre = preprocess(log.t, log.q, log.tau, dof, &pre_options)?;
+    let declared = Declared { model, base, urdf: "" };
+    let pre = preprocess_for_fit(declared, log, &pre_options)?;
+    let cutoff_hz = pre.cutoff_hz;
     let stride = options.decimate.unwrap_or(((fs / (5.0 * cutoff_hz)).floor() as usize).max(1)).max(1);
     let n = pre.samples();
     let margin = ((margin_s * fs).ceil() as usize).max(pre.settled.start);
@@ -134,13 +135,11 @@ pub(super) fn full_columns(model: &Model, pre: &Preprocessed, kept: &[usize]) ->
             }
         }
     }
+    let coulomb = pre.coulomb_columns(model.coulomb_shape);
     for k in 0..dof {
         let j = model.layout().coulomb(k);
-        let shape = pre.coulomb_shape(model.coulomb_shape, k);
-        let full: Vec<f64> = (0..pre.samples()).map(|s| shape.eval(pre.qd_friction[s * dof + k])).collect();
-        let filtered = pre.filter_like_torque(&full, 1).expect("the torque was filtered with these settings");
         for (s, &i) in kept.iter().enumerate() {
-            columns[j][s * dof + k] = filtered[i];
+            columns[j][s * dof + k] = coulomb[i * dof + k];
         }
     }
     columns

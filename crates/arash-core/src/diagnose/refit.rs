@@ -34,7 +34,7 @@ pub fn consistent_with_effects(
     consistent: &ConsistentOptions,
 ) -> Result<ModelFile, DiagnoseError> {
     let (dof, standard) = (model.dof(), model.num_params());
-    let data = prepare(model, base, train, options, options.max_delay_s).map_err(DiagnoseError::Training)?;
+    let data = prepare(model, base, train, (options, None), options.max_delay_s).map_err(DiagnoseError::Training)?;
     let delay = found
         .effects
         .iter()

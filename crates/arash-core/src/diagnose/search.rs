@@ -322,6 +322,8 @@ impl Search<'_> {
             after,
             settings: DiagnoseSettings {
                 cutoff_hz: ctx.train.pre.cutoff_hz,
+                friction_cutoff_hz: Some(ctx.train.pre.friction_cutoff_hz),
+                reasons: ctx.train.pre.choices.reasons.clone(),
                 decimate: ctx.train.stride(),
                 block_s: options.block_s,
                 blocks: ctx.block_count,

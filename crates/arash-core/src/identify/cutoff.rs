@@ -1,158 +1,431 @@
-//! The cut-off identification uses when the user sets none.
+//! The cut-offs identification uses when the user sets none: the low-pass cut-off of every signal,
+//! and that of the velocity the Coulomb columns switch with.
 //!
-//! The positions' spectrum bounds the motion ([`super::decide`]), but not everything that moves
-//! is what the model explains: a closed-loop log repeats, period after period, a controller's
-//! response at several hertz that the rigid-body model with friction does not reproduce, and that
-//! costs the fit more than the noise a lower cut-off would let through. So the cut-off is chosen
-//! by the fit itself: ordinary least squares at cut-offs from the lowest the log allows
-//! ([`lowest_cutoff_hz`]) up to [`SEARCH_ABOVE_SPECTRAL`] times the spectral rule's value, the one
-//! that explains the filtered torque best. A cut-off below the
-//! motion's bandwidth bends the signal, which the fit shows at once, so the choice cannot run off
-//! to the lowest value; between cut-offs that fit alike the highest is kept.
-//! docs/identification.md ("Choices made from the data") gives the measurements.
+//! Each is chosen by what the model fitted with it explains, judged where the choice cannot
+//! flatter itself (docs/identification.md, "Preprocessing", gives the measurements):
+//!
+//! - **The friction velocity**, at a given cut-off, by the training fit. Every candidate is
+//!   judged against the same filtered torque with the same parameters, so the best fit is the
+//!   velocity whose switching explains the torque best: a fast one where a controlled joint
+//!   dithers around zero speed, the main cut-off where a faster one only lets encoder noise flip
+//!   the sign.
+//! - **The cut-off** by the fitted model's prediction of the torque *before* filtering. Judged
+//!   against its own filtered torque every cut-off would look better the lower it is, because
+//!   filtering takes the noise out of the target along with the motion. The unfiltered torque is
+//!   one target for all: a cut-off too low loses motion the model needs, one too high lets the
+//!   encoders' noise into q̈, and both show as a larger error.
+//!
+//! The candidates run from the lowest cut-off the log allows to [`SEARCH_ABOVE_SPECTRAL`] times
+//! the one the motion's spectrum suggests ([`super::decide`]), within a quarter of the sample rate.
 
-use super::estimate::{fit, Method};
+use super::estimate::{coulomb_positions, filter_each_column, fit_stacked, put_coulomb, regressor_rows, Method};
+use super::filter::Butterworth;
 use super::preprocess::{
-    friction_cutoff_hz, lowest_cutoff_hz, preprocess, Choices, PreprocessError, PreprocessOptions, Preprocessed,
+    edge_limited_cutoff_hz, preprocess, Choices, PreprocessError, PreprocessOptions, Preprocessed, MIN_CUTOFF_HZ,
 };
-use super::{Declared, IdentifyError, Log};
+use super::signals::filter_columns;
+use super::{Declared, Log};
 
 /// Cut-offs tried per doubling: a step of 19 %, which changes the fit by far less than a point.
-pub const CUTOFFS_PER_OCTAVE: f64 = 4.0;
+pub const CUTOFFS_PER_OCTAVE: usize = 4;
 
-/// The search goes this far above the spectral rule's cut-off: the torque holds products and
-/// harmonics of the motion (Coriolis terms, gravity's sine of the angle) above the motion's own
-/// bandwidth, and on some logs they matter more than the noise a higher cut-off lets in.
+/// The search goes this far above the cut-off the motion's spectrum suggests: the torque holds
+/// products and harmonics of the motion (Coriolis terms, gravity's sine of the angle) above the
+/// motion's own bandwidth, and a closed loop's fast response shows in it.
 pub const SEARCH_ABOVE_SPECTRAL: f64 = 4.0;
 
-/// Cut-offs whose mean FP% is within this many points of the best count as equally good; the
-/// highest of them is chosen, because it bends the signal least.
-pub const EQUAL_FIT_POINTS: f64 = 0.1;
+/// A candidate is fitted on the log thinned to this many samples per period of its cut-off,
+/// after filtering: the fit's figures do not change, and the search is several times faster on
+/// long logs.
+const SAMPLES_PER_CUTOFF: f64 = 20.0;
 
-/// The candidate's samples are thinned to at least this many per period of the highest cut-off
-/// in play (the friction velocity's), which leaves the fit's figures unchanged and the search
-/// several times faster on long logs.
-const SEARCH_SAMPLES_PER_CUTOFF: f64 = 20.0;
+/// At most this many samples are fitted per candidate velocity, and this many scored per
+/// cut-off: evenly spread, they give the fits' figures as all of a long log's would (to a few
+/// hundredths of a point), at a bounded cost.
+const MOST_FITTED: usize = 4_000;
+const MOST_SCORED: usize = 10_000;
 
-/// The log preprocessed at the cut-off that fits best, its choices saying why. A cut-off the user
-/// set is kept.
-///
-/// The friction velocity's cut-off is not searched: on the demo's closed-loop log a search by the
-/// same criterion picked 26.8 Hz for a fit within 0.1 point of 20 Hz's, and the robust controller
-/// with that model lost the paper's halving of the insertion error (docs/identification.md).
+/// Every `step`-th of `range`, with `step` at least `least` and large enough to keep at most
+/// `most`.
+fn spread(range: std::ops::Range<usize>, least: usize, most: usize) -> Vec<usize> {
+    let step = least.max(range.len().div_ceil(most)).max(1);
+    range.step_by(step).collect()
+}
+
+/// A cut-off predicts as well as the best when its prediction's extra squared error is within
+/// this many standard errors of nothing (a one-sided test at about 2 %). Among those, the one
+/// whose model explains its own filtered torque best is kept: usually the lowest, which takes the
+/// most noise out of the signals without losing what the model explains.
+pub const EQUAL_PREDICTION_SIGMAS: f64 = 2.0;
+
+/// ... and no more than this many points of mean FP% below it: a difference the test cannot
+/// resolve on a short or badly explained log is still not ignored when it is this large (the
+/// issue's own notion of fitting "as well").
+pub const EQUAL_PREDICTION_POINTS: f64 = 1.0;
+
+/// Blocks of the paired comparison span this many periods of the lowest cut-off: the
+/// difference between two filtered models' errors is correlated over the filters' memory...
+const COMPARISON_BLOCK_PERIODS: f64 = 2.0;
+
+/// ... but are never fewer than this: a standard error from fewer blocks is itself too uncertain
+/// to tell anything apart (a log a few periods of its lowest cut-off long).
+const COMPARISON_BLOCKS: usize = 10;
+
+/// The search starts at [`MIN_CUTOFF_HZ`], or lower for a slow motion: at this many times its
+/// bandwidth, below which the forward–backward Butterworth bends the motion's highest harmonic
+/// by more than 0.1 % (order 5: |H|² = 1/(1 + 0.5¹⁰)). A cut-off that bends what the torque
+/// depends on predicts the unfiltered torque worse, and is not chosen.
+pub const SEARCH_FROM_BANDWIDTH: f64 = 2.0;
+
+/// The friction velocity's candidates are one octave apart: the fit changes little within one.
+const FRICTION_STEP: usize = CUTOFFS_PER_OCTAVE;
+
+/// One candidate cut-off, with the friction velocity that fitted best at it.
+#[derive(Clone, Debug)]
+struct Trial {
+    cutoff_hz: f64,
+    friction_hz: f64,
+    /// Mean over the joints of FP% on the unfiltered torque.
+    predicted_fp: f64,
+    /// Squared error of that prediction at each scored sample, each joint's over its torque's
+    /// variance, summed over the joints: what the cut-offs are compared by.
+    errors: Vec<f64>,
+    /// Mean training FP% of each friction velocity tried: what chose it.
+    frictions: Vec<(f64, f64)>,
+    /// Mean training FP% with the chosen one: what breaks ties between cut-offs.
+    training_fp: f64,
+}
+
+/// The log preprocessed at the cut-offs that explain it best, its choices saying why. What the
+/// user set is kept.
 pub fn preprocess_for_fit(
     declared: Declared,
     log: Log,
     options: &PreprocessOptions,
-) -> Result<Preprocessed, IdentifyError> {
+) -> Result<Preprocessed, PreprocessError> {
     let dof = declared.model.dof();
-    let spectral = preprocess(log.t, log.q, log.tau, dof, options)?;
-    // The period found once is kept for every candidate.
-    let fixed = PreprocessOptions { period_s: spectral.period_s, periods: Some(1), ..options.clone() };
-    let floor = lowest_cutoff_hz(log.t.len(), spectral.sample_rate_hz, spectral.periodic);
-    let top = search_top(&spectral);
-    let searched = match options.cutoff_hz {
-        Some(_) => None,
-        None => {
-            let scored = score(declared, log, &fixed, spectral.sample_rate_hz, &candidate_cutoffs(floor, top))?;
-            best_of(&scored).map(|chosen| (chosen, scored))
-        }
+    let coulomb = !coulomb_positions(declared.model, &declared.base.independent).is_empty();
+    if options.cutoff_hz.is_some() && (options.friction_cutoff_hz.is_some() || !coulomb) {
+        return preprocess(log.t, log.q, log.tau, dof, options);
+    }
+    // The period, the rate and the spectral rule, found once; every candidate keeps the period.
+    let reference = preprocess(log.t, log.q, log.tau, dof, &PreprocessOptions { decimate: 1, ..options.clone() })?;
+    let fixed = PreprocessOptions { period_s: reference.period_s, periods: Some(1), decimate: 1, ..options.clone() };
+    let search = Search::new(declared, log, &reference, &fixed);
+    let cutoffs = match options.cutoff_hz {
+        Some(cutoff) => vec![cutoff],
+        None => search.grid.iter().copied().take_while(|c| *c <= search.top * (1.0 + 1e-9)).collect(),
     };
-    let cutoff = searched.as_ref().map_or(spectral.cutoff_hz, |m| m.0);
-    let mut pre = preprocess(log.t, log.q, log.tau, dof, &PreprocessOptions { cutoff_hz: Some(cutoff), ..fixed })?;
-    pre.choices = explain(&spectral.choices, &pre.choices, (floor, spectral.cutoff_hz, top), &searched);
+    let mut trials = Vec::with_capacity(cutoffs.len());
+    for &cutoff in &cutoffs {
+        if let Some(trial) = search.trial(cutoff, options.friction_cutoff_hz)? {
+            trials.push(trial);
+        }
+    }
+    let Some(best) = chosen(&trials, search.block_rows()).cloned() else {
+        // No candidate could be fitted: preprocess as asked, and let the fit say why.
+        return preprocess(log.t, log.q, log.tau, dof, options);
+    };
+    let chosen = PreprocessOptions {
+        cutoff_hz: Some(best.cutoff_hz),
+        friction_cutoff_hz: Some(best.friction_hz),
+        decimate: options.decimate,
+        ..fixed
+    };
+    let mut pre = preprocess(log.t, log.q, log.tau, dof, &chosen)?;
+    pre.choices = explain(&reference, &pre.choices, options, &trials, (&best, search.length_limited));
     Ok(pre)
 }
 
-/// The highest cut-off tried: [`SEARCH_ABOVE_SPECTRAL`] times the spectral rule's, within a
-/// quarter of the sample rate.
-fn search_top(spectral: &Preprocessed) -> f64 {
-    (SEARCH_ABOVE_SPECTRAL * spectral.cutoff_hz).min(0.25 * spectral.sample_rate_hz)
+/// What every trial shares: the model, the log, the grid of cut-offs, and the friction
+/// velocities' Coulomb directions, computed once per cut-off of the grid.
+struct Search<'a> {
+    declared: Declared<'a>,
+    log: Log<'a>,
+    fixed: &'a PreprocessOptions,
+    reference: &'a Preprocessed,
+    /// Cut-offs [`CUTOFFS_PER_OCTAVE`] per octave from the lowest worth trying to a quarter of
+    /// the sample rate; the main cut-off's candidates stop at `top`.
+    grid: Vec<f64>,
+    top: f64,
+    /// Whether the lowest was set by the log's length (the filter's start-up at its ends).
+    length_limited: bool,
+    /// The samples every candidate is scored on: clear of the filter's start-up at the lowest
+    /// cut-off, so that all are scored alike.
+    scored: Vec<usize>,
+    directions: std::cell::RefCell<Vec<Option<Vec<f64>>>>,
 }
 
-/// Mean training FP% of an OLS fit at each candidate cut-off (`fs`: the rate `fixed` preprocesses
-/// at); candidates that cannot be filtered or fitted are left out.
-fn score(
-    declared: Declared,
-    log: Log,
-    fixed: &PreprocessOptions,
-    fs: f64,
-    candidates: &[f64],
-) -> Result<Vec<(f64, f64)>, IdentifyError> {
-    let Declared { model, base, .. } = declared;
-    let dof = model.dof();
-    let mut scored = Vec::with_capacity(candidates.len());
-    for &cutoff in candidates {
-        // The Coulomb columns are shaped from the friction velocity after thinning, so the thinned
-        // rate must carry that velocity too, not only the cut-off.
-        let friction_hz = friction_cutoff_hz(fixed.friction_cutoff_hz, cutoff, fs);
-        let thin = ((fs / (SEARCH_SAMPLES_PER_CUTOFF * friction_hz)).floor() as usize).max(1);
-        let trial = PreprocessOptions { cutoff_hz: Some(cutoff), decimate: thin, ..fixed.clone() };
-        let pre = match preprocess(log.t, log.q, log.tau, dof, &trial) {
-            Ok(pre) => pre,
-            Err(PreprocessError::DecimationAliases { .. } | PreprocessError::TooShortForCutoff { .. }) => continue,
-            Err(e) => return Err(e.into()),
+impl<'a> Search<'a> {
+    fn new(declared: Declared<'a>, log: Log<'a>, reference: &'a Preprocessed, fixed: &'a PreprocessOptions) -> Self {
+        let fs = reference.sample_rate_hz;
+        let n = reference.samples();
+        let shortest = edge_limited_cutoff_hz(log.t.len(), fs, reference.periodic);
+        let floor = reference
+            .bandwidth_hz
+            .map_or(MIN_CUTOFF_HZ, |b| (SEARCH_FROM_BANDWIDTH * b).min(MIN_CUTOFF_HZ))
+            .max(shortest);
+        let length_limited = floor == shortest;
+        let grid = geometric_grid(floor, 0.25 * fs);
+        let top = (SEARCH_ABOVE_SPECTRAL * reference.cutoff_hz).clamp(floor, 0.25 * fs);
+        let edge = match reference.periodic {
+            true => 0,
+            false => (super::preprocess::EDGE_CUTOFF_PERIODS * fs / floor).ceil() as usize,
         };
-        // A cut-off at which the parameters cannot be fitted is simply not a candidate.
-        if let Ok(f) = fit(model, base, &pre, Method::Ols) {
-            scored.push((cutoff, f.metrics.fp_percent.iter().sum::<f64>() / dof as f64));
+        let scored = spread(edge.min(n / 2)..n.saturating_sub(edge).max(n / 2), 1, MOST_SCORED);
+        let directions = std::cell::RefCell::new(vec![None; grid.len()]);
+        Self { declared, log, fixed, reference, grid, top, length_limited, scored, directions }
+    }
+
+    /// The unfiltered Coulomb directions of the friction velocity at grid point `i` (full rate).
+    fn directions(&self, i: usize) -> Result<Vec<f64>, PreprocessError> {
+        if let Some(d) = &self.directions.borrow()[i] {
+            return Ok(d.clone());
         }
+        let velocity = self.reference.friction_velocity(self.log.q, self.grid[i])?;
+        let d = velocity.directions(self.declared.model.coulomb_shape);
+        self.directions.borrow_mut()[i] = Some(d.clone());
+        Ok(d)
     }
-    Ok(scored)
-}
 
-/// The highest candidate within [`EQUAL_FIT_POINTS`] of the best (it bends the signal least);
-/// `None` when none fitted.
-fn best_of(scored: &[(f64, f64)]) -> Option<f64> {
-    let best = scored.iter().map(|s| s.1).reduce(f64::max)?;
-    scored.iter().rev().find(|s| s.1 >= best - EQUAL_FIT_POINTS).map(|s| s.0)
-}
-
-/// Geometric steps from `floor` to `top` (both included).
-fn candidate_cutoffs(floor: f64, top: f64) -> Vec<f64> {
-    if top <= floor {
-        return vec![top];
+    /// The friction velocities tried at `cutoff`: the user's, or grid points an octave apart
+    /// through `cutoff` (through the grid's lowest when `cutoff` is off the grid, and `cutoff`
+    /// itself), from the lowest to a quarter of the sample rate. A velocity slower than the
+    /// cut-off can switch friction best: it crosses zero where a smooth motion does, without the
+    /// encoder's noise.
+    fn frictions(&self, cutoff: f64, user: Option<f64>) -> Vec<(f64, Option<usize>)> {
+        if let Some(f) = user {
+            return vec![(f.min(0.25 * self.reference.sample_rate_hz), None)];
+        }
+        let at = self.grid.iter().position(|g| (g / cutoff - 1.0).abs() < 1e-9);
+        let first = at.map_or(0, |i| i % FRICTION_STEP);
+        let mut candidates: Vec<(f64, Option<usize>)> =
+            (first..self.grid.len()).step_by(FRICTION_STEP).map(|i| (self.grid[i], Some(i))).collect();
+        if at.is_none() {
+            candidates.push((cutoff, None));
+        }
+        candidates
     }
-    let steps = (CUTOFFS_PER_OCTAVE * (top / floor).log2()).ceil() as usize;
-    (0..=steps).map(|i| floor * (top / floor).powf(i as f64 / steps as f64)).collect()
+
+    /// Fit at `cutoff` with each friction velocity, keep the best-fitting one, and score the
+    /// model on the unfiltered torque. `None` when the log cannot be filtered or fitted there.
+    fn trial(&self, cutoff: f64, user_friction: Option<f64>) -> Result<Option<Trial>, PreprocessError> {
+        let Declared { model, base, .. } = self.declared;
+        let (dof, fs) = (model.dof(), self.reference.sample_rate_hz);
+        let options = PreprocessOptions { cutoff_hz: Some(cutoff), ..self.fixed.clone() };
+        let pre = match preprocess(self.log.t, self.log.q, self.log.tau, dof, &options) {
+            Ok(pre) => pre,
+            Err(PreprocessError::TooShortForCutoff { .. }) => return Ok(None),
+            Err(e) => return Err(e),
+        };
+        let columns = &base.independent;
+        // The Coulomb columns of `w` are replaced by each candidate's in turn.
+        let (mut w, rows) = self.filtered_columns(&pre, cutoff)?;
+        let tau: Vec<f64> = rows.iter().flat_map(|&s| pre.tau[s * dof..(s + 1) * dof].iter().copied()).collect();
+        let positions = coulomb_positions(model, columns);
+        let filter = Butterworth::lowpass(pre.order, cutoff, fs)?;
+        // σ_β's blocks span two periods of the cut-off, as in `fit` (they are not used here).
+        let rows_per_sample = rows.len() as f64 / pre.settled.len().max(1) as f64;
+        let block = ((2.0 * fs / cutoff * rows_per_sample).ceil() as usize).max(1);
+        let mut frictions = Vec::new();
+        let mut best: Option<(f64, f64, Vec<f64>, Vec<f64>)> = None;
+        for (friction_hz, at) in self.frictions(cutoff, user_friction) {
+            let directions = match at {
+                Some(i) => self.directions(i)?,
+                None => self.reference.friction_velocity(self.log.q, friction_hz)?.directions(model.coulomb_shape),
+            };
+            let filtered = filter_columns(&filter, &directions, dof, pre.periodic)?;
+            put_coulomb(&mut w, dof, &positions, (&filtered, &rows));
+            // A velocity with which the parameters cannot be fitted is simply not a candidate.
+            let Ok(fit) = fit_stacked(&w, &tau, dof, base, Method::Ols, block) else { continue };
+            let training = fit.metrics.fp_percent.iter().sum::<f64>() / dof as f64;
+            frictions.push((friction_hz, training));
+            if best.as_ref().is_none_or(|b| training > b.1) {
+                best = Some((friction_hz, training, fit.beta, directions));
+            }
+        }
+        let Some((friction_hz, training_fp, beta, directions)) = best else { return Ok(None) };
+        let mut v = regressor_rows(model, &pre, columns, &self.scored);
+        put_coulomb(&mut v, dof, &positions, (&directions, &self.scored));
+        let (predicted_fp, errors) = self.unfiltered_fit(&pre, &v, &beta);
+        Ok(Some(Trial { cutoff_hz: cutoff, friction_hz, predicted_fp, errors, frictions, training_fp }))
+    }
+
+    /// The regressor's base columns filtered like the torque ([`filter_each_column`]) at the
+    /// rows a candidate is fitted on, and those rows (at most [`MOST_FITTED`], at least
+    /// [`SAMPLES_PER_CUTOFF`] per period of the cut-off). The columns are computed and filtered
+    /// on the log thinned to that many samples per period, which keeps their content (products of
+    /// a motion filtered at the cut-off) far below the thinned rate's Nyquist frequency. The
+    /// Coulomb columns are left for the caller: they step, and are filtered at the full rate.
+    fn filtered_columns(
+        &self,
+        pre: &Preprocessed,
+        cutoff: f64,
+    ) -> Result<(faer::Mat<f64>, Vec<usize>), PreprocessError> {
+        let Declared { model, base, .. } = self.declared;
+        let (n, dof, fs) = (pre.samples(), model.dof(), pre.sample_rate_hz);
+        let most = ((fs / (SAMPLES_PER_CUTOFF * cutoff)).floor() as usize).max(1);
+        // A periodic log is filtered circularly: its thinned samples must still be whole periods.
+        let thin = match pre.periodic {
+            true => (1..=most).rev().find(|d| n % d == 0).unwrap_or(1),
+            false => most,
+        };
+        let thinned: Vec<usize> = (0..n).step_by(thin).collect();
+        let mut w = regressor_rows(model, pre, &base.independent, &thinned);
+        let filter = Butterworth::lowpass(pre.order, cutoff, fs / thin as f64)?;
+        filter_each_column(&mut w, dof, &filter, pre.periodic);
+        let settled: Vec<usize> = (0..thinned.len()).filter(|&i| pre.settled.contains(&thinned[i])).collect();
+        let kept = spread(0..settled.len(), 1, MOST_FITTED);
+        let picked =
+            faer::Mat::from_fn(kept.len() * dof, w.ncols(), |r, c| w[(settled[kept[r / dof]] * dof + r % dof, c)]);
+        Ok((picked, kept.iter().map(|&i| thinned[settled[i]]).collect()))
+    }
+
+    /// The model `beta` (its columns at the scored samples, `v`, the Coulomb ones unfiltered)
+    /// against the unfiltered torque there: mean FP% over the joints, and each sample's squared
+    /// error summed over the joints, each joint's divided by its torque's variance.
+    fn unfiltered_fit(&self, pre: &Preprocessed, v: &faer::Mat<f64>, beta: &[f64]) -> (f64, Vec<f64>) {
+        let dof = pre.dof;
+        let samples = self.scored.len();
+        let mut errors = vec![0.0; samples];
+        let mut fp = 0.0;
+        for k in 0..dof {
+            let tau: Vec<f64> = self.scored.iter().map(|&s| pre.tau_unfiltered[s * dof + k]).collect();
+            let mean = tau.iter().sum::<f64>() / samples as f64;
+            let variation: f64 = tau.iter().map(|x| (x - mean).powi(2)).sum();
+            let residual: Vec<f64> = (0..samples)
+                .map(|r| tau[r] - (0..v.ncols()).map(|c| v[(r * dof + k, c)] * beta[c]).sum::<f64>())
+                .collect();
+            let squares: f64 = residual.iter().map(|e| e * e).sum();
+            fp += 100.0 * (1.0 - (squares / variation).sqrt()) / dof as f64;
+            let variance = (variation / samples as f64).max(f64::MIN_POSITIVE);
+            errors.iter_mut().zip(&residual).for_each(|(total, e)| *total += e * e / variance);
+        }
+        (fp, errors)
+    }
+
+    /// Scored samples per comparison block: [`COMPARISON_BLOCK_PERIODS`] periods of the lowest
+    /// cut-off, or a [`COMPARISON_BLOCKS`]th of them when that is shorter.
+    fn block_rows(&self) -> usize {
+        let span = self.scored.last().zip(self.scored.first()).map_or(1, |(l, f)| l - f + 1);
+        let per_row = span as f64 / self.scored.len().max(1) as f64;
+        let by_memory =
+            (COMPARISON_BLOCK_PERIODS * self.reference.sample_rate_hz / self.grid[0] / per_row).ceil() as usize;
+        by_memory.min(self.scored.len() / COMPARISON_BLOCKS).max(1)
+    }
 }
 
-/// The spectral choices (period, bandwidth) with the cut-off line replaced by the search's, the
-/// lines that depend on the cut-off from the final preprocessing, and a warning when the best fit
-/// sits at the lowest cut-off tried.
+/// Among the trials whose prediction is not worse than the best one's by more than
+/// [`EQUAL_PREDICTION_SIGMAS`] standard errors of the paired difference (blocks of
+/// `block_rows` scored samples) nor by more than [`EQUAL_PREDICTION_POINTS`], the one whose
+/// model fits its filtered torque best; `None` when there are no trials.
+fn chosen(trials: &[Trial], block_rows: usize) -> Option<&Trial> {
+    let best = most_accurate(trials)?;
+    let as_good = |t: &&Trial| {
+        let differences: Vec<f64> = t.errors.iter().zip(&best.errors).map(|(a, b)| a - b).collect();
+        let (mean, error) = mean_and_block_error(&differences, block_rows);
+        mean <= EQUAL_PREDICTION_SIGMAS * error && t.predicted_fp >= best.predicted_fp - EQUAL_PREDICTION_POINTS
+    };
+    trials.iter().filter(as_good).max_by(|a, b| a.training_fp.total_cmp(&b.training_fp))
+}
+
+/// The trial whose prediction of the unfiltered torque has the highest mean FP%.
+fn most_accurate(trials: &[Trial]) -> Option<&Trial> {
+    trials.iter().max_by(|a, b| a.predicted_fp.total_cmp(&b.predicted_fp))
+}
+
+/// The mean of `x` and its standard error from the scatter of the means of consecutive blocks
+/// of `block` values (the values are correlated within a block, not between blocks).
+fn mean_and_block_error(x: &[f64], block: usize) -> (f64, f64) {
+    let n = x.len().max(1);
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let blocks: Vec<f64> = x.chunks(block.max(1)).map(|b| b.iter().sum::<f64>() / b.len() as f64).collect();
+    if blocks.len() < 2 {
+        return (mean, f64::INFINITY);
+    }
+    let m = blocks.len() as f64;
+    let scatter = blocks.iter().map(|b| (b - mean).powi(2)).sum::<f64>() / (m - 1.0);
+    (mean, (scatter / m).sqrt())
+}
+
+/// Geometric steps, [`CUTOFFS_PER_OCTAVE`] per octave, from `floor` to the last one at or below
+/// `top` (at least `floor`).
+fn geometric_grid(floor: f64, top: f64) -> Vec<f64> {
+    let step = 2f64.powf(1.0 / CUTOFFS_PER_OCTAVE as f64);
+    let count = ((top / floor).log2() * CUTOFFS_PER_OCTAVE as f64 + 1e-9).floor().max(0.0) as usize;
+    (0..=count).map(|i| floor * step.powi(i as i32)).collect()
+}
+
+/// The reference's choices (period, spectral rule) with the cut-off line replaced by the search's,
+/// the lines that depend on the cut-off from the final preprocessing, the friction line replaced
+/// by its search's, and a warning when a choice sits at the edge of what was tried.
 fn explain(
-    spectral: &Choices,
+    reference: &Preprocessed,
     last: &Choices,
-    (floor, rule, top): (f64, f64, f64),
-    searched: &Option<(f64, Vec<(f64, f64)>)>,
+    options: &PreprocessOptions,
+    trials: &[Trial],
+    (best, length_limited): (&Trial, bool),
 ) -> Choices {
-    // The lines that depend on the cut-off come from the final preprocessing.
     let from_last = |r: &String| r.starts_with("Coulomb") || r.contains("left out of the fit");
-    let mut reasons: Vec<String> = spectral.reasons.iter().filter(|r| !from_last(r)).cloned().collect();
-    let mut warnings = spectral.warnings.clone();
-    if let Some((chosen, scored)) = searched {
-        let at = reasons.iter().position(|r| r.starts_with("cut-off")).unwrap_or(reasons.len());
-        let spectral_line = reasons.get(at).cloned().unwrap_or_default();
+    let mut reasons: Vec<String> = reference.choices.reasons.iter().filter(|r| !from_last(r)).cloned().collect();
+    let mut warnings = reference.choices.warnings.clone();
+    let at = reasons.iter().position(|r| r.starts_with("cut-off")).unwrap_or(reasons.len());
+    if options.cutoff_hz.is_none() {
+        let spectral = reasons.get(at).cloned().unwrap_or_default();
+        let spectral = spectral.trim_start_matches(&format!("cut-off {:.3} Hz: ", reference.cutoff_hz));
+        let (lo, hi) = (trials[0].cutoff_hz, trials[trials.len() - 1].cutoff_hz);
+        let most = most_accurate(trials).unwrap_or(best);
         let line = format!(
-            "cut-off {chosen:.3} Hz: the best least-squares fit (mean FP% {:.2}) of {} cut-offs from {floor:.2} to {top:.2} Hz, \
-             around the spectral rule's {rule:.2} Hz ({}); mean FP% by cut-off: {}",
-            scored.iter().find(|s| s.0 == *chosen).map_or(f64::NAN, |s| s.1),
-            scored.len(),
-            spectral_line.trim_start_matches(&format!("cut-off {rule:.3} Hz: ")),
-            scored.iter().map(|(c, fp)| format!("{c:.2} Hz {fp:.2}")).collect::<Vec<_>>().join(", "),
+            "cut-off {:.3} Hz: of {} cut-offs from {lo:.2} to {hi:.2} Hz whose fitted models predict the unfiltered \
+             torque as well as the best one ({:.2} Hz) within {EQUAL_PREDICTION_SIGMAS} standard errors and \
+             {EQUAL_PREDICTION_POINTS} point, the one that fits \
+             its filtered torque best (mean FP% {:.2}; on the unfiltered torque {:.2} against {:.2}); the motion's \
+             spectrum suggests {:.2} Hz ({spectral}); mean FP% on the unfiltered torque by cut-off: {}",
+            best.cutoff_hz,
+            trials.len(),
+            most.cutoff_hz,
+            best.training_fp,
+            best.predicted_fp,
+            most.predicted_fp,
+            reference.cutoff_hz,
+            trials
+                .iter()
+                .map(|t| format!("{:.2} Hz {:.2}", t.cutoff_hz, t.predicted_fp))
+                .collect::<Vec<_>>()
+                .join(", "),
         );
         match at < reasons.len() {
             true => reasons[at] = line,
             false => reasons.push(line),
         }
-        if scored.len() > 1 && *chosen == scored[0].0 && top > floor {
+        if trials.len() > 1 && most.cutoff_hz == lo && length_limited {
             warnings.push(format!(
-                "the best fit is at the lowest cut-off tried ({chosen:.2} Hz): the data may be noisier than the motion \
-                 is fast; consider a longer log or more periods"
+                "the model predicts best at the lowest cut-off the log's length allows ({lo:.2} Hz): a lower one may \
+                 predict better still; a longer log would allow it"
+            ));
+        }
+        if trials.len() > 1 && best.cutoff_hz == hi && hi >= 0.25 * reference.sample_rate_hz * (1.0 - 1e-9) {
+            warnings.push(format!(
+                "the best cut-off is the highest tried, a quarter of the sample rate ({hi:.1} Hz): the torque the model \
+                 explains reaches the sampling limit (sample faster, or the model lacks a fast effect)"
             ));
         }
     }
-    reasons.extend(last.reasons.iter().filter(|r| from_last(r)).cloned());
+    reasons.extend(last.reasons.iter().filter(|r| from_last(r) && !r.starts_with("Coulomb")).cloned());
+    reasons.push(match options.friction_cutoff_hz {
+        Some(_) => format!(
+            "Coulomb columns switch with the velocity filtered at {:.3} Hz (set by the user, at most fs/4)",
+            best.friction_hz
+        ),
+        None => format!(
+            "Coulomb columns switch with the velocity filtered at {:.3} Hz: the best fit at the {:.3} Hz cut-off of {} \
+             velocity cut-offs, an octave apart (mean FP% {})",
+            best.friction_hz,
+            best.cutoff_hz,
+            best.frictions.len(),
+            best.frictions.iter().map(|(f, fp)| format!("{f:.2} Hz {fp:.2}")).collect::<Vec<_>>().join(", "),
+        ),
+    });
     Choices { reasons, warnings }
 }
 
@@ -161,18 +434,11 @@ mod tests {
     use super::*;
 
     #[test]
-    fn alike_fits_keep_the_highest_cutoff() {
-        let scored = [(1.0, 90.0), (2.0, 99.0), (4.0, 99.05), (8.0, 98.0)];
-        assert_eq!(best_of(&scored), Some(4.0));
-        assert_eq!(best_of(&[]), None);
-    }
-
-    #[test]
-    fn candidates_step_geometrically_from_the_floor_to_the_top() {
-        let c = candidate_cutoffs(1.0, 8.0);
+    fn the_grid_steps_geometrically_from_the_floor_to_the_top() {
+        let c = geometric_grid(1.0, 8.0);
         assert_eq!(c.len(), 13, "{c:?}");
-        assert!((c[0] - 1.0).abs() < 1e-12 && (c[12] - 8.0).abs() < 1e-12);
+        assert!((c[0] - 1.0).abs() < 1e-12 && (c[12] - 8.0).abs() < 1e-9);
         assert!(c.windows(2).all(|w| (w[1] / w[0] - 2f64.powf(0.25)).abs() < 1e-12));
-        assert_eq!(candidate_cutoffs(1.0, 0.5), vec![0.5]);
+        assert_eq!(geometric_grid(1.0, 0.5), vec![1.0]);
     }
 }

@@ -14,7 +14,9 @@ use faer::prelude::*;
 use faer::Mat;
 use nalgebra::DMatrix;
 
+use super::filter::Butterworth;
 use super::preprocess::Preprocessed;
+use super::signals::filter_columns;
 use crate::base_parameters::BaseParameters;
 use crate::data::Data;
 use crate::model::Model;
@@ -83,9 +85,9 @@ pub const CONDITION_LIMIT: f64 = 1e8;
 /// Coulomb friction columns step where a velocity changes sign, but the measured torque has been
 /// low-pass filtered, so its steps are smoothed. Left alone, that mismatch biases the whole fit
 /// (docs/identification.md gives the size). Those columns are therefore built from the friction
-/// velocity (`Preprocessed::qd_friction`, which keeps the fast dither of a controlled joint around
-/// zero speed) and filtered exactly like the torque ("parallel filtering"). The other columns are smooth functions of signals already
-/// filtered far below the cut-off, and the filter leaves them unchanged.
+/// velocity ([`Preprocessed::coulomb_columns`]) and filtered exactly like the torque ("parallel
+/// filtering"). The other columns are smooth functions of signals already filtered far below the
+/// cut-off, and the filter leaves them unchanged.
 ///
 /// Only the [`Preprocessed::settled`] samples are stacked: near the ends of a log that is not
 /// periodic the filter's start-up transient would be fitted as if it were dynamics.
@@ -100,54 +102,86 @@ pub fn stack_full(model: &Model, data: &Preprocessed) -> (Mat<f64>, Vec<f64>) {
 }
 
 fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f64> {
-    let (n, samples, start) = (model.dof(), data.settled.len(), data.settled.start);
-    let mut w = Mat::<f64>::zeros(samples * n, columns.len());
-    // Each thread fills a band of consecutive samples.
+    let every: Vec<usize> = (0..data.samples()).collect();
+    let mut w = regressor_rows(model, data, columns, &every);
+    let positions = coulomb_positions(model, columns);
+    put_coulomb(&mut w, data.dof, &positions, (&data.friction.directions(model.coulomb_shape), &every));
+    let filter = Butterworth::lowpass(data.order, data.cutoff_hz, data.rate_hz()).expect("the torque was filtered so");
+    filter_each_column(&mut w, data.dof, &filter, data.periodic);
+    let n = data.dof;
+    match data.settled == (0..data.samples()) {
+        true => w,
+        false => w.subrows(data.settled.start * n, data.settled.len() * n).to_owned(),
+    }
+}
+
+/// Filter every column of a stacked `w` (rows sample by sample, `dof` per sample) over time, as
+/// [`filter_columns`] filters a signal: "parallel filtering". The torque's content above the
+/// cut-off is gone after filtering; a column computed from filtered signals still holds the
+/// products of the motion's harmonics there (Coriolis terms, gravity's sine), which at a cut-off
+/// a few times the motion's bandwidth bias the fit; filtered alike, model and torque match.
+pub fn filter_each_column(w: &mut Mat<f64>, dof: usize, filter: &Butterworth, periodic: bool) {
+    for c in 0..w.ncols() {
+        // A column's rows, sample by sample and joint by joint, are a `samples × dof` signal.
+        let filtered = filter_columns(filter, w.col_as_slice(c), dof, periodic).expect("long enough: the torque was");
+        w.col_as_slice_mut(c).copy_from_slice(&filtered);
+    }
+}
+
+/// The regressor's `columns` (standard-parameter indices) at the samples `rows` of `data`, one
+/// row per sample and joint, sample by sample. The Coulomb columns are left as the regressor
+/// gives them, unfiltered: see [`put_coulomb`].
+pub fn regressor_rows(model: &Model, data: &Preprocessed, columns: &[usize], rows: &[usize]) -> Mat<f64> {
+    let n = model.dof();
+    let mut w = Mat::<f64>::zeros(rows.len() * n, columns.len());
+    // Each thread fills a band of consecutive rows.
     let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
-    let per_thread = samples.div_ceil(threads).max(1);
+    let per_thread = rows.len().div_ceil(threads).max(1);
     let bodies = bodies_of_columns(model, columns);
     std::thread::scope(|scope| {
         let mut rest = w.as_mut();
-        for first in (0..samples).step_by(per_thread) {
-            let count = per_thread.min(samples - first);
-            let (band, tail) = rest.split_at_row_mut(count * n);
+        for samples in rows.chunks(per_thread) {
+            let (band, tail) = rest.split_at_row_mut(samples.len() * n);
             rest = tail;
             let bodies = &bodies;
-            scope.spawn(move || fill_band(model, data, columns, bodies, start + first, band));
+            scope.spawn(move || fill_band(model, data, (columns, bodies), samples, band));
         }
     });
-    let coulomb: Vec<(usize, usize)> =
-        (0..n).filter_map(|k| columns.iter().position(|&j| j == model.layout().coulomb(k)).map(|c| (k, c))).collect();
-    if coulomb.is_empty() {
-        return w;
-    }
-    let laws: Vec<_> = (0..n).map(|k| data.coulomb_shape(model.coulomb_shape, k)).collect();
-    let shapes: Vec<f64> = data.qd_friction.iter().enumerate().map(|(i, v)| laws[i % n].eval(*v)).collect();
-    let filtered = data.filter_like_torque(&shapes, n).expect("the torque was filtered with these settings");
-    let filtered = data.settled_rows(&filtered, n);
-    for (k, c) in coulomb {
-        for s in 0..samples {
-            w[(s * n + k, c)] = filtered[s * n + k];
-        }
-    }
     w
 }
 
-/// Rows of the samples `first..` into `band` (one row per sample and joint); `bodies` are the
-/// flags [`bodies_of_columns`] gives for `columns`.
+/// Where each joint's Coulomb column sits among `columns` (standard-parameter indices): `(joint,
+/// position)` for every joint that has one there.
+pub fn coulomb_positions(model: &Model, columns: &[usize]) -> Vec<(usize, usize)> {
+    (0..model.dof())
+        .filter_map(|k| columns.iter().position(|&j| j == model.layout().coulomb(k)).map(|c| (k, c)))
+        .collect()
+}
+
+/// Write `coulomb` (`samples × dof`: the Coulomb columns, filtered like the torque or not) at
+/// the samples `rows` into the Coulomb `positions` of `w`, stacked at those rows.
+pub fn put_coulomb(w: &mut Mat<f64>, dof: usize, positions: &[(usize, usize)], (coulomb, rows): (&[f64], &[usize])) {
+    for &(k, c) in positions {
+        for (r, &s) in rows.iter().enumerate() {
+            w[(r * dof + k, c)] = coulomb[s * dof + k];
+        }
+    }
+}
+
+/// The regressor rows of the samples `samples` into `band` (one row per sample and joint);
+/// `bodies` are the flags [`bodies_of_columns`] gives for `columns`.
 fn fill_band(
     model: &Model,
     data: &Preprocessed,
-    columns: &[usize],
-    bodies: &[bool],
-    first: usize,
+    (columns, bodies): (&[usize], &[bool]),
+    samples: &[usize],
     mut band: faer::MatMut<'_, f64>,
 ) {
     let (n, big_p) = (model.dof(), model.num_params());
     let mut ws = Data::new(model);
     let mut y = vec![0.0; n * big_p];
-    for local in 0..band.nrows() / n {
-        let range = (first + local) * n..(first + local + 1) * n;
+    for (local, &sample) in samples.iter().enumerate() {
+        let range = sample * n..(sample + 1) * n;
         let (q, qd, qdd) = (&data.q[range.clone()], &data.qd[range.clone()], &data.qdd[range]);
         regressor_of_bodies(model, &mut ws, q, qd, qdd, Some(bodies), &mut y);
         for k in 0..n {
@@ -160,12 +194,38 @@ fn fill_band(
 
 /// Fit β by OLS or WLS on preprocessed data.
 ///
-/// Filtered residuals are correlated over about `fs / cutoff` samples, so σ_β comes from blocks
-/// of `2·fs/cutoff` samples (see [`fit_stacked`]).
+/// σ_β comes from the sandwich of [`fit_stacked`], its middle taken from the residual of the
+/// *unfiltered* torque (blocks of `2·fs/cutoff` samples). The filtered residual is what is left
+/// of the noise after the filter and the fit: at a low cut-off the noise has few degrees of
+/// freedom left (about `2·cutoff·duration` per joint) and the fit absorbs a good share of them,
+/// so the filtered residual under-states the noise that moved β̂ (by 30–65 % in σ on simulated
+/// data, docs/identification.md). The unfiltered residual keeps it: the model's columns are
+/// smooth within a block, so they weigh the noise exactly as the filtered fit did.
 pub fn fit(model: &Model, base: &BaseParameters, data: &Preprocessed, method: Method) -> Result<Fit, EstimateError> {
     let (w, tau) = stack(model, base, data);
     let block = ((2.0 * data.rate_hz() / data.cutoff_hz).ceil() as usize).max(1);
-    fit_stacked(&w, &tau, model.dof(), base, method, block)
+    let unfiltered = |beta: &[f64]| -> Vec<f64> {
+        let predicted = unfiltered_prediction(model, data, &base.independent, beta);
+        data.settled_rows(&data.tau_unfiltered, data.dof).iter().zip(&predicted).map(|(t, p)| t - p).collect()
+    };
+    fit_stacked_with(&w, &tau, (model.dof(), base), (method, block), Some(&unfiltered))
+}
+
+/// The model `beta` on the [`Preprocessed::settled`] samples with unfiltered columns: the
+/// regressor of the filtered signals, Coulomb friction switching with the friction velocity
+/// (not filtered like the torque), sample by sample and joint by joint.
+pub fn unfiltered_prediction(model: &Model, data: &Preprocessed, columns: &[usize], beta: &[f64]) -> Vec<f64> {
+    let rows: Vec<usize> = data.settled.clone().collect();
+    let positions = coulomb_positions(model, columns);
+    let directions = data.friction.directions(model.coulomb_shape);
+    // In bands of samples, so that the regressor of a long log is never held whole.
+    let mut predicted = Vec::with_capacity(rows.len() * data.dof);
+    for band in rows.chunks(8192) {
+        let mut w = regressor_rows(model, data, columns, band);
+        put_coulomb(&mut w, data.dof, &positions, (&directions, band));
+        predicted.extend(apply(&w, beta));
+    }
+    predicted
 }
 
 /// Fit β from an already stacked `W` and `τ` (rows ordered sample by sample, joint by joint).
@@ -184,6 +244,21 @@ pub fn fit_stacked(
     base: &BaseParameters,
     method: Method,
     block_samples: usize,
+) -> Result<Fit, EstimateError> {
+    fit_stacked_with(w, tau, (dof, base), (method, block_samples), None)
+}
+
+/// The residual of the unfiltered torque given β, row for row with the stacked `W`.
+type UnfilteredResidual<'a> = dyn Fn(&[f64]) -> Vec<f64> + 'a;
+
+/// [`fit_stacked`], the sandwich's middle taken from `unfiltered(β̂)` (the residual of the
+/// unfiltered torque, row for row with `w`) when given: see [`fit`].
+fn fit_stacked_with(
+    w: &Mat<f64>,
+    tau: &[f64],
+    (dof, base): (usize, &BaseParameters),
+    (method, block_samples): (Method, usize),
+    unfiltered: Option<&UnfilteredResidual>,
 ) -> Result<Fit, EstimateError> {
     let (m, p) = (w.nrows(), w.ncols());
     if m <= p {
@@ -219,7 +294,13 @@ pub fn fit_stacked(
         limit: CONDITION_LIMIT,
         direction: "a combination the QR factor found exactly singular".into(),
     })?;
-    let sigma_beta = block_sandwich_sigma(w, &weighted_residual, &weights, dof, block_samples.max(1), &r_inv);
+    let meat_residual = match unfiltered {
+        Some(unfiltered) => {
+            unfiltered(&beta).iter().enumerate().map(|(i, e)| e * weights[i % dof]).collect::<Vec<f64>>()
+        }
+        None => weighted_residual,
+    };
+    let sigma_beta = block_sandwich_sigma(w, &meat_residual, &weights, dof, block_samples.max(1), &r_inv);
     let sigma_percent = sigma_beta.iter().zip(&beta).map(|(s, b)| 100.0 * s / b.abs()).collect();
     let metrics = joint_metrics(tau, &predicted, dof);
     Ok(Fit { method, beta, sigma_beta, sigma_percent, sigma_p2, joint_weights: weights, condition_number, metrics })
@@ -294,8 +375,12 @@ fn householder_qr(w: &Mat<f64>, b: &Mat<f64>) -> (Vec<f64>, DMatrix<f64>, f64) {
     ((0..p).map(|i| beta_mat[(i, 0)]).collect(), r_factor, condition)
 }
 
-/// σ_β from the block sandwich (see [`fit_stacked`]), on the weighted system, with the
-/// small-sample factor `m / (m − p)`.
+/// σ_β from the sandwich (see [`fit_stacked`]) on the weighted system, with the small-sample
+/// factor `m / (m − p)`. Its middle is the overlapping-batch-means estimate of the scores'
+/// long-run covariance: every run of `block_samples` consecutive samples, not only disjoint
+/// blocks. Disjoint blocks give a middle of rank at most their number, which at a low cut-off
+/// (a few blocks per period) is below the number of parameters and under-states σ_β by a large
+/// factor; the overlapping runs keep its rank and the same bandwidth (Bartlett's kernel).
 fn block_sandwich_sigma(
     w: &Mat<f64>,
     weighted_residual: &[f64],
@@ -305,22 +390,51 @@ fn block_sandwich_sigma(
     r_inv: &DMatrix<f64>,
 ) -> Vec<f64> {
     let (m, p) = (w.nrows(), w.ncols());
-    let rows_per_block = block_samples * dof;
-    let mut meat = DMatrix::<f64>::zeros(p, p);
-    let mut g = nalgebra::DVector::<f64>::zeros(p);
-    // Row-weighted residuals once; then each block walks down contiguous column memory.
+    let samples = m / dof;
+    let block = block_samples.clamp(1, samples.max(1));
+    // Row-weighted residuals once; each sample's score g_s = Σ_k W_(s,k)ᵀ e_(s,k).
     let e: Vec<f64> = weighted_residual.iter().enumerate().map(|(i, r)| r * weights[i % dof]).collect();
-    for start in (0..m).step_by(rows_per_block) {
-        let end = (start + rows_per_block).min(m);
-        for a in 0..p {
-            g[a] = dot(&w.col_as_slice(a)[start..end], &e[start..end]);
+    let mut scores = Mat::<f64>::zeros(samples, p);
+    for a in 0..p {
+        let column = w.col_as_slice(a);
+        for s in 0..samples {
+            scores[(s, a)] = dot(&column[s * dof..(s + 1) * dof], &e[s * dof..(s + 1) * dof]);
         }
-        meat.ger(1.0, &g, &g, 1.0);
     }
+    // The sums over every run of `block` samples, from a running sum.
+    let runs = samples - block + 1;
+    let mut sums = Mat::<f64>::zeros(runs, p);
+    for a in 0..p {
+        let mut running: f64 = (0..block).map(|s| scores[(s, a)]).sum();
+        sums[(0, a)] = running;
+        for t in 1..runs {
+            running += scores[(t + block - 1, a)] - scores[(t - 1, a)];
+            sums[(t, a)] = running;
+        }
+    }
+    let gram = sums.transpose() * &sums;
+    let scale = samples as f64 / (block as f64 * runs as f64);
+    let meat = DMatrix::from_fn(p, p, |i, j| gram[(i, j)] * scale);
     // (W̃ᵀW̃)⁻¹ = R⁻¹R⁻ᵀ for the weighted W̃.
     let gram_inv = r_inv * r_inv.transpose();
-    let cov = &gram_inv * meat * &gram_inv * (m as f64 / (m - p) as f64);
+    let cov = &gram_inv * meat * &gram_inv * degrees_of_freedom_factor(m, p, samples, block);
     (0..p).map(|i| cov[(i, i)].max(0.0).sqrt()).collect()
+}
+
+/// The small-sample factor of the sandwich: `m_eff / (m_eff − p)` for residuals that carry
+/// `m_eff` independent values. The fit takes `p` of them, and what is left under-states the
+/// noise by that share. Residuals summed over overlapping runs of `block` samples carry about
+/// 1.5 values per run length (the equivalent degrees of freedom of Bartlett's kernel) per joint;
+/// with runs of one sample this is the textbook `m / (m − p)`. On filtered, period-averaged logs
+/// the runs are long and the difference matters: σ_β came out 22 % low on simulated data without
+/// it (docs/identification.md).
+fn degrees_of_freedom_factor(m: usize, p: usize, samples: usize, block: usize) -> f64 {
+    let (m, p) = (m as f64, p as f64);
+    let joints = m / samples.max(1) as f64;
+    let effective = m.min(1.5 * samples as f64 / block.max(1) as f64 * joints);
+    // With fewer than two values per parameter left, the estimate of the noise is itself too
+    // uncertain to correct further: the factor is capped at 2.
+    (effective / (effective - p).max(0.5 * effective)).max(m / (m - p))
 }
 
 /// `x · y` in four interleaved partial sums: a single running sum cannot be vectorised, because

@@ -8,7 +8,9 @@ pub mod decide;
 pub mod estimate;
 pub mod excitation;
 pub mod filter;
+pub mod friction;
 pub mod preprocess;
+pub mod signals;
 
 use crate::base_parameters::BaseParameters;
 use crate::model::Model;
@@ -150,6 +152,17 @@ pub fn validation_table(joints: &[String], labels: &[String], fp_percent: &[Vec<
     s
 }
 
+/// What a validation log gives: FP% and the other figures per joint, with the cut-off it was
+/// filtered at and why.
+#[derive(Clone, Debug)]
+pub struct Validation {
+    pub metrics: Metrics,
+    pub cutoff_hz: f64,
+    /// The validation log's preprocessing choices (period, trimmed ends, and the cut-off when it
+    /// had to differ from training's).
+    pub reasons: Vec<String>,
+}
+
 /// FP% per joint of `identification` on one validation log (same preprocessing as training).
 pub fn validate(
     model: &Model,
@@ -158,9 +171,13 @@ pub fn validate(
     q: &[f64],
     tau: &[f64],
     preprocess_options: &PreprocessOptions,
-) -> Result<Metrics, IdentifyError> {
+) -> Result<Validation, IdentifyError> {
     let series = validation_series(model, identification, t, q, tau, preprocess_options)?;
-    Ok(joint_metrics(&series.measured, &series.predicted, model.dof()).into())
+    Ok(Validation {
+        metrics: joint_metrics(&series.measured, &series.predicted, model.dof()).into(),
+        cutoff_hz: series.cutoff_hz,
+        reasons: series.reasons,
+    })
 }
 
 /// A validation run preprocessed as for [`validate`]: the time of each sample, the filtered
@@ -170,9 +187,16 @@ pub struct ValidationSeries {
     pub t: Vec<f64>,
     pub measured: Vec<f64>,
     pub predicted: Vec<f64>,
+    pub cutoff_hz: f64,
+    pub reasons: Vec<String>,
 }
 
 /// The series [`validate`] scores, for plotting measured against predicted torque.
+///
+/// The run is filtered at the training cut-offs, unless the caller says otherwise. A run that
+/// is not periodic and too short for that cut-off (the filter's start-up would fill more than
+/// half of it: a single period of a validation trajectory, say) is filtered at the lowest cut-off
+/// it allows, and the reasons say so.
 pub fn validation_series(
     model: &Model,
     identification: &ModelFile,
@@ -181,16 +205,31 @@ pub fn validation_series(
     tau: &[f64],
     preprocess_options: &PreprocessOptions,
 ) -> Result<ValidationSeries, IdentifyError> {
-    // The validation run is filtered as the training run was, unless the caller says otherwise.
     let options = PreprocessOptions {
-        cutoff_hz: Some(identification.settings.cutoff_hz),
+        cutoff_hz: preprocess_options.cutoff_hz.or(Some(identification.settings.cutoff_hz)),
         friction_cutoff_hz: preprocess_options.friction_cutoff_hz.or(identification.settings.friction_cutoff_hz),
         ..preprocess_options.clone()
     };
-    let pre = preprocess(t, q, tau, model.dof(), &options)?;
+    let pre = match preprocess(t, q, tau, model.dof(), &options) {
+        Err(PreprocessError::TooShortForCutoff { cutoff_hz, lowest_hz, .. }) => {
+            let mut pre =
+                preprocess(t, q, tau, model.dof(), &PreprocessOptions { cutoff_hz: Some(lowest_hz), ..options })?;
+            pre.choices.reasons.push(format!(
+                "validated at {lowest_hz:.3} Hz, the lowest cut-off this log allows, not training's {cutoff_hz:.3} Hz"
+            ));
+            pre
+        }
+        other => other?,
+    };
     // Through the stacked regressor, so that the Coulomb columns are filtered like the torque.
     let (w, measured) = stack_full(model, &pre);
     let full = identification.full_or_base_vector();
     let predicted: Vec<f64> = estimate::apply(&w, &full);
-    Ok(ValidationSeries { t: pre.settled_rows(&pre.t, 1).to_vec(), measured, predicted })
+    Ok(ValidationSeries {
+        t: pre.settled_rows(&pre.t, 1).to_vec(),
+        measured,
+        predicted,
+        cutoff_hz: pre.cutoff_hz,
+        reasons: pre.choices.reasons,
+    })
 }

@@ -8,6 +8,8 @@
 
 use super::decide::{bandwidth, find_period, harmonic_bandwidth, PERIODIC_MISMATCH};
 use super::filter::{Butterworth, FilterError};
+use super::friction::FrictionVelocity;
+use super::signals::{averaged, central_difference, every_nth_row, filter_columns, mean_of, periods_of, Averaging};
 use crate::model::CoulombShape;
 
 /// Settings for [`preprocess`]: the one home of the preprocessing defaults, which every front end
@@ -28,20 +30,15 @@ pub struct PreprocessOptions {
     pub order: usize,
     /// Keep every `decimate`-th sample after filtering (1 keeps all).
     pub decimate: usize,
-    /// Cut-off of the velocity that switches Coulomb friction (Hz); `None` gives
-    /// [`DEFAULT_FRICTION_CUTOFF_HZ`] (never below the main cut-off).
+    /// Cut-off of the velocity that switches Coulomb friction (Hz), at most a quarter of the
+    /// sample rate; `None`: chosen by the fit ([`super::cutoff`]) in identification and the
+    /// diagnosis, the main cut-off when preprocessing alone.
     pub friction_cutoff_hz: Option<f64>,
     /// Filter q̇ and q̈ again after each central difference (the paper's method). Off, the
     /// derivatives of the filtered position pass through the filter once, exactly as the torque
     /// does, which matters when the signals have content near the cut-off (the diagnosis).
     pub filter_derivatives: bool,
 }
-
-/// Friction switches with the joint's actual velocity, which under closed-loop control dithers
-/// around zero far faster than the trajectory's bandwidth. A velocity filtered at the main
-/// cut-off (a few Hz) crosses zero cleanly and misses that (docs/identification.md gives what it
-/// costs). 20 Hz keeps the dither and still rejects most encoder quantisation noise.
-pub const DEFAULT_FRICTION_CUTOFF_HZ: f64 = 20.0;
 
 /// The highest Butterworth order accepted: beyond it a zero-phase pass rings more than it gains.
 pub const MAX_ORDER: usize = 12;
@@ -151,11 +148,19 @@ pub struct Preprocessed {
     pub q: Vec<f64>,
     pub qd: Vec<f64>,
     pub qdd: Vec<f64>,
-    /// The velocity that switches Coulomb friction: filtered at `friction_cutoff_hz`.
+    /// The velocity that switches Coulomb friction, averaged over the periods.
     pub qd_friction: Vec<f64>,
+    /// That velocity period by period, from which the Coulomb columns are built.
+    pub friction: FrictionVelocity,
     pub tau: Vec<f64>,
+    /// The torque averaged over the periods but not filtered: what the model is finally judged
+    /// against when the cut-off is chosen ([`super::cutoff`]).
+    pub tau_unfiltered: Vec<f64>,
     /// The cut-off actually used (Hz).
     pub cutoff_hz: f64,
+    /// The motion's bandwidth read from the positions (Hz), when the cut-off was left to the
+    /// data and there is motion above the noise ([`super::decide`]).
+    pub bandwidth_hz: Option<f64>,
     /// The cut-off of the friction velocity actually used (Hz).
     pub friction_cutoff_hz: f64,
     /// Rate of the signals before decimation (Hz): the log's, or, for a period that is not a
@@ -176,6 +181,10 @@ pub struct Preprocessed {
     pub settled: std::ops::Range<usize>,
     /// What was chosen, and why.
     pub choices: Choices,
+    /// How the log was averaged, and its step before that: what a friction velocity at another
+    /// cut-off is computed from ([`Self::friction_velocity`]).
+    averaging: Option<Averaging>,
+    log_dt: f64,
 }
 
 impl Preprocessed {
@@ -200,22 +209,20 @@ impl Preprocessed {
         filter_columns(&filter, x, width, self.periodic)
     }
 
-    /// The law joint `k`'s Coulomb column follows, given the model's: `tanh(q̇/ε)` widened to the
-    /// noise of the friction velocity (its RMS difference from the velocity at the main cut-off),
-    /// and a sharp sign made that `tanh`. A sign taken of a velocity that noisy flips at full
-    /// amplitude where the true velocity is merely small; `tanh(q̇/σ)` is close to the expected
-    /// sign given the noise, which is what the filtered torque records. Identification and the
-    /// diagnosis both build their Coulomb columns with it.
-    pub fn coulomb_shape(&self, declared: CoulombShape, k: usize) -> CoulombShape {
-        let (dof, n) = (self.dof, self.samples());
-        let noise = ((0..n).map(|s| (self.qd_friction[s * dof + k] - self.qd[s * dof + k]).powi(2)).sum::<f64>()
-            / n as f64)
-            .sqrt();
-        match declared {
-            CoulombShape::Tanh { epsilon } => CoulombShape::Tanh { epsilon: epsilon.max(noise) },
-            CoulombShape::Sign if noise > 0.0 => CoulombShape::Tanh { epsilon: noise },
-            CoulombShape::Sign => CoulombShape::Sign,
-        }
+    /// The Coulomb columns (`samples × dof`, joint k's direction in column k), filtered exactly
+    /// like the torque: `shape` of each period's friction velocity, averaged over the periods
+    /// ([`FrictionVelocity::directions`]). Identification and the diagnosis both build their
+    /// Coulomb columns here.
+    pub fn coulomb_columns(&self, shape: CoulombShape) -> Vec<f64> {
+        self.filter_like_torque(&self.friction.directions(shape), self.dof)
+            .expect("the torque was filtered with these settings")
+    }
+
+    /// The friction velocity of the raw positions `q` (the log these signals came from) at
+    /// another cut-off, averaged and thinned like these signals.
+    pub fn friction_velocity(&self, q: &[f64], cutoff_hz: f64) -> Result<FrictionVelocity, FilterError> {
+        let dt = self.averaging.map_or(self.log_dt, |a| self.log_dt * a.samples / a.per() as f64);
+        FrictionVelocity::of_log(q, self.dof, self.averaging, (dt, self.order), cutoff_hz, self.decimate)
     }
 }
 
@@ -294,20 +301,6 @@ fn check_every_joint_moves(q: &[f64], dof: usize) -> Result<(), PreprocessError>
     Ok(())
 }
 
-/// How the log is averaged: not at all, or over `count` periods of `samples` (fractional) samples.
-#[derive(Clone, Copy, Debug)]
-struct Averaging {
-    count: usize,
-    samples: f64,
-}
-
-impl Averaging {
-    /// Samples in one averaged period.
-    fn per(self) -> usize {
-        self.samples.round() as usize
-    }
-}
-
 /// Decide whether and over what to average, from the options or the data.
 fn choose_periods(
     q: &[f64],
@@ -372,7 +365,8 @@ fn choose_periods(
     }
 }
 
-/// The cut-off: the user's, or [`CUTOFF_PER_BANDWIDTH`] times the motion's bandwidth.
+/// The cut-off: the user's, or [`CUTOFF_PER_BANDWIDTH`] times the motion's bandwidth; and that
+/// bandwidth (Hz) when it was measured.
 ///
 /// A periodic log's bandwidth is its highest harmonic that repeats from period to period
 /// ([`harmonic_bandwidth`]); any other's, the highest frequency above the position noise floor
@@ -383,10 +377,10 @@ fn choose_cutoff(
     (dof, fs): (usize, f64),
     user: Option<f64>,
     choices: &mut Choices,
-) -> f64 {
+) -> (f64, Option<f64>) {
     if let Some(cutoff) = user {
         choices.reasons.push(format!("cut-off {cutoff:.3} Hz: set by the user"));
-        return cutoff;
+        return (cutoff, None);
     }
     let cap = fs / 4.0;
     let periodic = periods.is_some();
@@ -401,7 +395,7 @@ fn choose_cutoff(
     };
     let Some(signal) = found else {
         choices.reasons.push(format!("cut-off {floor:.3} Hz: no motion above the noise, the lowest cut-off"));
-        return floor;
+        return (floor, None);
     };
     let wanted = CUTOFF_PER_BANDWIDTH * signal;
     let cutoff = wanted.max(floor).min(cap);
@@ -420,7 +414,7 @@ fn choose_cutoff(
              rate: the cut-off is capped at {cap:.1} Hz and the filter bends the highest harmonics"
         ));
     }
-    cutoff
+    (cutoff, Some(signal))
 }
 
 /// Run the whole pipeline on a log (`t`: N; `q`, `tau`: N × dof, row-major).
@@ -446,16 +440,16 @@ pub fn preprocess(
     }
     let averaging = choose_periods(q, dof, 1.0 / dt, (options.periods, options.period_s), &mut choices)?;
     let periodic = averaging.is_some();
+    let (log_dt, raw_q) = (dt, q);
     // A period that is not a whole number of samples is resampled to the nearest whole number.
     let dt = averaging.map_or(dt, |a| dt * a.samples / a.per() as f64);
     let fs = 1.0 / dt;
-    let averaged = |x| averaged(x, dof, averaging);
     // q is needed for the cut-off and by both chains below; τ only by its own, which averages it.
-    let (q, cutoff_hz) = match averaging {
+    let (q, (cutoff_hz, bandwidth_hz)) = match averaging {
         Some(a) => {
             let periods = periods_of(q, dof, a);
             let cutoff = choose_cutoff(&[], Some(&periods), (dof, fs), options.cutoff_hz, &mut choices);
-            (mean_of(&periods, dof).into(), cutoff)
+            (mean_of(&periods).into(), cutoff)
         }
         None => (std::borrow::Cow::Borrowed(q), choose_cutoff(q, None, (dof, fs), options.cutoff_hz, &mut choices)),
     };
@@ -478,7 +472,7 @@ pub fn preprocess(
             duration_s: n as f64 * dt,
             cutoff_hz,
             edge_s: edge as f64 * dt,
-            lowest_hz: lowest_cutoff_hz(n, fs, false),
+            lowest_hz: edge_limited_cutoff_hz(n, fs, false),
         });
     }
     if edge > 0 {
@@ -494,11 +488,10 @@ pub fn preprocess(
     choices.reasons.push(format!(
         "Coulomb columns switch with the velocity filtered at {friction_cutoff_hz:.3} Hz ({})",
         match options.friction_cutoff_hz {
-            Some(_) => "set by the user, kept within [cut-off, fs/4]",
-            None => "the default, kept within [cut-off, fs/4]",
+            Some(_) => "set by the user, at most fs/4",
+            None => "the main cut-off",
         }
     ));
-    let friction_filter = Butterworth::lowpass(options.order, friction_cutoff_hz, fs)?;
     let positions = || -> Result<_, FilterError> {
         let q_f = filter_columns(&filter, &q, dof, periodic)?;
         let derivative = |x: &[f64]| -> Result<Vec<f64>, FilterError> {
@@ -514,17 +507,19 @@ pub fn preprocess(
         Ok((q_f, qd, qdd))
     };
     let torque_and_friction = || -> Result<_, FilterError> {
-        let tau_f = filter_columns(&filter, &averaged(tau), dof, periodic)?;
-        let qd_friction = filter_columns(&friction_filter, &central_difference(&q, dof, dt, periodic), dof, periodic)?;
-        Ok((tau_f, qd_friction))
+        let tau_avg = averaged(tau, dof, averaging);
+        let tau_f = filter_columns(&filter, &tau_avg, dof, periodic)?;
+        let friction =
+            FrictionVelocity::of_log(raw_q, dof, averaging, (dt, options.order), friction_cutoff_hz, options.decimate)?;
+        Ok((tau_avg.into_owned(), tau_f, friction))
     };
     // The two chains are independent; on two cores they take the time of the longer one.
     let (chain, other) = std::thread::scope(|scope| {
         let other = scope.spawn(torque_and_friction);
         (positions(), other.join().expect("filtering does not panic"))
     });
-    let ((q_f, qd, qdd), (tau_f, qd_friction)) = (chain?, other?);
-    let keep = |x: &[f64]| -> Vec<f64> { x.chunks(dof).step_by(options.decimate).flatten().copied().collect() };
+    let ((q_f, qd, qdd), (tau_avg, tau_f, friction)) = (chain?, other?);
+    let keep = |x: &[f64]| every_nth_row(x, dof, options.decimate);
     let t_out: Vec<f64> = (0..n).step_by(options.decimate).map(|i| t[0] + i as f64 * dt).collect();
     Ok(Preprocessed {
         dof,
@@ -532,9 +527,12 @@ pub fn preprocess(
         q: keep(&q_f),
         qd: keep(&qd),
         qdd: keep(&qdd),
-        qd_friction: keep(&qd_friction),
+        qd_friction: friction.mean(),
+        friction,
         tau: keep(&tau_f),
+        tau_unfiltered: keep(&tau_avg),
         cutoff_hz,
+        bandwidth_hz,
         friction_cutoff_hz,
         sample_rate_hz: fs,
         periods_averaged: averaging.map_or(1, |a| a.count),
@@ -544,106 +542,15 @@ pub fn preprocess(
         decimate: options.decimate,
         settled,
         choices,
+        averaging,
+        log_dt,
     })
 }
 
-/// The friction velocity's cut-off: the user's or [`DEFAULT_FRICTION_CUTOFF_HZ`], never below the
-/// main cut-off nor above a quarter of the sample rate.
+/// The friction velocity's cut-off: the user's, at most a quarter of the sample rate, or the
+/// main cut-off.
 pub fn friction_cutoff_hz(user: Option<f64>, cutoff_hz: f64, fs: f64) -> f64 {
-    user.unwrap_or(DEFAULT_FRICTION_CUTOFF_HZ).max(cutoff_hz).min(0.25 * fs)
-}
-
-/// `x` averaged over its periods, or `x` itself (borrowed, not copied) when not periodic.
-fn averaged(x: &[f64], dof: usize, averaging: Option<Averaging>) -> std::borrow::Cow<'_, [f64]> {
-    match averaging {
-        None => x.into(),
-        Some(a) => mean_of(&periods_of(x, dof, a), dof).into(),
-    }
-}
-
-/// The log's periods, each resampled at `per()` evenly spaced points by cubic (Catmull–Rom)
-/// interpolation, whose error on a signal sampled well above its bandwidth is far below encoder
-/// resolution. A period of a whole number of samples is copied exactly (every point falls on a
-/// sample).
-fn periods_of(x: &[f64], dof: usize, a: Averaging) -> Vec<Vec<f64>> {
-    let n = x.len() / dof;
-    let points = a.per();
-    let step = a.samples / points as f64;
-    let at = |i: isize, j: usize| x[(i.clamp(0, n as isize - 1) as usize) * dof + j];
-    (0..a.count)
-        .map(|p| {
-            let mut period = vec![0.0; points * dof];
-            for i in 0..points {
-                let position = p as f64 * a.samples + i as f64 * step;
-                let (k, u) = (position.floor() as isize, position.fract());
-                for j in 0..dof {
-                    period[i * dof + j] = match u {
-                        0.0 => at(k, j),
-                        _ => {
-                            let (a, b, c, d) = (at(k - 1, j), at(k, j), at(k + 1, j), at(k + 2, j));
-                            b + 0.5 * u * (c - a + u * (2.0 * a - 5.0 * b + 4.0 * c - d + u * (3.0 * (b - c) + d - a)))
-                        }
-                    };
-                }
-            }
-            period
-        })
-        .collect()
-}
-
-/// The sample-by-sample mean of equally long periods. Averaging `P` periods divides uncorrelated
-/// noise variance by `P`.
-fn mean_of(periods: &[Vec<f64>], dof: usize) -> Vec<f64> {
-    let mut mean = vec![0.0; periods.first().map_or(0, Vec::len)];
-    for period in periods {
-        mean.iter_mut().zip(period).for_each(|(m, v)| *m += v / periods.len() as f64);
-    }
-    debug_assert_eq!(mean.len() % dof.max(1), 0);
-    mean
-}
-
-/// Mean over `periods` consecutive blocks of `per` samples (trailing samples beyond whole periods
-/// are dropped). Averaging `P` periods divides uncorrelated noise variance by `P`.
-pub fn average_periods(x: &[f64], dof: usize, periods: usize, per: usize) -> Vec<f64> {
-    let mut mean = vec![0.0; per * dof];
-    for p in 0..periods {
-        for (m, v) in mean.iter_mut().zip(&x[p * per * dof..(p + 1) * per * dof]) {
-            *m += v;
-        }
-    }
-    mean.iter_mut().for_each(|m| *m /= periods as f64);
-    mean
-}
-
-/// Central differences `(x[k+1] − x[k−1]) / 2h`; circular when `periodic`, one-sided at the ends
-/// otherwise.
-pub fn central_difference(x: &[f64], dof: usize, h: f64, periodic: bool) -> Vec<f64> {
-    let n = x.len() / dof;
-    let mut d = vec![0.0; x.len()];
-    for k in 0..n {
-        let (prev, next, span) = match (k, periodic) {
-            (0, true) => (n - 1, 1, 2.0),
-            (k, true) if k == n - 1 => (k - 1, 0, 2.0),
-            (0, false) => (0, 1, 1.0),
-            (k, false) if k == n - 1 => (k - 1, k, 1.0),
-            (k, _) => (k - 1, k + 1, 2.0),
-        };
-        for j in 0..dof {
-            d[k * dof + j] = (x[next * dof + j] - x[prev * dof + j]) / (span * h);
-        }
-    }
-    d
-}
-
-/// Filter every column; a periodic signal is filtered as three copies end to end and the middle
-/// copy kept, so that the filter sees no ends.
-fn filter_columns(filter: &Butterworth, x: &[f64], dof: usize, periodic: bool) -> Result<Vec<f64>, FilterError> {
-    let mut out = vec![0.0; x.len()];
-    match periodic {
-        true => filter.filtfilt_rows_periodic(x, dof, &mut out)?,
-        false => filter.filtfilt_rows(x, dof, &mut out)?,
-    }
-    Ok(out)
+    user.map_or(cutoff_hz, |f| f.min(0.25 * fs))
 }
 
 /// The cut-off over the highest frequency of the motion: the filter then passes the motion's
@@ -660,13 +567,19 @@ pub const MIN_CUTOFF_HZ: f64 = 1.0;
 /// from about the motion's RMS at the end to under 1 % of it at 5 periods (docs/identification.md).
 pub const EDGE_CUTOFF_PERIODS: f64 = 5.0;
 
-/// The lowest cut-off a log of `samples` at `fs` allows: [`MIN_CUTOFF_HZ`], raised for a log that
-/// is not periodic so that the filter's end transients ([`EDGE_CUTOFF_PERIODS`]) take at most a
-/// quarter of it at each end.
+/// The lowest cut-off the spectral rule chooses for a log of `samples` at `fs`:
+/// [`MIN_CUTOFF_HZ`], or the [`edge_limited_cutoff_hz`] when higher.
 pub fn lowest_cutoff_hz(samples: usize, fs: f64, periodic: bool) -> f64 {
+    MIN_CUTOFF_HZ.max(edge_limited_cutoff_hz(samples, fs, periodic))
+}
+
+/// The lowest cut-off at which the filter's end transients ([`EDGE_CUTOFF_PERIODS`]) take at most
+/// a quarter of a log that is not periodic at each end (Hz); 0 for a periodic one, which has no
+/// ends.
+pub fn edge_limited_cutoff_hz(samples: usize, fs: f64, periodic: bool) -> f64 {
     match periodic {
-        true => MIN_CUTOFF_HZ,
-        false => MIN_CUTOFF_HZ.max(4.0 * EDGE_CUTOFF_PERIODS * fs / samples.saturating_sub(4).max(1) as f64),
+        true => 0.0,
+        false => 4.0 * EDGE_CUTOFF_PERIODS * fs / samples.saturating_sub(4).max(1) as f64,
     }
 }
 

@@ -7,6 +7,7 @@ use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::diagnose::{consistent_with_effects, diagnose, DiagnoseOptions, Diagnosis, EffectKind};
 use arash_core::identify::consistent::ConsistentOptions;
+use arash_core::identify::preprocess::PreprocessOptions;
 use arash_core::identify::{Declared, Log};
 use arash_core::model_file::ModelFile;
 use arash_core::BaseParameters;
@@ -36,9 +37,17 @@ pub struct Args {
     /// bundled ARASH:ASiST drive's, or no cogging search for another robot.
     #[arg(long, value_delimiter = ',')]
     transmission: Option<Vec<f64>>,
-    /// Low-pass cut-off (Hz).
-    #[arg(long, default_value_t = DiagnoseOptions::default().cutoff_hz)]
-    cutoff: f64,
+    /// Low-pass cut-off (Hz); default: 20 Hz, at most a fifth of the sample rate
+    /// (docs/diagnosis.md).
+    #[arg(long)]
+    cutoff: Option<f64>,
+    /// Cut-off of the velocity that switches Coulomb friction (Hz); default: chosen by the fit,
+    /// as `arash identify` chooses it (docs/identification.md, "Preprocessing").
+    #[arg(long)]
+    friction_cutoff: Option<f64>,
+    /// Butterworth order (applied forward and backward).
+    #[arg(long, default_value_t = PreprocessOptions::default().order)]
+    order: usize,
     /// Length of the blocks of time the tests and the held-out split use (s).
     #[arg(long, default_value_t = DiagnoseOptions::default().block_s)]
     block: f64,
@@ -105,7 +114,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     write_outputs(&args.output, &diagnosis, &report)?;
     if args.consistent {
         let train = Log { t: &train.t, q: &train.q, tau: &train.tau };
-        let cutoff_hz = args.consistent_cutoff.unwrap_or(options.cutoff_hz);
+        let cutoff_hz = args.consistent_cutoff.unwrap_or(diagnosis.settings.cutoff_hz);
         let (refit, _) = write_consistent(&args.output, &model, &base, train, &diagnosis, &options, cutoff_hz)?;
         println!("{}", consistent_summary(&refit, &model.joint_names()));
     }
@@ -116,7 +125,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// The diagnosis's settings from the command line, whose defaults are `DiagnoseOptions::default`.
 fn options(args: &Args, model: &arash_core::Model) -> anyhow::Result<DiagnoseOptions> {
     let mut options = DiagnoseOptions {
-        cutoff_hz: args.cutoff,
+        preprocess: PreprocessOptions {
+            cutoff_hz: args.cutoff,
+            friction_cutoff_hz: args.friction_cutoff,
+            order: args.order,
+            ..PreprocessOptions::default()
+        },
         block_s: args.block,
         alpha: args.alpha,
         min_gain: args.min_gain,
@@ -150,7 +164,8 @@ pub fn write_consistent(
     options: &DiagnoseOptions,
     cutoff_hz: f64,
 ) -> anyhow::Result<(ModelFile, PathBuf)> {
-    let options = DiagnoseOptions { cutoff_hz, ..options.clone() };
+    let preprocess = PreprocessOptions { cutoff_hz: Some(cutoff_hz), ..options.preprocess.clone() };
+    let options = DiagnoseOptions { preprocess, ..options.clone() };
     let refit = consistent_with_effects(model, base, train, &diagnosis.model, &options, &ConsistentOptions::default())
         .context("the consistent fit with the effects found failed")?;
     let path = dir.join("model_consistent.json");

@@ -98,10 +98,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         for path in &args.validate {
             let v = args.runs.read(std::slice::from_ref(path), &model)?;
             let pre = PreprocessOptions { periods: args.validate_periods, order: args.order, ..Default::default() };
-            let metrics = validate(&model, &identification, &v.t, &v.q, &v.tau, &pre)
+            let validation = validate(&model, &identification, &v.t, &v.q, &v.tau, &pre)
                 .with_context(|| format!("validating on {}", path.display()))?;
+            if validation.cutoff_hz != identification.settings.cutoff_hz {
+                eprintln!("note: {}: {}", path.display(), validation.reasons.last().map_or("", String::as_str));
+            }
             labels.push(path.file_stem().map_or("run".into(), |s| s.to_string_lossy().into_owned()));
-            fp.push(metrics.fp_percent);
+            fp.push(validation.metrics.fp_percent);
         }
         println!("Cross-validation (FP% per joint, one column per run):\n{}", validation_table(&joints, &labels, &fp));
     }

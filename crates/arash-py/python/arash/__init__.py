@@ -136,10 +136,11 @@ def identify(
     method: "ols" (the default), "wls" or "consistent" (docs/identification.md). periods: whole
     excitation periods in the log, averaged (None: found from the data; 1: not periodic).
     period_s: the period, when it is known but not how many the log holds.
-    cutoff_hz: the low-pass cut-off (None: the best fit over cut-offs around 5 × the highest
-    frequency of the motion). order: Butterworth order. decimate: keep every k-th filtered
-    sample. friction_cutoff_hz: the cut-off of the velocity that switches Coulomb friction
-    (None: 20 Hz, kept within [cut-off, fs/4]). pull: the consistent fit's pull toward CAD.
+    cutoff_hz: the low-pass cut-off (None: chosen from the data: among the cut-offs whose fitted
+    model predicts the unfiltered torque as well as the best, the one that fits best).
+    order: Butterworth order. decimate: keep every k-th filtered sample. friction_cutoff_hz: the
+    cut-off of the velocity that switches Coulomb friction (None: the one that fits best).
+    pull: the consistent fit's pull toward CAD.
     stiffness_bounds: the cable stiffness's (lower, upper). None keeps arash's default for each (docs/identification.md).
     motor_side: a ``Transmission`` when q and tau are motor angles and motor torques.
 
@@ -187,6 +188,8 @@ def diagnose(
     validation: Optional[tuple[Any, Any, Any]] = None,
     transmission: Optional[Sequence[float]] = None,
     cutoff_hz: Optional[float] = None,
+    friction_cutoff_hz: Optional[float] = None,
+    order: Optional[int] = None,
     block_s: Optional[float] = None,
     alpha: Optional[float] = None,
     min_gain: Optional[float] = None,
@@ -205,10 +208,13 @@ def diagnose(
     validation: a tuple ``(t, q, tau)`` held out for ranking and the held-out errors; default:
         the odd-numbered blocks of the training log.
     transmission: joint motion per motor radian, per joint (enables the cogging search).
-    effects: identifiers to search (docs/diagnosis.md). refit: with a model, refit all its base
+    cutoff_hz, friction_cutoff_hz, order: the preprocessing, as ``identify`` takes it (None: the
+    diagnosis's 20 Hz, at most a fifth of the sample rate; the friction velocity chosen by the fit,
+    as ``identify`` chooses it; order 5). effects: identifiers to search (docs/diagnosis.md). refit: with a model, refit all its base
     parameters too. hold_friction: with a model, hold its friction too. consistent: also fit the
     physically consistent model with the effects found (``Diagnosis.model_consistent``), at
-    ``consistent_cutoff_hz`` (default ``cutoff_hz``; the calibration's own is the better choice).
+    ``consistent_cutoff_hz`` (default: the diagnosis's cut-off; the calibration's own is the
+    better choice).
     The other options are the decision rule's (docs/diagnosis.md). None keeps arash's default for
     each; ``DiagnoseOptions()`` shows them. motor_side: a ``Transmission`` when q and tau (and the
     validation's) are motor angles and motor torques.
@@ -219,7 +225,8 @@ def diagnose(
             validation = (validation[0], *motor_side.to_joints(validation[1], validation[2]))
     options = DiagnoseOptions(**_given(
         transmission=None if transmission is None else list(transmission), cutoff_hz=cutoff_hz,
-        block_s=block_s, alpha=alpha, min_gain=min_gain, effects=None if effects is None else list(effects),
+        friction_cutoff_hz=friction_cutoff_hz, order=order, block_s=block_s, alpha=alpha, min_gain=min_gain,
+        effects=None if effects is None else list(effects),
         refit=refit, hold_friction=hold_friction, consistent=consistent,
         consistent_cutoff_hz=consistent_cutoff_hz))
     return _diagnose(robot, (t, q, tau), options, model, validation)

@@ -279,7 +279,7 @@ fn calibrate(
         let v = runlog::read(path, model)?;
         let pre = PreprocessOptions::default();
         labels.push(format!("ω = {omega}"));
-        table_ii.0.push(validate(model, &ols, &v.t, &v.q, &v.tau, &pre)?.fp_percent);
+        table_ii.0.push(validate(model, &ols, &v.t, &v.q, &v.tau, &pre)?.metrics.fp_percent);
         // `validate` scores exactly this series; the plotted run keeps it for the figure.
         let series = validation_series(model, &consistent, &v.t, &v.q, &v.tau, &pre)?;
         table_ii.1.push(joint_metrics(&series.measured, &series.predicted, model.dof()).fp_percent);

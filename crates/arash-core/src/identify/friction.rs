@@ -1,0 +1,102 @@
+//! The velocity that switches Coulomb friction, and the Coulomb direction columns built from it.
+//!
+//! Coulomb friction switches with the joint's true velocity. Under closed-loop control a joint
+//! dithers around zero speed far faster than the trajectory moves, and its friction switches with
+//! that dither; on an open-loop log a faster velocity only lets encoder noise flip the sign. So
+//! this velocity has a cut-off of its own, which [`super::cutoff`] chooses by the fit.
+//!
+//! A period-averaged torque averages the friction of every period: its Coulomb part is the
+//! coefficient times the mean over the periods of `law(q̇ₚ)`, each period's own velocity. That is
+//! not the law of the mean velocity wherever the periods' velocities straddle zero, as a closed
+//! loop's do, so the direction column here is that mean (docs/identification.md gives what it
+//! changes).
+
+use super::filter::{Butterworth, FilterError};
+use super::signals::{central_difference, every_nth_row, filter_columns, mean_of, periods_of, Averaging};
+use crate::model::CoulombShape;
+
+/// The friction velocity of a log: one series per averaged period (a single one for a log that
+/// is not periodic), each `samples × dof`, row-major.
+#[derive(Clone, Debug)]
+pub struct FrictionVelocity {
+    /// The cut-off it was filtered at (Hz).
+    pub cutoff_hz: f64,
+    dof: usize,
+    periods: Vec<Vec<f64>>,
+}
+
+impl FrictionVelocity {
+    /// The velocity of the raw positions `q` (`N × dof`) by central differences filtered at
+    /// `cutoff_hz` (Butterworth of `order`, forward and backward), each series then thinned to
+    /// every `decimate`-th sample. With `averaging`, the log's whole periods, resampled as the
+    /// positions are, are placed end to end, which is itself a periodic signal, and differenced
+    /// and filtered circularly; `dt` is then the resampled step.
+    pub fn of_log(
+        q: &[f64],
+        dof: usize,
+        averaging: Option<Averaging>,
+        (dt, order): (f64, usize),
+        cutoff_hz: f64,
+        decimate: usize,
+    ) -> Result<Self, FilterError> {
+        let filter = Butterworth::lowpass(order, cutoff_hz, 1.0 / dt)?;
+        let periods = match averaging {
+            None => vec![filter_columns(&filter, &central_difference(q, dof, dt, false), dof, false)?],
+            Some(a) => {
+                let whole: Vec<f64> = periods_of(q, dof, a).concat();
+                let v = filter_columns(&filter, &central_difference(&whole, dof, dt, true), dof, true)?;
+                v.chunks(a.per() * dof).map(<[f64]>::to_vec).collect()
+            }
+        };
+        let periods = periods.iter().map(|p| every_nth_row(p, dof, decimate)).collect();
+        Ok(Self { cutoff_hz, dof, periods })
+    }
+
+    /// The velocity averaged over the periods (`samples × dof`): what the averaged positions'
+    /// own difference would give, without the friction law.
+    pub fn mean(&self) -> Vec<f64> {
+        mean_of(&self.periods)
+    }
+
+    /// The Coulomb direction of every joint and sample (`samples × dof`), unfiltered: the mean
+    /// over the periods of `shape(q̇ₚ)`.
+    pub fn directions(&self, shape: CoulombShape) -> Vec<f64> {
+        let laws: Vec<Vec<f64>> =
+            self.periods.iter().map(|p| p.iter().map(|v| shape.eval(*v)).collect::<Vec<f64>>()).collect();
+        debug_assert!(laws.iter().all(|l| l.len() % self.dof == 0));
+        mean_of(&laws)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two periods of a sine velocity, one with a dither around its zero crossings: the mean of
+    /// the signs differs from the sign of the mean where the periods disagree.
+    #[test]
+    fn the_direction_of_an_average_is_the_average_of_the_directions() {
+        let (dt, per) = (1e-3, 2000);
+        let mut q = Vec::new();
+        for p in 0..2 {
+            for i in 0..per {
+                let t = i as f64 * dt;
+                let dither = if p == 1 { 5e-4 * (2.0 * std::f64::consts::PI * 40.0 * t).sin() } else { 0.0 };
+                q.push((2.0 * std::f64::consts::PI * t / 2.0).sin() + dither);
+            }
+        }
+        let averaging = Some(Averaging { count: 2, samples: per as f64 });
+        let v = FrictionVelocity::of_log(&q, 1, averaging, (dt, 5), 100.0, 1).unwrap();
+        let directions = v.directions(CoulombShape::Sign);
+        let of_mean: Vec<f64> = v.mean().iter().map(|x| CoulombShape::Sign.eval(*x)).collect();
+        // Every direction is a mean of two signs; somewhere near the zero crossings (t = 0.5 s,
+        // 1.5 s) the dithered period's sign flips against the clean one's.
+        assert!(directions.iter().all(|d| [-1.0, 0.0, 1.0].contains(d)));
+        assert!(directions.contains(&0.0), "the periods never disagree");
+        let disagree = directions.iter().zip(&of_mean).filter(|(a, b)| a != b).count();
+        assert!(disagree > 0 && disagree < per / 10, "{disagree} samples differ");
+        // Away from the crossings every period agrees.
+        assert_eq!(directions[per / 8], 1.0);
+        assert_eq!(directions[per / 2], -1.0);
+    }
+}
