@@ -24,6 +24,8 @@ from conftest import ROBOT_FILES  # noqa: E402
 from test_against_pinocchio import Expanded  # noqa: E402
 
 FS = 1000.0
+# The friction velocity's cut-off both pipelines use (Hz), set so that arash runs no search.
+FRICTION_CUTOFF = 20.0
 
 
 def pinocchio_reduced_regressor(ref, robot, base, q, qd, qdd):
@@ -53,12 +55,13 @@ def pinocchio_reduced_regressor(ref, robot, base, q, qd, qdd):
     return np.concatenate([rigid, joint_cols], axis=2)[:, :, base.independent]
 
 
-def scipy_pipeline(robot, base, t, q, tau, periods, cutoff, regressor=None):
+def scipy_pipeline(robot, base, t, q, tau, periods, cutoff, regressor=None, friction_cutoff=FRICTION_CUTOFF):
     """The same steps in numpy/scipy: average, filter (sections, filtfilt padding), central
     differences, filter, regressor (arash's: there is no scipy one), the Coulomb columns switched by
-    the velocity filtered at 20 Hz and then filtered like the torque, least squares."""
+    each period's velocity filtered at `friction_cutoff` and averaged, every column filtered like
+    the torque, least squares."""
     sos = signal.butter(5, cutoff, fs=FS, output="sos")
-    sos_friction = signal.butter(5, 20.0, fs=FS, output="sos")
+    sos_friction = signal.butter(5, friction_cutoff, fs=FS, output="sos")
 
     def filt(x, periodic, sections=sos):
         if periodic:
@@ -67,21 +70,25 @@ def scipy_pipeline(robot, base, t, q, tau, periods, cutoff, regressor=None):
         return signal.sosfiltfilt(sections, x, axis=0, padtype="odd", padlen=18)
 
     periodic = periods is not None
+    h = 1 / FS
+    diff = (lambda x: (np.roll(x, -1, 0) - np.roll(x, 1, 0)) / (2 * h)) if periodic else (lambda x: np.gradient(x, h, axis=0))
+    # Each period's own friction velocity: the whole periods end to end are one periodic signal.
+    whole = q[: len(q) // (periods or 1) * (periods or 1)]
+    directions = np.sign(filt(diff(whole), periodic, sos_friction))
     if periodic:
         per = len(t) // periods
         q = q[: per * periods].reshape(periods, per, -1).mean(axis=0)
         tau = tau[: per * periods].reshape(periods, per, -1).mean(axis=0)
-    h = 1 / FS
-    diff = (lambda x: (np.roll(x, -1, 0) - np.roll(x, 1, 0)) / (2 * h)) if periodic else (lambda x: np.gradient(x, h, axis=0))
+        directions = directions.reshape(periods, per, -1).mean(axis=0)
     qf = filt(q, periodic)
     qd = filt(diff(qf), periodic)
     qdd = filt(diff(qd), periodic)
     tauf = filt(tau, periodic)
-    qd_friction = filt(diff(q), periodic, sos_friction)
     Yr = (regressor or base.reduced_regressor)(qf, qd, qdd)
     names = robot.parameter_names()
     coulomb = [base.independent.index(names.index(f"{joint}.fc")) for joint in robot.joint_names()]
-    Yr[:, range(robot.dof), coulomb] = filt(np.sign(qd_friction), periodic)
+    Yr[:, range(robot.dof), coulomb] = directions
+    Yr = filt(Yr.reshape(len(Yr), -1), periodic).reshape(Yr.shape)
     beta, *_ = np.linalg.lstsq(Yr.reshape(-1, base.p), tauf.reshape(-1), rcond=None)
     return beta
 
@@ -96,11 +103,12 @@ def main():
     t = np.arange(300_000) / FS
     t, q, tau = log(robot, truth, traj, t, rng)
     cutoff = 1.6667
+    fixed = {"cutoff_hz": cutoff, "friction_cutoff_hz": FRICTION_CUTOFF}
 
     for periods, label in ((20, "20 periods averaged (paper)"), (None, "no averaging: all 300,000 samples")):
-        ours = median_seconds(lambda: arash.identify(robot, t, q, tau, method="ols", periods=periods, cutoff_hz=cutoff), 5)
+        ours = median_seconds(lambda: arash.identify(robot, t, q, tau, method="ols", periods=periods or 1, **fixed), 5)
         peer = median_seconds(lambda: scipy_pipeline(robot, base, t, q, tau, periods, cutoff), 5)
-        a = arash.identify(robot, t, q, tau, method="ols", periods=periods, cutoff_hz=cutoff).beta
+        a = arash.identify(robot, t, q, tau, method="ols", periods=periods or 1, **fixed).beta
         b = scipy_pipeline(robot, base, t, q, tau, periods, cutoff)
         agree = np.abs(a - b).max() / np.abs(b).max()
         print(f"preprocess + OLS, {label}: arash {ours * 1e3:.0f} ms, numpy/scipy {peer * 1e3:.0f} ms, "

@@ -95,38 +95,38 @@ def validation_logs(condition, truth, omegas=(0.3, 0.5, 0.7, 0.9)):
     return logs
 
 
-def test_the_independent_simulation_validates_on_the_papers_trajectories():
-    """8 periods of arash's designed excitation at 1 kHz, 20-bit encoders, 1 % torque noise,
-    sign(q̇) Coulomb: with the defaults the model predicts the paper's four validation
-    trajectories at FP% ≥ 99 on every joint."""
-    condition = Condition(**{**DESIGNED.__dict__, "bits": 20})
+@pytest.mark.parametrize("bits", [16, 18, 20])
+def test_the_independent_simulation_validates_on_the_papers_trajectories(bits):
+    """8 periods of arash's designed excitation at 1 kHz, 1 % torque noise, sign(q̇) Coulomb: with
+    the defaults the model predicts the paper's four validation trajectories at FP% ≥ 99 on every
+    joint, with encoders of 16 bits and finer."""
+    condition = Condition(**{**DESIGNED.__dict__, "bits": bits})
     robot, log, truth = make_log(condition)
     ident = arash.identify(robot, *log)
     rows = np.array([ident.validate(*v)["fp_percent"] for v in validation_logs(condition, truth)])
-    print(f"\nvalidation FP% (rows ω = 0.3, 0.5, 0.7, 0.9):\n{np.round(rows, 2)}")
+    print(f"\n{bits} bits, cut-off {ident.cutoff_hz:.2f} Hz: validation FP% (rows ω = 0.3, 0.5, 0.7, 0.9):\n"
+          f"{np.round(rows, 2)}")
     assert np.all(rows >= 99.0), rows
 
 
 def test_where_the_encoder_limits_validation_the_defaults_are_as_good_as_any_cutoff():
-    """With 16-bit encoders yaw's small accelerations drown in the quantisation that two
-    differences amplify: no cut-off validates yaw at 99 % (96–98 % between 1 and 2 Hz, by the luck
-    of the noise, against 99.1–99.3 % with 20 bits), which is the case the issue allows ("wherever
-    the noise allows it"). There the defaults must validate pitch and insertion within a point of
-    the best cut-off, and keep yaw where the good cut-offs put it (≥ 95 %), far from what a cut-off
-    chosen without the search gives (79 % at 4 Hz, 68 % at 5.6 Hz)."""
-    robot, log, truth = make_log(DESIGNED)
-    logs = validation_logs(DESIGNED, truth, omegas=(0.3, 0.9))
+    """With 14-bit encoders yaw's small accelerations drown in the quantisation that two
+    differences amplify: no cut-off validates yaw at 99 %, which is the case the issue allows
+    ("wherever the noise allows it"). There the defaults must validate every joint within a point
+    of the best of the cut-offs set by hand."""
+    condition = Condition(**{**DESIGNED.__dict__, "bits": 14})
+    robot, log, truth = make_log(condition)
+    logs = validation_logs(condition, truth, omegas=(0.3, 0.9))
 
     def validation(**options):
         ident = arash.identify(robot, *log, **options)
         return np.array([ident.validate(*v)["fp_percent"] for v in logs]).min(axis=0)
 
     default = validation()
-    by_cutoff = np.array([validation(cutoff_hz=c) for c in (1.0, 1.4, 2.0, 2.8, 4.0, 5.6)])
+    by_cutoff = np.array([validation(cutoff_hz=c) for c in (0.67, 0.8, 1.0, 1.4, 2.0, 2.8, 4.0)])
     print(f"\nworst validation FP% per joint: defaults {np.round(default, 2)}, by cut-off\n{np.round(by_cutoff, 2)}")
     assert by_cutoff[:, 0].max() < 99.0, "yaw is no longer quantisation-limited: assert 99 % here"
-    assert np.all(default[1:] >= by_cutoff[:, 1:].max(axis=0) - 1.0), (default, by_cutoff)
-    assert default[0] >= 95.0, (default, by_cutoff)
+    assert np.all(default >= by_cutoff.max(axis=0) - 1.0), (default, by_cutoff)
 
 
 def test_bad_logs_are_refused_by_name():
@@ -135,6 +135,8 @@ def test_bad_logs_are_refused_by_name():
         "t does not increase at sample 10": (np.concatenate([t[:10], t[9:-1]]), q, tau),
         "q is not finite at sample 7": (t, np.where(np.arange(len(t))[:, None] == 7, np.nan, q), tau),
         "joint 2 never moves": (t, np.column_stack([q[:, 0], np.full(len(t), 0.1), q[:, 2]]), tau),
+        # Half a second of a 5 s period: no joint goes back and forth.
+        "0.50 s long and holds no cycle": (t[:100], q[:100], tau[:100]),
     }
     for message, log in cases.items():
         with pytest.raises(ValueError, match=message):

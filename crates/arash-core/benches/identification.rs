@@ -53,8 +53,14 @@ fn bench(c: &mut Criterion) {
     let (t, q, tau) = simulated_log(&model);
     let mut group = c.benchmark_group("identification, 300,000 samples");
     group.sample_size(10);
-    for (label, periods) in [("20 periods averaged", Some(20)), ("no averaging", None)] {
-        let options = PreprocessOptions { periods, cutoff_hz: Some(1.6667), ..Default::default() };
+    for (label, periods) in [("20 periods averaged", Some(20)), ("no averaging", Some(1))] {
+        // Both cut-offs set: the pipeline alone, as the peer in bench/identification_vs_scipy.py.
+        let options = PreprocessOptions {
+            periods,
+            cutoff_hz: Some(1.6667),
+            friction_cutoff_hz: Some(20.0),
+            ..Default::default()
+        };
         group.bench_function(format!("preprocess ({label})"), |b| {
             b.iter(|| preprocess(black_box(&t), &q, &tau, 3, &options).unwrap())
         });
@@ -71,6 +77,23 @@ fn bench(c: &mut Criterion) {
                     Log { t: black_box(&t), q: &q, tau: &tau },
                     IdentifyMethod::Ols,
                     &whole,
+                )
+                .unwrap()
+            })
+        });
+        // Every choice left to the data: the period found, the cut-off and the friction
+        // velocity searched (identify/cutoff.rs).
+        let defaults = IdentifyOptions {
+            preprocess: PreprocessOptions { periods: (periods == Some(1)).then_some(1), ..Default::default() },
+            ..Default::default()
+        };
+        group.bench_function(format!("identify OLS, choices from the data ({label})"), |b| {
+            b.iter(|| {
+                identify(
+                    Declared { model: &model, base: &base, urdf: "" },
+                    Log { t: black_box(&t), q: &q, tau: &tau },
+                    IdentifyMethod::Ols,
+                    &defaults,
                 )
                 .unwrap()
             })

@@ -20,6 +20,7 @@
 
 use super::estimate::{coulomb_positions, filter_each_column, fit_stacked, put_coulomb, regressor_rows, Method};
 use super::filter::Butterworth;
+use super::friction::RawVelocity;
 use super::preprocess::{
     edge_limited_cutoff_hz, preprocess, Choices, PreprocessError, PreprocessOptions, Preprocessed, MIN_CUTOFF_HZ,
 };
@@ -154,6 +155,8 @@ struct Search<'a> {
     /// cut-off, so that all are scored alike.
     scored: Vec<usize>,
     directions: std::cell::RefCell<Vec<Option<Vec<f64>>>>,
+    /// The positions' central difference, which every friction velocity is filtered from.
+    raw_velocity: RawVelocity,
 }
 
 impl<'a> Search<'a> {
@@ -174,7 +177,8 @@ impl<'a> Search<'a> {
         };
         let scored = spread(edge.min(n / 2)..n.saturating_sub(edge).max(n / 2), 1, MOST_SCORED);
         let directions = std::cell::RefCell::new(vec![None; grid.len()]);
-        Self { declared, log, fixed, reference, grid, top, length_limited, scored, directions }
+        let raw_velocity = reference.raw_velocity(log.q);
+        Self { declared, log, fixed, reference, grid, top, length_limited, scored, directions, raw_velocity }
     }
 
     /// The unfiltered Coulomb directions of the friction velocity at grid point `i` (full rate).
@@ -182,7 +186,7 @@ impl<'a> Search<'a> {
         if let Some(d) = &self.directions.borrow()[i] {
             return Ok(d.clone());
         }
-        let velocity = self.reference.friction_velocity(self.log.q, self.grid[i])?;
+        let velocity = self.raw_velocity.filtered((self.reference.order, self.grid[i]), 1)?;
         let d = velocity.directions(self.declared.model.coulomb_shape);
         self.directions.borrow_mut()[i] = Some(d.clone());
         Ok(d)
@@ -232,7 +236,7 @@ impl<'a> Search<'a> {
         for (friction_hz, at) in self.frictions(cutoff, user_friction) {
             let directions = match at {
                 Some(i) => self.directions(i)?,
-                None => self.reference.friction_velocity(self.log.q, friction_hz)?.directions(model.coulomb_shape),
+                None => self.raw_velocity.filtered((pre.order, friction_hz), 1)?.directions(model.coulomb_shape),
             };
             let filtered = filter_columns(&filter, &directions, dof, pre.periodic)?;
             put_coulomb(&mut w, dof, &positions, (&filtered, &rows));

@@ -12,7 +12,7 @@
 //! changes).
 
 use super::filter::{Butterworth, FilterError};
-use super::signals::{central_difference, every_nth_row, filter_columns, mean_of, periods_of, Averaging};
+use super::signals::{central_difference, every_nth_row, filter_columns, mean_of, whole_periods, Averaging};
 use crate::model::CoulombShape;
 
 /// The friction velocity of a log: one series per averaged period (a single one for a log that
@@ -39,17 +39,7 @@ impl FrictionVelocity {
         cutoff_hz: f64,
         decimate: usize,
     ) -> Result<Self, FilterError> {
-        let filter = Butterworth::lowpass(order, cutoff_hz, 1.0 / dt)?;
-        let periods = match averaging {
-            None => vec![filter_columns(&filter, &central_difference(q, dof, dt, false), dof, false)?],
-            Some(a) => {
-                let whole: Vec<f64> = periods_of(q, dof, a).concat();
-                let v = filter_columns(&filter, &central_difference(&whole, dof, dt, true), dof, true)?;
-                v.chunks(a.per() * dof).map(<[f64]>::to_vec).collect()
-            }
-        };
-        let periods = periods.iter().map(|p| every_nth_row(p, dof, decimate)).collect();
-        Ok(Self { cutoff_hz, dof, periods })
+        RawVelocity::of_log(q, dof, averaging, dt).filtered((order, cutoff_hz), decimate)
     }
 
     /// The velocity averaged over the periods (`samples × dof`): what the averaged positions'
@@ -61,10 +51,48 @@ impl FrictionVelocity {
     /// The Coulomb direction of every joint and sample (`samples × dof`), unfiltered: the mean
     /// over the periods of `shape(q̇ₚ)`.
     pub fn directions(&self, shape: CoulombShape) -> Vec<f64> {
-        let laws: Vec<Vec<f64>> =
-            self.periods.iter().map(|p| p.iter().map(|v| shape.eval(*v)).collect::<Vec<f64>>()).collect();
-        debug_assert!(laws.iter().all(|l| l.len() % self.dof == 0));
-        mean_of(&laws)
+        let mut mean = vec![0.0; self.periods.first().map_or(0, Vec::len)];
+        let share = 1.0 / self.periods.len() as f64;
+        for period in &self.periods {
+            mean.iter_mut().zip(period).for_each(|(m, v)| *m += share * shape.eval(*v));
+        }
+        debug_assert_eq!(mean.len() % self.dof.max(1), 0);
+        mean
+    }
+}
+
+/// The central difference of a log's positions, before the friction velocity's filter: what
+/// every candidate cut-off of that velocity starts from ([`super::cutoff`] tries several).
+#[derive(Clone, Debug)]
+pub struct RawVelocity {
+    dof: usize,
+    dt: f64,
+    /// The periods placed end to end (or the whole log), `samples × dof`.
+    difference: Vec<f64>,
+    /// Samples per period, or `None` for a log that is not periodic.
+    per: Option<usize>,
+}
+
+impl RawVelocity {
+    /// See [`FrictionVelocity::of_log`].
+    pub fn of_log(q: &[f64], dof: usize, averaging: Option<Averaging>, dt: f64) -> Self {
+        let (difference, per) = match averaging {
+            None => (central_difference(q, dof, dt, false), None),
+            Some(a) => (central_difference(&whole_periods(q, dof, a), dof, dt, true), Some(a.per())),
+        };
+        Self { dof, dt, difference, per }
+    }
+
+    /// The velocity filtered at `cutoff_hz`, split into its periods and thinned.
+    pub fn filtered(&self, (order, cutoff_hz): (usize, f64), decimate: usize) -> Result<FrictionVelocity, FilterError> {
+        let filter = Butterworth::lowpass(order, cutoff_hz, 1.0 / self.dt)?;
+        let dof = self.dof;
+        let v = filter_columns(&filter, &self.difference, dof, self.per.is_some())?;
+        let periods = match self.per {
+            None => vec![every_nth_row(&v, dof, decimate)],
+            Some(per) => v.chunks(per * dof).map(|p| every_nth_row(p, dof, decimate)).collect(),
+        };
+        Ok(FrictionVelocity { cutoff_hz, dof, periods })
     }
 }
 

@@ -8,8 +8,8 @@
 
 use super::decide::{bandwidth, find_period, harmonic_bandwidth, PERIODIC_MISMATCH};
 use super::filter::{Butterworth, FilterError};
-use super::friction::FrictionVelocity;
-use super::signals::{averaged, central_difference, every_nth_row, filter_columns, mean_of, periods_of, Averaging};
+use super::friction::{FrictionVelocity, RawVelocity};
+use super::signals::{averaged, central_difference, every_nth_row, filter_columns, periods_of, Averaging};
 use crate::model::CoulombShape;
 
 /// Settings for [`preprocess`]: the one home of the preprocessing defaults, which every front end
@@ -111,6 +111,11 @@ pub enum PreprocessError {
         "joint {joint} never moves (its position spans {span:.3e}, {steps:.0} encoder steps): nothing about it can be identified"
     )]
     JointStill { joint: usize, span: f64, steps: f64 },
+    #[error(
+        "the log is {duration_s:.2} s long and holds no cycle of any joint's motion (joint {joint} turns back most, \
+         {reversals} time(s)): a log must cover at least one back-and-forth of the motion"
+    )]
+    NoCycle { duration_s: f64, reversals: usize, joint: usize },
     #[error("the log holds {periods} period(s) of {period_s:.4} s: averaging needs at least 2 whole periods")]
     TooFewPeriods { periods: usize, period_s: f64 },
     #[error(
@@ -218,11 +223,12 @@ impl Preprocessed {
             .expect("the torque was filtered with these settings")
     }
 
-    /// The friction velocity of the raw positions `q` (the log these signals came from) at
-    /// another cut-off, averaged and thinned like these signals.
-    pub fn friction_velocity(&self, q: &[f64], cutoff_hz: f64) -> Result<FrictionVelocity, FilterError> {
+    /// The central difference of the raw positions `q` (the log these signals came from),
+    /// arranged as these signals were averaged: friction velocities at other cut-offs are
+    /// filtered from it ([`RawVelocity::filtered`]).
+    pub fn raw_velocity(&self, q: &[f64]) -> RawVelocity {
         let dt = self.averaging.map_or(self.log_dt, |a| self.log_dt * a.samples / a.per() as f64);
-        FrictionVelocity::of_log(q, self.dof, self.averaging, (dt, self.order), cutoff_hz, self.decimate)
+        RawVelocity::of_log(q, self.dof, self.averaging, dt)
     }
 }
 
@@ -246,7 +252,8 @@ pub fn validate_log(t: &[f64], q: &[f64], tau: &[f64], dof: usize) -> Result<f64
         return Err(PreprocessError::TimeNotIncreasing { index: i + 1, before: t[i], after: t[i + 1] });
     }
     let step = |w: &[f64]| w[1] - w[0];
-    let mut steps: Vec<f64> = t.windows(2).map(step).collect();
+    // The median of at most MEDIAN_SAMPLES steps spread over the log.
+    let mut steps: Vec<f64> = t.windows(2).step_by((n / MEDIAN_SAMPLES).max(1)).map(step).collect();
     let middle = steps.len() / 2;
     let median = *steps.select_nth_unstable_by(middle, f64::total_cmp).1;
     // A fixed-rate stream stamped by its host jitters around the step (the KUKA LWR4+ logs of
@@ -281,13 +288,22 @@ fn jitter(t: &[f64], dt: f64) -> f64 {
 /// A joint spanning fewer encoder steps than this has not moved: what it shows is noise.
 pub const STILL_STEPS: f64 = 20.0;
 
-/// Refuse a joint that never moves: its span is within [`STILL_STEPS`] of its typical
-/// sample-to-sample change (an encoder step, or the noise).
-fn check_every_joint_moves(q: &[f64], dof: usize) -> Result<(), PreprocessError> {
+/// Refuse a joint that never moves, and a log in which no joint goes back and forth.
+///
+/// A joint has not moved when its span is within [`STILL_STEPS`] of its typical
+/// sample-to-sample change (an encoder step, or the noise). A log shorter than one cycle of every
+/// joint's motion (no joint turns back at least [`CYCLE_REVERSALS`] times) holds no period of
+/// anything: its Coulomb columns never change sign, and what is fitted is a fragment.
+fn check_the_joints_move(q: &[f64], dof: usize, dt: f64) -> Result<(), PreprocessError> {
+    let n = q.len() / dof;
+    let mut most = (0, 1);
     for joint in 0..dof {
-        let column: Vec<f64> = q.iter().skip(joint).step_by(dof).copied().collect();
-        let (lo, hi) = column.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
-        let mut changes: Vec<f64> = column.windows(2).map(|w| (w[1] - w[0]).abs()).filter(|d| *d > 0.0).collect();
+        let at = |i: usize| q[i * dof + joint];
+        let (lo, hi) = (0..n).map(at).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+        // The typical change, from at most MEDIAN_SAMPLES of them spread over the log.
+        let stride = (n / MEDIAN_SAMPLES).max(1);
+        let mut changes: Vec<f64> =
+            (1..n).step_by(stride).map(|i| (at(i) - at(i - 1)).abs()).filter(|d| *d > 0.0).collect();
         let step = match changes.len() {
             0 => f64::INFINITY,
             len => *changes.select_nth_unstable_by(len / 2, f64::total_cmp).1,
@@ -297,8 +313,46 @@ fn check_every_joint_moves(q: &[f64], dof: usize) -> Result<(), PreprocessError>
             let steps = if step.is_finite() { span / step } else { 0.0 };
             return Err(PreprocessError::JointStill { joint: joint + 1, span, steps });
         }
+        let turns = reversals((0..n).map(at), (REVERSAL_SHARE * span).max(STILL_STEPS * step));
+        if turns > most.0 {
+            most = (turns, joint + 1);
+        }
+    }
+    if most.0 < CYCLE_REVERSALS {
+        let (reversals, joint) = most;
+        return Err(PreprocessError::NoCycle { duration_s: n as f64 * dt, reversals, joint });
     }
     Ok(())
+}
+
+/// A joint's typical sample-to-sample change is the median of at most this many.
+const MEDIAN_SAMPLES: usize = 20_000;
+
+/// A joint completes a cycle of its motion when it turns back this many times.
+pub const CYCLE_REVERSALS: usize = 2;
+
+/// A turn counts when the joint comes back by this share of its span (and by
+/// [`STILL_STEPS`] encoder steps at least): less is noise or a hesitation.
+const REVERSAL_SHARE: f64 = 0.05;
+
+/// How many times `x` turns back by more than `hysteresis`.
+fn reversals(mut x: impl Iterator<Item = f64>, hysteresis: f64) -> usize {
+    let Some(first) = x.next() else { return 0 };
+    let (mut count, mut direction, mut extreme) = (0, 0.0_f64, first);
+    for v in x {
+        let moved = v - extreme;
+        if direction * moved < 0.0 && moved.abs() > hysteresis {
+            count += 1;
+            direction = moved.signum();
+            extreme = v;
+        } else if direction == 0.0 && moved.abs() > hysteresis {
+            direction = moved.signum();
+            extreme = v;
+        } else if direction * moved > 0.0 {
+            extreme = v;
+        }
+    }
+    count
 }
 
 /// Decide whether and over what to average, from the options or the data.
@@ -427,7 +481,7 @@ pub fn preprocess(
 ) -> Result<Preprocessed, PreprocessError> {
     let dt = validate_log(t, q, tau, dof)?;
     options.validate()?;
-    check_every_joint_moves(q, dof)?;
+    check_the_joints_move(q, dof, dt)?;
     let mut choices = Choices::default();
     let shake = jitter(t, dt);
     if shake > REPORTED_JITTER {
@@ -447,9 +501,12 @@ pub fn preprocess(
     // q is needed for the cut-off and by both chains below; τ only by its own, which averages it.
     let (q, (cutoff_hz, bandwidth_hz)) = match averaging {
         Some(a) => {
-            let periods = periods_of(q, dof, a);
-            let cutoff = choose_cutoff(&[], Some(&periods), (dof, fs), options.cutoff_hz, &mut choices);
-            (mean_of(&periods).into(), cutoff)
+            // The periods one by one only where the spectral rule reads their scatter.
+            let cutoff = match options.cutoff_hz {
+                Some(_) => choose_cutoff(&[], None, (dof, fs), options.cutoff_hz, &mut choices),
+                None => choose_cutoff(&[], Some(&periods_of(q, dof, a)), (dof, fs), None, &mut choices),
+            };
+            (averaged(q, dof, averaging), cutoff)
         }
         None => (std::borrow::Cow::Borrowed(q), choose_cutoff(q, None, (dof, fs), options.cutoff_hz, &mut choices)),
     };
@@ -667,5 +724,8 @@ mod tests {
         let mut still = q.clone();
         still.chunks_mut(3).for_each(|row| row[1] = 0.25);
         assert!(err(preprocess(&t, &still, &tau, 3, &opts)).contains("joint 2 never moves"));
+        // A second of a 15 s motion: no joint goes back and forth.
+        let refused = err(preprocess(&t[..1000], &q[..3000], &tau[..3000], 3, &opts));
+        assert!(refused.contains("1.00 s long and holds no cycle"), "{refused}");
     }
 }

@@ -62,11 +62,31 @@ pub fn mean_of(periods: &[Vec<f64>]) -> Vec<f64> {
     mean
 }
 
+/// The log's periods end to end, each of `per()` samples: `x`'s own first samples (borrowed)
+/// when the period is a whole number of samples and the log holds all of them, else
+/// [`periods_of`] placed end to end.
+pub fn whole_periods(x: &[f64], dof: usize, a: Averaging) -> std::borrow::Cow<'_, [f64]> {
+    let length = a.count * a.per() * dof;
+    if a.samples == a.per() as f64 && x.len() >= length {
+        x[..length].into()
+    } else {
+        periods_of(x, dof, a).concat().into()
+    }
+}
+
 /// `x` averaged over its periods, or `x` itself (borrowed, not copied) when not periodic.
 pub fn averaged(x: &[f64], dof: usize, averaging: Option<Averaging>) -> std::borrow::Cow<'_, [f64]> {
     match averaging {
         None => x.into(),
-        Some(a) => mean_of(&periods_of(x, dof, a)).into(),
+        Some(a) => {
+            let whole = whole_periods(x, dof, a);
+            let mut mean = vec![0.0; a.per() * dof];
+            for period in whole.chunks(mean.len()) {
+                mean.iter_mut().zip(period).for_each(|(m, v)| *m += v);
+            }
+            mean.iter_mut().for_each(|m| *m /= a.count as f64);
+            mean.into()
+        }
     }
 }
 
