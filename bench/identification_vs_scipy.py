@@ -59,7 +59,7 @@ def scipy_pipeline(robot, base, t, q, tau, periods, cutoff, regressor=None, fric
     """The same steps in numpy/scipy: average, filter (sections, filtfilt padding), central
     differences, filter, regressor (arash's: there is no scipy one), the Coulomb columns switched by
     each period's velocity filtered at `friction_cutoff` and averaged, every column filtered like
-    the torque, least squares."""
+    the torque, the filter's end transients left out, least squares."""
     sos = signal.butter(5, cutoff, fs=FS, output="sos")
     sos_friction = signal.butter(5, friction_cutoff, fs=FS, output="sos")
 
@@ -89,6 +89,10 @@ def scipy_pipeline(robot, base, t, q, tau, periods, cutoff, regressor=None, fric
     coulomb = [base.independent.index(names.index(f"{joint}.fc")) for joint in robot.joint_names()]
     Yr[:, range(robot.dof), coulomb] = directions
     Yr = filt(Yr.reshape(len(Yr), -1), periodic).reshape(Yr.shape)
+    # A log that is not periodic loses five cut-off periods at each end, where the zero-phase
+    # filter starts up (arash does the same).
+    edge = 0 if periodic else int(np.ceil(5 * FS / cutoff))
+    Yr, tauf = Yr[edge:len(Yr) - edge], tauf[edge:len(tauf) - edge]
     beta, *_ = np.linalg.lstsq(Yr.reshape(-1, base.p), tauf.reshape(-1), rcond=None)
     return beta
 

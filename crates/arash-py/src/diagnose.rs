@@ -49,7 +49,7 @@ impl DiagnoseOptions {
     fn cutoff_hz(&self) -> Option<f64> {
         self.inner.preprocess.cutoff_hz
     }
-    /// The friction velocity's cut-off set, or None: chosen by the fit.
+    /// The friction velocity's cut-off set, or None: the diagnosis's cut-off.
     #[getter]
     fn friction_cutoff_hz(&self) -> Option<f64> {
         self.inner.preprocess.friction_cutoff_hz

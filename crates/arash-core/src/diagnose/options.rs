@@ -18,7 +18,8 @@ pub const DIAGNOSIS_CUTOFF_SHARE: f64 = 0.2;
 pub struct DiagnoseOptions {
     /// Preprocessing, in the settings identification takes: `cutoff_hz` (`None`:
     /// [`DIAGNOSIS_CUTOFF_HZ`], at most [`DIAGNOSIS_CUTOFF_SHARE`] of the sample rate),
-    /// `friction_cutoff_hz` (`None`: chosen by the fit, as identification chooses it) and `order`.
+    /// `friction_cutoff_hz` (`None`: the cut-off; see `prepare` for why not the fit's choice)
+    /// and `order`.
     /// The diagnosis reads residuals in time, so it never averages periods, and it thins with
     /// `decimate` below.
     pub preprocess: PreprocessOptions,

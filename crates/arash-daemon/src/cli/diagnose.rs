@@ -41,8 +41,8 @@ pub struct Args {
     /// (docs/diagnosis.md).
     #[arg(long)]
     cutoff: Option<f64>,
-    /// Cut-off of the velocity that switches Coulomb friction (Hz); default: chosen by the fit,
-    /// as `arash identify` chooses it (docs/identification.md, "Preprocessing").
+    /// Cut-off of the velocity that switches Coulomb friction (Hz); default: the cut-off
+    /// (docs/diagnosis.md says why it is not chosen by the fit as in `arash identify`).
     #[arg(long)]
     friction_cutoff: Option<f64>,
     /// Butterworth order (applied forward and backward).
@@ -115,7 +115,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.consistent {
         let train = Log { t: &train.t, q: &train.q, tau: &train.tau };
         let cutoff_hz = args.consistent_cutoff.unwrap_or(diagnosis.settings.cutoff_hz);
-        let (refit, _) = write_consistent(&args.output, &model, &base, train, &diagnosis, &options, cutoff_hz)?;
+        let (refit, _) = write_consistent(&args.output, &model, &base, train, &diagnosis, &options, (cutoff_hz, None))?;
         println!("{}", consistent_summary(&refit, &model.joint_names()));
     }
     println!("wrote {}/ (report.txt, diagnosis.json, model.json, figures)", args.output.display());
@@ -154,7 +154,8 @@ fn options(args: &Args, model: &arash_core::Model) -> anyhow::Result<DiagnoseOpt
 }
 
 /// Fit the physically consistent model together with the effects `diagnosis` found, on `train`
-/// filtered at `cutoff_hz`, and write it to `dir/model_consistent.json`; returns it and the path.
+/// filtered at `cutoffs` (the main one, and the friction velocity's: `None` keeps the options'),
+/// and write it to `dir/model_consistent.json`; returns it and the path.
 pub fn write_consistent(
     dir: &Path,
     model: &arash_core::Model,
@@ -162,9 +163,13 @@ pub fn write_consistent(
     train: Log,
     diagnosis: &Diagnosis,
     options: &DiagnoseOptions,
-    cutoff_hz: f64,
+    (cutoff_hz, friction_cutoff_hz): (f64, Option<f64>),
 ) -> anyhow::Result<(ModelFile, PathBuf)> {
-    let preprocess = PreprocessOptions { cutoff_hz: Some(cutoff_hz), ..options.preprocess.clone() };
+    let preprocess = PreprocessOptions {
+        cutoff_hz: Some(cutoff_hz),
+        friction_cutoff_hz: friction_cutoff_hz.or(options.preprocess.friction_cutoff_hz),
+        ..options.preprocess.clone()
+    };
     let options = DiagnoseOptions { preprocess, ..options.clone() };
     let refit = consistent_with_effects(model, base, train, &diagnosis.model, &options, &ConsistentOptions::default())
         .context("the consistent fit with the effects found failed")?;

@@ -209,8 +209,8 @@ def diagnose(
         the odd-numbered blocks of the training log.
     transmission: joint motion per motor radian, per joint (enables the cogging search).
     cutoff_hz, friction_cutoff_hz, order: the preprocessing, as ``identify`` takes it (None: the
-    diagnosis's 20 Hz, at most a fifth of the sample rate; the friction velocity chosen by the fit,
-    as ``identify`` chooses it; order 5). effects: identifiers to search (docs/diagnosis.md). refit: with a model, refit all its base
+    diagnosis's 20 Hz, at most a fifth of the sample rate; the friction velocity at that cut-off;
+    order 5). effects: identifiers to search (docs/diagnosis.md). refit: with a model, refit all its base
     parameters too. hold_friction: with a model, hold its friction too. consistent: also fit the
     physically consistent model with the effects found (``Diagnosis.model_consistent``), at
     ``consistent_cutoff_hz`` (default: the diagnosis's cut-off; the calibration's own is the

@@ -196,7 +196,7 @@ class DiagnoseOptions:
         """The cut-off set, or None: the diagnosis's own (20 Hz, at most a fifth of the rate)."""
     @property
     def friction_cutoff_hz(self) -> Optional[float]:
-        """The friction velocity's cut-off set, or None: chosen by the fit."""
+        """The friction velocity's cut-off set, or None: the diagnosis's cut-off."""
     @property
     def order(self) -> int: ...
     @property

@@ -204,8 +204,9 @@ fn experiment(
 
     println!("\n[5/7] diagnosis of the residual");
     let diagnosis_dir = dir.join("report").join("diagnosis");
-    let cutoff_hz = calibration.consistent.settings.cutoff_hz;
-    let (diagnosis, with_effects) = diagnose_run(model, urdf, base, &training_log, cutoff_hz, &diagnosis_dir)?;
+    let settings = &calibration.consistent.settings;
+    let cutoffs = (settings.cutoff_hz, settings.friction_cutoff_hz);
+    let (diagnosis, with_effects) = diagnose_run(model, urdf, base, &training_log, cutoffs, &diagnosis_dir)?;
     rig::check_interrupt()?;
 
     println!("\n[6/7] tracking the validation trajectory at ω = {} rad/s through the daemon", args.tracking_omega);
@@ -302,8 +303,9 @@ fn calibrate(
 /// the model the third tracking run uses, whose path is returned.
 ///
 /// The diagnosis filters at its own default (20 Hz, where its false-positive rate was
-/// measured); the consistent fit with the effects at the calibration's cut-off, so that the
-/// controller's model sees the data as the calibrated one did. (At 20 Hz that fit trades
+/// measured); the consistent fit with the effects at the calibration's cut-offs (the main one
+/// and the friction velocity's), so that the controller's model sees the data as the calibrated
+/// one did. (At 20 Hz that fit trades
 /// Stribeck friction for a viscous coefficient many times the true one, which the controller
 /// then applies to a noisy velocity; at the calibration's cut-off the diagnosis itself names
 /// Stribeck friction on a rig without it.)
@@ -312,7 +314,7 @@ fn diagnose_run(
     urdf: &str,
     base: &BaseParameters,
     log: &runlog::Log,
-    cutoff_hz: f64,
+    cutoffs: (f64, Option<f64>),
     out: &Path,
 ) -> anyhow::Result<(Diagnosis, PathBuf)> {
     let log = Log { t: &log.t, q: &log.q, tau: &log.tau };
@@ -322,7 +324,7 @@ fn diagnose_run(
     let report = diagnosis.report();
     super::diagnose::write_outputs(out, &diagnosis, &report)?;
     println!("{}", indent(&report));
-    let (refit, path) = super::diagnose::write_consistent(out, model, base, log, &diagnosis, &options, cutoff_hz)?;
+    let (refit, path) = super::diagnose::write_consistent(out, model, base, log, &diagnosis, &options, cutoffs)?;
     println!("{}", indent(&super::diagnose::consistent_summary(&refit, &model.joint_names())));
     Ok((diagnosis, path))
 }
