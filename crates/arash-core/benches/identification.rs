@@ -6,6 +6,7 @@ use std::hint::black_box;
 
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::control::fourier::Excitation;
+use arash_core::identify::consistent::{identify_consistent, ConsistentOptions};
 use arash_core::identify::estimate::{fit, stack, Method};
 use arash_core::identify::preprocess::{preprocess, PreprocessOptions};
 use arash_core::identify::{identify, Declared, IdentifyOptions, Log};
@@ -102,5 +103,35 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+/// The physically consistent fit (Clarabel with eight 4 × 4 semidefinite cones, whose BLAS and
+/// LAPACK calls `blas_lapack` serves) on `samples` samples of the excitation: W is 3·samples × 89.
+fn consistent(c: &mut Criterion) {
+    let model = arash_asist();
+    let (n, p, pi) = (model.dof(), model.num_params(), model.cad_parameters());
+    let mut group = c.benchmark_group("consistent SDP");
+    group.sample_size(20);
+    for samples in [1000, 3000] {
+        let (_, q, qd, qdd) = excitation(&model).sample(samples as f64 / 15.0, 1);
+        let mut data = Data::new(&model);
+        let mut y = vec![0.0; n * p];
+        let mut w = faer::Mat::<f64>::zeros(n * samples, p);
+        for s in 0..samples {
+            let range = s * n..(s + 1) * n;
+            regressor(&model, &mut data, &q[range.clone()], &qd[range.clone()], &qdd[range], &mut y);
+            for (k, j) in (0..n).flat_map(|k| (0..p).map(move |j| (k, j))) {
+                w[(s * n + k, j)] = y[k * p + j];
+            }
+        }
+        let tau: Vec<f64> = (0..n * samples)
+            .map(|r| (0..p).map(|j| w[(r, j)] * pi[j]).sum::<f64>() + 0.003 * ((r * 7919) as f64).sin())
+            .collect();
+        let options = ConsistentOptions::default();
+        group.bench_function(format!("{} x {p} W", n * samples), |b| {
+            b.iter(|| identify_consistent(&model, black_box(&w), &tau, &options).unwrap())
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench, consistent);
 criterion_main!(benches);

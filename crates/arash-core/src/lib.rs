@@ -8,6 +8,7 @@
 //! Units are SI throughout: rad, m, s, kg, N·m, N.
 
 pub mod base_parameters;
+pub mod blas_lapack;
 pub mod control;
 pub mod data;
 pub mod diagnose;
@@ -41,8 +42,9 @@ pub use params::ParamLayout;
 pub use regressor::{regressor, regressor_of_bodies, slotine_li_regressor};
 pub use urdf::{load_urdf, parse_urdf, UrdfError};
 
-/// The bundled reconstruction of ARASH:ASiST (`robots/arash_asist.urdf`).
-pub const ARASH_ASIST_URDF: &str = include_str!("../../../robots/arash_asist.urdf");
+/// The bundled reconstruction of ARASH:ASiST (`robots/arash_asist.urdf`, kept inside the crate so
+/// that a packaged crate or sdist carries it; `robots/` links to it).
+pub const ARASH_ASIST_URDF: &str = include_str!("../robots/arash_asist.urdf");
 
 /// The bundled ARASH:ASiST model.
 pub fn arash_asist() -> Model {

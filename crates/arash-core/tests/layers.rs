@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 
 /// arash-core, leaf first.
 const CORE: &[&str] = &[
+    "blas_lapack",
     "spatial",
     "transmission",
     "params",
@@ -33,6 +34,7 @@ const CORE: &[&str] = &[
 
 /// The files of arash-core's folder modules, leaf first (`mod.rs` is the folder's own face).
 const FOLDERS: &[(&str, &[&str])] = &[
+    ("blas_lapack", &["args", "blas", "lapack"]),
     ("control", &["gains", "safety", "fourier", "trajectory", "estimator", "feedforward", "laws"]),
     (
         "identify",

@@ -344,3 +344,18 @@ fn bad_logs_are_refused_by_name_with_no_backtrace_and_no_file_left() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("was cut off"), "{err}");
 }
+
+/// The binary links no system BLAS or LAPACK (issue 20): `ldd` names only the C runtime, so it
+/// runs on a machine without Debian's libblas/liblapack.
+#[test]
+#[cfg(target_os = "linux")]
+fn the_binary_needs_only_the_c_runtime() {
+    let out = Command::new("ldd").arg(env!("CARGO_BIN_EXE_arash")).output().expect("ldd runs");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    let runtime =
+        ["linux-vdso", "libc.so", "libm.so", "libgcc_s.so", "ld-linux", "libpthread.so", "libdl.so", "librt.so"];
+    for line in text.lines().map(str::trim).filter(|l| !l.is_empty()) {
+        assert!(runtime.iter().any(|r| line.contains(r)), "the arash binary needs {line}:\n{text}");
+    }
+}

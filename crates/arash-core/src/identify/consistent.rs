@@ -111,6 +111,9 @@ pub fn identify_consistent(
     let q: Vec<f64> = (0..p).map(|i| -2.0 * (wt_tau[(i, 0)] + reg(i) * cad[i]) / m).collect();
     let (a_mat, b, cones) = constraints(model, p, options.stiffness_bounds);
     let settings = DefaultSettingsBuilder::default().verbose(false).max_iter(200).build().expect("valid settings");
+    // The semidefinite cones call BLAS and LAPACK, which `blas_lapack` provides; holding the
+    // entry points here keeps them in the link whatever the linker's order.
+    std::hint::black_box(crate::blas_lapack::entry_points());
     let mut solver = DefaultSolver::new(&p_mat, &q, &a_mat, &b, &cones, settings).expect("well-formed problem");
     solver.solve();
     let status = solver.solution.status;
