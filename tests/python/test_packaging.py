@@ -1,7 +1,8 @@
 """`pip install` on a plain machine (issue 20): the wheel maturin builds is self-contained (its
 extension needs nothing outside the manylinux allow-list: no BLAS, no LAPACK), installs into a
 fresh venv that holds only numpy, and identifies a small log there, physically consistent fit
-included; the sdist carries everything it needs and builds and installs from its own contents.
+included; the sdist carries everything it needs and builds and installs from its own contents;
+and README's `pip install ./crates/arash-py` works as written.
 
 These build the package (a release build, reusing the workspace's compiled dependencies) and
 install numpy into fresh venvs from the package registry or pip's cache.
@@ -137,4 +138,13 @@ def test_the_sdist_builds_and_installs_from_its_own_contents(tmp_path):
     # only lends compiled registry crates (the sdist's own crates are rebuilt from its sources).
     env = {**clean_env(), "CARGO_TARGET_DIR": str(ROOT / "target" / "sdist")}
     run(python, "-m", "pip", "install", "--quiet", sdist, env=env, cwd=tmp_path)
+    smoke_test(python, tmp_path)
+
+
+def test_pip_install_of_the_crate_directory_works_as_the_readme_says(tmp_path):
+    """README's install line for analysts, `pip install ./crates/arash-py`, run as written from
+    the repository root into a fresh venv."""
+    python = fresh_venv(tmp_path / "venv")
+    env = {**clean_env(), "CARGO_TARGET_DIR": str(ROOT / "target" / "sdist")}
+    run(python, "-m", "pip", "install", "--quiet", "./crates/arash-py", env=env, cwd=ROOT)
     smoke_test(python, tmp_path)
