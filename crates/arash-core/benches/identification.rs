@@ -71,34 +71,21 @@ fn bench(c: &mut Criterion) {
             b.iter(|| fit(&model, &base, black_box(&pre), Method::Ols).unwrap())
         });
         let whole = IdentifyOptions { preprocess: options.clone(), ..Default::default() };
-        group.bench_function(format!("identify OLS ({label})"), |b| {
-            b.iter(|| {
-                identify(
-                    Declared { model: &model, base: &base, urdf: "" },
-                    Log { t: black_box(&t), q: &q, tau: &tau },
-                    IdentifyMethod::Ols,
-                    &whole,
-                )
-                .unwrap()
-            })
-        });
         // Every choice left to the data: the period found, the cut-off and the friction
         // velocity searched (identify/cutoff.rs).
         let defaults = IdentifyOptions {
             preprocess: PreprocessOptions { periods: (periods == Some(1)).then_some(1), ..Default::default() },
             ..Default::default()
         };
-        group.bench_function(format!("identify OLS, choices from the data ({label})"), |b| {
-            b.iter(|| {
-                identify(
-                    Declared { model: &model, base: &base, urdf: "" },
-                    Log { t: black_box(&t), q: &q, tau: &tau },
-                    IdentifyMethod::Ols,
-                    &defaults,
-                )
-                .unwrap()
-            })
-        });
+        for (name, settings) in [("identify OLS", &whole), ("identify OLS, choices from the data", &defaults)] {
+            group.bench_function(format!("{name} ({label})"), |b| {
+                b.iter(|| {
+                    let declared = Declared { model: &model, base: &base, urdf: "" };
+                    let log = Log { t: black_box(&t), q: &q, tau: &tau };
+                    identify(declared, log, IdentifyMethod::Ols, settings).unwrap()
+                })
+            });
+        }
     }
     group.finish();
 }

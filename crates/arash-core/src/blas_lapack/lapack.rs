@@ -123,6 +123,16 @@ impl Job {
             _ => None,
         }
     }
+
+    /// How many vectors of a factor the job writes to its own array: `all` (m or n) for the
+    /// whole factor, `k` = min(m, n) for the thin one, none otherwise.
+    fn vectors(self, all: i64, k: i64) -> i64 {
+        match self {
+            Job::All => all,
+            Job::Thin => k,
+            Job::Overwrite | Job::Skip => 0,
+        }
+    }
 }
 
 /// The SVD `a = U Σ Vᵀ` with `full` square factors or thin ones: singular values descending,
@@ -301,8 +311,10 @@ exported! {
     }
 }
 
-/// The SVD behind `?gesdd` and `?gesvd`, with each factor's job: writes `s`, and `U` and `Vᵀ`
-/// where the jobs ask (over `a` for [`Job::Overwrite`]); `info` 1 when it does not converge.
+/// The SVD behind `?gesdd` and `?gesvd`, once their arguments are checked (`info` holds the
+/// check's result, and nothing is done when it is not 0): answers a workspace query (`lwork`
+/// −1: none is needed), or writes `s`, and `U` and `Vᵀ` where the jobs ask (over `a` for
+/// [`Job::Overwrite`]); `info` 1 when it does not converge.
 ///
 /// # Safety
 /// The pointers are valid for the dimensions given, as LAPACK defines them for the jobs.
@@ -314,8 +326,16 @@ unsafe fn svd_entry<T: Real>(
     s: *mut T,
     (u, ldu): (*mut T, i64),
     (vt, ldvt): (*mut T, i64),
+    (work, lwork): (*mut T, i64),
     info: *mut c_int,
 ) {
+    if *info != 0 {
+        return;
+    }
+    if lwork == -1 {
+        *work = T::ONE;
+        return;
+    }
     let k = m.min(n);
     if k == 0 {
         return;
@@ -326,16 +346,15 @@ unsafe fn svd_entry<T: Real>(
         return;
     };
     core::ptr::copy_nonoverlapping(values.as_ptr(), s, values.len());
-    let columns = |job: Job, all: i64| if job == Job::All { all } else { k };
     let u_target = match job_u {
         Job::Skip => None,
         Job::Overwrite => Some(view_mut(a, m, k, lda)),
-        job => Some(view_mut(u, m, columns(job, m), ldu)),
+        job => Some(view_mut(u, m, job.vectors(m, k), ldu)),
     };
     let vt_target = match job_vt {
         Job::Skip => None,
         Job::Overwrite => Some(view_mut(a, k, n, lda)),
-        job => Some(view_mut(vt, columns(job, n), n, ldvt)),
+        job => Some(view_mut(vt, job.vectors(n, k), n, ldvt)),
     };
     if let Some(mut target) = u_target {
         let cols = target.ncols();
@@ -375,29 +394,17 @@ exported! {
             Some(job) => (job, job),
             None => (Job::Skip, Job::Skip),
         };
-        let needs_u = matches!(job_u, Job::All | Job::Thin);
-        let rows_vt = match job_vt {
-            Job::All => n,
-            Job::Thin => m.min(n),
-            _ => 1,
-        };
+        let k = m.min(n);
         *info = bad_argument(&[
             (job.is_some(), 1),
             (m >= 0, 2),
             (n >= 0, 3),
             (lda >= m.max(1), 5),
-            (ldu >= 1 && (!needs_u || ldu >= m), 8),
-            (ldvt >= 1 && ldvt >= rows_vt, 10),
+            (ldu >= 1 && (!matches!(job_u, Job::All | Job::Thin) || ldu >= m), 8),
+            (ldvt >= job_vt.vectors(n, k).max(1), 10),
             (lwork == -1 || lwork >= 1, 12),
         ]);
-        if *info != 0 {
-            return;
-        }
-        if lwork == -1 {
-            *work = T::ONE;
-            return;
-        }
-        svd_entry((job_u, job_vt), (m, n), (a, lda), s, (u, ldu), (vt, ldvt), info);
+        svd_entry((job_u, job_vt), (m, n), (a, lda), s, (u, ldu), (vt, ldvt), (work, lwork), info);
     }
 }
 
@@ -422,30 +429,20 @@ exported! {
         let (job_u, job_vt) = (Job::of(letter(jobu)), Job::of(letter(jobvt)));
         let (m, n, lda, ldu, ldvt, lwork) = (int(m), int(n), int(lda), int(ldu), int(ldvt), int(lwork));
         let both_overwrite = job_u == Some(Job::Overwrite) && job_vt == Some(Job::Overwrite);
-        let rows_vt = match job_vt {
-            Some(Job::All) => n,
-            Some(Job::Thin) => m.min(n),
-            _ => 1,
-        };
+        let (checked_u, checked_vt) = (job_u.unwrap_or(Job::Skip), job_vt.unwrap_or(Job::Skip));
+        let k = m.min(n);
         *info = bad_argument(&[
             (job_u.is_some(), 1),
             (job_vt.is_some() && !both_overwrite, 2),
             (m >= 0, 3),
             (n >= 0, 4),
             (lda >= m.max(1), 6),
-            (ldu >= 1 && (!matches!(job_u, Some(Job::All | Job::Thin)) || ldu >= m), 9),
-            (ldvt >= 1 && ldvt >= rows_vt, 11),
+            (ldu >= 1 && (!matches!(checked_u, Job::All | Job::Thin) || ldu >= m), 9),
+            (ldvt >= checked_vt.vectors(n, k).max(1), 11),
             (lwork == -1 || lwork >= 1, 13),
         ]);
-        if *info != 0 {
-            return;
-        }
-        if lwork == -1 {
-            *work = T::ONE;
-            return;
-        }
-        let jobs = (job_u.unwrap_or(Job::Skip), job_vt.unwrap_or(Job::Skip));
-        svd_entry(jobs, (m, n), (a, lda), s, (u, ldu), (vt, ldvt), info);
+        let jobs = (checked_u, checked_vt);
+        svd_entry(jobs, (m, n), (a, lda), s, (u, ldu), (vt, ldvt), (work, lwork), info);
     }
 }
 

@@ -18,7 +18,9 @@
 //! The candidates run from the lowest cut-off the log allows to [`SEARCH_ABOVE_SPECTRAL`] times
 //! the one the motion's spectrum suggests ([`super::decide`]), within a quarter of the sample rate.
 
-use super::estimate::{coulomb_positions, filter_each_column, fit_stacked, put_coulomb, regressor_rows, Method};
+use super::estimate::{
+    apply, coulomb_positions, filter_each_column, fit_stacked, joint_metrics, put_coulomb, regressor_rows, Method,
+};
 use super::filter::Butterworth;
 use super::friction::RawVelocity;
 use super::preprocess::{
@@ -26,6 +28,7 @@ use super::preprocess::{
 };
 use super::signals::filter_columns;
 use super::{Declared, Log};
+use std::borrow::Cow;
 
 /// Cut-offs tried per doubling: a step of 19 %, which changes the fit by far less than a point.
 pub const CUTOFFS_PER_OCTAVE: usize = 4;
@@ -154,7 +157,9 @@ struct Search<'a> {
     /// The samples every candidate is scored on: clear of the filter's start-up at the lowest
     /// cut-off, so that all are scored alike.
     scored: Vec<usize>,
-    directions: std::cell::RefCell<Vec<Option<Vec<f64>>>>,
+    /// The unfiltered Coulomb directions of the friction velocity at each cut-off of the grid,
+    /// computed when first asked for.
+    directions: Vec<std::cell::OnceCell<Vec<f64>>>,
     /// The positions' central difference, which every friction velocity is filtered from.
     raw_velocity: RawVelocity,
 }
@@ -176,20 +181,18 @@ impl<'a> Search<'a> {
             false => (super::preprocess::EDGE_CUTOFF_PERIODS * fs / floor).ceil() as usize,
         };
         let scored = spread(edge.min(n / 2)..n.saturating_sub(edge).max(n / 2), 1, MOST_SCORED);
-        let directions = std::cell::RefCell::new(vec![None; grid.len()]);
+        let directions = vec![std::cell::OnceCell::new(); grid.len()];
         let raw_velocity = reference.raw_velocity(log.q);
         Self { declared, log, fixed, reference, grid, top, length_limited, scored, directions, raw_velocity }
     }
 
     /// The unfiltered Coulomb directions of the friction velocity at grid point `i` (full rate).
-    fn directions(&self, i: usize) -> Result<Vec<f64>, PreprocessError> {
-        if let Some(d) = &self.directions.borrow()[i] {
-            return Ok(d.clone());
+    fn directions(&self, i: usize) -> Result<&[f64], PreprocessError> {
+        if let Some(d) = self.directions[i].get() {
+            return Ok(d);
         }
         let velocity = self.raw_velocity.filtered((self.reference.order, self.grid[i]), 1)?;
-        let d = velocity.directions(self.declared.model.coulomb_shape);
-        self.directions.borrow_mut()[i] = Some(d.clone());
-        Ok(d)
+        Ok(self.directions[i].get_or_init(|| velocity.directions(self.declared.model.coulomb_shape)))
     }
 
     /// The friction velocities tried at `cutoff`: the user's, or grid points an octave apart
@@ -225,18 +228,20 @@ impl<'a> Search<'a> {
         let columns = &base.independent;
         // The Coulomb columns of `w` are replaced by each candidate's in turn.
         let (mut w, rows) = self.filtered_columns(&pre, cutoff)?;
-        let tau: Vec<f64> = rows.iter().flat_map(|&s| pre.tau[s * dof..(s + 1) * dof].iter().copied()).collect();
+        let tau = rows_of(&pre.tau, dof, &rows);
         let positions = coulomb_positions(model, columns);
         let filter = Butterworth::lowpass(pre.order, cutoff, fs)?;
         // σ_β's blocks span two periods of the cut-off, as in `fit` (they are not used here).
         let rows_per_sample = rows.len() as f64 / pre.settled.len().max(1) as f64;
         let block = ((2.0 * fs / cutoff * rows_per_sample).ceil() as usize).max(1);
         let mut frictions = Vec::new();
-        let mut best: Option<(f64, f64, Vec<f64>, Vec<f64>)> = None;
+        // The best so far: its velocity's cut-off, training FP%, β and Coulomb directions.
+        type Best<'d> = (f64, f64, Vec<f64>, Cow<'d, [f64]>);
+        let mut best: Option<Best> = None;
         for (friction_hz, at) in self.frictions(cutoff, user_friction) {
-            let directions = match at {
-                Some(i) => self.directions(i)?,
-                None => self.raw_velocity.filtered((pre.order, friction_hz), 1)?.directions(model.coulomb_shape),
+            let directions: Cow<[f64]> = match at {
+                Some(i) => self.directions(i)?.into(),
+                None => self.raw_velocity.filtered((pre.order, friction_hz), 1)?.directions(model.coulomb_shape).into(),
             };
             let filtered = filter_columns(&filter, &directions, dof, pre.periodic)?;
             put_coulomb(&mut w, dof, &positions, (&filtered, &rows));
@@ -290,21 +295,22 @@ impl<'a> Search<'a> {
     /// error summed over the joints, each joint's divided by its torque's variance.
     fn unfiltered_fit(&self, pre: &Preprocessed, v: &faer::Mat<f64>, beta: &[f64]) -> (f64, Vec<f64>) {
         let dof = pre.dof;
-        let samples = self.scored.len();
-        let mut errors = vec![0.0; samples];
-        let mut fp = 0.0;
-        for k in 0..dof {
-            let tau: Vec<f64> = self.scored.iter().map(|&s| pre.tau_unfiltered[s * dof + k]).collect();
-            let mean = tau.iter().sum::<f64>() / samples as f64;
-            let variation: f64 = tau.iter().map(|x| (x - mean).powi(2)).sum();
-            let residual: Vec<f64> = (0..samples)
-                .map(|r| tau[r] - (0..v.ncols()).map(|c| v[(r * dof + k, c)] * beta[c]).sum::<f64>())
-                .collect();
-            let squares: f64 = residual.iter().map(|e| e * e).sum();
-            fp += 100.0 * (1.0 - (squares / variation).sqrt()) / dof as f64;
-            let variance = (variation / samples as f64).max(f64::MIN_POSITIVE);
-            errors.iter_mut().zip(&residual).for_each(|(total, e)| *total += e * e / variance);
-        }
+        let measured = rows_of(&pre.tau_unfiltered, dof, &self.scored);
+        let predicted = apply(v, beta);
+        let fp = joint_metrics(&measured, &predicted, dof).fp_percent.iter().sum::<f64>() / dof as f64;
+        let samples = self.scored.len() as f64;
+        let variances: Vec<f64> = (0..dof)
+            .map(|k| {
+                let column = || measured.iter().skip(k).step_by(dof);
+                let mean = column().sum::<f64>() / samples;
+                (column().map(|x| (x - mean).powi(2)).sum::<f64>() / samples).max(f64::MIN_POSITIVE)
+            })
+            .collect();
+        let errors = measured
+            .chunks(dof)
+            .zip(predicted.chunks(dof))
+            .map(|(t, p)| (0..dof).map(|k| (t[k] - p[k]).powi(2) / variances[k]).sum())
+            .collect();
         (fp, errors)
     }
 
@@ -317,6 +323,11 @@ impl<'a> Search<'a> {
             (COMPARISON_BLOCK_PERIODS * self.reference.sample_rate_hz / self.grid[0] / per_row).ceil() as usize;
         by_memory.min(self.scored.len() / COMPARISON_BLOCKS).max(1)
     }
+}
+
+/// The rows `rows` of a row-major signal of `dof` columns, stacked.
+fn rows_of(x: &[f64], dof: usize, rows: &[usize]) -> Vec<f64> {
+    rows.iter().flat_map(|&s| x[s * dof..(s + 1) * dof].iter().copied()).collect()
 }
 
 /// Among the trials whose prediction is not worse than the best one's by more than

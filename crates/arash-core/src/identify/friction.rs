@@ -21,7 +21,6 @@ use crate::model::CoulombShape;
 pub struct FrictionVelocity {
     /// The cut-off it was filtered at (Hz).
     pub cutoff_hz: f64,
-    dof: usize,
     periods: Vec<Vec<f64>>,
 }
 
@@ -45,19 +44,13 @@ impl FrictionVelocity {
     /// The velocity averaged over the periods (`samples × dof`): what the averaged positions'
     /// own difference would give, without the friction law.
     pub fn mean(&self) -> Vec<f64> {
-        mean_of(&self.periods)
+        mean_of(&self.periods, |v| v)
     }
 
     /// The Coulomb direction of every joint and sample (`samples × dof`), unfiltered: the mean
     /// over the periods of `shape(q̇ₚ)`.
     pub fn directions(&self, shape: CoulombShape) -> Vec<f64> {
-        let mut mean = vec![0.0; self.periods.first().map_or(0, Vec::len)];
-        let share = 1.0 / self.periods.len() as f64;
-        for period in &self.periods {
-            mean.iter_mut().zip(period).for_each(|(m, v)| *m += share * shape.eval(*v));
-        }
-        debug_assert_eq!(mean.len() % self.dof.max(1), 0);
-        mean
+        mean_of(&self.periods, |v| shape.eval(v))
     }
 }
 
@@ -92,7 +85,7 @@ impl RawVelocity {
             None => vec![every_nth_row(&v, dof, decimate)],
             Some(per) => v.chunks(per * dof).map(|p| every_nth_row(p, dof, decimate)).collect(),
         };
-        Ok(FrictionVelocity { cutoff_hz, dof, periods })
+        Ok(FrictionVelocity { cutoff_hz, periods })
     }
 }
 

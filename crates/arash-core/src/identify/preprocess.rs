@@ -186,10 +186,9 @@ pub struct Preprocessed {
     pub settled: std::ops::Range<usize>,
     /// What was chosen, and why.
     pub choices: Choices,
-    /// How the log was averaged, and its step before that: what a friction velocity at another
-    /// cut-off is computed from ([`Self::friction_velocity`]).
+    /// How the log was averaged: what a friction velocity at another cut-off is computed from
+    /// ([`Self::raw_velocity`]).
     averaging: Option<Averaging>,
-    log_dt: f64,
 }
 
 impl Preprocessed {
@@ -227,8 +226,7 @@ impl Preprocessed {
     /// arranged as these signals were averaged: friction velocities at other cut-offs are
     /// filtered from it ([`RawVelocity::filtered`]).
     pub fn raw_velocity(&self, q: &[f64]) -> RawVelocity {
-        let dt = self.averaging.map_or(self.log_dt, |a| self.log_dt * a.samples / a.per() as f64);
-        RawVelocity::of_log(q, self.dof, self.averaging, dt)
+        RawVelocity::of_log(q, self.dof, self.averaging, 1.0 / self.sample_rate_hz)
     }
 }
 
@@ -494,7 +492,7 @@ pub fn preprocess(
     }
     let averaging = choose_periods(q, dof, 1.0 / dt, (options.periods, options.period_s), &mut choices)?;
     let periodic = averaging.is_some();
-    let (log_dt, raw_q) = (dt, q);
+    let raw_q = q;
     // A period that is not a whole number of samples is resampled to the nearest whole number.
     let dt = averaging.map_or(dt, |a| dt * a.samples / a.per() as f64);
     let fs = 1.0 / dt;
@@ -600,7 +598,6 @@ pub fn preprocess(
         settled,
         choices,
         averaging,
-        log_dt,
     })
 }
 
