@@ -2,24 +2,37 @@
 # Soak the daemon against the mock motor: enable, play an excitation trajectory for DURATION
 # seconds at 1 kHz, stop with SIGTERM, and print the daemon's whole-run timing summary
 # (|period − 1 ms| and execution-time quantiles, µs) with the missed-cycle and link counters.
-# Usage: bench/daemon_soak.sh [DURATION_S=600] [RT=require|ignore]
+# With LIVE=stuck the daemon also serves the live stream (--live) to a client that subscribes to
+# every topic and never reads (tests/python/foxglove_client.py; needs the venv of scripts/setup),
+# and the stream's counters are printed too.
+# Usage: bench/daemon_soak.sh [DURATION_S=600] [RT=require|ignore] [LIVE=off|stuck]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 duration=${1:-600}
 rt=${2:-require}
+live=${3:-off}
+live_args=()
+if [ "$live" = stuck ]; then live_args=(--live 127.0.0.1:0); fi
 cargo build --release --locked -q
 arash=$PWD/target/release/arash
 dir=$(mktemp -d)
 trap 'kill $(jobs -p) 2>/dev/null || true; rm -rf "$dir"' EXIT
 "$arash" mock-motor > "$dir/pty" 2> /dev/null &
 sleep 0.5
-"$arash" daemon --port "$(cat "$dir/pty")" --rt "$rt" --socket "$dir/s.sock" --log-dir "$dir/logs" 2> "$dir/daemon.err" &
+"$arash" daemon --port "$(cat "$dir/pty")" --rt "$rt" --socket "$dir/s.sock" --log-dir "$dir/logs" "${live_args[@]}" 2> "$dir/daemon.err" &
 daemon=$!
 while [ ! -S "$dir/s.sock" ]; do sleep 0.1; done
+if [ "$live" = stuck ]; then
+    address=$("$arash" ctl --socket "$dir/s.sock" status | .venv/bin/python -c 'import json,sys; print(json.load(sys.stdin)["live"]["address"])')
+    .venv/bin/python tests/python/foxglove_client.py stuck "$address" $((duration + 600)) &
+fi
 "$arash" excite --restarts 1 --rate 10 -o "$dir/excitation.json" 2> /dev/null > /dev/null
 "$arash" ctl --socket "$dir/s.sock" enable > /dev/null
 "$arash" ctl --socket "$dir/s.sock" run "$dir/excitation.json" --duration "$duration" --label soak --wait > /dev/null
-"$arash" ctl --socket "$dir/s.sock" status | grep -E '"(missed_cycles|log_dropped|crc_errors|lost|stale|faults)"' || true
+"$arash" ctl --socket "$dir/s.sock" status | .venv/bin/python -c 'import json,sys
+s = json.load(sys.stdin)
+print({k: s[k] for k in ("cycle", "missed_cycles", "log_dropped", "faults")}, s["link"])
+if s["live"]: print("live:", {k: s["live"][k] for k in ("clients", "sent", "dropped")})' 
 kill -TERM "$daemon"
 wait "$daemon"
 echo "kernel: $(uname -r)"

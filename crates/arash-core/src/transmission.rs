@@ -106,7 +106,7 @@ impl Transmission {
         let dof = self.dof();
         let samples = theta.len() / dof.max(1);
         for (name, x) in [("motor angles", theta), ("motor torques", tau_motor)] {
-            if x.len() != samples * dof || theta.len() % dof != 0 {
+            if x.len() != samples * dof || !theta.len().is_multiple_of(dof) {
                 return Err(TransmissionError::Shape { name, got: x.len(), expected: samples * dof, dof });
             }
         }

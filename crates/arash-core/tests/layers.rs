@@ -63,7 +63,7 @@ const FOLDERS: &[(&str, &[&str])] = &[
 
 /// arash-daemon: the rig library, then the binary's own modules (`main.rs` declares them).
 const DAEMON: &[&str] =
-    &["link", "drive_config", "ctl", "rt", "logger", "config", "mock", "daemon", "runlog", "report", "cli"];
+    &["link", "drive_config", "ctl", "rt", "live", "logger", "config", "mock", "daemon", "runlog", "report", "cli"];
 
 fn src(krate: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(krate).join("src")

@@ -8,6 +8,7 @@ use arash_core::control::SafetyLimits;
 use arash_core::Model;
 
 use crate::drive_config::DriveConfig;
+use crate::live::LiveConfig;
 use crate::logger::LogConfig;
 use crate::rt::clock::RtPolicy;
 
@@ -23,6 +24,7 @@ pub struct DaemonConfig {
     pub log: LogConfig,
     pub rt: RtConfig,
     pub socket: SocketConfig,
+    pub live: LiveConfig,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -198,6 +200,7 @@ impl DaemonConfig {
             return Err(ConfigError::Priority(self.rt.priority.into()));
         }
         self.socket.mode_bits()?;
+        self.live.validate(self.control.rate_hz)?;
         self.controller()?;
         self.control.gain_units.parse::<arash_core::control::gains::PaperUnits>().map_err(ConfigError::GainUnits)?;
         self.drive.validate(dof)?;
@@ -289,6 +292,8 @@ pub enum ConfigError {
     Priority(i64),
     #[error("socket.mode must be octal, like \"0660\", not {0:?}")]
     SocketMode(String),
+    #[error(transparent)]
+    Live(#[from] crate::live::LiveConfigError),
     #[error("control.controller {0}")]
     Controller(#[from] UnknownController),
     #[error("control.gain_units: {0}")]

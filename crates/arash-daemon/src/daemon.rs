@@ -24,6 +24,8 @@ use tokio::net::UnixListener;
 use crate::config::{DaemonConfig, LinkKind};
 use crate::ctl::CtlRequest;
 use crate::link::MotorLink;
+use crate::live::server::LiveServer;
+use crate::live::window::display_scales;
 use crate::logger::{LogContext, Logger, RunInfo, RunRegistry};
 use crate::rt::clock::setup_realtime;
 use crate::rt::cycle::{ControlCycle, Garbage, Request};
@@ -47,6 +49,8 @@ struct Operator {
     requests: Mutex<(rtrb::Producer<Request>, u64)>,
     shared: Arc<Shared>,
     runs: RunRegistry,
+    /// The live stream, when it is on.
+    live: Option<Arc<LiveServer>>,
     next_run: Mutex<u32>,
     /// What a trajectory may ask of the joints, checked before a run is queued.
     plan_limits: PlanLimits,
@@ -115,6 +119,53 @@ fn open_link(config: &DaemonConfig, dof: usize) -> anyhow::Result<Box<dyn MotorL
     }
 }
 
+/// Bind the live stream's socket (before the control thread starts, so that a taken port stops
+/// the daemon at once) and build its server.
+fn open_live(
+    config: &DaemonConfig,
+    urdf: &str,
+    scales: &[(f64, &'static str)],
+) -> anyhow::Result<(Arc<LiveServer>, std::net::TcpListener)> {
+    let addr = config.live.socket_addr()?;
+    let listener =
+        std::net::TcpListener::bind(addr).with_context(|| format!("binding the live stream to live.address {addr}"))?;
+    listener.set_nonblocking(true)?;
+    limit_send_buffer(&listener)?;
+    let addr = listener.local_addr()?;
+    if !addr.ip().is_loopback() {
+        eprintln!(
+            "arash-daemon: WARNING: the live stream listens on {addr}, not on loopback: anyone who can reach it \
+             sees the rig's data (it cannot command the robot)"
+        );
+    }
+    eprintln!("arash-daemon: live stream on ws://{addr} (Foxglove: open connection, Foxglove WebSocket)");
+    let units: Vec<&str> = scales.iter().map(|s| s.1).collect();
+    let server = LiveServer::new(addr, urdf, &units, config.live.client_queue)?;
+    Ok((Arc::new(server), listener))
+}
+
+/// Kernel send buffer of each live client's socket (accepted sockets inherit the listener's).
+/// About a second of the stream at 100 Hz: without a bound, Linux lets a client that does not
+/// read hold megabytes of it, minutes old by the time they arrive, before anything is dropped.
+const LIVE_SEND_BUFFER_BYTES: libc::c_int = 64 * 1024;
+
+fn limit_send_buffer(listener: &std::net::TcpListener) -> anyhow::Result<()> {
+    use std::os::fd::AsRawFd;
+    let size = LIVE_SEND_BUFFER_BYTES;
+    // SAFETY: a valid socket descriptor, and a pointer to a c_int with its size, as SO_SNDBUF takes.
+    let rc = unsafe {
+        libc::setsockopt(
+            listener.as_raw_fd(),
+            libc::SOL_SOCKET,
+            libc::SO_SNDBUF,
+            (&size as *const libc::c_int).cast(),
+            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+        )
+    };
+    anyhow::ensure!(rc == 0, "setting the live stream's send buffer: {}", std::io::Error::last_os_error());
+    Ok(())
+}
+
 /// Run the daemon until SIGTERM or SIGINT.
 pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     let DaemonOptions { config, config_text, model, urdf } = options;
@@ -151,14 +202,24 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     let mut metadata = std::collections::BTreeMap::new();
     metadata.insert("controller_at_start".into(), config.control.controller.clone());
     metadata.insert("rate_hz".into(), config.control.rate_hz.to_string());
+    let scales = display_scales(&model);
+    let live = match config.live.enabled {
+        true => Some(open_live(&config, &urdf, &scales)?),
+        false => None,
+    };
     let context = LogContext {
         urdf,
         joint_names: model.joint_names(),
         config_toml: config_text,
         metadata,
         rate_hz: config.control.rate_hz,
+        window_cycles: config.live.window_cycles(config.control.rate_hz),
+        error_scales: scales.iter().map(|s| s.0).collect(),
     };
-    let logger = Logger::new(config.log.clone(), context, runs.clone(), shared.clone())?;
+    let mut logger = Logger::new(config.log.clone(), context, runs.clone(), shared.clone())?;
+    if let Some((server, _)) = &live {
+        logger = logger.with_live(server.clone());
+    }
     let logger_shared = shared.clone();
     let logger_thread = std::thread::Builder::new().name("arash-logger".into()).spawn(move || {
         let result = logger.run(log_rx);
@@ -217,10 +278,17 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
         requests: Mutex::new((request_tx, 0)),
         shared: shared.clone(),
         runs,
+        live: live.as_ref().map(|(server, _)| server.clone()),
         next_run: Mutex::new(0),
     });
     let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
-    let served = runtime.block_on(serve(&config, operator, &mut garbage_rx, rt_status.problems.is_empty()));
+    let served = runtime.block_on(async {
+        if let Some((server, listener)) = live {
+            let listener = tokio::net::TcpListener::from_std(listener).context("the live stream's socket")?;
+            tokio::spawn(server.serve(listener));
+        }
+        serve(&config, operator, &mut garbage_rx, rt_status.problems.is_empty()).await
+    });
     shared.stop.store(true, Ordering::Release);
     let _ = control_thread.join();
     drop(garbage_rx);
@@ -475,6 +543,7 @@ fn status(operator: &Operator) -> serde_json::Value {
         "missed_cycles": load(&s.missed),
         "log_dropped": load(&s.log_dropped),
         "logging": !s.logging_failed.load(Ordering::Acquire),
+        "live": operator.live.as_ref().map(|l| l.status()),
         "link": {
             "frames_received": load(&s.frames_received),
             "crc_errors": load(&s.crc_errors),

@@ -6,6 +6,7 @@
 //! - [`drive_config`]: drive units (counts, amperes) to joint units;
 //! - [`mock`]: the mock motor, the simulated plant behind the protocol;
 //! - [`rt`]: the control cycle and the real-time loop;
+//! - [`live`]: the live stream (a read-only Foxglove WebSocket server);
 //! - [`logger`]: the logger thread (segments, rotation, crash recovery, black box, timing);
 //! - [`daemon`]: the daemon itself (link, loop, logger and control socket together);
 //! - [`ctl`]: the control socket's client;
@@ -16,6 +17,7 @@ pub mod ctl;
 pub mod daemon;
 pub mod drive_config;
 pub mod link;
+pub mod live;
 pub mod logger;
 pub mod mock;
 pub mod rt;

@@ -11,6 +11,9 @@
 //!   faulted cycle, to `blackbox-<cycle>.mcap`.
 //! - **Timing.** Once a second, histograms of the period error and the execution time go to
 //!   `/arash/timing`; events (faults, enables, runs, link errors) go to `/arash/event`.
+//! - **Display.** Every `live.rate_hz` the tracking error's display window goes to
+//!   `/arash/error`, and each file starts with the URDF on `/robot_description`; with `--live`
+//!   the windows, the timing and the events are also handed to the stream ([`crate::live`]).
 
 use std::collections::{BTreeMap, VecDeque};
 use std::path::{Path, PathBuf};
@@ -19,14 +22,15 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use arash_core::control::Faults;
-use arash_core::flightlog::{LogHeader, LogWriter};
+use arash_core::flightlog::schema::{Cycle, ERROR_SCHEMA};
+use arash_core::flightlog::{LogHeader, LogWriter, ERROR_TOPIC, EVENT_TOPIC, ROBOT_DESCRIPTION_TOPIC, TIMING_TOPIC};
 use arash_core::record::CycleRecord;
+use prost::Message;
 
+use crate::live::server::{LiveServer, Topic};
+use crate::live::window::ErrorWindow;
 use crate::rt::cycle::Event;
 use crate::rt::runner::{CycleSample, LogItem, Shared};
-
-pub const TIMING_TOPIC: &str = "/arash/timing";
-pub const EVENT_TOPIC: &str = "/arash/event";
 
 /// Logger settings (the `[log]` table).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -74,6 +78,10 @@ pub struct LogContext {
     pub config_toml: String,
     pub metadata: BTreeMap<String, String>,
     pub rate_hz: f64,
+    /// Control cycles per `/arash/error` window (and per live sample).
+    pub window_cycles: u32,
+    /// Each joint's tracking error to display units (° or µm).
+    pub error_scales: Vec<f64>,
 }
 
 /// Rewrite every `*.mcap.part` in `dir` (left by a crash) into a complete `*.recovered.mcap`
@@ -154,6 +162,11 @@ pub struct Logger {
     last_link: crate::link::LinkStats,
     last_dropped: u64,
     nominal_ns: f64,
+    window: ErrorWindow,
+    live: Option<Arc<LiveServer>>,
+    /// Reused encodings of the live cycle and of the window's error.
+    live_cycle: Cycle,
+    encoded: Vec<u8>,
 }
 
 impl Logger {
@@ -163,6 +176,10 @@ impl Logger {
         let dof = ctx.joint_names.len();
         let capacity = (cfg.blackbox_s * ctx.rate_hz).ceil() as usize;
         Ok(Self {
+            window: ErrorWindow::new(ctx.window_cycles, ctx.error_scales.clone()),
+            live: None,
+            live_cycle: Cycle::default(),
+            encoded: Vec::with_capacity(1024),
             nominal_ns: 1e9 / ctx.rate_hz,
             blackbox: VecDeque::with_capacity(capacity + 1),
             blackbox_len: capacity.max(1),
@@ -180,6 +197,12 @@ impl Logger {
             last_link: Default::default(),
             last_dropped: 0,
         })
+    }
+
+    /// Also hand each window, the timing and the events to the live stream.
+    pub fn with_live(mut self, live: Arc<LiveServer>) -> Self {
+        self.live = Some(live);
+        self
     }
 
     /// Drain `queue` until the control thread is gone, then finish the file.
@@ -246,6 +269,9 @@ impl Logger {
         if let Some(s) = self.segment.as_mut() {
             let t = t - s.t0.unwrap_or(t);
             s.writer.write_json(EVENT_TOPIC, t, &json)?;
+            if let Some(live) = &self.live {
+                live.publish(Topic::Event, s.writer.log_time(t.max(0.0)), json.as_bytes());
+            }
         }
         Ok(())
     }
@@ -258,6 +284,21 @@ impl Logger {
         r.t = s.t - t0;
         segment.last_t = r.t;
         segment.writer.write_cycle(r)?;
+        if let Some(error) = self.window.push(r) {
+            // The window's last cycle and its error, to the file and the live stream at the same
+            // log time.
+            self.encoded.clear();
+            error.encode(&mut self.encoded).expect("a Vec grows as needed");
+            segment.writer.write_protobuf(ERROR_TOPIC, ERROR_SCHEMA, r.t, &self.encoded)?;
+            if let Some(live) = &self.live {
+                let log_time = segment.writer.log_time(r.t);
+                live.publish(Topic::Error, log_time, &self.encoded);
+                self.live_cycle.fill(r);
+                self.encoded.clear();
+                self.live_cycle.encode(&mut self.encoded).expect("a Vec grows as needed");
+                live.publish(Topic::Cycle, log_time, &self.encoded);
+            }
+        }
         self.timing(s)?;
         if self.blackbox.len() >= self.blackbox_len {
             self.blackbox.pop_front();
@@ -303,6 +344,9 @@ impl Logger {
         let segment = self.segment.as_mut().expect("a segment is open");
         let t = s.t - segment.t0.unwrap_or(s.t);
         segment.writer.write_json(TIMING_TOPIC, t, &json)?;
+        if let Some(live) = &self.live {
+            live.publish(Topic::Timing, segment.writer.log_time(t.max(0.0)), json.as_bytes());
+        }
         if link.errors() > self.last_link.errors() || dropped > self.last_dropped {
             let text = format!(
                 "link errors in the last second: {} CRC, {} framing, {} lost, {} stale, {} send; {} log items dropped",
@@ -370,7 +414,10 @@ impl Logger {
         let header = self.header(segment, run.zip(info.as_ref()));
         let path = self.cfg.dir.join(format!("{name}.mcap"));
         let part = self.cfg.dir.join(format!("{name}.mcap.part"));
-        let writer = LogWriter::create(&part, &header, self.ctx.rate_hz)?;
+        let mut writer = LogWriter::create(&part, &header, self.ctx.rate_hz)?;
+        // The URDF once more as a message, for Foxglove's URDF layer (it reads no attachment).
+        let description = serde_json::json!({ "data": self.ctx.urdf }).to_string();
+        writer.write_json(ROBOT_DESCRIPTION_TOPIC, 0.0, &description)?;
         self.segment = Some(Segment { writer, part, path, opened: Instant::now(), t0: None, last_t: 0.0, run });
         Ok(())
     }

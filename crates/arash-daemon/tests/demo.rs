@@ -135,17 +135,62 @@ fn the_demo_calibrates_diagnoses_and_controls_the_simulated_rig() {
     }
 }
 
+/// Read the demo's output until it names its live stream, then, on another thread, connect as a
+/// Foxglove client (subprotocol `foxglove.sdk.v1`), subscribe to `/arash/cycle` and return the
+/// log times of the first 100 messages. The rest of the output is drained so the demo never
+/// blocks on it.
+fn watch_live(stdout: std::process::ChildStdout) -> std::thread::JoinHandle<Vec<u64>> {
+    use std::io::BufRead;
+    use tokio_tungstenite::tungstenite::{client::IntoClientRequest, Message};
+    let mut lines = std::io::BufReader::new(stdout).lines();
+    let address = loop {
+        let line = lines.next().expect("the demo ended before naming its live stream").unwrap();
+        if let Some(rest) = line.split("live stream on ws://").nth(1) {
+            break rest.split(':').take(2).collect::<Vec<_>>().join(":");
+        }
+    };
+    std::thread::spawn(move || lines.for_each(drop));
+    std::thread::spawn(move || {
+        let mut request = format!("ws://{address}").into_client_request().unwrap();
+        request.headers_mut().insert("sec-websocket-protocol", "foxglove.sdk.v1".parse().unwrap());
+        let tcp = std::net::TcpStream::connect(&address).unwrap();
+        let (mut ws, _) = tokio_tungstenite::tungstenite::client(request, tcp).unwrap();
+        let mut cycle_channel = None;
+        while cycle_channel.is_none() {
+            let Message::Text(text) = ws.read().unwrap() else { continue };
+            let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+            if v["op"] == "advertise" {
+                let channels = v["channels"].as_array().unwrap();
+                cycle_channel = channels.iter().find(|c| c["topic"] == "/arash/cycle").map(|c| c["id"].clone());
+            }
+        }
+        let subscribe =
+            serde_json::json!({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": cycle_channel}]});
+        ws.send(Message::Text(subscribe.to_string().into())).unwrap();
+        let mut times = Vec::new();
+        while times.len() < 100 {
+            if let Message::Binary(frame) = ws.read().unwrap() {
+                // opcode 1 (message data), subscription id, log time, payload
+                assert_eq!((frame[0], u32::from_le_bytes(frame[1..5].try_into().unwrap())), (1, 7));
+                times.push(u64::from_le_bytes(frame[5..13].try_into().unwrap()));
+            }
+        }
+        times
+    })
+}
+
 #[test]
 fn ctrl_c_disables_the_motors_and_keeps_the_logs() {
     let _serial = serial();
     let dir = Scratch::new("demo", "interrupt");
     let mut demo = Command::new(ARASH)
-        .args(["demo", "--restarts", "1", "--omegas", "0.5", "-o"])
+        .args(["demo", "--restarts", "1", "--omegas", "0.5", "--live", "127.0.0.1:0", "-o"])
         .arg(&dir)
-        .stdout(Stdio::null())
+        .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
+    let stream = watch_live(demo.stdout.take().unwrap());
     // Interrupt once the excitation run has been moving the rig for a few seconds.
     let started = Instant::now();
     let logs = |dir: &Path| -> Vec<PathBuf> {
@@ -159,6 +204,9 @@ fn ctrl_c_disables_the_motors_and_keeps_the_logs() {
         std::thread::sleep(Duration::from_millis(100));
     }
     std::thread::sleep(Duration::from_secs(4));
+    // `--live`: the demo's daemon streamed the excitation run as it moved the rig.
+    let cycles = stream.join().unwrap();
+    assert!(cycles.len() >= 50 && cycles.windows(2).all(|w| w[1] > w[0]), "{cycles:?}");
     // SAFETY: signalling our own child, as a terminal's Ctrl-C would.
     unsafe { libc::kill(demo.id() as i32, libc::SIGINT) };
     let stopped = Instant::now();

@@ -22,6 +22,16 @@ pub use writer::{LogHeader, LogWriter};
 pub const FORMAT: &str = "arash-log/1";
 pub const CYCLE_TOPIC: &str = "/arash/cycle";
 pub const TRUTH_TOPIC: &str = "/arash/truth";
+/// The daemon's tracking error over each display window (`arash.TrackingError`), in daemon logs
+/// and the live stream.
+pub const ERROR_TOPIC: &str = "/arash/error";
+/// The daemon's loop timing, once a second (JSON).
+pub const TIMING_TOPIC: &str = "/arash/timing";
+/// The daemon's events: enables, faults, runs, link errors (JSON).
+pub const EVENT_TOPIC: &str = "/arash/event";
+/// The robot's URDF as `{"data": "<urdf>"}` (JSON), the shape Foxglove's URDF layer reads from a
+/// topic; once at the start of each daemon log, and to every live subscriber.
+pub const ROBOT_DESCRIPTION_TOPIC: &str = "/robot_description";
 /// Name of the metadata record.
 pub const METADATA_NAME: &str = "arash";
 

@@ -44,6 +44,54 @@ pub struct Cycle {
     pub faults: u32,
 }
 
+impl Cycle {
+    /// Copy `r` into this message, reusing its vectors.
+    pub fn fill(&mut self, r: &crate::record::CycleRecord) {
+        self.cycle = r.cycle;
+        self.t = r.t;
+        for (dst, src) in [
+            (&mut self.q, &r.q),
+            (&mut self.qd, &r.qd),
+            (&mut self.qdd, &r.qdd),
+            (&mut self.tau_cmd, &r.tau_cmd),
+            (&mut self.tau_meas, &r.tau_meas),
+            (&mut self.q_des, &r.q_des),
+            (&mut self.qd_des, &r.qd_des),
+            (&mut self.qdd_des, &r.qdd_des),
+        ] {
+            dst.clear();
+            dst.extend_from_slice(src);
+        }
+        self.controller = r.controller as u32;
+        self.mode = r.mode as u32;
+        self.faults = r.faults.0;
+    }
+}
+
+/// The tracking error `q_des − q` over one display window of the daemon, on topic
+/// `/arash/error`: the last cycle's error and the extremes over the window, so that a spike
+/// between two displayed samples is not hidden. In display units, the only place the flight log
+/// leaves SI: degrees for a revolute joint, micrometres for a prismatic one (the channel's
+/// `units` metadata names them).
+#[derive(Clone, PartialEq, prost::Message)]
+pub struct TrackingError {
+    /// The window's last cycle.
+    #[prost(uint64, tag = "1")]
+    pub cycle: u64,
+    /// Seconds since the start of the file, as `/arash/cycle`'s `t`.
+    #[prost(double, tag = "2")]
+    pub t: f64,
+    #[prost(double, repeated, tag = "3")]
+    pub error: Vec<f64>,
+    #[prost(double, repeated, tag = "4")]
+    pub error_min: Vec<f64>,
+    #[prost(double, repeated, tag = "5")]
+    pub error_max: Vec<f64>,
+    /// Cycles in the window.
+    #[prost(uint32, tag = "6")]
+    pub cycles: u32,
+}
+
 /// The simulator's ground truth on topic `/arash/truth`.
 #[derive(Clone, PartialEq, prost::Message)]
 pub struct Truth {
@@ -95,7 +143,17 @@ const TRUTH_FIELDS: &[(&str, i32, Type, bool)] = &[
     ("motor_qd", 8, Type::Double, true),
 ];
 
+const ERROR_FIELDS: &[(&str, i32, Type, bool)] = &[
+    ("cycle", 1, Type::Uint64, false),
+    ("t", 2, Type::Double, false),
+    ("error", 3, Type::Double, true),
+    ("error_min", 4, Type::Double, true),
+    ("error_max", 5, Type::Double, true),
+    ("cycles", 6, Type::Uint32, false),
+];
+
 pub const CYCLE_SCHEMA: &str = "arash.Cycle";
+pub const ERROR_SCHEMA: &str = "arash.TrackingError";
 pub const TRUTH_SCHEMA: &str = "arash.Truth";
 
 fn message(name: &str, fields: &[(&str, i32, Type, bool)]) -> DescriptorProto {
@@ -116,13 +174,15 @@ fn message(name: &str, fields: &[(&str, i32, Type, bool)]) -> DescriptorProto {
     }
 }
 
-/// The serialised `FileDescriptorSet` holding message `name` (`arash.Cycle` or `arash.Truth`),
+/// The serialised `FileDescriptorSet` holding message `name` (`arash.Cycle`, `arash.Truth` or
+/// `arash.TrackingError`),
 /// as MCAP's `protobuf` schema encoding requires.
 pub fn descriptor_set(name: &str) -> Vec<u8> {
     use prost::Message;
     let (short, fields) = match name {
         CYCLE_SCHEMA => ("Cycle", CYCLE_FIELDS),
         TRUTH_SCHEMA => ("Truth", TRUTH_FIELDS),
+        ERROR_SCHEMA => ("TrackingError", ERROR_FIELDS),
         other => panic!("no schema {other}"),
     };
     let file = FileDescriptorProto {

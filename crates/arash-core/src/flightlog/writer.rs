@@ -44,8 +44,9 @@ pub struct LogWriter {
     buffer: Vec<u8>,
     cycle: Cycle,
     truth: Truth,
-    /// Schemaless JSON channels by topic (timing statistics, events), added on first use.
-    json_channels: BTreeMap<String, u16>,
+    /// Channels other than the cycle's and the truth's, by topic, added on first use: schemaless
+    /// JSON (timing statistics, events) and the daemon's tracking error.
+    channels: BTreeMap<String, u16>,
 }
 
 impl LogWriter {
@@ -106,7 +107,7 @@ impl LogWriter {
             buffer: Vec::with_capacity(1024),
             cycle: Cycle::default(),
             truth: Truth::default(),
-            json_channels: BTreeMap::new(),
+            channels: BTreeMap::new(),
         })
     }
 
@@ -114,31 +115,14 @@ impl LogWriter {
         LogError::Mcap { path: self.path.display().to_string(), source }
     }
 
-    fn log_time(&self, t: f64) -> u64 {
+    /// The log time (ns) of file time `t` (s): what every message at `t` is stamped with.
+    pub fn log_time(&self, t: f64) -> u64 {
         self.start_ns + (t * 1e9).round() as u64
     }
 
     /// Append one cycle. After the first cycle this allocates nothing but what zstd needs.
     pub fn write_cycle(&mut self, r: &CycleRecord) -> Result<(), LogError> {
-        let c = &mut self.cycle;
-        c.cycle = r.cycle;
-        c.t = r.t;
-        for (dst, src) in [
-            (&mut c.q, &r.q),
-            (&mut c.qd, &r.qd),
-            (&mut c.qdd, &r.qdd),
-            (&mut c.tau_cmd, &r.tau_cmd),
-            (&mut c.tau_meas, &r.tau_meas),
-            (&mut c.q_des, &r.q_des),
-            (&mut c.qd_des, &r.qd_des),
-            (&mut c.qdd_des, &r.qdd_des),
-        ] {
-            dst.clear();
-            dst.extend_from_slice(src);
-        }
-        c.controller = r.controller as u32;
-        c.mode = r.mode as u32;
-        c.faults = r.faults.0;
+        self.cycle.fill(r);
         self.buffer.clear();
         self.cycle.encode(&mut self.buffer).expect("a Vec grows as needed");
         let header = MessageHeader {
@@ -149,7 +133,7 @@ impl LogWriter {
         };
         self.writer.write_to_known_channel(&header, &self.buffer).map_err(|e| self.mcap_error(e))?;
         self.written += 1;
-        if self.written % self.flush_every == 0 {
+        if self.written.is_multiple_of(self.flush_every) {
             self.flush()?;
         }
         Ok(())
@@ -182,17 +166,43 @@ impl LogWriter {
     /// Append a JSON document on `topic` (schemaless, `json` encoding) at run time `t`: the
     /// daemon's timing statistics and events.
     pub fn write_json(&mut self, topic: &str, t: f64, json: &str) -> Result<(), LogError> {
-        let channel_id = match self.json_channels.get(topic) {
+        self.write_message(topic, None, t, json.as_bytes())
+    }
+
+    /// Append a protobuf message `data` of schema `schema` (one of [`super::schema`]'s names) on
+    /// `topic` at run time `t`.
+    pub fn write_protobuf(&mut self, topic: &str, schema: &'static str, t: f64, data: &[u8]) -> Result<(), LogError> {
+        self.write_message(topic, Some(schema), t, data)
+    }
+
+    fn write_message(
+        &mut self,
+        topic: &str,
+        schema: Option<&'static str>,
+        t: f64,
+        data: &[u8],
+    ) -> Result<(), LogError> {
+        let channel_id = match self.channels.get(topic) {
             Some(&id) => id,
             None => {
-                let id = self.writer.add_channel(0, topic, "json", &BTreeMap::new()).map_err(|e| self.mcap_error(e))?;
-                self.json_channels.insert(topic.to_string(), id);
+                let id = self.add_channel(topic, schema).map_err(|e| self.mcap_error(e))?;
+                self.channels.insert(topic.to_string(), id);
                 id
             }
         };
         let time = self.log_time(t.max(0.0));
         let header = MessageHeader { channel_id, sequence: 0, log_time: time, publish_time: time };
-        self.writer.write_to_known_channel(&header, json.as_bytes()).map_err(|e| self.mcap_error(e))
+        self.writer.write_to_known_channel(&header, data).map_err(|e| self.mcap_error(e))
+    }
+
+    fn add_channel(&mut self, topic: &str, schema: Option<&'static str>) -> Result<u16, mcap::McapError> {
+        match schema {
+            None => self.writer.add_channel(0, topic, "json", &BTreeMap::new()),
+            Some(name) => {
+                let id = self.writer.add_schema(name, "protobuf", &descriptor_set(name))?;
+                self.writer.add_channel(id, topic, "protobuf", &BTreeMap::new())
+            }
+        }
     }
 
     /// Close the current chunk and push it to the file.

@@ -111,7 +111,7 @@ impl Butterworth {
     /// Filter `x` with `wrap` samples of its other end before and after it (read circularly);
     /// write the part that is `x` to `out`.
     fn filtfilt_wrapped(&self, x: &[f64], width: usize, wrap: usize, out: &mut [f64]) -> Result<(), FilterError> {
-        assert!(width > 0 && x.len() % width == 0, "x must hold whole rows of {width} values");
+        assert!(width > 0 && x.len().is_multiple_of(width), "x must hold whole rows of {width} values");
         assert_eq!(out.len(), x.len(), "output must match the input shape");
         let (n, pad) = (x.len() / width, self.padlen());
         let total = n + 2 * wrap;

@@ -30,6 +30,13 @@ pub struct Args {
     /// Model file from `arash identify` (overrides control.model).
     #[arg(long)]
     model: Option<PathBuf>,
+    /// Stream the rig live to Foxglove (read-only WebSocket) on ADDR, default live.address
+    /// (127.0.0.1:8765); sets live.enabled.
+    #[arg(long, value_name = "ADDR")]
+    live: Option<Option<String>>,
+    /// Allow --live on an address other than loopback (sets live.allow_remote).
+    #[arg(long)]
+    live_allow_remote: bool,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -55,6 +62,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(m) = args.model {
         config.control.model = Some(m);
     }
+    if let Some(address) = args.live {
+        config.live.enabled = true;
+        if let Some(address) = address {
+            config.live.address = address;
+        }
+    }
+    config.live.allow_remote |= args.live_allow_remote;
     let (model, urdf) = super::load_robot(config.robot.as_deref())?;
     // The effective configuration goes into every log, overrides included.
     let effective =

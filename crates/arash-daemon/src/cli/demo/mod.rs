@@ -57,6 +57,10 @@ pub struct Args {
     /// Real-time set-up of the daemon; default ignore with the mock, require with --port.
     #[arg(long)]
     rt: Option<RtPolicy>,
+    /// Stream the daemon live to Foxglove on ADDR (default 127.0.0.1:8765), as
+    /// `arash daemon --live` does.
+    #[arg(long, value_name = "ADDR")]
+    live: Option<Option<String>>,
     /// Run directory; default logs/demo-<UTC time>.
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -141,7 +145,13 @@ fn steps(args: &Args, plan: &Plan) -> anyhow::Result<()> {
         Some(port) => (Motors::Port(port), args.rt.unwrap_or(RtPolicy::Require)),
         None => (Motors::Mock { scenario: &scenario, seed: args.seed }, args.rt.unwrap_or(RtPolicy::Ignore)),
     };
-    let mut rig = Rig::start(dir, motors, rt)?;
+    let mut rig = Rig::start(dir, motors, rt, args.live.as_ref())?;
+    if args.live.is_some() {
+        // The daemon's own answer: the address it bound (port 0 picks one).
+        let status = rig.call(&arash_daemon::ctl::CtlRequest::Status)?;
+        let address = status["live"]["address"].as_str().unwrap_or("?").to_string();
+        println!("    live stream on ws://{address}: open it in Foxglove with deploy/foxglove/arash-layout.json");
+    }
     match &args.port {
         Some(_) => println!("    daemon on {}; motors disabled", rig.port),
         None => println!(

@@ -55,8 +55,9 @@ pub struct Rig {
 
 impl Rig {
     /// Start the motors and the daemon (idc with CAD, motors disabled) with its logs in
-    /// `dir/logs` and its standard error in `dir/daemon.log`.
-    pub fn start(dir: &Path, motors: Motors, rt: RtPolicy) -> anyhow::Result<Self> {
+    /// `dir/logs` and its standard error in `dir/daemon.log`; `live` streams it (an address, or
+    /// the daemon's default).
+    pub fn start(dir: &Path, motors: Motors, rt: RtPolicy, live: Option<&Option<String>>) -> anyhow::Result<Self> {
         let rt = match rt {
             RtPolicy::Require => "require",
             RtPolicy::Ignore => "ignore",
@@ -92,9 +93,12 @@ impl Rig {
         std::fs::write(&config, "# The demo's daemon: the paper's baseline first.\n[control]\ncontroller = \"idc\"\n")?;
         let _ = std::fs::remove_file(&rig.socket);
         let log = std::fs::File::create(dir.join("daemon.log"))?;
-        let child = Command::new(&exe)
-            .args(["daemon", "--rt", rt, "--port", &rig.port, "--config"])
-            .arg(&config)
+        let mut daemon = Command::new(&exe);
+        daemon.args(["daemon", "--rt", rt, "--port", &rig.port, "--config"]).arg(&config);
+        if let Some(address) = live {
+            daemon.arg("--live").args(address.iter());
+        }
+        let child = daemon
             .arg("--socket")
             .arg(&rig.socket)
             .arg("--log-dir")
