@@ -200,7 +200,7 @@ impl DaemonConfig {
             return Err(ConfigError::Priority(self.rt.priority.into()));
         }
         self.socket.mode_bits()?;
-        self.live.validate(self.control.rate_hz)?;
+        self.live.validate()?;
         self.controller()?;
         self.control.gain_units.parse::<arash_core::control::gains::PaperUnits>().map_err(ConfigError::GainUnits)?;
         self.drive.validate(dof)?;

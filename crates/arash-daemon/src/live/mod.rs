@@ -25,7 +25,8 @@ pub struct LiveConfig {
     /// Allow an address other than loopback: anyone who can reach it sees the rig's data.
     pub allow_remote: bool,
     /// Display rate (Hz): cycles are streamed at this rate, with the tracking error's extremes
-    /// over each window; daemon logs carry the same windows on `/arash/error`.
+    /// over each window; daemon logs carry the same windows on `/arash/error`. Above the
+    /// control rate, every cycle is a window.
     pub rate_hz: f64,
     /// Messages queued per client before its newest are dropped (and counted).
     pub client_queue: usize,
@@ -56,8 +57,8 @@ pub enum LiveConfigError {
          set live.allow_remote = true (or pass --live-allow-remote) to allow it"
     )]
     Remote(SocketAddr),
-    #[error("live.rate_hz must be positive and at most the control rate ({rate} Hz), not {value}")]
-    Rate { value: f64, rate: f64 },
+    #[error("live.rate_hz must be positive and finite, not {0}")]
+    Rate(f64),
     #[error("live.client_queue must be at least 16 messages, not {0}")]
     Queue(usize),
 }
@@ -74,9 +75,9 @@ impl LiveConfig {
 
     /// Checks every key, whether or not the stream is on: the display rate also sets the log's
     /// `/arash/error` windows.
-    pub fn validate(&self, control_rate_hz: f64) -> Result<(), LiveConfigError> {
-        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0 && self.rate_hz <= control_rate_hz) {
-            return Err(LiveConfigError::Rate { value: self.rate_hz, rate: control_rate_hz });
+    pub fn validate(&self) -> Result<(), LiveConfigError> {
+        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
+            return Err(LiveConfigError::Rate(self.rate_hz));
         }
         if self.client_queue < 16 {
             return Err(LiveConfigError::Queue(self.client_queue));
@@ -99,22 +100,22 @@ mod tests {
         let mut c = LiveConfig::default();
         assert!(c.socket_addr().unwrap().ip().is_loopback());
         c.address = "0.0.0.0:8765".into();
-        assert_eq!(c.validate(1000.0), Err(LiveConfigError::Remote("0.0.0.0:8765".parse().unwrap())));
+        assert_eq!(c.validate(), Err(LiveConfigError::Remote("0.0.0.0:8765".parse().unwrap())));
         c.allow_remote = true;
-        c.validate(1000.0).unwrap();
+        c.validate().unwrap();
         c.address = "[::1]:9000".into();
         c.allow_remote = false;
-        c.validate(1000.0).unwrap();
+        c.validate().unwrap();
     }
 
     #[test]
     fn bad_values_are_named() {
         let c = LiveConfig { address: "localhost".into(), ..Default::default() };
-        assert!(c.validate(1000.0).unwrap_err().to_string().contains("live.address"));
-        let c = LiveConfig { rate_hz: 2000.0, ..Default::default() };
-        assert!(c.validate(1000.0).unwrap_err().to_string().contains("live.rate_hz"));
+        assert!(c.validate().unwrap_err().to_string().contains("live.address"));
+        let c = LiveConfig { rate_hz: 0.0, ..Default::default() };
+        assert!(c.validate().unwrap_err().to_string().contains("live.rate_hz"));
         let c = LiveConfig { client_queue: 1, ..Default::default() };
-        assert!(c.validate(1000.0).unwrap_err().to_string().contains("live.client_queue"));
+        assert!(c.validate().unwrap_err().to_string().contains("live.client_queue"));
     }
 
     #[test]
@@ -122,6 +123,7 @@ mod tests {
         let c = LiveConfig::default();
         assert_eq!(c.window_cycles(1000.0), 10);
         assert_eq!(c.window_cycles(250.0), 3);
-        assert_eq!(LiveConfig { rate_hz: 1000.0, ..c }.window_cycles(1000.0), 1);
+        assert_eq!(LiveConfig { rate_hz: 1000.0, ..c.clone() }.window_cycles(1000.0), 1);
+        assert_eq!(LiveConfig { rate_hz: 100.0, ..c }.window_cycles(50.0), 1);
     }
 }
