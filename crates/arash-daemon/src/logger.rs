@@ -22,7 +22,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use arash_core::control::Faults;
-use arash_core::flightlog::schema::{Cycle, ERROR_SCHEMA};
+use arash_core::flightlog::schema::ERROR_SCHEMA;
 use arash_core::flightlog::{LogHeader, LogWriter, ERROR_TOPIC, EVENT_TOPIC, ROBOT_DESCRIPTION_TOPIC, TIMING_TOPIC};
 use arash_core::record::CycleRecord;
 use prost::Message;
@@ -164,8 +164,7 @@ pub struct Logger {
     nominal_ns: f64,
     window: ErrorWindow,
     live: Option<Arc<LiveServer>>,
-    /// Reused encodings of the live cycle and of the window's error.
-    live_cycle: Cycle,
+    /// The window's error, encoded (reused).
     encoded: Vec<u8>,
 }
 
@@ -178,7 +177,6 @@ impl Logger {
         Ok(Self {
             window: ErrorWindow::new(ctx.window_cycles, ctx.error_scales.clone()),
             live: None,
-            live_cycle: Cycle::default(),
             encoded: Vec::with_capacity(1024),
             nominal_ns: 1e9 / ctx.rate_hz,
             blackbox: VecDeque::with_capacity(capacity + 1),
@@ -283,21 +281,18 @@ impl Logger {
         let t0 = *segment.t0.get_or_insert(s.t);
         r.t = s.t - t0;
         segment.last_t = r.t;
-        segment.writer.write_cycle(r)?;
+        let log_time = segment.writer.log_time(r.t);
+        let cycle = segment.writer.write_cycle(r)?;
         if let Some(error) = self.window.push(r) {
-            // The window's last cycle and its error, to the file and the live stream at the same
-            // log time.
+            // The window's last cycle (as the file has it) and its error, to the live stream and
+            // the file at the same log time.
             self.encoded.clear();
             error.encode(&mut self.encoded).expect("a Vec grows as needed");
-            segment.writer.write_protobuf(ERROR_TOPIC, ERROR_SCHEMA, r.t, &self.encoded)?;
             if let Some(live) = &self.live {
-                let log_time = segment.writer.log_time(r.t);
+                live.publish(Topic::Cycle, log_time, cycle);
                 live.publish(Topic::Error, log_time, &self.encoded);
-                self.live_cycle.fill(r);
-                self.encoded.clear();
-                self.live_cycle.encode(&mut self.encoded).expect("a Vec grows as needed");
-                live.publish(Topic::Cycle, log_time, &self.encoded);
             }
+            segment.writer.write_protobuf(ERROR_TOPIC, ERROR_SCHEMA, r.t, &self.encoded)?;
         }
         self.timing(s)?;
         if self.blackbox.len() >= self.blackbox_len {

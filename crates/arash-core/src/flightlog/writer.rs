@@ -120,8 +120,10 @@ impl LogWriter {
         self.start_ns + (t * 1e9).round() as u64
     }
 
-    /// Append one cycle. After the first cycle this allocates nothing but what zstd needs.
-    pub fn write_cycle(&mut self, r: &CycleRecord) -> Result<(), LogError> {
+    /// Append one cycle; returns its `arash.Cycle` encoding, for a caller that sends the same
+    /// message elsewhere (the daemon's live stream). After the first cycle this allocates nothing
+    /// but what zstd needs.
+    pub fn write_cycle(&mut self, r: &CycleRecord) -> Result<&[u8], LogError> {
         self.cycle.fill(r);
         self.buffer.clear();
         self.cycle.encode(&mut self.buffer).expect("a Vec grows as needed");
@@ -136,7 +138,7 @@ impl LogWriter {
         if self.written.is_multiple_of(self.flush_every) {
             self.flush()?;
         }
-        Ok(())
+        Ok(&self.buffer)
     }
 
     /// Append the ground truth of cycle `cycle` (only for logs created `with_truth`).
