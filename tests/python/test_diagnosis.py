@@ -11,6 +11,9 @@ from conftest import ROOT, SHARED_DATA
 EXCITATION = ROOT / "trajectories" / "excitation_L5_T15.json"
 # The simulated drive's joint motion per motor radian (docs/simulator.md).
 TRANSMISSION = [1 / 12, 1 / 12, 0.0025]
+# The simulated rig's Coulomb law is tanh(q̇/ε) with this ε (docs/simulator.md); the robot
+# declares it, as a lab declares its own robot's law.
+SIM_COULOMB_EPSILON = 1e-3
 
 
 def excitation_run(scenario, seconds=60.0, seed=1):
@@ -21,7 +24,7 @@ def excitation_run(scenario, seconds=60.0, seed=1):
 
 @pytest.fixture(scope="module")
 def cogging():
-    robot = arash.Robot.arash_asist()
+    robot = arash.Robot.arash_asist(coulomb_epsilon=SIM_COULOMB_EPSILON)
     t, q, tau = excitation_run("cogging")
     return robot, arash.diagnose(robot, t, q, tau, transmission=TRANSMISSION)
 
@@ -35,6 +38,7 @@ def test_the_diagnosis_names_cogging_and_keeps_its_contract(cogging):
     assert 0.0 <= first.p_value < 1e-3
     assert first.heldout_gain > 0.5
     assert first.mass_kg is None and first.body is None
+    assert first.mass_sigma_kg is None and first.centre_of_mass_m is None
     for errors in (d.error_before, d.error_after):
         assert set(errors) == {"rms", "fp_percent", "rel"}
         assert all(v.shape == (3,) for v in errors.values())
@@ -73,7 +77,7 @@ def test_the_consistent_model_with_the_effects_is_physical_and_compensates_them(
     positive semidefinite (checked here with numpy, not the solver's word), the wiring term is in
     the model, and the robust controller using it tracks the disturbed joint better than with
     the same data's consistent fit without effects."""
-    robot = arash.Robot.arash_asist()
+    robot = arash.Robot.arash_asist(coulomb_epsilon=SIM_COULOMB_EPSILON)
     t, q, tau = excitation_run("configuration_disturbance")
     plain = arash.identify(robot, t, q, tau, method="consistent", periods=4, cutoff_hz=5 * 5 / 15)
     d = arash.diagnose(robot, t, q, tau, consistent=True, consistent_cutoff_hz=plain.cutoff_hz)

@@ -89,6 +89,28 @@ impl CoulombShape {
             CoulombShape::Tanh { epsilon } => (qd / epsilon).tanh(),
         }
     }
+
+    /// The law with width `epsilon` (`None`: `sign(q̇)`), as model files store it.
+    pub fn of_epsilon(epsilon: Option<f64>) -> Self {
+        epsilon.map_or(CoulombShape::Sign, |epsilon| CoulombShape::Tanh { epsilon })
+    }
+
+    /// The width of a `tanh` law (`None` for `sign(q̇)`).
+    pub fn epsilon(self) -> Option<f64> {
+        match self {
+            CoulombShape::Sign => None,
+            CoulombShape::Tanh { epsilon } => Some(epsilon),
+        }
+    }
+}
+
+impl std::fmt::Display for CoulombShape {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CoulombShape::Sign => f.write_str("sign(q̇)"),
+            CoulombShape::Tanh { epsilon } => write!(f, "tanh(q̇/{epsilon:.3e})"),
+        }
+    }
 }
 
 /// A robot model: bodies in topological order (parents first) and its actuated joints.

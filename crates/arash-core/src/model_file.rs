@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::base_parameters::BaseParameters;
 use crate::data::Data;
-use crate::model::Model;
+use crate::model::{CoulombShape, Model};
 use crate::physical::{min_pseudo_inertia_eigenvalues, nearest_standard_parameters, CONSISTENCY_TOLERANCE};
 use crate::regressor::regressor;
 
@@ -99,6 +99,11 @@ pub struct Settings {
     /// Cut-off of the velocity that switches Coulomb friction (Hz).
     #[serde(default)]
     pub friction_cutoff_hz: Option<f64>,
+    /// The Coulomb law the friction was fitted with: `tanh(q̇/ε)` with this ε (rad/s or m/s),
+    /// or `sign(q̇)` when `None` (files before this field were fitted with the declared law,
+    /// `sign(q̇)` unless it was set). Its Coulomb coefficients belong to this law.
+    #[serde(default)]
+    pub coulomb_epsilon: Option<f64>,
     pub order: usize,
     pub decimate: usize,
     pub pull: f64,
@@ -346,6 +351,18 @@ impl ModelFile {
         })
     }
 
+    /// `model` with the Coulomb law this file's friction was fitted with, which every use of
+    /// its coefficients must share.
+    pub fn with_its_law<'a>(&self, model: &'a Model) -> std::borrow::Cow<'a, Model> {
+        let law = CoulombShape::of_epsilon(self.settings.coulomb_epsilon);
+        if law == model.coulomb_shape {
+            return std::borrow::Cow::Borrowed(model);
+        }
+        let mut with_law = model.clone();
+        with_law.coulomb_shape = law;
+        std::borrow::Cow::Owned(with_law)
+    }
+
     /// Table I shape: each base parameter, its value and σ%, and the training fit.
     pub fn table(&self) -> String {
         let mut s = format!(
@@ -358,6 +375,7 @@ impl ModelFile {
         );
         // The consistent β is a constrained estimate; its spread is reported from the least squares.
         let sigma = if self.settings.method == IdentifyMethod::Consistent { "σ% (OLS)" } else { "σ%" };
+        s += &format!("  Coulomb friction as {}\n", CoulombShape::of_epsilon(self.settings.coulomb_epsilon));
         s += &self.settings.reasons.iter().map(|r| format!("  {r}\n")).collect::<String>();
         s += &self.settings.warnings.iter().map(|w| format!("  warning: {w}\n")).collect::<String>();
         s += &format!("{:<4} {:<34} {:>14} {:>10}\n", "", "parameter", "value", sigma);

@@ -207,9 +207,20 @@ impl Effect {
     fn mass_kg(&self) -> Option<f64> {
         self.finding.mass_kg
     }
+    /// A payload's mass σ (kg).
+    #[getter]
+    fn mass_sigma_kg(&self) -> Option<f64> {
+        self.finding.mass_sigma_kg
+    }
     #[getter]
     fn body(&self) -> Option<String> {
         self.finding.body.clone()
+    }
+    /// A payload's centre of mass in its body's frame (m), `None` along a direction the data
+    /// cannot see.
+    #[getter]
+    fn centre_of_mass_m(&self) -> Option<Vec<Option<f64>>> {
+        self.finding.centre_of_mass_m.map(|c| c.to_vec())
     }
     #[getter]
     fn round(&self) -> usize {

@@ -124,7 +124,9 @@ fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
         heldout_gain_per_joint: gains,
         aliases: vec![],
         mass_kg: None,
+        mass_sigma_kg: None,
         body: None,
+        centre_of_mass_m: None,
         round: 0,
     })
 }

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::effects::{EffectTerm, NotSearched};
+use crate::effects::{EffectKind, EffectTerm, NotSearched};
 use crate::model::Model;
 use crate::model_file::{Metrics, ModelFile};
 
@@ -29,11 +29,34 @@ pub struct Finding {
     pub heldout_gain_per_joint: Vec<f64>,
     /// Other candidates that explain the same thing on this data and cannot be told apart.
     pub aliases: Vec<String>,
-    /// For a payload: the mass (kg) and the body.
+    /// For a payload: the mass (kg), its σ (kg), the body, and the centre of mass in the body's
+    /// frame (m), `None` along a direction the data cannot see.
     pub mass_kg: Option<f64>,
+    #[serde(default)]
+    pub mass_sigma_kg: Option<f64>,
     pub body: Option<String>,
+    #[serde(default)]
+    pub centre_of_mass_m: Option<[Option<f64>; 3]>,
     /// Search round in which it was accepted (0: the delay search).
     pub round: usize,
+}
+
+impl Finding {
+    /// Read a payload's mass, its σ and its centre of mass off its term's coefficients
+    /// (`m, m·cx, m·cy, m·cz`); nothing for any other effect. A first moment pinned at zero (its
+    /// column is zero on this data, σ zero) leaves that coordinate unknown.
+    pub(super) fn weigh(&mut self) {
+        if self.term.kind != EffectKind::Payload {
+            return;
+        }
+        let (c, sd) = (&self.term.coefficients, &self.term.sigma);
+        let mass = c[0];
+        self.mass_kg = Some(mass);
+        self.mass_sigma_kg = sd.first().copied();
+        self.body = self.term.body.clone();
+        let seen = |i: usize| !(c[i] == 0.0 && sd.get(i).is_none_or(|s| *s == 0.0));
+        self.centre_of_mass_m = (mass > 0.0).then(|| [1, 2, 3].map(|i| seen(i).then(|| c[i] / mass)));
+    }
 }
 
 /// A candidate that was not accepted, and why.
@@ -173,6 +196,9 @@ pub struct DiagnoseSettings {
     /// The cut-off of the velocity the Coulomb columns switch with (Hz).
     #[serde(default)]
     pub friction_cutoff_hz: Option<f64>,
+    /// The Coulomb law of the declared model: `tanh(q̇/ε)` with this ε, or `sign(q̇)` (`None`).
+    #[serde(default)]
+    pub coulomb_epsilon: Option<f64>,
     /// The preprocessing's choices and why (as in a model file).
     #[serde(default)]
     pub reasons: Vec<String>,

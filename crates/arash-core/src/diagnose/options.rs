@@ -45,11 +45,6 @@ pub struct DiagnoseOptions {
     pub cogging_periods: Vec<f64>,
     /// The effects searched (default: all of them).
     pub effects: Vec<EffectKind>,
-    /// Coulomb friction in the declared model switches as `tanh(q̇/ε)` with this ε (rad/s or
-    /// m/s); `None` keeps the model's own shape. A sharp `sign(q̇)` of an estimated velocity
-    /// flips at full amplitude on every noisy zero crossing, which the measured friction does
-    /// not do, and leaves a residual that looks like Stribeck friction.
-    pub coulomb_epsilon: Option<f64>,
     /// With a given model: hold its friction too (default: refit friction, which drifts with
     /// temperature and depends on how its velocity was estimated).
     pub hold_friction: bool,
@@ -73,7 +68,6 @@ impl Default for DiagnoseOptions {
             cogging_periods: (1..=8).map(f64::from).collect(),
             effects: EffectKind::ALL.to_vec(),
             hold_friction: false,
-            coulomb_epsilon: Some(1e-3),
             refit: false,
         }
     }
@@ -83,11 +77,7 @@ impl DiagnoseOptions {
     /// Check every setting before any work starts; `dof` is the robot's.
     pub fn validate(&self, dof: usize) -> Result<(), OptionsError> {
         self.preprocess.validate().map_err(OptionsError::Preprocess)?;
-        let positive = [
-            ("block_s", self.block_s),
-            ("max_vif", self.max_vif),
-            ("coulomb_epsilon", self.coulomb_epsilon.unwrap_or(1.0)),
-        ];
+        let positive = [("block_s", self.block_s), ("max_vif", self.max_vif)];
         if let Some((name, value)) = positive.into_iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
             return Err(OptionsError::NotPositive { name, value });
         }

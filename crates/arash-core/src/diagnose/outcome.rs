@@ -55,6 +55,7 @@ pub(super) fn declared_model(
             period_s: None,
             cutoff_hz: data.pre.cutoff_hz,
             friction_cutoff_hz: Some(data.pre.friction_cutoff_hz),
+            coulomb_epsilon: model.coulomb_shape.epsilon(),
             order: data.pre.order,
             decimate: stride,
             pull: 0.0,

@@ -33,6 +33,7 @@ pub fn consistent_with_effects(
     options: &DiagnoseOptions,
     consistent: &ConsistentOptions,
 ) -> Result<ModelFile, DiagnoseError> {
+    let model = &*found.with_its_law(model);
     let (dof, standard) = (model.dof(), model.num_params());
     let data = prepare(model, base, train, (options, None), options.max_delay_s).map_err(DiagnoseError::Training)?;
     let delay = found

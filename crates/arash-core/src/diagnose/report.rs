@@ -1,6 +1,7 @@
 //! The diagnosis as text and JSON.
 
 use super::findings::{Diagnosis, ErrorSummary};
+use crate::model::CoulombShape;
 use crate::model_file::Metrics;
 
 impl Diagnosis {
@@ -12,13 +13,14 @@ impl Diagnosis {
     /// rejected (one line per effect and joint, its best variant's reason).
     pub fn report(&self) -> String {
         let mut s = format!(
-            "Diagnosis of {} ({} candidates, blocks of {} s: {}, α = {}, held-out: {})\n\n",
+            "Diagnosis of {} ({} candidates, blocks of {} s: {}, α = {}, held-out: {}; Coulomb friction as {})\n\n",
             self.robot_name,
             self.settings.candidates,
             self.settings.block_s,
             self.settings.blocks,
             self.settings.alpha,
-            self.settings.heldout
+            self.settings.heldout,
+            CoulombShape::of_epsilon(self.settings.coulomb_epsilon)
         );
         if self.accepted.is_empty() {
             s += "No effect found beyond the declared model.\n";
@@ -38,7 +40,19 @@ impl Diagnosis {
                     s += &format!("       {name:<24} {c:>12.4e} ± {sd:.1e}\n");
                 }
                 if let (Some(m), Some(b)) = (f.mass_kg, &f.body) {
-                    s += &format!("       added mass on {b}: {:.1} g\n", 1e3 * m);
+                    s += &format!(
+                        "       added mass on {b}: {:.1} ± {:.1} g",
+                        1e3 * m,
+                        1e3 * f.mass_sigma_kg.unwrap_or(0.0)
+                    );
+                    if let Some(c) = f.centre_of_mass_m {
+                        let mm = c.map(|x| x.map_or("–".to_string(), |x| format!("{:.1}", 1e3 * x)));
+                        s += &format!(
+                            ", centre of mass ({}, {}, {}) mm in its frame (–: not seen)",
+                            mm[0], mm[1], mm[2]
+                        );
+                    }
+                    s += "\n";
                 }
                 if !f.aliases.is_empty() {
                     s += &format!("       indistinguishable here from: {}\n", f.aliases.join(", "));

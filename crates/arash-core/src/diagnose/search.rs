@@ -15,7 +15,7 @@ use super::problem::{error_summary, model_columns, Candidate, HeldOut, HeldOutBa
 use super::regression::{self, gram, least_squares, residual, rhs, test_group, Column, GroupTest, Rows};
 use crate::effects::EffectKind;
 use crate::identify::{Declared, Log};
-use crate::model::{CoulombShape, JointKind, Model};
+use crate::model::JointKind;
 use crate::model_file::ModelFile;
 
 /// Diagnose `train` against the declared dynamics (refitted, or `given`), holding out
@@ -28,7 +28,9 @@ pub fn diagnose(
     options: &DiagnoseOptions,
 ) -> Result<Diagnosis, DiagnoseError> {
     options.validate(declared.model.dof())?;
-    let model = shaped(declared.model, options);
+    // A given model's Coulomb coefficients belong to the law it was fitted with; without one
+    // the robot's declared law is used (docs/diagnosis.md, "The Coulomb law").
+    let model = given.map_or(Cow::Borrowed(declared.model), |file| file.with_its_law(declared.model));
     let ctx = Context::new(&model, declared.base, train, validation, given, options)?;
     // 1. Delay.
     let (delay, delay_outcome) = if options.effects.contains(&EffectKind::Delay) && ctx.max_shift() > 0 {
@@ -54,18 +56,6 @@ pub fn diagnose(
     search.select(&mut state)?;
     // 3. Final joint fit, errors before and after, and the updated model.
     search.finish(state, delay, skipped, declared.urdf, train.t.len())
-}
-
-/// The declared model with the Coulomb shape the options ask for.
-fn shaped<'a>(model: &'a Model, options: &DiagnoseOptions) -> Cow<'a, Model> {
-    match options.coulomb_epsilon {
-        Some(epsilon) => {
-            let mut shaped = model.clone();
-            shaped.coulomb_shape = CoulombShape::Tanh { epsilon };
-            Cow::Owned(shaped)
-        }
-        None => Cow::Borrowed(model),
-    }
 }
 
 /// Where the search stands: what it accepted, in order, and why each other candidate is out for
@@ -133,11 +123,6 @@ impl Search<'_> {
         term.coefficients = test.coefficients.clone();
         term.sigma = test.sigma.clone();
         let model = self.ctx.model;
-        let (mass_kg, body) = if term.kind == EffectKind::Payload {
-            (Some(term.coefficients[0]), term.body.clone())
-        } else {
-            (None, None)
-        };
         state.accepted.push(Finding {
             name: term.kind.id().into(),
             joints: effect_joints(&term, dof),
@@ -149,10 +134,13 @@ impl Search<'_> {
             heldout_gain: best.gain,
             heldout_gain_per_joint: best.gains,
             aliases,
-            mass_kg,
-            body,
+            mass_kg: None,
+            mass_sigma_kg: None,
+            body: None,
+            centre_of_mass_m: None,
             round,
         });
+        state.accepted.last_mut().expect("just pushed").weigh();
         Ok(true)
     }
 
@@ -288,9 +276,7 @@ impl Search<'_> {
         for (f, &i) in state.accepted.iter_mut().filter(|f| f.term.kind != EffectKind::Delay).zip(&state.chosen) {
             let width = pool[i].columns.len();
             f.term.coefficients = x_after[offset..offset + width].to_vec();
-            if f.term.kind == EffectKind::Payload {
-                f.mass_kg = Some(f.term.coefficients[0]);
-            }
+            f.weigh();
             offset += width;
         }
         // Before: the declared model on the data as logged, without any shift found.
@@ -323,6 +309,7 @@ impl Search<'_> {
             settings: DiagnoseSettings {
                 cutoff_hz: ctx.train.pre.cutoff_hz,
                 friction_cutoff_hz: Some(ctx.train.pre.friction_cutoff_hz),
+                coulomb_epsilon: model.coulomb_shape.epsilon(),
                 reasons: ctx.train.pre.choices.reasons.clone(),
                 decimate: ctx.train.stride(),
                 block_s: options.block_s,

@@ -108,7 +108,8 @@ impl EffectKind {
         self.law().filtered_like_torque()
     }
 
-    /// The sign its (single) coefficient must have to be the physical effect (`None`: either).
+    /// The sign its first coefficient (a payload's mass) must have to be the physical effect
+    /// (`None`: either).
     /// A fit with the other sign is some other error that happens to correlate.
     pub fn physical_sign(self) -> Option<f64> {
         self.law().physical_sign()

@@ -16,6 +16,11 @@ impl Effect for Payload {
     fn column_names(&self) -> Vec<String> {
         vec!["m".into(), "m·cx".into(), "m·cy".into(), "m·cz".into()]
     }
+    /// A payload adds mass. A fit with less mass than the model is a model that was too
+    /// heavy, or another error that correlates with gravity, and never a payload.
+    fn physical_sign(&self) -> Option<f64> {
+        Some(1.0)
+    }
     fn plotted_against(&self) -> &'static str {
         "q"
     }

@@ -112,6 +112,7 @@ pub fn identify(
             period_s: pre.period_s,
             cutoff_hz: pre.cutoff_hz,
             friction_cutoff_hz: Some(pre.friction_cutoff_hz),
+            coulomb_epsilon: model.coulomb_shape.epsilon(),
             order: options.preprocess.order,
             decimate: options.preprocess.decimate,
             pull: options.consistent.pull,
@@ -210,6 +211,7 @@ pub fn validation_series(
         friction_cutoff_hz: preprocess_options.friction_cutoff_hz.or(identification.settings.friction_cutoff_hz),
         ..preprocess_options.clone()
     };
+    let model = &*identification.with_its_law(model);
     let pre = match preprocess(t, q, tau, model.dof(), &options) {
         Err(PreprocessError::TooShortForCutoff { cutoff_hz, lowest_hz, .. }) => {
             let mut pre =

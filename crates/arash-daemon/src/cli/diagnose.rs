@@ -75,7 +75,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (model, urdf) = super::load_robot(args.runs.robot.as_deref())?;
+    let (model, urdf) = args.runs.robot()?;
     anyhow::ensure!(
         args.model.is_some() || !(args.refit || args.hold_friction),
         "--refit and --hold-friction apply to a model given with --model"

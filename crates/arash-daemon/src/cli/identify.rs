@@ -33,14 +33,10 @@ pub struct Args {
     /// Butterworth order (applied forward and backward).
     #[arg(long, default_value_t = PreprocessOptions::default().order)]
     order: usize,
-    /// Cut-off of the velocity that switches Coulomb friction (Hz); default 20, kept within
-    /// [cut-off, a quarter of the sample rate].
+    /// Cut-off of the velocity that switches Coulomb friction (Hz); default: chosen by the fit
+    /// (docs/identification.md), kept within [cut-off, a quarter of the sample rate].
     #[arg(long)]
     friction_cutoff: Option<f64>,
-    /// Coulomb friction as tanh(q̇/ε) with this ε (rad/s or m/s) instead of sign(q̇); the
-    /// simulated rig's law is tanh with ε = 0.001.
-    #[arg(long)]
-    coulomb_epsilon: Option<f64>,
     /// Keep every k-th sample after filtering.
     #[arg(long, default_value_t = PreprocessOptions::default().decimate)]
     decimate: usize,
@@ -59,11 +55,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (mut model, urdf) = super::load_robot(args.runs.robot.as_deref())?;
-    if let Some(epsilon) = args.coulomb_epsilon {
-        anyhow::ensure!(epsilon.is_finite() && epsilon > 0.0, "--coulomb-epsilon must be positive, not {epsilon}");
-        model.coulomb_shape = arash_core::model::CoulombShape::Tanh { epsilon };
-    }
+    let (model, urdf) = args.runs.robot()?;
     let log = args.runs.read(&args.runs.logs, &model)?;
     let options = IdentifyOptions {
         preprocess: PreprocessOptions {

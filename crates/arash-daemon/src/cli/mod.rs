@@ -22,6 +22,11 @@ pub struct Runs {
     /// The robot's URDF; default: the bundled ARASH:ASiST.
     #[arg(long)]
     pub robot: Option<std::path::PathBuf>,
+    /// The robot's Coulomb friction switches as tanh(q̇/ε) with this ε (rad/s or m/s) instead of
+    /// sign(q̇); the simulated rig's law is tanh with ε = 0.001. A model file records the law it
+    /// was fitted with, and `arash diagnose --model` uses the file's.
+    #[arg(long)]
+    pub coulomb_epsilon: Option<f64>,
     /// The logs are motor-side: motor radians per joint radian, one per joint (the TX40's
     /// 32,32,45,-48,45,32). Angles map to q = R⁻¹θ + q₀, torques to τ = Rᵀτ_m (docs/real-data.md).
     #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
@@ -36,6 +41,16 @@ pub struct Runs {
 }
 
 impl Runs {
+    /// The robot these runs come from (`--robot`), with its declared Coulomb law, and its URDF.
+    pub fn robot(&self) -> anyhow::Result<(arash_core::Model, String)> {
+        let (mut model, urdf) = load_robot(self.robot.as_deref())?;
+        if let Some(epsilon) = self.coulomb_epsilon {
+            anyhow::ensure!(epsilon.is_finite() && epsilon > 0.0, "--coulomb-epsilon must be positive, not {epsilon}");
+            model.coulomb_shape = arash_core::model::CoulombShape::Tanh { epsilon };
+        }
+        Ok((model, urdf))
+    }
+
     /// The declared transmission of motor-side logs, if any.
     pub fn transmission(&self, dof: usize) -> anyhow::Result<Option<Transmission>> {
         let Some(ratios) = &self.gear_ratios else { return Ok(None) };
