@@ -90,6 +90,12 @@ impl CoulombShape {
         }
     }
 
+    /// `tanh(q̇/epsilon)`, or `None` for a width that is not positive and finite: the check
+    /// every front end that lets a user declare the law applies.
+    pub fn tanh(epsilon: f64) -> Option<Self> {
+        (epsilon.is_finite() && epsilon > 0.0).then_some(CoulombShape::Tanh { epsilon })
+    }
+
     /// The law with width `epsilon` (`None`: `sign(q̇)`), as model files store it.
     pub fn of_epsilon(epsilon: Option<f64>) -> Self {
         epsilon.map_or(CoulombShape::Sign, |epsilon| CoulombShape::Tanh { epsilon })

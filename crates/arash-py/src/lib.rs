@@ -451,12 +451,9 @@ impl Robot {
     pub(crate) fn from_text(urdf: &str, coulomb_epsilon: Option<f64>) -> PyResult<Self> {
         let mut model = core::parse_urdf(urdf).map_err(value_error)?;
         if let Some(epsilon) = coulomb_epsilon {
-            if !(epsilon.is_finite() && epsilon > 0.0) {
-                return Err(PyValueError::new_err(format!(
-                    "coulomb_epsilon must be positive and finite, got {epsilon}"
-                )));
-            }
-            model.coulomb_shape = CoulombShape::Tanh { epsilon };
+            model.coulomb_shape = CoulombShape::tanh(epsilon).ok_or_else(|| {
+                PyValueError::new_err(format!("coulomb_epsilon must be positive and finite, got {epsilon}"))
+            })?;
         }
         Ok(Self { model: Arc::new(model), urdf: Arc::from(urdf), default_base: std::sync::OnceLock::new() })
     }

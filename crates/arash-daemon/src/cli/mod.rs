@@ -45,8 +45,8 @@ impl Runs {
     pub fn robot(&self) -> anyhow::Result<(arash_core::Model, String)> {
         let (mut model, urdf) = load_robot(self.robot.as_deref())?;
         if let Some(epsilon) = self.coulomb_epsilon {
-            anyhow::ensure!(epsilon.is_finite() && epsilon > 0.0, "--coulomb-epsilon must be positive, not {epsilon}");
-            model.coulomb_shape = arash_core::model::CoulombShape::Tanh { epsilon };
+            model.coulomb_shape = arash_core::model::CoulombShape::tanh(epsilon)
+                .with_context(|| format!("--coulomb-epsilon must be positive, not {epsilon}"))?;
         }
         Ok((model, urdf))
     }
