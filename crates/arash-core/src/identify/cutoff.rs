@@ -13,7 +13,8 @@
 //!   against its own filtered torque every cut-off would look better the lower it is, because
 //!   filtering takes the noise out of the target along with the motion. The unfiltered torque is
 //!   one target for all: a cut-off too low loses motion the model needs, one too high lets the
-//!   encoders' noise into q̈, and both show as a larger error.
+//!   encoders' noise into q̈, and both show as a larger error. A periodic log's halves predict
+//!   each other's torque ([`Folds`]), so that a closed loop's noise cannot flatter the score.
 //!
 //! The candidates run from the lowest cut-off the log allows to [`SEARCH_ABOVE_SPECTRAL`] times
 //! the one the motion's spectrum suggests ([`super::decide`]), within a quarter of the sample rate.
@@ -24,9 +25,10 @@ use super::estimate::{
 use super::filter::Butterworth;
 use super::friction::RawVelocity;
 use super::preprocess::{
-    edge_limited_cutoff_hz, preprocess, Choices, PreprocessError, PreprocessOptions, Preprocessed, MIN_CUTOFF_HZ,
+    edge_limited_cutoff_hz, filtered_motion, preprocess, Choices, PreprocessError, PreprocessOptions, Preprocessed,
+    MIN_CUTOFF_HZ,
 };
-use super::signals::filter_columns;
+use super::signals::{filter_columns, mean_of, periods_of};
 use super::{Declared, Log};
 use std::borrow::Cow;
 
@@ -162,6 +164,31 @@ struct Search<'a> {
     directions: Vec<std::cell::OnceCell<Vec<f64>>>,
     /// The positions' central difference, which every friction velocity is filtered from.
     raw_velocity: RawVelocity,
+    /// A periodic log's periods in two halves, when it has at least two.
+    folds: Option<Folds>,
+}
+
+/// A periodic log's even and odd periods, each half averaged: the positions of one half predict
+/// the torque of the other. In a closed loop the controller turns the encoders' noise into
+/// torque, so a model scored on the torque of the positions it is built from is rewarded for a
+/// cut-off that lets that noise in (it learns the controller's damping as friction); the other
+/// half's torque holds the same motion but noise of its own.
+struct Folds {
+    /// Mean positions and mean unfiltered torque of each half, one period of `per()` samples.
+    positions: [Vec<f64>; 2],
+    torques: [Vec<f64>; 2],
+}
+
+impl Folds {
+    fn of(log: &Log, reference: &Preprocessed, dof: usize) -> Option<Self> {
+        let averaging = reference.averaging().filter(|a| a.count >= 2)?;
+        let halves = |x: &[f64]| -> [Vec<f64>; 2] {
+            let periods = periods_of(x, dof, averaging);
+            let half = |parity: usize| -> Vec<Vec<f64>> { periods.iter().skip(parity).step_by(2).cloned().collect() };
+            [mean_of(&half(0), |v| v), mean_of(&half(1), |v| v)]
+        };
+        Some(Self { positions: halves(log.q), torques: halves(log.tau) })
+    }
 }
 
 impl<'a> Search<'a> {
@@ -183,7 +210,8 @@ impl<'a> Search<'a> {
         let scored = spread(edge.min(n / 2)..n.saturating_sub(edge).max(n / 2), 1, MOST_SCORED);
         let directions = vec![std::cell::OnceCell::new(); grid.len()];
         let raw_velocity = reference.raw_velocity(log.q);
-        Self { declared, log, fixed, reference, grid, top, length_limited, scored, directions, raw_velocity }
+        let folds = Folds::of(&log, reference, declared.model.dof());
+        Self { declared, log, fixed, reference, grid, top, length_limited, scored, directions, raw_velocity, folds }
     }
 
     /// The unfiltered Coulomb directions of the friction velocity at grid point `i` (full rate).
@@ -254,10 +282,33 @@ impl<'a> Search<'a> {
             }
         }
         let Some((friction_hz, training_fp, beta, directions)) = best else { return Ok(None) };
-        let mut v = regressor_rows(model, &pre, columns, &self.scored);
-        put_coulomb(&mut v, dof, &positions, (&directions, &self.scored));
-        let (predicted_fp, errors) = self.unfiltered_fit(&pre, &v, &beta);
+        let scored_columns = |motion: &Preprocessed| {
+            let mut v = regressor_rows(model, motion, columns, &self.scored);
+            put_coulomb(&mut v, dof, &positions, (&directions, &self.scored));
+            v
+        };
+        let (predicted_fp, errors) = match &self.folds {
+            None => self.unfiltered_fit(&pre.tau_unfiltered, &scored_columns(&pre), &beta),
+            Some(folds) => {
+                let mut scores = Vec::with_capacity(2);
+                for (half, other) in [(0, 1), (1, 0)] {
+                    let motion = self.motion_of(&pre, &filter, &folds.positions[half])?;
+                    scores.push(self.unfiltered_fit(&folds.torques[other], &scored_columns(&motion), &beta));
+                }
+                let fp = scores.iter().map(|s| s.0).sum::<f64>() / 2.0;
+                (fp, scores.into_iter().flat_map(|s| s.1).collect())
+            }
+        };
         Ok(Some(Trial { cutoff_hz: cutoff, friction_hz, predicted_fp, errors, frictions, training_fp }))
+    }
+
+    /// `pre` with its motion replaced by `q` (one period) preprocessed as `pre`'s was.
+    fn motion_of(&self, pre: &Preprocessed, filter: &Butterworth, q: &[f64]) -> Result<Preprocessed, PreprocessError> {
+        let dt = 1.0 / pre.sample_rate_hz;
+        let (q, qd, qdd) = filtered_motion(filter, q, (pre.dof, dt), true, self.fixed.filter_derivatives)?;
+        let mut moved = pre.clone();
+        (moved.q, moved.qd, moved.qdd) = (q, qd, qdd);
+        Ok(moved)
     }
 
     /// The regressor's base columns filtered like the torque ([`filter_each_column`]) at the
@@ -291,11 +342,11 @@ impl<'a> Search<'a> {
     }
 
     /// The model `beta` (its columns at the scored samples, `v`, the Coulomb ones unfiltered)
-    /// against the unfiltered torque there: mean FP% over the joints, and each sample's squared
+    /// against the unfiltered torque `tau` (one period, or the whole log) there: mean FP% over the joints, and each sample's squared
     /// error summed over the joints, each joint's divided by its torque's variance.
-    fn unfiltered_fit(&self, pre: &Preprocessed, v: &faer::Mat<f64>, beta: &[f64]) -> (f64, Vec<f64>) {
-        let dof = pre.dof;
-        let measured = rows_of(&pre.tau_unfiltered, dof, &self.scored);
+    fn unfiltered_fit(&self, tau: &[f64], v: &faer::Mat<f64>, beta: &[f64]) -> (f64, Vec<f64>) {
+        let dof = self.declared.model.dof();
+        let measured = rows_of(tau, dof, &self.scored);
         let predicted = apply(v, beta);
         let fp = joint_metrics(&measured, &predicted, dof).fp_percent.iter().sum::<f64>() / dof as f64;
         let samples = self.scored.len() as f64;
@@ -390,9 +441,13 @@ fn explain(
         let spectral = spectral.trim_start_matches(&format!("cut-off {:.3} Hz: ", reference.cutoff_hz));
         let (lo, hi) = (trials[0].cutoff_hz, trials[trials.len() - 1].cutoff_hz);
         let most = most_accurate(trials).unwrap_or(best);
+        let target = match reference.averaging().is_some_and(|a| a.count >= 2) {
+            true => "unfiltered torque of the other half of the periods (even and odd periods predict each other)",
+            false => "unfiltered torque",
+        };
         let line = format!(
-            "cut-off {:.3} Hz: of {} cut-offs from {lo:.2} to {hi:.2} Hz whose fitted models predict the unfiltered \
-             torque as well as the best one ({:.2} Hz) within {EQUAL_PREDICTION_SIGMAS} standard errors and \
+            "cut-off {:.3} Hz: of {} cut-offs from {lo:.2} to {hi:.2} Hz whose fitted models predict the {target} \
+             as well as the best one ({:.2} Hz) within {EQUAL_PREDICTION_SIGMAS} standard errors and \
              {EQUAL_PREDICTION_POINTS} point, the one that fits \
              its filtered torque best (mean FP% {:.2}; on the unfiltered torque {:.2} against {:.2}); the motion's \
              spectrum suggests {:.2} Hz ({spectral}); mean FP% on the unfiltered torque by cut-off: {}",

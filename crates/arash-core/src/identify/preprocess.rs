@@ -201,6 +201,11 @@ impl Preprocessed {
         &x[self.settled.start * width..self.settled.end * width]
     }
 
+    /// How the log was averaged over its periods (`None`: not periodic).
+    pub fn averaging(&self) -> Option<Averaging> {
+        self.averaging
+    }
+
     /// Rate of the preprocessed samples (Hz): the input rate over the decimation factor.
     pub fn rate_hz(&self) -> f64 {
         self.sample_rate_hz / self.decimate as f64
@@ -547,20 +552,7 @@ pub fn preprocess(
             None => "the main cut-off",
         }
     ));
-    let positions = || -> Result<_, FilterError> {
-        let q_f = filter_columns(&filter, &q, dof, periodic)?;
-        let derivative = |x: &[f64]| -> Result<Vec<f64>, FilterError> {
-            let d = central_difference(x, dof, dt, periodic);
-            if options.filter_derivatives {
-                filter_columns(&filter, &d, dof, periodic)
-            } else {
-                Ok(d)
-            }
-        };
-        let qd = derivative(&q_f)?;
-        let qdd = derivative(&qd)?;
-        Ok((q_f, qd, qdd))
-    };
+    let positions = || filtered_motion(&filter, &q, (dof, dt), periodic, options.filter_derivatives);
     let torque_and_friction = || -> Result<_, FilterError> {
         let tau_avg = averaged(tau, dof, averaging);
         let tau_f = filter_columns(&filter, &tau_avg, dof, periodic)?;
@@ -599,6 +591,31 @@ pub fn preprocess(
         choices,
         averaging,
     })
+}
+
+/// Positions, velocities and accelerations, each `samples × dof`.
+pub(super) type Motion = (Vec<f64>, Vec<f64>, Vec<f64>);
+
+/// Positions filtered by `filter`, and their velocity and acceleration by central differences
+/// of step `dt` (each filtered again when `filter_derivatives`, the paper's method).
+pub(super) fn filtered_motion(
+    filter: &Butterworth,
+    q: &[f64],
+    (dof, dt): (usize, f64),
+    periodic: bool,
+    filter_derivatives: bool,
+) -> Result<Motion, FilterError> {
+    let q_f = filter_columns(filter, q, dof, periodic)?;
+    let derivative = |x: &[f64]| -> Result<Vec<f64>, FilterError> {
+        let d = central_difference(x, dof, dt, periodic);
+        match filter_derivatives {
+            true => filter_columns(filter, &d, dof, periodic),
+            false => Ok(d),
+        }
+    };
+    let qd = derivative(&q_f)?;
+    let qdd = derivative(&qd)?;
+    Ok((q_f, qd, qdd))
 }
 
 /// The friction velocity's cut-off: the user's, at most a quarter of the sample rate, or the

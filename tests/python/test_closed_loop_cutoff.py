@@ -1,0 +1,59 @@
+"""The cut-off chosen from closed-loop data (issues 17 and 18): logs from ``closed_loop.py``, a
+PD loop with feed-forward on Pinocchio's dynamics, whose torque carries the controller's response
+to the encoders' noise. With no option set, the model must predict an open-loop log of the same
+robot within a point of the best any cut-off gives.
+"""
+
+import warnings
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pinocchio")
+import arash  # noqa: E402
+
+from closed_loop import closed_loop_log  # noqa: E402
+from independent import Condition, make_log  # noqa: E402
+
+CONDITIONS = [
+    # Two periods of arash's designed excitation, 16-bit encoders: the daemon's calibration run.
+    (Condition("arash_asist", 1000, 16, 0.01, "tanh", 2, 30.0, seed=1, designed=True), 5.0),
+    # Coarse encoders under a stiffer loop: the noise's response is 87 % of the unfiltered torque.
+    # The cut-off is not the trouble here (every one predicts alike); the friction velocity is,
+    # still chosen by the training fit, which the loop's noise flatters (21 Hz chosen: yaw 93.2 %
+    # on the validation log; 32 Hz gives 96.4 %). Kept as a strict xfail until that choice is
+    # scored across periods as the cut-off now is.
+    pytest.param(
+        Condition("arash_asist", 1000, 12, 0.01, "tanh", 4, 60.0, seed=2, designed=True),
+        10.0,
+        marks=pytest.mark.xfail(strict=True, reason="closed loop: the friction velocity is chosen by the training fit"),
+    ),
+]
+
+
+def validation_fp(model, log):
+    return float(np.mean(model.validate(*log, periods=1)["fp_percent"]))
+
+
+@pytest.mark.parametrize("condition,loop_hz", CONDITIONS, ids=["16bit 2 periods", "12bit stiff loop"])
+def test_a_closed_loop_log_is_fitted_as_well_as_the_best_cutoff_allows(condition, loop_hz):
+    robot, log, truth = closed_loop_log(condition, loop_hz=loop_hz)
+    # The same robot on another trajectory, open loop and noise-free: what the model is for.
+    other = Condition("arash_asist", 1000, 20, 0.0, "tanh", 1, 20.0, seed=condition.seed + 100)
+    _, validation, _ = make_log(other, truth={**truth, "noise": 0.0 * truth["noise"]})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        default = arash.identify(robot, *log)
+        by_cutoff = {}
+        for cutoff in np.geomspace(0.5, 250.0, 14):
+            try:
+                by_cutoff[float(cutoff)] = validation_fp(arash.identify(robot, *log, cutoff_hz=float(cutoff)), validation)
+            except ValueError:  # a cut-off the log cannot be filtered or fitted at is no candidate
+                continue
+    chosen = validation_fp(default, validation)
+    best = max(by_cutoff.values())
+    table = ", ".join(f"{c:.2f} Hz {fp:.2f}" for c, fp in by_cutoff.items())
+    print(f"{condition.label}: default {default.cutoff_hz:.2f} Hz {chosen:.2f}; by cut-off: {table}")
+    # The grid must reach the cut-offs that let the noise in, or the comparison proves nothing.
+    assert min(by_cutoff.values()) < best - 5.0, table
+    assert chosen >= best - 1.0, f"default {default.cutoff_hz:.2f} Hz gives {chosen:.2f}; {table}"
