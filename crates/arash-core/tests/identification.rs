@@ -179,6 +179,33 @@ fn simulated_log(
     (t, q_log, tau_log)
 }
 
+/// The torque base parameters `beta` predict, and the true parameters `pi` give, at every 7th
+/// millisecond of the first 15 s of `states` (q, q̇, q̈ at time t): the noise-free truth an
+/// identified model is judged against.
+fn predicted_and_true(
+    model: &Model,
+    base: &BaseParameters,
+    (pi, beta): (&[f64], &[f64]),
+    states: impl Fn(f64) -> (Vec<f64>, Vec<f64>, Vec<f64>),
+) -> Vec<([f64; 3], [f64; 3])> {
+    let mut data = Data::new(model);
+    let (mut y, mut y_r) = (vec![0.0; 3 * model.num_params()], vec![0.0; 3 * base.rank]);
+    (0..15_000)
+        .step_by(7)
+        .map(|i| {
+            let (q, qd, qdd) = states(i as f64 / 1000.0);
+            regressor(model, &mut data, &q, &qd, &qdd, &mut y);
+            base.reduce(&y, &mut y_r);
+            let (mut predicted, mut exact) = ([0.0; 3], [0.0; 3]);
+            inverse_dynamics(model, &mut data, &q, &qd, &qdd, pi, &mut exact);
+            for (k, p) in predicted.iter_mut().enumerate() {
+                *p = (0..base.rank).map(|c| y_r[k * base.rank + c] * beta[c]).sum();
+            }
+            (predicted, exact)
+        })
+        .collect()
+}
+
 #[test]
 fn the_preprocessing_pipeline_and_ols_recover_the_model() {
     let model = arash_asist();
@@ -191,17 +218,10 @@ fn the_preprocessing_pipeline_and_ols_recover_the_model() {
     let pre: Preprocessed = preprocess(&t, &q, &tau, 3, &options).unwrap();
     let fit = fit(&model, &base, &pre, Method::Ols).unwrap();
     // Predict the noise-free torque on the true (unfiltered) states of one period.
-    let mut data = Data::new(&model);
-    let (mut y, mut y_r, mut exact) = (vec![0.0; 3 * model.num_params()], vec![0.0; 3 * base.rank], vec![0.0; 3]);
     let (mut worst, mut scale) = ([0.0f64; 3], [0.0f64; 3]);
-    for i in (0..15_000).step_by(7) {
-        let (q, qd, qdd) = traj.at(i as f64 / 1000.0);
-        regressor(&model, &mut data, &q, &qd, &qdd, &mut y);
-        base.reduce(&y, &mut y_r);
-        inverse_dynamics(&model, &mut data, &q, &qd, &qdd, &pi, &mut exact);
+    for (predicted, exact) in predicted_and_true(&model, &base, (&pi, &fit.beta), |t| traj.at(t)) {
         for k in 0..3 {
-            let predicted: f64 = (0..base.rank).map(|c| y_r[k * base.rank + c] * fit.beta[c]).sum();
-            worst[k] = worst[k].max((predicted - exact[k]).abs());
+            worst[k] = worst[k].max((predicted[k] - exact[k]).abs());
             scale[k] = scale[k].max(exact[k].abs());
         }
     }
@@ -388,16 +408,10 @@ fn a_closed_loop_log_does_not_lead_the_cutoff_into_the_encoders_noise() {
     .unwrap();
     let reasons = file.settings.reasons.join("\n");
     // Predict the noise-free torque on the true states of one period.
-    let (mut y, mut y_r, mut exact) = (vec![0.0; 3 * model.num_params()], vec![0.0; 3 * base.rank], vec![0.0; 3]);
     let (mut error, mut power) = ([0.0f64; 3], [0.0f64; 3]);
-    for i in (0..15_000).step_by(7) {
-        let (q, qd, qdd) = states(i as f64 / fs);
-        regressor(&model, &mut data, &q, &qd, &qdd, &mut y);
-        base.reduce(&y, &mut y_r);
-        inverse_dynamics(&model, &mut data, &q, &qd, &qdd, &pi, &mut exact);
+    for (predicted, exact) in predicted_and_true(&model, &base, (&pi, &file.beta), states) {
         for k in 0..3 {
-            let predicted: f64 = (0..base.rank).map(|c| y_r[k * base.rank + c] * file.beta[c]).sum();
-            error[k] += (predicted - exact[k]).powi(2);
+            error[k] += (predicted[k] - exact[k]).powi(2);
             power[k] += exact[k].powi(2);
         }
     }

@@ -164,7 +164,7 @@ struct Search<'a> {
     directions: Vec<std::cell::OnceCell<Vec<f64>>>,
     /// The positions' central difference, which every friction velocity is filtered from.
     raw_velocity: RawVelocity,
-    /// A periodic log's periods in two halves, when it has at least two.
+    /// A periodic log's periods in two halves (an averaged log holds at least two periods).
     folds: Option<Folds>,
 }
 
@@ -181,7 +181,7 @@ struct Folds {
 
 impl Folds {
     fn of(log: &Log, reference: &Preprocessed, dof: usize) -> Option<Self> {
-        let averaging = reference.averaging().filter(|a| a.count >= 2)?;
+        let averaging = reference.averaging()?;
         let halves = |x: &[f64]| -> [Vec<f64>; 2] {
             let periods = periods_of(x, dof, averaging);
             let half = |parity: usize| -> Vec<Vec<f64>> { periods.iter().skip(parity).step_by(2).cloned().collect() };
@@ -290,25 +290,20 @@ impl<'a> Search<'a> {
         let (predicted_fp, errors) = match &self.folds {
             None => self.unfiltered_fit(&pre.tau_unfiltered, &scored_columns(&pre), &beta),
             Some(folds) => {
+                // The fit is done with `pre`'s own motion: each half's takes its place in turn.
+                let mut moved = pre;
                 let mut scores = Vec::with_capacity(2);
                 for (half, other) in [(0, 1), (1, 0)] {
-                    let motion = self.motion_of(&pre, &filter, &folds.positions[half])?;
-                    scores.push(self.unfiltered_fit(&folds.torques[other], &scored_columns(&motion), &beta));
+                    let half_q = &folds.positions[half];
+                    (moved.q, moved.qd, moved.qdd) =
+                        filtered_motion(&filter, half_q, (dof, 1.0 / fs), true, self.fixed.filter_derivatives)?;
+                    scores.push(self.unfiltered_fit(&folds.torques[other], &scored_columns(&moved), &beta));
                 }
                 let fp = scores.iter().map(|s| s.0).sum::<f64>() / 2.0;
                 (fp, scores.into_iter().flat_map(|s| s.1).collect())
             }
         };
         Ok(Some(Trial { cutoff_hz: cutoff, friction_hz, predicted_fp, errors, frictions, training_fp }))
-    }
-
-    /// `pre` with its motion replaced by `q` (one period) preprocessed as `pre`'s was.
-    fn motion_of(&self, pre: &Preprocessed, filter: &Butterworth, q: &[f64]) -> Result<Preprocessed, PreprocessError> {
-        let dt = 1.0 / pre.sample_rate_hz;
-        let (q, qd, qdd) = filtered_motion(filter, q, (pre.dof, dt), true, self.fixed.filter_derivatives)?;
-        let mut moved = pre.clone();
-        (moved.q, moved.qd, moved.qdd) = (q, qd, qdd);
-        Ok(moved)
     }
 
     /// The regressor's base columns filtered like the torque ([`filter_each_column`]) at the
@@ -342,8 +337,9 @@ impl<'a> Search<'a> {
     }
 
     /// The model `beta` (its columns at the scored samples, `v`, the Coulomb ones unfiltered)
-    /// against the unfiltered torque `tau` (one period, or the whole log) there: mean FP% over the joints, and each sample's squared
-    /// error summed over the joints, each joint's divided by its torque's variance.
+    /// against the unfiltered torque `tau` (one period, or the whole log) there: mean FP% over the
+    /// joints, and each sample's squared error summed over the joints, each joint's divided by its
+    /// torque's variance.
     fn unfiltered_fit(&self, tau: &[f64], v: &faer::Mat<f64>, beta: &[f64]) -> (f64, Vec<f64>) {
         let dof = self.declared.model.dof();
         let measured = rows_of(tau, dof, &self.scored);
@@ -441,7 +437,7 @@ fn explain(
         let spectral = spectral.trim_start_matches(&format!("cut-off {:.3} Hz: ", reference.cutoff_hz));
         let (lo, hi) = (trials[0].cutoff_hz, trials[trials.len() - 1].cutoff_hz);
         let most = most_accurate(trials).unwrap_or(best);
-        let target = match reference.averaging().is_some_and(|a| a.count >= 2) {
+        let target = match reference.periodic {
             true => "unfiltered torque of the other half of the periods (even and odd periods predict each other)",
             false => "unfiltered torque",
         };
