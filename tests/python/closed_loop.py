@@ -10,7 +10,6 @@ harder than open-loop data.
 from __future__ import annotations
 
 import numpy as np
-import pinocchio as pin
 
 import arash
 from independent import TANH_EPSILON, Expanded, make_log, quantum, rigid_torques, trajectory, urdf_path
@@ -20,18 +19,6 @@ LOOP_HZ = 5.0
 LOOP_DAMPING = 0.7
 # Integration steps per control cycle (semi-implicit Euler).
 SUBSTEPS = 2
-
-
-def mass_matrix(expanded, q):
-    config, _, _ = expanded.tree(q, np.zeros_like(q), np.zeros_like(q))
-    tree = pin.crba(expanded.model, expanded.data, config)
-    tree = np.triu(tree) + np.triu(tree, 1).T
-    return expanded.G.T @ tree @ expanded.G
-
-
-def bias(expanded, q, qd):
-    config, velocity, _ = expanded.tree(q, qd, np.zeros_like(q))
-    return expanded.G.T @ pin.rnea(expanded.model, expanded.data, config, velocity, np.zeros(expanded.model.nv))
 
 
 def closed_loop_log(condition, loop_hz=LOOP_HZ, damping=LOOP_DAMPING):
@@ -52,24 +39,25 @@ def closed_loop_log(condition, loop_hz=LOOP_HZ, damping=LOOP_DAMPING):
         return truth["fv"] * qd + truth["fc"] * np.tanh(qd / TANH_EPSILON)
 
     feedforward = rigid_torques(expanded, q_d, qd_d, qdd_d) + friction(qd_d)
-    inertia = np.diag(mass_matrix(expanded, q_d[0]))
+    inertia = np.diag(expanded.mass_matrix(q_d[0]))
     w = 2 * np.pi * loop_hz
     kp, kd = inertia * w * w, 2 * damping * inertia * w
     step = quantum(path, robot) / 2**condition.bits
     dt = 1.0 / condition.fs
     h = dt / SUBSTEPS
     q, qd = q_d[0].copy(), qd_d[0].copy()
-    measured_before = np.round(q / step) * step
     q_log, tau_log = np.empty_like(q_d), np.empty_like(q_d)
     for i in range(len(t)):
         measured = np.round(q / step) * step
+        # The first cycle has no previous reading: it starts at the reference's velocity.
         velocity = qd_d[0] if i == 0 else (measured - measured_before) / dt
         measured_before = measured
         tau = feedforward[i] + kp * (q_d[i] - measured) + kd * (qd_d[i] - velocity)
         tau = tau + truth["noise"] * rng.normal(size=tau.shape)
         q_log[i], tau_log[i] = measured, tau
         for _ in range(SUBSTEPS):
-            qdd = np.linalg.solve(mass_matrix(expanded, q), tau - bias(expanded, q, qd) - friction(qd))
+            bias = expanded.torque(q, qd, np.zeros_like(q))
+            qdd = np.linalg.solve(expanded.mass_matrix(q), tau - bias - friction(qd))
             qd = qd + h * qdd
             q = q + h * qd
     return robot, (t, q_log, tau_log), truth

@@ -83,6 +83,17 @@ class Expanded:
                 config[joint.idx_q] = theta
         return config, self.G @ qd, self.G @ qdd
 
+    def torque(self, q, qd, qdd):
+        """Gᵀ · Pinocchio's RNEA on the expanded tree: the rigid-body joint torques."""
+        config, velocity, acceleration = self.tree(q, qd, qdd)
+        return self.G.T @ pin.rnea(self.model, self.data, config, velocity, acceleration)
+
+    def mass_matrix(self, q):
+        """Gᵀ · Pinocchio's CRBA (which fills the upper triangle) · G."""
+        config, _, _ = self.tree(q, np.zeros_like(q), np.zeros_like(q))
+        tree = pin.crba(self.model, self.data, config)
+        return self.G.T @ (np.triu(tree) + np.triu(tree, 1).T) @ self.G
+
 
 def joint_torques(robot, q, qd, params):
     """Friction and elastic torques, which Pinocchio's rigid-body algorithms leave out."""
@@ -194,11 +205,7 @@ def trajectory(robot, condition, rng):
 
 def rigid_torques(expanded, q, qd, qdd):
     """Gᵀ · Pinocchio's RNEA on the expanded tree, sample by sample."""
-    out = np.empty_like(q)
-    for i in range(len(q)):
-        qt, vt, at = expanded.tree(q[i], qd[i], qdd[i])
-        out[i] = expanded.G.T @ pin.rnea(expanded.model, expanded.data, qt, vt, at)
-    return out
+    return np.array([expanded.torque(q[i], qd[i], qdd[i]) for i in range(len(q))])
 
 
 def quantum(path, robot):
