@@ -232,6 +232,13 @@ impl ModelFile {
         if id.format != FORMAT {
             return Err(ModelFileError::Format(id.format));
         }
+        // Every use of the file's friction takes its law (`with_its_law`): a width of zero would
+        // make its Coulomb columns NaN.
+        if let Some(epsilon) = id.settings.coulomb_epsilon.filter(|e| CoulombShape::tanh(*e).is_none()) {
+            return Err(ModelFileError::Shape(format!(
+                "`settings.coulomb_epsilon` is {epsilon}; a tanh law's width must be positive and finite"
+            )));
+        }
         Ok(id)
     }
 

@@ -347,6 +347,12 @@ fn a_model_file_is_judged_by_its_parameters_not_by_what_it_claims() {
         short["beta"].as_array_mut().unwrap().pop();
         let err = load(&short).controller_parameters(&model).unwrap_err().to_string();
         assert!(err.contains("`beta` has"), "{err}");
+
+        // A Coulomb law of zero width is refused on loading, before it can make a NaN.
+        let mut lawless = file.clone();
+        lawless["settings"]["coulomb_epsilon"] = 0.0.into();
+        let err = ModelFile::from_json(&lawless.to_string()).unwrap_err().to_string();
+        assert!(err.contains("`settings.coulomb_epsilon` is 0"), "{err}");
     }
 }
 
