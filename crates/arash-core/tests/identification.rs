@@ -179,6 +179,17 @@ fn simulated_log(
     (t, q_log, tau_log)
 }
 
+/// ARASH:ASiST with its base parameters, true parameters and a 15 s trajectory drawn from
+/// `seed`, and the generator the rest of a test draws from.
+fn drawn_truth(seed: u64) -> (Model, BaseParameters, Vec<f64>, Fourier, ChaCha8Rng) {
+    let model = arash_asist();
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
+    let mut rng = rng(seed);
+    let pi = true_parameters(&model, &mut rng);
+    let traj = Fourier::random(&model, 15.0, &mut rng);
+    (model, base, pi, traj, rng)
+}
+
 /// The torque base parameters `beta` predict, and the true parameters `pi` give, at every 7th
 /// millisecond of the first 15 s of `states` (q, q̇, q̈ at time t): the noise-free truth an
 /// identified model is judged against.
@@ -208,11 +219,7 @@ fn predicted_and_true(
 
 #[test]
 fn the_preprocessing_pipeline_and_ols_recover_the_model() {
-    let model = arash_asist();
-    let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
-    let mut rng = rng(22);
-    let pi = true_parameters(&model, &mut rng);
-    let traj = Fourier::random(&model, 15.0, &mut rng);
+    let (model, base, pi, traj, mut rng) = drawn_truth(22);
     let (t, q, tau) = simulated_log(&model, &pi, &traj, 4, &mut rng);
     let options = PreprocessOptions { periods: Some(4), ..Default::default() };
     let pre: Preprocessed = preprocess(&t, &q, &tau, 3, &options).unwrap();
@@ -266,11 +273,7 @@ fn consistent_identification_is_physical_and_fits_like_ols() {
     use arash_core::identify::consistent::{identify_consistent, ConsistentOptions};
     use arash_core::identify::estimate::{joint_metrics, stack_full};
     use arash_core::physical::min_pseudo_inertia_eigenvalues;
-    let model = arash_asist();
-    let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
-    let mut rng = rng(24);
-    let pi = true_parameters(&model, &mut rng);
-    let traj = Fourier::random(&model, 15.0, &mut rng);
+    let (model, base, pi, traj, mut rng) = drawn_truth(24);
     let (t, q, tau) = simulated_log(&model, &pi, &traj, 2, &mut rng);
     let pre = preprocess(&t, &q, &tau, 3, &PreprocessOptions { periods: Some(2), decimate: 5, ..Default::default() })
         .unwrap();
@@ -300,11 +303,7 @@ fn consistent_identification_is_physical_and_fits_like_ols() {
 fn a_model_file_is_judged_by_its_parameters_not_by_what_it_claims() {
     use arash_core::identify::{identify, Declared, IdentifyOptions, Log};
     use arash_core::model_file::{IdentifyMethod, ModelFile};
-    let model = arash_asist();
-    let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
-    let mut rng = rng(25);
-    let pi = true_parameters(&model, &mut rng);
-    let traj = Fourier::random(&model, 15.0, &mut rng);
+    let (model, base, pi, traj, mut rng) = drawn_truth(25);
     let (t, q, tau) = simulated_log(&model, &pi, &traj, 2, &mut rng);
     let mut options = IdentifyOptions::default();
     options.preprocess.periods = Some(2);
@@ -366,11 +365,7 @@ fn a_model_file_is_judged_by_its_parameters_not_by_what_it_claims() {
 fn a_closed_loop_log_does_not_lead_the_cutoff_into_the_encoders_noise() {
     use arash_core::identify::{identify, Declared, IdentifyOptions, Log};
     use arash_core::model_file::IdentifyMethod;
-    let model = arash_asist();
-    let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
-    let mut rng = rng(31);
-    let pi = true_parameters(&model, &mut rng);
-    let traj = Fourier::random(&model, 15.0, &mut rng);
+    let (model, base, pi, traj, mut rng) = drawn_truth(31);
     let (fs, periods) = (1000.0, 2);
     let ripple_hz = 9.0;
     // Ripple amplitude, encoder noise (rad, rad, m) and the controller's damping gain: a stiff
