@@ -184,7 +184,7 @@ impl Folds {
         let averaging = reference.averaging()?;
         let halves = |x: &[f64]| -> [Vec<f64>; 2] {
             let periods = periods_of(x, dof, averaging);
-            let half = |parity: usize| -> Vec<Vec<f64>> { periods.iter().skip(parity).step_by(2).cloned().collect() };
+            let half = |parity: usize| -> Vec<&Vec<f64>> { periods.iter().skip(parity).step_by(2).collect() };
             [mean_of(&half(0), |v| v), mean_of(&half(1), |v| v)]
         };
         Some(Self { positions: halves(log.q), torques: halves(log.tau) })

@@ -54,10 +54,10 @@ pub fn periods_of(x: &[f64], dof: usize, a: Averaging) -> Vec<Vec<f64>> {
 
 /// The sample-by-sample mean of `f` of equally long periods. Averaging `P` periods divides
 /// uncorrelated noise variance by `P`.
-pub fn mean_of(periods: &[Vec<f64>], f: impl Fn(f64) -> f64) -> Vec<f64> {
-    let mut mean = vec![0.0; periods.first().map_or(0, Vec::len)];
+pub fn mean_of<P: AsRef<[f64]>>(periods: &[P], f: impl Fn(f64) -> f64) -> Vec<f64> {
+    let mut mean = vec![0.0; periods.first().map_or(0, |p| p.as_ref().len())];
     for period in periods {
-        mean.iter_mut().zip(period).for_each(|(m, v)| *m += f(*v) / periods.len() as f64);
+        mean.iter_mut().zip(period.as_ref()).for_each(|(m, v)| *m += f(*v) / periods.len() as f64);
     }
     mean
 }
