@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 import arash
-from independent import TANH_EPSILON, Expanded, make_log, quantum, rigid_torques, trajectory, urdf_path
+from independent import TANH_EPSILON, Expanded, friction, make_log, quantum, rigid_torques, trajectory, urdf_path
 
 # The loop's bandwidth (Hz) and damping ratio, from each joint's inertia at the start.
 LOOP_HZ = 5.0
@@ -35,10 +35,7 @@ def closed_loop_log(condition, loop_hz=LOOP_HZ, damping=LOOP_DAMPING):
     _, _, truth = make_log(condition, states=(t, q_d, qd_d, qdd_d))
     expanded.set_parameters(truth["params"])
 
-    def friction(qd):
-        return truth["fv"] * qd + truth["fc"] * np.tanh(qd / TANH_EPSILON)
-
-    feedforward = rigid_torques(expanded, q_d, qd_d, qdd_d) + friction(qd_d)
+    feedforward = rigid_torques(expanded, q_d, qd_d, qdd_d) + friction(truth, qd_d, "tanh")
     inertia = np.diag(expanded.mass_matrix(q_d[0]))
     w = 2 * np.pi * loop_hz
     kp, kd = inertia * w * w, 2 * damping * inertia * w
@@ -57,7 +54,7 @@ def closed_loop_log(condition, loop_hz=LOOP_HZ, damping=LOOP_DAMPING):
         q_log[i], tau_log[i] = measured, tau
         for _ in range(SUBSTEPS):
             bias = expanded.torque(q, qd, np.zeros_like(q))
-            qdd = np.linalg.solve(expanded.mass_matrix(q), tau - bias - friction(qd))
+            qdd = np.linalg.solve(expanded.mass_matrix(q), tau - bias - friction(truth, qd, "tanh"))
             qd = qd + h * qdd
             q = q + h * qd
     return robot, (t, q_log, tau_log), truth

@@ -214,6 +214,13 @@ def quantum(path, robot):
     return np.array([LINEAR_STROKE_M if kinds[name][0] == "prismatic" else 2 * np.pi for name in robot.joint_names()])
 
 
+def friction(truth, qd, coulomb):
+    """The truth's viscous and Coulomb friction at the velocities ``qd``, with the Coulomb law
+    ``coulomb`` ("sign", or "tanh" of width ``TANH_EPSILON``)."""
+    shape = np.sign(qd) if coulomb == "sign" else np.tanh(qd / TANH_EPSILON)
+    return truth["fv"] * qd + truth["fc"] * shape
+
+
 def make_log(condition, states=None, truth=None):
     """The log of ``condition``: t, quantised q, noisy τ, and the truth (params, joint terms).
 
@@ -235,8 +242,7 @@ def make_log(condition, states=None, truth=None):
         speed = np.sqrt(np.mean(qd**2, axis=0))
         truth = {"params": params, "fv": FRICTION_SHARE * rms / speed, "fc": FRICTION_SHARE * rms,
                  "noise": condition.noise * rms}
-    shape = np.sign(qd) if condition.coulomb == "sign" else np.tanh(qd / TANH_EPSILON)
-    tau = rigid + truth["fv"] * qd + truth["fc"] * shape
+    tau = rigid + friction(truth, qd, condition.coulomb)
     tau = tau + truth["noise"] * rng.normal(size=tau.shape)
     step = quantum(path, robot) / 2**condition.bits
     q_measured = np.round(q / step) * step
