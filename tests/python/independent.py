@@ -221,11 +221,40 @@ def friction(truth, qd, coulomb):
     return truth["fv"] * qd + truth["fc"] * shape
 
 
-def make_log(condition, states=None, truth=None):
+@dataclass(frozen=True)
+class Injected:
+    """An effect the declared model lacks, added to one joint's torque. Each is written here from
+    its physics, not from arash's catalogue (crates/arash-core/src/effects/)."""
+
+    kind: str  # "offset", "configuration_disturbance", "armature" or "stribeck"
+    joint: int
+    size: float  # the RMS of its torque on the training log, as a share of the joint's RMS torque
+
+
+def injected_shape(effect, robot, q, qd, qdd):
+    """The effect's torque per unit coefficient, at the true motion."""
+    k = effect.joint
+    if effect.kind == "offset":
+        return np.ones(len(q))
+    if effect.kind == "configuration_disturbance":
+        # A wiring spring over the joint's declared range: one and a half sine periods.
+        lo, hi, _ = limits(robot)
+        return np.sin(1.5 * np.pi * (q[:, k] - lo[k]) / (hi[k] - lo[k]))
+    if effect.kind == "armature":
+        return qdd[:, k]
+    if effect.kind == "stribeck":
+        # The excess of static over Coulomb friction, decaying over a tenth of the RMS speed.
+        vs = 0.1 * np.sqrt(np.mean(qd[:, k] ** 2))
+        return np.exp(-((qd[:, k] / vs) ** 2)) * np.sign(qd[:, k])
+    raise ValueError(f"unknown injected effect {effect.kind!r}")
+
+
+def make_log(condition, states=None, truth=None, effect=None):
     """The log of ``condition``: t, quantised q, noisy τ, and the truth (params, joint terms).
 
     ``states`` (t, q, q̇, q̈) replaces the generated trajectory; ``truth`` reuses a previous log's
-    parameters, so that a validation log comes from the same robot.
+    parameters (and an injected effect's coefficient), so that a validation log comes from the
+    same robot. ``effect`` (an ``Injected``) adds a torque the declared model lacks.
     """
     rng = np.random.default_rng(condition.seed)
     path = urdf_path(condition.robot)
@@ -243,6 +272,12 @@ def make_log(condition, states=None, truth=None):
         truth = {"params": params, "fv": FRICTION_SHARE * rms / speed, "fc": FRICTION_SHARE * rms,
                  "noise": condition.noise * rms}
     tau = rigid + friction(truth, qd, condition.coulomb)
+    if effect is not None:
+        shape = injected_shape(effect, robot, q, qd, qdd)
+        if "effect" not in truth:
+            joint_rms = np.sqrt(np.mean(tau[:, effect.joint] ** 2))
+            truth["effect"] = effect.size * joint_rms / np.sqrt(np.mean(shape**2))
+        tau[:, effect.joint] += truth["effect"] * shape
     tau = tau + truth["noise"] * rng.normal(size=tau.shape)
     step = quantum(path, robot) / 2**condition.bits
     q_measured = np.round(q / step) * step

@@ -62,6 +62,11 @@ impl DiagnoseOptions {
     fn block_s(&self) -> f64 {
         self.inner.block_s
     }
+    /// The Wald test's batch length set (s), or None: each test chooses from its scores.
+    #[getter]
+    fn batch_s(&self) -> Option<f64> {
+        self.inner.batch_s
+    }
     #[getter]
     fn alpha(&self) -> f64 {
         self.inner.alpha
@@ -128,6 +133,7 @@ impl DiagnoseOptions {
             "friction_cutoff_hz" => o.preprocess.friction_cutoff_hz = value.extract()?,
             "order" => o.preprocess.order = value.extract()?,
             "block_s" => o.block_s = value.extract()?,
+            "batch_s" => o.batch_s = value.extract()?,
             "alpha" => o.alpha = value.extract()?,
             "min_gain" => o.min_gain = value.extract()?,
             "max_effects" => o.max_effects = value.extract()?,
@@ -186,6 +192,11 @@ impl Effect {
     #[getter]
     fn statistic(&self) -> f64 {
         self.finding.statistic
+    }
+    /// B, the batches its Wald test summed over (the statistic is F(k, B − k)).
+    #[getter]
+    fn batches(&self) -> usize {
+        self.finding.batches
     }
     #[getter]
     fn p_value(&self) -> f64 {
@@ -278,6 +289,7 @@ impl Diagnosis {
         d.set_item("decimate", s.decimate)?;
         d.set_item("block_s", s.block_s)?;
         d.set_item("blocks", s.blocks)?;
+        d.set_item("batch_s", s.batch_s)?;
         d.set_item("alpha", s.alpha)?;
         d.set_item("min_gain", s.min_gain)?;
         d.set_item("max_vif", s.max_vif)?;

@@ -3,8 +3,8 @@
 
 use super::options::{DiagnoseError, DiagnoseOptions};
 use super::prepare::{prepare, term_columns, Prepared};
-use super::problem::{block_split, blocks, Candidate, HeldOut, Problem};
-use super::regression::{self, least_squares, residual, Column, Rows};
+use super::problem::{block_split, blocks, heldout_block_s, Candidate, HeldOut, Problem};
+use super::regression::{self, least_squares, residual, Batching, Column, Rows};
 use crate::base_parameters::BaseParameters;
 use crate::effects::EffectTerm;
 use crate::identify::{IdentifyError, Log};
@@ -26,9 +26,13 @@ pub(super) struct Context<'a> {
     pub(super) free: Vec<bool>,
     /// Per joint, 1 / RMS of the declared model's residual: N·m and N do not mix.
     pub(super) weights: Vec<f64>,
-    /// Block index of each kept training sample, and the number of blocks.
+    /// The held-out split: its blocks' length (s), the block index of each kept training sample,
+    /// and the number of blocks.
+    pub(super) block_s: f64,
     pub(super) block: Vec<usize>,
     pub(super) block_count: usize,
+    /// How the Wald test cuts the training samples into batches.
+    pub(super) batching: Batching,
 }
 
 impl<'a> Context<'a> {
@@ -59,7 +63,12 @@ impl<'a> Context<'a> {
         // and its coefficients depend on how the velocity that switches it was estimated.
         let friction = model.layout().friction();
         let free = base.independent.iter().map(|j| refit || (friction.contains(j) && !options.hold_friction)).collect();
-        let (block, block_count) = blocks(&train, options.block_s);
+        let block_s = heldout_block_s(&train, options.block_s);
+        let (block, block_count) = blocks(&train, block_s);
+        let per_second = train.fs / train.stride() as f64;
+        let batching = options
+            .batch_s
+            .map_or(Batching::FromScores, |s| Batching::Fixed(((s * per_second).round() as usize).max(1)));
         let mut ctx = Self {
             model,
             base,
@@ -70,8 +79,10 @@ impl<'a> Context<'a> {
             refit,
             free,
             weights: vec![1.0; model.dof()],
+            block_s,
             block,
             block_count,
+            batching,
         };
         ctx.weights = ctx.joint_weights()?;
         Ok(ctx)

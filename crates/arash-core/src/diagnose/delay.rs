@@ -6,7 +6,7 @@ use super::context::Context;
 use super::findings::{rejection, Finding, Rejection, RejectionReason};
 use super::prepare::Prepared;
 use super::problem::{block_split, sse, Problem};
-use super::regression::{gram, least_squares, residual, rhs, solve_scaled, test_group, Column, Rows};
+use super::regression::{gram, least_squares, residual, rhs, solve_scaled, test_group, Column, Rows, Untested};
 use crate::effects::{EffectKind, EffectTerm};
 use crate::identify::signals::central_difference;
 
@@ -30,7 +30,7 @@ pub const ALIGNMENT_SAMPLES: isize = 1;
 #[allow(clippy::result_large_err)]
 fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
     let (model, train, validation, options) = (ctx.model, &ctx.train, ctx.validation.as_ref(), ctx.options);
-    let (weights, free, block, block_count) = (&ctx.weights[..], &ctx.free[..], &ctx.block[..], ctx.block_count);
+    let (weights, free, block) = (&ctx.weights[..], &ctx.free[..], &ctx.block[..]);
     let max_shift = ctx.max_shift();
     let fixed_prediction = |data: &Prepared| ctx.fixed_prediction(data);
     let dof = train.dof;
@@ -71,9 +71,12 @@ fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
     let predicted: Vec<f64> = zero.y.iter().zip(&e0).map(|(y, e)| y - e).collect();
     let h = train.stride() as f64 / train.fs;
     let column = Column::dense(central_difference(&predicted, dof, h, false), dof);
-    let test = test_group(&declared_refs, &g, &e0, &[&column], block, block_count, dof);
-    let Some(test) = test else {
-        return Err((0, reject(&term, RejectionReason::Untestable, None, None)));
+    let test = match test_group(&declared_refs, &g, &e0, &[&column], ctx.batching, dof) {
+        Ok(test) => test,
+        Err(Untested::Dependent { .. }) => return Err((0, reject(&term, RejectionReason::Untestable, None, None))),
+        Err(Untested::TooFewBatches { batches, columns }) => {
+            return Err((0, reject(&term, RejectionReason::TooShort { batches, columns }, None, None)))
+        }
     };
     let gains: Vec<f64> = match validation {
         Some(v) => {
@@ -118,6 +121,8 @@ fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
         label: term.describe(&model.joint_names()),
         term,
         statistic: test.f_statistic,
+        batches: test.batches,
+        batch_s: test.batch_samples as f64 * train.stride() as f64 / train.fs,
         p_value: test.p_value,
         threshold: options.alpha,
         heldout_gain: gain,

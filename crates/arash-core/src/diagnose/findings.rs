@@ -18,8 +18,13 @@ pub struct Finding {
     pub label: String,
     /// The term as written into the model (coefficients and their σ inside).
     pub term: EffectTerm,
-    /// Hotelling-scaled block Wald statistic, F(k, B − k).
+    /// Hotelling-scaled batch Wald statistic, F(k, B − k).
     pub statistic: f64,
+    /// B, the batches of its test, and their length (s).
+    #[serde(default)]
+    pub batches: usize,
+    #[serde(default)]
+    pub batch_s: f64,
     pub p_value: f64,
     /// The Holm threshold the p-value had to pass.
     pub threshold: f64,
@@ -100,6 +105,9 @@ pub enum RejectionReason {
     AtSearchEdge { max_shift: isize },
     /// The predicted torque does not change, so a delay cannot be tested.
     Untestable,
+    /// The log is too short for this candidate's test: its scores are correlated over so long
+    /// that only `batches` independent batches fit, too few for `columns` coefficients.
+    TooShort { batches: usize, columns: usize },
     /// The delay's p-value is above α.
     DelayNotSignificant { p_value: f64, alpha: f64 },
     /// A shift that cuts the held-out error by less than `min_gain`.
@@ -123,6 +131,7 @@ impl RejectionReason {
             Self::Alignment { .. } => "alignment",
             Self::AtSearchEdge { .. } => "at_search_edge",
             Self::Untestable => "untestable",
+            Self::TooShort { .. } => "too_short",
             Self::DelayNotSignificant { .. } => "delay_not_significant",
             Self::DelaySmallGain { .. } => "delay_small_gain",
         }
@@ -169,6 +178,10 @@ impl std::fmt::Display for RejectionReason {
                 write!(f, "the best shift is at the edge of the search (±{max_shift} samples); widen max_delay_s")
             }
             Self::Untestable => f.write_str("the predicted torque does not change: a delay cannot be tested"),
+            Self::TooShort { batches, columns } => write!(
+                f,
+                "cannot be tested on this log: its residual is correlated so long that only {batches} independent batches fit, too few for {columns} coefficient(s); a longer log, or a validation log, can tell"
+            ),
             Self::DelayNotSignificant { p_value, alpha } => {
                 write!(f, "not significant: p = {p_value:.2e} > α = {alpha}")
             }
@@ -203,8 +216,12 @@ pub struct DiagnoseSettings {
     #[serde(default)]
     pub reasons: Vec<String>,
     pub decimate: usize,
+    /// The held-out split's blocks (s) and how many there were.
     pub block_s: f64,
     pub blocks: usize,
+    /// The Wald test's batches as set (s); `None`: each test chose from its scores.
+    #[serde(default)]
+    pub batch_s: Option<f64>,
     pub alpha: f64,
     pub min_gain: f64,
     pub max_vif: f64,
@@ -295,6 +312,7 @@ mod tests {
             RejectionReason::Alignment { shift: 1 },
             RejectionReason::AtSearchEdge { max_shift: 20 },
             RejectionReason::Untestable,
+            RejectionReason::TooShort { batches: 3, columns: 4 },
             RejectionReason::DelayNotSignificant { p_value: 0.5, alpha: 0.01 },
             RejectionReason::DelaySmallGain { shift: 3, gain: 0.01, min_gain: 0.2 },
         ];

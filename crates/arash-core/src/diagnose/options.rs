@@ -25,9 +25,13 @@ pub struct DiagnoseOptions {
     pub preprocess: PreprocessOptions,
     /// Keep every n-th filtered sample (`None`: about five samples per cut-off period).
     pub decimate: Option<usize>,
-    /// Length of the blocks of time that are the unit of the Wald test and of the held-out split
-    /// (s).
+    /// Length of the blocks of time of the held-out split without a validation log (s); a log
+    /// shorter than ten of them gets ten shorter ones.
     pub block_s: f64,
+    /// Length of the batches the Wald test's covariance is summed over (s). `None`: each test
+    /// chooses from its own scores, ten integrated autocorrelation times
+    /// ([`super::regression::Batching::FromScores`]).
+    pub batch_s: Option<f64>,
     /// Family-wise error rate of each round (Holm).
     pub alpha: f64,
     /// Smallest relative cut of the held-out squared error (mean over the joints an effect acts
@@ -59,6 +63,7 @@ impl Default for DiagnoseOptions {
             preprocess: PreprocessOptions::default(),
             decimate: None,
             block_s: 2.0,
+            batch_s: None,
             alpha: 0.01,
             min_gain: 0.2,
             max_vif: 1000.0,
@@ -77,7 +82,7 @@ impl DiagnoseOptions {
     /// Check every setting before any work starts; `dof` is the robot's.
     pub fn validate(&self, dof: usize) -> Result<(), OptionsError> {
         self.preprocess.validate().map_err(OptionsError::Preprocess)?;
-        let positive = [("block_s", self.block_s), ("max_vif", self.max_vif)];
+        let positive = [("block_s", self.block_s), ("batch_s", self.batch_s.unwrap_or(1.0)), ("max_vif", self.max_vif)];
         if let Some((name, value)) = positive.into_iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
             return Err(OptionsError::NotPositive { name, value });
         }

@@ -1,7 +1,7 @@
 //! The updated model and the signals behind the plots, once the search is over.
 
 use super::findings::Series;
-use super::options::{DiagnoseError, DiagnoseOptions};
+use super::options::DiagnoseError;
 use super::prepare::Prepared;
 use super::problem::{Candidate, Problem};
 use super::regression::{self, Column};
@@ -12,14 +12,15 @@ use crate::model_file::{IdentifyMethod, ModelFile};
 
 /// The model file for a refitted declared model: OLS on the samples the diagnosis used, with the
 /// effects found taken out of the torque first (their coefficients are set after). σ%, the fit
-/// and the condition number come from that fit, as `arash identify` reports them.
+/// and the condition number come from that fit, as `arash identify` reports them; σ over runs of
+/// `block_s` (the held-out blocks' length).
 pub(super) fn declared_model(
     model: &Model,
     base: &BaseParameters,
     urdf: &str,
     data: &Prepared,
     series: &Series,
-    options: &DiagnoseOptions,
+    block_s: f64,
     samples_in: usize,
 ) -> Result<ModelFile, DiagnoseError> {
     use crate::identify::estimate::{fit_stacked, Method};
@@ -33,7 +34,7 @@ pub(super) fn declared_model(
         tau.iter_mut().zip(contribution).for_each(|(t, c)| *t -= c);
     }
     let stride = data.stride();
-    let block = ((options.block_s * data.fs / stride as f64).round() as usize).max(1);
+    let block = ((block_s * data.fs / stride as f64).round() as usize).max(1);
     let fit = fit_stacked(&w, &tau, dof, base, Method::Ols, block)
         .map_err(|e| DiagnoseError::Identify(IdentifyError::Estimate(e)))?;
     let nearest = nearest_standard_parameters(model, base, &fit.beta);

@@ -7,6 +7,7 @@
 //! memory and time on every product with it.
 
 use nalgebra::{DMatrix, DVector};
+
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
 /// One regressor column.
@@ -226,38 +227,63 @@ pub fn residual(columns: &[&Column], coefficients: &[f64], y: &[f64], dof: usize
 pub struct GroupTest {
     /// The group's coefficients in the joint fit.
     pub coefficients: Vec<f64>,
-    /// Their standard deviations (block sandwich).
+    /// Their standard deviations (batch sandwich).
     pub sigma: Vec<f64>,
     /// Hotelling-scaled Wald statistic, F(k, B − k) under "no effect".
     pub f_statistic: f64,
     pub p_value: f64,
     /// Smallest fraction of a column's norm that the fitted model does not explain (1/VIF).
     pub unexplained: f64,
+    /// The batches the covariance was summed over (B), and their length in samples.
+    pub batches: usize,
+    pub batch_samples: usize,
+}
+
+/// How the samples of a test are cut into the batches its covariance is summed over.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Batching {
+    /// Each test chooses from its own scores by blocking (see [`test_group`]).
+    FromScores,
+    /// Batches of this many samples.
+    Fixed(usize),
+}
+
+/// The fewest batches a test chosen from the scores may use: fewer leave the covariance so
+/// uncertain that F(k, B − k) has no power at the thresholds Holm sets over many candidates.
+pub const MIN_BATCHES: usize = 10;
+
+/// Why a group could not be tested.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Untested {
+    /// The group's columns are dependent on the model (or on each other).
+    Dependent { unexplained: f64 },
+    /// The log holds too few batches for `columns` coefficients: a covariance from `batches`
+    /// batches cannot judge them.
+    TooFewBatches { batches: usize, columns: usize },
 }
 
 /// Test `group` against the model `base` (already fitted, residual `e0`) by Frisch–Waugh–Lovell:
 /// partial the model out of the group, regress the residual on what is left, and judge the
-/// coefficients with a Wald test whose unit is a block of time.
+/// coefficients with a Wald test whose unit is a batch of consecutive samples.
 ///
-/// Robot residuals are correlated over seconds (the filter's memory and every unmodelled effect
-/// repeat with the trajectory), so the covariance is the block sandwich
-/// `H⁻¹ (Σ_b g_b g_bᵀ) H⁻¹`, `g_b = C̃_bᵀ e_b` over blocks `block[s]`, and the statistic is
-/// scaled as Hotelling's T² to `F(k, B − k)`, which stays honest with a few dozen blocks.
-/// `None` when the group is dependent on the model or the blocks are too few.
+/// Robot residuals are correlated in time (the filter's memory, and every unmodelled effect
+/// repeats with the trajectory), so the covariance is the batch sandwich
+/// `H⁻¹ (Σ_b g_b g_bᵀ) H⁻¹`, `g_b = C̃_bᵀ e_b`, and the statistic is scaled as Hotelling's T² to
+/// `F(k, B − k)`, which stays honest with a few dozen batches. The batches are as long as the
+/// scores' own correlation asks ([`Batching::FromScores`], by blocking: [`plateau`]): a fixed
+/// length of seconds left a 9 s log four batches and no power, while a log whose residual is
+/// correlated over seconds gets batches of seconds.
 pub fn test_group(
     base: &[&Column],
     base_gram: &DMatrix<f64>,
     e0: &[f64],
     group: &[&Column],
-    block: &[usize],
-    blocks: usize,
+    batching: Batching,
     dof: usize,
-) -> Option<GroupTest> {
+) -> Result<GroupTest, Untested> {
     let k = group.len();
-    if blocks <= k + 1 {
-        return None;
-    }
-    let partialled = partial_out(base, base_gram, group, dof)?;
+    let dependent = Untested::Dependent { unexplained: 0.0 };
+    let partialled = partial_out(base, base_gram, group, dof).ok_or(dependent)?;
     let unexplained = partialled
         .iter()
         .zip(group)
@@ -272,25 +298,100 @@ pub fn test_group(
         .fold(f64::INFINITY, f64::min);
     let h = DMatrix::from_fn(k, k, |i, j| partialled[i].iter().zip(&partialled[j]).map(|(a, b)| a * b).sum());
     let rhs = DVector::from_fn(k, |i, _| partialled[i].iter().zip(e0).map(|(a, b)| a * b).sum());
-    let gamma = solve_scaled(&h, &rhs)?;
-    // Block scores of the joint fit's residual e = e0 − C̃γ.
-    let mut scores = DMatrix::<f64>::zeros(blocks, k);
+    let gamma = solve_scaled(&h, &rhs).ok_or(Untested::Dependent { unexplained })?;
+    let h_inv = pinned_inverse(&h).ok_or(Untested::Dependent { unexplained })?;
+    let scores = sample_scores(&partialled, e0, &gamma, dof);
+    let samples = scores.len() / k;
+    let covariance = |length: usize| {
+        let batches = samples / length;
+        let meat = batch_meat(&scores, k, length, batches);
+        (batches, &h_inv * meat * &h_inv)
+    };
+    let wald = |cov: &DMatrix<f64>| solve_scaled(cov, &gamma).map_or(f64::INFINITY, |x| gamma.dot(&x));
+    let length = match batching {
+        Batching::Fixed(n) => n.max(1),
+        Batching::FromScores => {
+            let lengths: Vec<usize> =
+                (0..).map(|j| 1 << j).take_while(|l| samples / l >= MIN_BATCHES.max(k + 2)).collect();
+            let walds: Vec<(usize, f64)> = lengths
+                .iter()
+                .map(|&l| {
+                    let (batches, cov) = covariance(l);
+                    (batches, wald(&cov))
+                })
+                .collect();
+            // From the plateau on, the length with the largest variance: a plateau seen through
+            // few long batches may still be rising.
+            match plateau(&walds) {
+                Some(i) => lengths[(i..walds.len()).min_by(|&a, &b| walds[a].1.total_cmp(&walds[b].1)).unwrap_or(i)],
+                None => {
+                    let batches = walds.last().map_or(samples.min(1), |w| w.0);
+                    return Err(Untested::TooFewBatches { batches, columns: k });
+                }
+            }
+        }
+    };
+    let (batches, cov) = covariance(length.min(samples.max(1)));
+    if batches <= k + 1 {
+        return Err(Untested::TooFewBatches { batches, columns: k });
+    }
+    let sigma: Vec<f64> = (0..k).map(|i| cov[(i, i)].max(0.0).sqrt()).collect();
+    let wald = wald(&cov);
+    let (df1, df2) = (k as f64, (batches - k) as f64);
+    let f = wald * df2 / (df1 * (batches - 1) as f64);
+    let p_value = FisherSnedecor::new(df1, df2).map_or(0.0, |d| d.sf(f));
+    Ok(GroupTest {
+        coefficients: gamma.iter().copied().collect(),
+        sigma,
+        f_statistic: f,
+        p_value,
+        unexplained,
+        batches,
+        batch_samples: length,
+    })
+}
+
+/// The joint fit's score of each sample, `c̃_sᵀ (e_s − C̃_s γ)` summed over the sample's joints:
+/// `samples × k`, row-major.
+fn sample_scores(partialled: &[Vec<f64>], e0: &[f64], gamma: &DVector<f64>, dof: usize) -> Vec<f64> {
+    let k = partialled.len();
+    let mut scores = vec![0.0; e0.len() / dof * k];
     for (i, e) in e0.iter().enumerate() {
         let fitted: f64 = (0..k).map(|j| partialled[j][i] * gamma[j]).sum();
-        let b = block[i / dof];
         for j in 0..k {
-            scores[(b, j)] += partialled[j][i] * (e - fitted);
+            scores[(i / dof) * k + j] += partialled[j][i] * (e - fitted);
         }
     }
-    let meat = scores.transpose() * &scores * (blocks as f64 / (blocks - 1) as f64);
-    let h_inv = pinned_inverse(&h)?;
-    let cov = &h_inv * meat * &h_inv;
-    let sigma: Vec<f64> = (0..k).map(|i| cov[(i, i)].max(0.0).sqrt()).collect();
-    let wald = solve_scaled(&cov, &gamma).map_or(f64::INFINITY, |x| gamma.dot(&x));
-    let (df1, df2) = (k as f64, (blocks - k) as f64);
-    let f = wald * df2 / (df1 * (blocks - 1) as f64);
-    let p_value = FisherSnedecor::new(df1, df2).map_or(0.0, |d| d.sf(f));
-    Some(GroupTest { coefficients: gamma.iter().copied().collect(), sigma, f_statistic: f, p_value, unexplained })
+    scores
+}
+
+/// `Σ_b g_b g_bᵀ · B/(B − 1)` over `batches` runs of `length` samples; the last partial run
+/// joins the one before it.
+fn batch_meat(scores: &[f64], k: usize, length: usize, batches: usize) -> DMatrix<f64> {
+    let mut sums = DMatrix::<f64>::zeros(batches.max(1), k);
+    for (s, row) in scores.chunks_exact(k).enumerate() {
+        let b = (s / length).min(batches.max(1) - 1);
+        for j in 0..k {
+            sums[(b, j)] += row[j];
+        }
+    }
+    sums.transpose() * &sums * (batches as f64 / (batches.max(2) - 1) as f64)
+}
+
+/// Blocking (Flyvbjerg and Petersen): the covariance from batches of 1, 2, 4, … samples grows
+/// with the batch length until the batches are longer than the scores' correlation, and then
+/// stays. Of `(batches, Wald statistic)` by doubling length, the index of the first length that
+/// no longer one shows to be short: no longer batches give a variance (a Wald statistic
+/// smaller by a factor) beyond twice their own relative standard error, √(2/(B − 1)). A
+/// residual that mixes fast noise with a slow misfit, as a closed loop's does, is caught this
+/// way where a window on the autocorrelation closes on the fast part and misses the slow one.
+/// A plateau needs a longer length to confirm it, so the longest never qualifies: `None` when
+/// every length with enough batches is still short, and the log cannot support the test.
+fn plateau(walds: &[(usize, f64)]) -> Option<usize> {
+    let settled = |i: usize| {
+        walds[i + 1..].iter().all(|&(batches, w)| w * (1.0 + 2.0 * (2.0 / (batches - 1) as f64).sqrt()) >= walds[i].1)
+    };
+    (0..walds.len().saturating_sub(1)).find(|&i| settled(i))
 }
 
 /// `C − X (XᵀX)⁻¹ XᵀC` for each column of the group, dense over every row; `g` is `XᵀX`.
@@ -362,38 +463,119 @@ mod tests {
         assert_eq!(dot(&a, &a, dof, Rows::Where(&[true, false, true])), 10.0);
     }
 
-    /// With independent blocks and no effect, the test's p-values are uniform: about α of them
+    /// AR(1) noise `x ← ρx + u`, u uniform on ±1.
+    fn ar(rng: &mut ChaCha8Rng, samples: usize, rho: f64) -> Vec<f64> {
+        let mut x = 0.0;
+        (0..samples)
+            .map(|_| {
+                x = rho * x + rng.random_range(-1.0..1.0);
+                x
+            })
+            .collect()
+    }
+
+    /// One test of a smooth candidate (AR(1), ρ = 0.9) against an offset, on AR(1) residual
+    /// noise of correlation `rho` plus `effect` times the candidate.
+    fn trial(
+        rng: &mut ChaCha8Rng,
+        samples: usize,
+        rho: f64,
+        effect: f64,
+        batching: Batching,
+    ) -> Result<GroupTest, Untested> {
+        let c = ar(rng, samples, 0.9);
+        let e: Vec<f64> = ar(rng, samples, rho).iter().zip(&c).map(|(n, c)| n + effect * c).collect();
+        let offset = Column::dense(vec![1.0; samples], 1);
+        let mean = e.iter().sum::<f64>() / samples as f64;
+        let e0: Vec<f64> = e.iter().map(|v| v - mean).collect();
+        let g = gram(&[&offset], 1, Rows::All);
+        test_group(&[&offset], &g, &e0, &[&Column::dense(c, 1)], batching, 1)
+    }
+
+    fn rejection_rate(rho: f64, batching: Batching, alpha: f64) -> f64 {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let trials = 400;
+        // A test the log cannot support accepts nothing.
+        let below =
+            (0..trials).filter(|_| trial(&mut rng, 2000, rho, 0.0, batching).is_ok_and(|t| t.p_value < alpha)).count();
+        below as f64 / trials as f64
+    }
+
+    /// With independent batches and no effect, the test's p-values are uniform: about α of them
     /// fall below α. This is what makes the false-positive rate controllable at all.
     #[test]
-    fn the_block_wald_test_holds_its_level_on_correlated_noise() {
-        let mut rng = ChaCha8Rng::seed_from_u64(7);
-        let (samples, dof, block_len) = (2000, 1, 50);
-        let blocks = samples / block_len;
-        let block: Vec<usize> = (0..samples).map(|s| s / block_len).collect();
-        let mut below = 0;
-        let trials = 400;
-        for _ in 0..trials {
-            // AR(1) noise with a correlation time of ~10 samples, and a smooth candidate.
-            let mut e = vec![0.0; samples];
-            let mut c = vec![0.0; samples];
-            let (mut x, mut z) = (0.0, 0.0);
-            for s in 0..samples {
-                x = 0.9 * x + rng.random_range(-1.0..1.0);
-                z = 0.9 * z + rng.random_range(-1.0..1.0);
-                e[s] = x;
-                c[s] = z;
-            }
-            let offset = Column::dense(vec![1.0; samples], 1);
-            let mean = e.iter().sum::<f64>() / samples as f64;
-            let e0: Vec<f64> = e.iter().map(|v| v - mean).collect();
-            let cand = Column::dense(c, 1);
-            let g = gram(&[&offset], dof, Rows::All);
-            let t = test_group(&[&offset], &g, &e0, &[&cand], &block, blocks, dof).unwrap();
-            if t.p_value < 0.05 {
-                below += 1;
-            }
-        }
-        let rate = below as f64 / trials as f64;
+    fn the_batch_wald_test_holds_its_level_on_correlated_noise() {
+        let rate = rejection_rate(0.9, Batching::Fixed(50), 0.05);
         assert!((0.02..=0.09).contains(&rate), "rejection rate {rate} at α = 0.05");
+    }
+
+    /// Batches chosen from the scores hold the level whatever the noise's correlation, from white
+    /// to a correlation time of 50 samples, where fixed batches of 5 samples do not.
+    #[test]
+    fn batches_from_the_scores_hold_the_level_from_white_to_slow_noise() {
+        for rho in [0.0, 0.5, 0.9, 0.98] {
+            let rate = rejection_rate(rho, Batching::FromScores, 0.05);
+            assert!((0.02..=0.09).contains(&rate), "ρ = {rho}: rejection rate {rate} at α = 0.05");
+        }
+        let short = rejection_rate(0.98, Batching::Fixed(5), 0.05);
+        assert!(short > 0.15, "fixed short batches on slow noise: {short}");
+    }
+
+    /// On a short log (900 samples, as 9 s decimated to 100 Hz) a fixed 2 s batch leaves four
+    /// batches and almost no power at the threshold a search over many candidates sets; batches
+    /// from the scores find the same effect (about 60 % of the noise's RMS) nearly every time.
+    #[test]
+    fn batches_from_the_scores_keep_power_on_a_short_log() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let trials = 100;
+        let (mut fixed, mut chosen) = (0, 0);
+        for _ in 0..trials {
+            let mut r = rng.clone();
+            fixed += trial(&mut r, 900, 0.5, 0.3, Batching::Fixed(200)).is_ok_and(|t| t.p_value < 1e-4) as usize;
+            chosen += trial(&mut rng, 900, 0.5, 0.3, Batching::FromScores).is_ok_and(|t| t.p_value < 1e-4) as usize;
+        }
+        assert!(chosen >= 90, "found {chosen} of {trials} with batches from the scores");
+        assert!(fixed <= 20, "found {fixed} of {trials} with 2 s batches");
+    }
+
+    /// A residual that mixes fast noise with a small slow misfit (a closed loop's), against a
+    /// slow candidate: the scores' autocorrelation falls fast and then has a long tail that holds
+    /// most of their long-run variance. Blocking sees the tail and holds the level; batches sized
+    /// on the fast part (8 samples) reject several times too often. The log is 16,000 samples,
+    /// about 300 of the scores' correlation times; at 4,000 the rate found is 0.11: a plateau
+    /// seen through a dozen batches is still rising a little.
+    #[test]
+    fn blocking_holds_the_level_when_fast_noise_hides_a_slow_misfit() {
+        let rate = |batching: Batching| {
+            let mut rng = ChaCha8Rng::seed_from_u64(17);
+            let trials = 300;
+            let below = (0..trials)
+                .filter(|_| {
+                    let samples = 16000;
+                    let c = ar(&mut rng, samples, 0.99);
+                    let slow = ar(&mut rng, samples, 0.99);
+                    let e: Vec<f64> = (0..samples).map(|i| 4.0 * rng.random_range(-1.0..1.0) + 0.5 * slow[i]).collect();
+                    let offset = Column::dense(vec![1.0; samples], 1);
+                    let mean = e.iter().sum::<f64>() / samples as f64;
+                    let e0: Vec<f64> = e.iter().map(|v| v - mean).collect();
+                    let g = gram(&[&offset], 1, Rows::All);
+                    test_group(&[&offset], &g, &e0, &[&Column::dense(c, 1)], batching, 1)
+                        .is_ok_and(|t| t.p_value < 0.05)
+                })
+                .count();
+            below as f64 / trials as f64
+        };
+        let chosen = rate(Batching::FromScores);
+        let short = rate(Batching::Fixed(8));
+        eprintln!("mixture: blocking {chosen}, batches of 8 samples {short}");
+        assert!(chosen <= 0.09, "blocking rejects {chosen} at α = 0.05");
+        assert!(short >= 0.15, "short batches reject {short}");
+    }
+
+    #[test]
+    fn too_few_batches_for_the_columns_is_said_so() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let t = trial(&mut rng, 100, 0.0, 0.0, Batching::Fixed(40));
+        assert_eq!(t.unwrap_err(), Untested::TooFewBatches { batches: 2, columns: 1 });
     }
 }

@@ -13,11 +13,10 @@ impl Diagnosis {
     /// rejected (one line per effect and joint, its best variant's reason).
     pub fn report(&self) -> String {
         let mut s = format!(
-            "Diagnosis of {} ({} candidates, blocks of {} s: {}, α = {}, held-out: {}; Coulomb friction as {})\n\n",
+            "Diagnosis of {} ({} candidates, test batches {}, α = {}, held-out: {}; Coulomb friction as {})\n\n",
             self.robot_name,
             self.settings.candidates,
-            self.settings.block_s,
-            self.settings.blocks,
+            self.settings.batch_s.map_or("chosen from each test's scores".into(), |s| format!("of {s} s")),
             self.settings.alpha,
             self.settings.heldout,
             CoulombShape::of_epsilon(self.settings.coulomb_epsilon)
@@ -28,9 +27,11 @@ impl Diagnosis {
             s += "Effects found (in the order they were added):\n";
             for (i, f) in self.accepted.iter().enumerate() {
                 s += &format!(
-                    "  {}. {:<44} F = {:>9.1}  p = {:.1e} (≤ {:.1e})  held-out gain {:>5.1} %\n",
+                    "  {}. {:<44} F({}, {}) = {:>9.1}  p = {:.1e} (≤ {:.1e})  held-out gain {:>5.1} %\n",
                     i + 1,
                     f.label,
+                    f.term.coefficients.len(),
+                    f.batches.saturating_sub(f.term.coefficients.len()),
                     f.statistic,
                     f.p_value,
                     f.threshold,

@@ -12,7 +12,7 @@ use super::findings::{
 use super::options::{DiagnoseError, DiagnoseOptions};
 use super::outcome::{declared_model, series};
 use super::problem::{error_summary, model_columns, Candidate, HeldOut, HeldOutBase, Problem};
-use super::regression::{self, gram, least_squares, residual, rhs, test_group, Column, GroupTest, Rows};
+use super::regression::{self, gram, least_squares, residual, rhs, test_group, Column, GroupTest, Rows, Untested};
 use crate::effects::EffectKind;
 use crate::identify::{Declared, Log};
 use crate::model::JointKind;
@@ -129,6 +129,8 @@ impl Search<'_> {
             label: term.describe(&model.joint_names()),
             term,
             statistic: test.f_statistic,
+            batches: test.batches,
+            batch_s: test.batch_samples as f64 * self.ctx.train.stride() as f64 / self.ctx.train.fs,
             p_value: test.p_value,
             threshold: best.threshold,
             heldout_gain: best.gain,
@@ -159,18 +161,22 @@ impl Search<'_> {
             .collect();
         let tests = parallel_map(open, |i| {
             let group: Vec<&Column> = self.pool[i].columns.iter().collect();
-            (i, test_group(base_cols, base_gram, e0, &group, &ctx.block, ctx.block_count, self.problem.dof))
+            (i, test_group(base_cols, base_gram, e0, &group, ctx.batching, self.problem.dof))
         });
         let mut tested = Vec::new();
+        let max_vif = ctx.options.max_vif;
         for (i, outcome) in tests {
-            match outcome {
-                Some(t) if t.unexplained * ctx.options.max_vif >= 1.0 => tested.push((i, t)),
-                other => {
-                    let vif = other.map_or(f64::INFINITY, |t| 1.0 / t.unexplained);
-                    let reason = RejectionReason::NotIdentifiable { vif, max_vif: ctx.options.max_vif };
-                    state.status[i] = Some(rejection(ctx.model, &self.pool[i].term, reason, None, None));
+            let reason = match outcome {
+                Ok(t) if t.unexplained * max_vif >= 1.0 => {
+                    tested.push((i, t));
+                    continue;
                 }
-            }
+                Ok(GroupTest { unexplained, .. }) | Err(Untested::Dependent { unexplained }) => {
+                    RejectionReason::NotIdentifiable { vif: 1.0 / unexplained, max_vif }
+                }
+                Err(Untested::TooFewBatches { batches, columns }) => RejectionReason::TooShort { batches, columns },
+            };
+            state.status[i] = Some(rejection(ctx.model, &self.pool[i].term, reason, None, None));
         }
         tested
     }
@@ -245,8 +251,8 @@ impl Search<'_> {
                 continue;
             }
             let group: Vec<&Column> = self.pool[*j].columns.iter().collect();
-            let after = test_group(&next_cols, &next_gram, e0, &group, &ctx.block, ctx.block_count, dof);
-            if after.map_or(0.0, |a| a.unexplained / t.unexplained) < ALIAS_LEFT {
+            let after = test_group(&next_cols, &next_gram, e0, &group, ctx.batching, dof);
+            if after.ok().map_or(0.0, |a| a.unexplained / t.unexplained) < ALIAS_LEFT {
                 aliases.push(self.pool[*j].term.describe(&names));
                 let reason = RejectionReason::AliasOf { label: self.pool[winner].term.describe(&names) };
                 state.status[*j] = Some(rejection(ctx.model, &self.pool[*j].term, reason, Some(t.p_value), None));
@@ -312,8 +318,9 @@ impl Search<'_> {
                 coulomb_epsilon: model.coulomb_shape.epsilon(),
                 reasons: ctx.train.pre.choices.reasons.clone(),
                 decimate: ctx.train.stride(),
-                block_s: options.block_s,
+                block_s: ctx.block_s,
                 blocks: ctx.block_count,
+                batch_s: options.batch_s,
                 alpha: options.alpha,
                 min_gain: options.min_gain,
                 max_vif: options.max_vif,
@@ -322,7 +329,10 @@ impl Search<'_> {
                 heldout: if ctx.validation.is_some() {
                     "the validation log".into()
                 } else {
-                    "the odd-numbered blocks, fitting on the even ones".into()
+                    format!(
+                        "the odd-numbered of {} blocks of {:.3} s, fitting on the even ones",
+                        ctx.block_count, ctx.block_s
+                    )
                 },
                 candidates: pool.len() + 1,
             },
@@ -344,7 +354,7 @@ impl Search<'_> {
         let ctx = self.ctx;
         let mut updated = match ctx.given {
             Some(g) => g.clone(),
-            None => declared_model(ctx.model, ctx.base, urdf, &ctx.train, series, ctx.options, samples_in)?,
+            None => declared_model(ctx.model, ctx.base, urdf, &ctx.train, series, ctx.block_s, samples_in)?,
         };
         if ctx.refit {
             // A refitted model keeps the OLS of `declared_model`, made with the effects taken out.

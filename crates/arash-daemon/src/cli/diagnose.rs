@@ -48,9 +48,13 @@ pub struct Args {
     /// Butterworth order (applied forward and backward).
     #[arg(long, default_value_t = PreprocessOptions::default().order)]
     order: usize,
-    /// Length of the blocks of time the tests and the held-out split use (s).
+    /// Length of the blocks of time of the held-out split without --validate (s).
     #[arg(long, default_value_t = DiagnoseOptions::default().block_s)]
     block: f64,
+    /// Length of the Wald test's batches (s); default: each test chooses from its own scores,
+    /// ten integrated autocorrelation times (docs/diagnosis.md).
+    #[arg(long)]
+    batch: Option<f64>,
     /// Family-wise error rate per search round (Holm).
     #[arg(long, default_value_t = DiagnoseOptions::default().alpha)]
     alpha: f64,
@@ -132,6 +136,7 @@ fn options(args: &Args, model: &arash_core::Model) -> anyhow::Result<DiagnoseOpt
             ..PreprocessOptions::default()
         },
         block_s: args.block,
+        batch_s: args.batch,
         alpha: args.alpha,
         min_gain: args.min_gain,
         ..DiagnoseOptions::default()

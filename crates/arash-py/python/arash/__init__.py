@@ -191,6 +191,7 @@ def diagnose(
     friction_cutoff_hz: Optional[float] = None,
     order: Optional[int] = None,
     block_s: Optional[float] = None,
+    batch_s: Optional[float] = None,
     alpha: Optional[float] = None,
     min_gain: Optional[float] = None,
     effects: Optional[Sequence[str]] = None,
@@ -215,6 +216,8 @@ def diagnose(
     physically consistent model with the effects found (``Diagnosis.model_consistent``), at
     ``consistent_cutoff_hz`` (default: the diagnosis's cut-off; the calibration's own is the
     better choice).
+    block_s: the held-out split's blocks without a validation log (2 s). batch_s: the Wald test's
+    batches (None: each test chooses from its own scores).
     The other options are the decision rule's (docs/diagnosis.md). None keeps arash's default for
     each; ``DiagnoseOptions()`` shows them. motor_side: a ``Transmission`` when q and tau (and the
     validation's) are motor angles and motor torques.
@@ -225,7 +228,7 @@ def diagnose(
             validation = (validation[0], *motor_side.to_joints(validation[1], validation[2]))
     options = DiagnoseOptions(**_given(
         transmission=None if transmission is None else list(transmission), cutoff_hz=cutoff_hz,
-        friction_cutoff_hz=friction_cutoff_hz, order=order, block_s=block_s, alpha=alpha, min_gain=min_gain,
+        friction_cutoff_hz=friction_cutoff_hz, order=order, block_s=block_s, batch_s=batch_s, alpha=alpha, min_gain=min_gain,
         effects=None if effects is None else list(effects),
         refit=refit, hold_friction=hold_friction, consistent=consistent,
         consistent_cutoff_hz=consistent_cutoff_hz))

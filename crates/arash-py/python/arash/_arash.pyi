@@ -202,6 +202,9 @@ class DiagnoseOptions:
     @property
     def block_s(self) -> float: ...
     @property
+    def batch_s(self) -> Optional[float]:
+        """The Wald test's batch length set (s), or None: each test chooses from its scores."""
+    @property
     def alpha(self) -> float: ...
     @property
     def min_gain(self) -> float: ...
@@ -242,6 +245,9 @@ class Effect:
     def sigma(self) -> _Array: ...
     @property
     def statistic(self) -> float: ...
+    @property
+    def batches(self) -> int:
+        """B, the batches its Wald test summed over (the statistic is F(k, B − k))."""
     @property
     def p_value(self) -> float: ...
     @property
