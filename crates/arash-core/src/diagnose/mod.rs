@@ -6,8 +6,8 @@
 //!
 //! 1. a time misalignment is searched first, as an integer shift of the torque, because an
 //!    unmodelled delay otherwise masquerades as velocity-dependent friction;
-//! 2. each candidate group is partialled against the current model and gated by a block Wald test
-//!    whose unit is a block of time ([`regression::test_group`]);
+//! 2. each candidate group is partialled against the current model and gated by a batch Wald test
+//!    whose batches are as long as its own scores' correlation asks ([`regression::test_group`]);
 //! 3. candidates the current model already explains (VIF above the limit) are not identifiable
 //!    and are set aside with that reason;
 //! 4. Holm's procedure corrects for the number of candidates tested in the round;
