@@ -65,10 +65,9 @@ impl<'a> Context<'a> {
         let free = base.independent.iter().map(|j| refit || (friction.contains(j) && !options.hold_friction)).collect();
         let block_s = heldout_block_s(&train, options.block_s);
         let (block, block_count) = blocks(&train, block_s);
-        let per_second = train.fs / train.stride() as f64;
         let batching = options
             .batch_s
-            .map_or(Batching::FromScores, |s| Batching::Fixed(((s * per_second).round() as usize).max(1)));
+            .map_or(Batching::FromScores, |s| Batching::Fixed(((s * train.kept_rate()).round() as usize).max(1)));
         let mut ctx = Self {
             model,
             base,

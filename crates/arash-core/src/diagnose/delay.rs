@@ -122,7 +122,7 @@ fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
         term,
         statistic: test.f_statistic,
         batches: test.batches,
-        batch_s: test.batch_samples as f64 * train.stride() as f64 / train.fs,
+        batch_s: test.batch_samples as f64 / train.kept_rate(),
         p_value: test.p_value,
         threshold: options.alpha,
         heldout_gain: gain,

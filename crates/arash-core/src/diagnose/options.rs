@@ -29,8 +29,7 @@ pub struct DiagnoseOptions {
     /// shorter than ten of them gets ten shorter ones.
     pub block_s: f64,
     /// Length of the batches the Wald test's covariance is summed over (s). `None`: each test
-    /// chooses from its own scores, ten integrated autocorrelation times
-    /// ([`super::regression::Batching::FromScores`]).
+    /// chooses from its own scores by blocking ([`super::regression::Batching::FromScores`]).
     pub batch_s: Option<f64>,
     /// Family-wise error rate of each round (Holm).
     pub alpha: f64,

@@ -35,6 +35,11 @@ impl Prepared {
         self.kept.get(1).map_or(1, |k| k - self.kept[0])
     }
 
+    /// Kept samples per second.
+    pub(super) fn kept_rate(&self) -> f64 {
+        self.fs / self.stride() as f64
+    }
+
     /// The filtered torque at the kept samples, shifted by `delay` full-rate samples.
     pub(super) fn tau(&self, delay: isize) -> Vec<f64> {
         let dof = self.dof;

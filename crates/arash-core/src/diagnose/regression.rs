@@ -7,7 +7,6 @@
 //! memory and time on every product with it.
 
 use nalgebra::{DMatrix, DVector};
-
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
 /// One regressor column.
@@ -324,14 +323,16 @@ pub fn test_group(
             // few long batches may still be rising.
             match plateau(&walds) {
                 Some(i) => lengths[(i..walds.len()).min_by(|&a, &b| walds[a].1.total_cmp(&walds[b].1)).unwrap_or(i)],
+                // With no length at all, batches of one sample each are already too few.
                 None => {
-                    let batches = walds.last().map_or(samples.min(1), |w| w.0);
+                    let batches = walds.last().map_or(samples, |w| w.0);
                     return Err(Untested::TooFewBatches { batches, columns: k });
                 }
             }
         }
-    };
-    let (batches, cov) = covariance(length.min(samples.max(1)));
+    }
+    .min(samples.max(1));
+    let (batches, cov) = covariance(length);
     if batches <= k + 1 {
         return Err(Untested::TooFewBatches { batches, columns: k });
     }

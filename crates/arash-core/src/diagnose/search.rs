@@ -130,7 +130,7 @@ impl Search<'_> {
             term,
             statistic: test.f_statistic,
             batches: test.batches,
-            batch_s: test.batch_samples as f64 * self.ctx.train.stride() as f64 / self.ctx.train.fs,
+            batch_s: test.batch_samples as f64 / self.ctx.train.kept_rate(),
             p_value: test.p_value,
             threshold: best.threshold,
             heldout_gain: best.gain,

@@ -52,7 +52,7 @@ pub struct Args {
     #[arg(long, default_value_t = DiagnoseOptions::default().block_s)]
     block: f64,
     /// Length of the Wald test's batches (s); default: each test chooses from its own scores,
-    /// ten integrated autocorrelation times (docs/diagnosis.md).
+    /// by blocking (docs/diagnosis.md).
     #[arg(long)]
     batch: Option<f64>,
     /// Family-wise error rate per search round (Holm).
