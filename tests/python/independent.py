@@ -226,13 +226,13 @@ class Injected:
     """An effect the declared model lacks, added to one joint's torque. Each is written here from
     its physics, not from arash's catalogue (crates/arash-core/src/effects/)."""
 
-    kind: str  # "offset", "configuration_disturbance", "armature" or "stribeck"
+    kind: str  # "offset", "configuration_disturbance", "armature", "stribeck" or "drive_gain"
     joint: int
     size: float  # the RMS of its torque on the training log, as a share of the joint's RMS torque
 
 
-def injected_shape(effect, robot, q, qd, qdd):
-    """The effect's torque per unit coefficient, at the true motion."""
+def injected_shape(effect, robot, q, qd, qdd, tau):
+    """The effect's torque per unit coefficient, at the true motion and torque ``tau``."""
     k = effect.joint
     if effect.kind == "offset":
         return np.ones(len(q))
@@ -242,6 +242,9 @@ def injected_shape(effect, robot, q, qd, qdd):
         return np.sin(1.5 * np.pi * (q[:, k] - lo[k]) / (hi[k] - lo[k]))
     if effect.kind == "armature":
         return qdd[:, k]
+    if effect.kind == "drive_gain":
+        # A torque constant off by a share of itself: the joint's whole torque, scaled.
+        return tau[:, k]
     if effect.kind == "stribeck":
         # The excess of static over Coulomb friction, decaying over a tenth of the RMS speed.
         vs = 0.1 * np.sqrt(np.mean(qd[:, k] ** 2))
@@ -273,7 +276,7 @@ def make_log(condition, states=None, truth=None, effect=None):
                  "noise": condition.noise * rms}
     tau = rigid + friction(truth, qd, condition.coulomb)
     if effect is not None:
-        shape = injected_shape(effect, robot, q, qd, qdd)
+        shape = injected_shape(effect, robot, q, qd, qdd, tau)
         if "effect" not in truth:
             joint_rms = np.sqrt(np.mean(tau[:, effect.joint] ** 2))
             truth["effect"] = effect.size * joint_rms / np.sqrt(np.mean(shape**2))

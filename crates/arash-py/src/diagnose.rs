@@ -44,7 +44,8 @@ impl DiagnoseOptions {
         }
         Ok(options)
     }
-    /// The cut-off set, or None: the diagnosis's own (20 Hz, at most a fifth of the rate).
+    /// The cut-off set, or None: the diagnosis's own (the widest up to 20 Hz, at most a fifth
+    /// of the rate, that the encoders' noise does not spoil).
     #[getter]
     fn cutoff_hz(&self) -> Option<f64> {
         self.inner.preprocess.cutoff_hz
@@ -96,6 +97,10 @@ impl DiagnoseOptions {
         self.inner.effects.iter().map(|k| k.id()).collect()
     }
     #[getter]
+    fn torque_from_currents(&self) -> bool {
+        self.inner.torque_from_currents
+    }
+    #[getter]
     fn refit(&self) -> bool {
         self.inner.refit
     }
@@ -144,6 +149,7 @@ impl DiagnoseOptions {
                 let ids: Vec<String> = value.extract()?;
                 o.effects = EffectKind::parse_list(&ids).map_err(value_error)?;
             }
+            "torque_from_currents" => o.torque_from_currents = value.extract()?,
             "refit" => o.refit = value.extract()?,
             "hold_friction" => o.hold_friction = value.extract()?,
             "consistent" => self.consistent = value.extract()?,
@@ -286,6 +292,9 @@ impl Diagnosis {
         let s = &self.inner.settings;
         let d = PyDict::new(py);
         d.set_item("cutoff_hz", s.cutoff_hz)?;
+        d.set_item("friction_cutoff_hz", s.friction_cutoff_hz)?;
+        d.set_item("coulomb_epsilon", s.coulomb_epsilon)?;
+        d.set_item("reasons", s.reasons.clone())?;
         d.set_item("decimate", s.decimate)?;
         d.set_item("block_s", s.block_s)?;
         d.set_item("blocks", s.blocks)?;

@@ -7,7 +7,7 @@
 //! Two effects are properties of a log, not of the robot, and are left out: `delay` and `drift`
 //! (a function of the log's own clock).
 
-use crate::effects::{EffectKind, EffectTerm, TermState};
+use crate::effects::{EffectKind, EffectTerm, Sample, TermState};
 use crate::model::Model;
 
 /// The joint-wise effect terms of a model file, with their state, evaluated once per cycle
@@ -39,6 +39,8 @@ impl EffectFeedforward {
             }
             terms.push(term);
         }
+        // A drive's gain scales everything commanded through it, the other effects' torque too.
+        terms.sort_by_key(|t| t.kind == EffectKind::DriveGain);
         let states = vec![TermState::default(); terms.len()];
         Self { terms, states }
     }
@@ -48,14 +50,16 @@ impl EffectFeedforward {
         self.states.fill(TermState::default());
     }
 
-    /// Add the effects' torques at position `q`, velocity `qd` and acceleration `qdd` to `tau`.
+    /// Add the effects' torques at position `q`, velocity `qd` and acceleration `qdd` to `tau`,
+    /// which holds the model's torque (the command) on entry; drive gains scale the sum last.
     pub fn add(&mut self, q: &[f64], qd: &[f64], qdd: &[f64], tau: &mut [f64]) {
         let mut features = [0.0; 8];
         for (term, state) in self.terms.iter().zip(&mut self.states) {
             match term.joint {
                 Some(k) => {
                     let width = term.width();
-                    term.features(q[k], qd[k], qdd[k], 0.0, state, &mut features[..width]);
+                    let x = Sample { q: q[k], v: qd[k], qdd: qdd[k], t: 0.0, tau: tau[k] };
+                    term.features(x, state, &mut features[..width]);
                     tau[k] += features[..width].iter().zip(&term.coefficients).map(|(a, c)| a * c).sum::<f64>();
                 }
                 // Armature fitted on every joint at once: one coefficient per joint.
@@ -103,5 +107,23 @@ mod tests {
         assert_eq!(tau[0], 1.0);
         assert_eq!(tau[2], 3.0);
         assert!((tau[1] - 2.0 - expected).abs() < 1e-15, "{} vs {expected}", tau[1] - 2.0);
+    }
+
+    /// A drive's gain g scales the whole command on its joint, the other effects' torque too:
+    /// measured (and delivered) torque is (1 + g) times what was asked of the drive.
+    #[test]
+    fn a_drive_gain_scales_the_command_and_the_other_effects_on_its_joint_only() {
+        let model = crate::arash_asist();
+        let mut gain = EffectTerm::new(EffectKind::DriveGain, Some(2));
+        gain.coefficients = vec![0.1];
+        let mut offset = EffectTerm::new(EffectKind::Offset, Some(2));
+        offset.coefficients = vec![0.5];
+        let mut params = model.cad_parameters();
+        // The gain first in the file: it must still act last.
+        let mut ff = EffectFeedforward::new(&model, &[gain, offset], &[0.01; 3], &mut params);
+        let mut tau = [1.0, 2.0, 3.0];
+        ff.add(&[0.0, 0.3, 0.02], &[0.1; 3], &[0.0; 3], &mut tau);
+        assert_eq!(&tau[..2], &[1.0, 2.0]);
+        assert!((tau[2] - 1.1 * (3.0 + 0.5)).abs() < 1e-12, "{}", tau[2]);
     }
 }

@@ -24,7 +24,7 @@ pub(super) fn candidates(
     let qd = train.at_kept(&train.pre.qd);
     let t0 = train.pre.t[train.kept[0]];
     let t1 = train.pre.t[*train.kept.last().expect("prepared logs have samples")];
-    let wanted: Vec<EffectKind> = EffectKind::ALL.into_iter().filter(|k| options.effects.contains(k)).collect();
+    let wanted: Vec<EffectKind> = EffectKind::ALL.into_iter().filter(|k| options.searches(*k)).collect();
     for k in 0..dof {
         let column = |x: &[f64]| x.iter().skip(k).step_by(dof).copied().collect::<Vec<f64>>();
         let (qk, vk) = (column(&q), column(&qd));

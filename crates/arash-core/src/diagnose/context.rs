@@ -6,7 +6,7 @@ use super::prepare::{prepare, term_columns, Prepared};
 use super::problem::{block_split, blocks, heldout_block_s, Candidate, HeldOut, Problem};
 use super::regression::{self, least_squares, residual, Batching, Column, Rows};
 use crate::base_parameters::BaseParameters;
-use crate::effects::EffectTerm;
+use crate::effects::{EffectKind, EffectTerm};
 use crate::identify::{IdentifyError, Log};
 use crate::model::Model;
 use crate::model_file::ModelFile;
@@ -46,10 +46,10 @@ impl<'a> Context<'a> {
     ) -> Result<Self, DiagnoseError> {
         let margin = options.max_delay_s;
         let train = prepare(model, base, train, (options, None), margin).map_err(DiagnoseError::Training)?;
-        // The held-out log's friction switches with the velocity chosen on the training log.
-        let friction = Some(train.pre.friction_cutoff_hz);
+        // The held-out log is filtered in the band chosen on the training log.
+        let band = Some(train.band());
         let validation = validation
-            .map(|v| prepare(model, base, v, (options, friction), margin))
+            .map(|v| prepare(model, base, v, (options, band), margin))
             .transpose()
             .map_err(DiagnoseError::Validation)?;
         if let Some(g) = given {
@@ -83,7 +83,13 @@ impl<'a> Context<'a> {
             block_count,
             batching,
         };
-        ctx.weights = ctx.joint_weights()?;
+        let x = ctx.declared_fit()?;
+        ctx.weights = ctx.joint_weights(&x);
+        ctx.train.predicted = ctx.declared_torque(&ctx.train, &x);
+        if let Some(v) = &ctx.validation {
+            let predicted = ctx.declared_torque(v, &x);
+            ctx.validation.as_mut().expect("just seen").predicted = predicted;
+        }
         Ok(ctx)
     }
 
@@ -100,24 +106,39 @@ impl<'a> Context<'a> {
             for ((c, b), _) in data.declared.iter().zip(&g.beta).zip(&self.free).filter(|(_, f)| !**f) {
                 regression::axpy(&mut pred, *b, c, dof);
             }
-            for term in &g.effects {
+            let (gains, others): (Vec<_>, Vec<_>) = g.effects.iter().partition(|t| t.kind == EffectKind::DriveGain);
+            for term in others {
                 for (c, x) in term_columns(self.model, term, data).iter().zip(&term.coefficients) {
                     regression::axpy(&mut pred, *x, c, dof);
+                }
+            }
+            // A drive's gain scales what the rest of the given model predicts (its held part: the
+            // refitted friction is fitted to the measured torque, gain and all).
+            for term in gains {
+                if let (Some(k), Some(gain)) = (term.joint, term.coefficients.first()) {
+                    pred.iter_mut().skip(k).step_by(dof).for_each(|p| *p *= 1.0 + gain);
                 }
             }
         }
         pred
     }
 
-    /// 1 / RMS per joint of the declared model's unweighted residual on the training log.
-    fn joint_weights(&self) -> Result<Vec<f64>, DiagnoseError> {
+    /// The declared model's free coefficients fitted to the training log, unweighted.
+    fn declared_fit(&self) -> Result<Vec<f64>, DiagnoseError> {
+        let unit = self.problem(&self.train, 0);
+        let cols: Vec<&Column> = unit.free_columns().collect();
+        least_squares(&cols, &unit.y, self.model.dof(), Rows::All).ok_or(DiagnoseError::Singular)
+    }
+
+    /// 1 / RMS per joint of the declared model's unweighted residual (free coefficients `x`) on
+    /// the training log.
+    fn joint_weights(&self, x: &[f64]) -> Vec<f64> {
         let dof = self.model.dof();
         let unit = self.problem(&self.train, 0);
         let cols: Vec<&Column> = unit.free_columns().collect();
-        let x = least_squares(&cols, &unit.y, dof, Rows::All).ok_or(DiagnoseError::Singular)?;
-        let e = residual(&cols, &x, &unit.y, dof);
+        let e = residual(&cols, x, &unit.y, dof);
         let n = self.train.samples() as f64;
-        Ok((0..dof)
+        (0..dof)
             .map(|k| {
                 let rms = (e.iter().skip(k).step_by(dof).map(|v| v * v).sum::<f64>() / n).sqrt();
                 if rms > 0.0 {
@@ -126,7 +147,18 @@ impl<'a> Context<'a> {
                     1.0
                 }
             })
-            .collect())
+            .collect()
+    }
+
+    /// The declared model's torque on `data`: the given model's held part and the free
+    /// coefficients `x`.
+    fn declared_torque(&self, data: &Prepared, x: &[f64]) -> Vec<f64> {
+        let mut torque = self.fixed_prediction(data);
+        let free = data.declared.iter().zip(&self.free).filter(|(_, f)| **f).map(|(c, _)| c);
+        for (column, coefficient) in free.zip(x) {
+            regression::axpy(&mut torque, *coefficient, column, data.dof);
+        }
+        torque
     }
 
     /// The weighted problem on `data` with the torque shifted by `delay` samples.

@@ -4,9 +4,11 @@ use crate::effects::EffectKind;
 use crate::identify::preprocess::{PreprocessError, PreprocessOptions};
 use crate::identify::IdentifyError;
 
-/// The diagnosis's cut-off when the user sets none (Hz), at most [`DIAGNOSIS_CUTOFF_SHARE`] of
-/// the sample rate: far above identification's, so that ripple, friction transitions and delays
-/// survive the filter; where the diagnosis's false-positive rate was measured (docs/diagnosis.md).
+/// The diagnosis's widest cut-off when the user sets none (Hz), at most
+/// [`DIAGNOSIS_CUTOFF_SHARE`] of the sample rate: far above identification's, so that ripple,
+/// friction transitions and delays survive the filter. The log's own cut-off is the widest up to
+/// this one that does not spoil the declared model's prediction
+/// ([`crate::identify::cutoff::widest_unspoilt`]).
 pub const DIAGNOSIS_CUTOFF_HZ: f64 = 20.0;
 
 /// ... and at most this share of the sample rate, so that the residual keeps five samples per
@@ -16,10 +18,10 @@ pub const DIAGNOSIS_CUTOFF_SHARE: f64 = 0.2;
 /// Settings of [`super::diagnose`]; `Default` gives the documented defaults.
 #[derive(Clone, Debug)]
 pub struct DiagnoseOptions {
-    /// Preprocessing, in the settings identification takes: `cutoff_hz` (`None`:
-    /// [`DIAGNOSIS_CUTOFF_HZ`], at most [`DIAGNOSIS_CUTOFF_SHARE`] of the sample rate),
-    /// `friction_cutoff_hz` (`None`: the cut-off; see `prepare` for why not the fit's choice)
-    /// and `order`.
+    /// Preprocessing, in the settings identification takes: `cutoff_hz` (`None`: the widest up
+    /// to [`DIAGNOSIS_CUTOFF_HZ`] and [`DIAGNOSIS_CUTOFF_SHARE`] of the sample rate that does not
+    /// spoil the declared model's prediction), `friction_cutoff_hz` (`None`: the cut-off; see
+    /// `prepare` for why not the fit's choice) and `order`.
     /// The diagnosis reads residuals in time, so it never averages periods, and it thins with
     /// `decimate` below.
     pub preprocess: PreprocessOptions,
@@ -46,8 +48,11 @@ pub struct DiagnoseOptions {
     pub transmission: Option<Vec<f64>>,
     /// Ripple periods per motor revolution tried by the cogging search.
     pub cogging_periods: Vec<f64>,
-    /// The effects searched (default: all of them).
+    /// The effects searched (default: [`EffectKind::searched_by_default`]).
     pub effects: Vec<EffectKind>,
+    /// The torque was computed from motor currents: search `drive_gain` too (a torque constant
+    /// or current scale that is off).
+    pub torque_from_currents: bool,
     /// With a given model: hold its friction too (default: refit friction, which drifts with
     /// temperature and depends on how its velocity was estimated).
     pub hold_friction: bool,
@@ -70,7 +75,8 @@ impl Default for DiagnoseOptions {
             max_effects: 6,
             transmission: None,
             cogging_periods: (1..=8).map(f64::from).collect(),
-            effects: EffectKind::ALL.to_vec(),
+            effects: EffectKind::searched_by_default(),
+            torque_from_currents: false,
             hold_friction: false,
             refit: false,
         }
@@ -123,14 +129,24 @@ pub enum OptionsError {
 }
 
 impl DiagnoseOptions {
-    /// The preprocessing a log at `fs` Hz gets: the user's settings, the diagnosis's cut-off
-    /// when none is set, no averaging, derivatives not filtered again (they pass the filter once,
-    /// as the torque does), and no thinning before the diagnosis's own.
-    pub fn preprocessing(&self, fs: f64) -> PreprocessOptions {
+    /// Whether `kind` is searched.
+    pub fn searches(&self, kind: EffectKind) -> bool {
+        self.effects.contains(&kind) || (kind == EffectKind::DriveGain && self.torque_from_currents)
+    }
+
+    /// The widest cut-off a log at `fs` Hz may get when the user sets none (Hz).
+    pub fn ceiling_hz(fs: f64) -> f64 {
+        DIAGNOSIS_CUTOFF_HZ.min(DIAGNOSIS_CUTOFF_SHARE * fs)
+    }
+
+    /// The preprocessing a log gets at `cutoff_hz`: the user's other settings, no averaging,
+    /// derivatives not filtered again (they pass the filter once, as the torque does), and no
+    /// thinning before the diagnosis's own.
+    pub fn preprocessing(&self, cutoff_hz: Option<f64>) -> PreprocessOptions {
         PreprocessOptions {
             periods: Some(1),
             period_s: None,
-            cutoff_hz: Some(self.preprocess.cutoff_hz.unwrap_or(DIAGNOSIS_CUTOFF_HZ.min(DIAGNOSIS_CUTOFF_SHARE * fs))),
+            cutoff_hz,
             decimate: 1,
             filter_derivatives: false,
             ..self.preprocess.clone()

@@ -1,12 +1,13 @@
 //! A log made ready for the diagnosis: filtered, differentiated, trimmed and sampled, with the
 //! declared model's columns and each candidate's columns on it.
 
-use super::options::{DiagnoseOptions, DIAGNOSIS_CUTOFF_HZ, DIAGNOSIS_CUTOFF_SHARE};
+use super::options::DiagnoseOptions;
 use super::regression::Column;
 use crate::base_parameters::BaseParameters;
 use crate::data::Data;
-use crate::effects::{EffectKind, EffectTerm, TermState};
-use crate::identify::preprocess::{preprocess, PreprocessError, PreprocessOptions, Preprocessed};
+use crate::effects::{EffectKind, EffectTerm, Sample, TermState};
+use crate::identify::cutoff::{widest_unspoilt, BandLimits};
+use crate::identify::preprocess::{preprocess, PreprocessError, PreprocessOptions, Preprocessed, EDGE_CUTOFF_PERIODS};
 use crate::identify::Log;
 use crate::model::Model;
 use crate::regressor::regressor;
@@ -23,6 +24,9 @@ pub(super) struct Prepared {
     pub(super) declared: Vec<Column>,
     /// Mass and first-moment columns of each body with mass: (body, columns).
     pub(super) bodies: Vec<(usize, Vec<Column>)>,
+    /// The declared model's torque at the kept samples (`kept × dof`), once it is fitted: what a
+    /// drive's gain scales.
+    pub(super) predicted: Vec<f64>,
 }
 
 impl Prepared {
@@ -57,47 +61,88 @@ impl Prepared {
     }
 }
 
-/// Prepare `log` for the diagnosis: filtered at the diagnosis's cut-off, its Coulomb columns
-/// switching with the velocity filtered at `friction_hz`, the user's, or that cut-off, and
-/// trimmed by `margin_s` at each end.
+/// The band the training log was filtered in, which a validation log is filtered in too.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Band {
+    pub(super) cutoff_hz: f64,
+    pub(super) friction_hz: f64,
+}
+
+impl Prepared {
+    pub(super) fn band(&self) -> Band {
+        Band { cutoff_hz: self.pre.cutoff_hz, friction_hz: self.pre.friction_cutoff_hz }
+    }
+}
+
+/// Prepare `log` for the diagnosis: filtered in `band` (a training log's), or at the user's
+/// cut-off, or at the widest up to the diagnosis's ceiling that does not spoil the declared
+/// model's prediction; its Coulomb columns switching with the velocity filtered at the band's
+/// friction cut-off, the user's, or the cut-off; and trimmed by `margin_s` at each end.
 ///
 /// The friction velocity is not chosen by the fit here, as identification chooses it: the
 /// diagnosis's decision rule was calibrated with it at the diagnosis's cut-off, and on the demo's
 /// closed-loop log the fit's choice (16 Hz against 20) moves the insertion's residual enough for
-/// two spurious terms to pass the held-out gain threshold (docs/diagnosis.md). Issue 19
-/// recalibrates the rule.
+/// two spurious terms to pass the held-out gain threshold (docs/diagnosis.md).
 pub(super) fn prepare(
     model: &Model,
     base: &BaseParameters,
     log: Log,
-    (options, friction_hz): (&DiagnoseOptions, Option<f64>),
+    (options, band): (&DiagnoseOptions, Option<Band>),
     margin_s: f64,
 ) -> Result<Prepared, PreprocessError> {
     let dof = model.dof();
     let dt = crate::identify::preprocess::validate_log(log.t, log.q, log.tau, dof)?;
     let fs = 1.0 / dt;
+    let ceiling = DiagnoseOptions::ceiling_hz(fs);
+    let (cutoff, reason) = match (options.preprocess.cutoff_hz, band) {
+        (Some(user), _) => (user, None),
+        (None, Some(band)) => {
+            let cutoff = band.cutoff_hz.min(ceiling);
+            (cutoff, Some(format!("cut-off {cutoff:.3} Hz: the training log's, at most {ceiling:.2} Hz")))
+        }
+        (None, None) => {
+            // A band is spoilt where its noise adds more than `min_gain` to a joint's squared
+            // error: an effect that took up all of it would cut that joint's error by less than
+            // `min_gain` (x / (1 + x) < x), the least an accepted effect must.
+            // A cut-off the log is too short to diagnose at (its filter's ends and thinning
+            // leave too few samples) is not a candidate.
+            let n = log.t.len();
+            let usable = |cutoff: f64| {
+                let edge = (EDGE_CUTOFF_PERIODS * fs / cutoff).ceil() as usize;
+                n >= 2 * edge.max((margin_s * fs).ceil() as usize) + MIN_KEPT * stride(options, fs, cutoff)
+            };
+            let limits = BandLimits { ceiling_hz: ceiling, usable: &usable, tolerance: options.min_gain };
+            let (cutoff, reason) = widest_unspoilt((model, base), log, &options.preprocessing(None), &limits)?;
+            (cutoff, Some(reason))
+        }
+    };
     let pre_options = PreprocessOptions {
-        friction_cutoff_hz: friction_hz.or(options.preprocess.friction_cutoff_hz),
-        ..options.preprocessing(fs)
+        friction_cutoff_hz: band.map(|b| b.friction_hz).or(options.preprocess.friction_cutoff_hz),
+        ..options.preprocessing(Some(cutoff))
     };
     let mut pre = preprocess(log.t, log.q, log.tau, dof, &pre_options)?;
-    if options.preprocess.cutoff_hz.is_none() {
-        let band = format!(
-            "cut-off {:.3} Hz: the diagnosis's band, {DIAGNOSIS_CUTOFF_HZ} Hz at most {DIAGNOSIS_CUTOFF_SHARE} of the sample rate",
-            pre.cutoff_hz
-        );
-        pre.choices.reasons.iter_mut().filter(|r| r.starts_with("cut-off")).for_each(|r| *r = band.clone());
+    if let Some(reason) = reason {
+        pre.choices.reasons.iter_mut().filter(|r| r.starts_with("cut-off")).for_each(|r| *r = reason.clone());
     }
-    let cutoff_hz = pre.cutoff_hz;
-    let stride = options.decimate.unwrap_or(((fs / (5.0 * cutoff_hz)).floor() as usize).max(1)).max(1);
+    let stride = stride(options, fs, pre.cutoff_hz);
     let n = pre.samples();
     let margin = ((margin_s * fs).ceil() as usize).max(pre.settled.start);
-    if n < 2 * margin + 64 * stride {
-        return Err(PreprocessError::TooFewSamples { needed: 2 * margin + 64 * stride, got: n });
+    let needed = 2 * margin + MIN_KEPT * stride;
+    if n < needed {
+        return Err(PreprocessError::TooFewSamples { needed, got: n });
     }
     let kept: Vec<usize> = (margin..n - margin).step_by(stride).collect();
     let (declared, bodies) = declared_columns(model, base, &pre, &kept);
-    Ok(Prepared { dof, fs, pre, q_raw: log.q.to_vec(), kept, declared, bodies })
+    Ok(Prepared { dof, fs, pre, q_raw: log.q.to_vec(), kept, declared, bodies, predicted: vec![] })
+}
+
+/// The fewest samples a diagnosis keeps.
+const MIN_KEPT: usize = 64;
+
+/// Full-rate samples between kept ones at `cutoff_hz`: the user's, or about five per cut-off
+/// period.
+fn stride(options: &DiagnoseOptions, fs: f64, cutoff_hz: f64) -> usize {
+    options.decimate.unwrap_or(((fs / (5.0 * cutoff_hz)).floor() as usize).max(1)).max(1)
 }
 
 /// Column `c` of a body's mass and first-moment columns, or exact zeros where it is round-off
@@ -186,8 +231,13 @@ pub(super) fn term_columns(model: &Model, term: &EffectTerm, data: &Prepared) ->
         let n = pre.samples();
         let mut full = vec![0.0; n * width];
         for s in 0..n {
-            let (q, v) = (data.q_raw[s * dof + k], pre.qd_friction[s * dof + k]);
-            term.features(q, v, 0.0, pre.t[s], &mut state, &mut out);
+            let x = Sample {
+                q: data.q_raw[s * dof + k],
+                v: pre.qd_friction[s * dof + k],
+                t: pre.t[s],
+                ..Sample::default()
+            };
+            term.features(x, &mut state, &mut out);
             full[s * width..(s + 1) * width].copy_from_slice(&out);
         }
         let filtered = pre.filter_like_torque(&full, width).expect("the torque was filtered with these settings");
@@ -197,9 +247,11 @@ pub(super) fn term_columns(model: &Model, term: &EffectTerm, data: &Prepared) ->
             }
         }
     } else {
-        for &i in &data.kept {
+        for (s, &i) in data.kept.iter().enumerate() {
             let x = i * dof + k;
-            term.features(pre.q[x], pre.qd[x], pre.qdd[x], pre.t[i], &mut state, &mut out);
+            let tau = data.predicted.get(s * dof + k).copied().unwrap_or(0.0);
+            let x = Sample { q: pre.q[x], v: pre.qd[x], qdd: pre.qdd[x], t: pre.t[i], tau };
+            term.features(x, &mut state, &mut out);
             for (c, column) in columns.iter_mut().enumerate() {
                 column.push(out[c]);
             }

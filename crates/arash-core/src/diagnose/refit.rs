@@ -35,7 +35,14 @@ pub fn consistent_with_effects(
 ) -> Result<ModelFile, DiagnoseError> {
     let model = &*found.with_its_law(model);
     let (dof, standard) = (model.dof(), model.num_params());
-    let data = prepare(model, base, train, (options, None), options.max_delay_s).map_err(DiagnoseError::Training)?;
+    let mut data =
+        prepare(model, base, train, (options, None), options.max_delay_s).map_err(DiagnoseError::Training)?;
+    // What a drive gain scales: the found model's declared torque.
+    let mut predicted = vec![0.0; data.samples() * dof];
+    for (column, b) in data.declared.iter().zip(&found.beta) {
+        super::regression::axpy(&mut predicted, *b, column, dof);
+    }
+    data.predicted = predicted;
     let delay = found
         .effects
         .iter()

@@ -201,10 +201,8 @@ impl Search<'_> {
                 if !pass[o] {
                     return Err((RejectionReason::NotSignificant { p_value, threshold, round }, None));
                 }
-                if let Some(sign) = term.kind.physical_sign() {
-                    if t.coefficients[0] * sign < 0.0 {
-                        return Err((RejectionReason::WrongSign { p_value, coefficient: t.coefficients[0] }, None));
-                    }
+                if let Some(coefficient) = wrong_sign(term, t) {
+                    return Err((RejectionReason::WrongSign { p_value, coefficient }, None));
                 }
                 if let Some(reason) = not_the_cable(ctx.model, ctx.base, &ctx.free, coef, ctx.given, term, t) {
                     return Err((reason, None));
@@ -387,4 +385,17 @@ fn most_useful(passing: Vec<Passed>, width: impl Fn(usize) -> usize) -> Option<P
         .into_iter()
         .filter(|p| p.total >= 0.9 * best)
         .min_by(|a, b| width(a.test).cmp(&width(b.test)).then(b.total.total_cmp(&a.total)))
+}
+
+/// The coefficient that gives `term` a sign its effect cannot have, if any: the first (a mass, a
+/// friction), or for rotor inertia on every joint any joint's that is negative beyond two σ (one
+/// joint's may be nil, none may be clearly negative).
+fn wrong_sign(term: &crate::effects::EffectTerm, t: &GroupTest) -> Option<f64> {
+    let sign = term.kind.physical_sign()?;
+    match (term.kind, term.joint) {
+        (EffectKind::Armature, None) => {
+            t.coefficients.iter().zip(&t.sigma).find(|(c, s)| **c * sign < -2.0 * **s).map(|(c, _)| *c)
+        }
+        _ => (t.coefficients[0] * sign < 0.0).then_some(t.coefficients[0]),
+    }
 }

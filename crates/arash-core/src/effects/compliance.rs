@@ -45,7 +45,7 @@ impl Effect for Compliance {
 
 #[cfg(test)]
 mod tests {
-    use crate::effects::{EffectKind, EffectTerm, TermState};
+    use crate::effects::{EffectKind, EffectTerm, Sample, TermState};
 
     /// The cable's stretch after a reversal is a straight ramp in position, 2x₀ long, then flat:
     /// the elastoplastic law, not the Dahl state's exponential.
@@ -58,12 +58,12 @@ mod tests {
         let mut out = [0.0];
         let step = 1e-6;
         for i in 0..=300 {
-            term.features(-(i as f64) * step, 0.0, 0.0, 0.0, &mut state, &mut out);
+            term.features(Sample { q: -(i as f64) * step, ..Sample::default() }, &mut state, &mut out);
         }
         assert_eq!(out[0], -1.0, "held after a travel beyond 2x₀ backward");
         let bottom = -300.0 * step;
         for i in 1..=150 {
-            term.features(bottom + i as f64 * step, 0.0, 0.0, 0.0, &mut state, &mut out);
+            term.features(Sample { q: bottom + i as f64 * step, ..Sample::default() }, &mut state, &mut out);
             let travel = i as f64 * step;
             let expected = (-1.0 + travel / x0).min(1.0);
             assert!((out[0] - expected).abs() < 1e-9, "after {travel:e} m: {} against {expected}", out[0]);

@@ -47,7 +47,7 @@ impl Effect for Hysteresis {
 
 #[cfg(test)]
 mod tests {
-    use crate::effects::{EffectKind, EffectTerm, TermState};
+    use crate::effects::{EffectKind, EffectTerm, Sample, TermState};
 
     #[test]
     fn the_dahl_state_follows_the_direction_of_travel() {
@@ -56,12 +56,12 @@ mod tests {
         let mut state = TermState::default();
         let mut out = [0.0];
         for i in 0..200 {
-            term.features(i as f64 * 1e-3, 0.0, 0.0, 0.0, &mut state, &mut out);
+            term.features(Sample { q: i as f64 * 1e-3, ..Sample::default() }, &mut state, &mut out);
         }
         assert!(out[0] > 0.99, "saturates forward: {}", out[0]);
         let top = 0.199;
         for i in 1..=200 {
-            term.features(top - i as f64 * 1e-3, 0.0, 0.0, 0.0, &mut state, &mut out);
+            term.features(Sample { q: top - i as f64 * 1e-3, ..Sample::default() }, &mut state, &mut out);
         }
         assert!(out[0] < -0.99, "and backward: {}", out[0]);
     }

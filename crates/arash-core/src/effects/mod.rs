@@ -19,6 +19,7 @@ mod configuration;
 mod coulomb_asymmetry;
 mod delay;
 mod drift;
+mod drive_gain;
 mod hysteresis;
 mod offset;
 mod payload;
@@ -41,6 +42,7 @@ pub enum EffectKind {
     Stribeck,
     ViscousNonlinear,
     Armature,
+    DriveGain,
     ConfigurationDisturbance,
     PositionFriction,
     Hysteresis,
@@ -53,12 +55,13 @@ pub enum EffectKind {
 
 impl EffectKind {
     /// Every effect, in the order the diagnosis tries a joint's candidates.
-    pub const ALL: [EffectKind; 13] = [
+    pub const ALL: [EffectKind; 14] = [
         Self::Offset,
         Self::CoulombAsymmetry,
         Self::Stribeck,
         Self::ViscousNonlinear,
         Self::Armature,
+        Self::DriveGain,
         Self::ConfigurationDisturbance,
         Self::PositionFriction,
         Self::Hysteresis,
@@ -77,6 +80,7 @@ impl EffectKind {
             Self::Stribeck => &stribeck::Stribeck,
             Self::ViscousNonlinear => &viscous_nonlinear::ViscousNonlinear,
             Self::Armature => &armature::Armature,
+            Self::DriveGain => &drive_gain::DriveGain,
             Self::ConfigurationDisturbance => &configuration::ConfigurationDisturbance,
             Self::PositionFriction => &position_friction::PositionFriction,
             Self::Hysteresis => &hysteresis::Hysteresis,
@@ -86,6 +90,14 @@ impl EffectKind {
             Self::Delay => &delay::Delay,
             Self::Payload => &payload::Payload,
         }
+    }
+
+    /// The effects the diagnosis searches unless told otherwise: all but `drive_gain`, which
+    /// against a given model a mass change on a joint held mostly by gravity mimics (both scale
+    /// its torque), and which a refit largely absorbs. It is searched when the torque comes from
+    /// motor currents ([`crate::diagnose::DiagnoseOptions::torque_from_currents`]).
+    pub fn searched_by_default() -> Vec<EffectKind> {
+        Self::ALL.into_iter().filter(|k| *k != Self::DriveGain).collect()
     }
 
     /// The identifier used in reports, JSON and on the command line.
@@ -115,7 +127,7 @@ impl EffectKind {
         self.law().physical_sign()
     }
 
-    /// The variable a residual plot shows this effect against: `t`, `q`, `qd` or `qdd`.
+    /// The variable a residual plot shows this effect against: `t`, `q`, `qd`, `qdd` or `tau`.
     pub fn plotted_against(self) -> &'static str {
         self.law().plotted_against()
     }
@@ -143,6 +155,9 @@ pub struct Sample {
     pub qdd: f64,
     /// Time (s).
     pub t: f64,
+    /// The model's torque on the joint (N·m or N): the declared model's prediction in the
+    /// diagnosis, the controller's command before the term at run time.
+    pub tau: f64,
 }
 
 /// What the candidate bank of one joint is built from: the training data's range of motion.
@@ -341,11 +356,11 @@ impl EffectTerm {
         (q - lo) / (hi - lo)
     }
 
-    /// The term's columns at one sample of its joint: position `q`, friction velocity `v`,
-    /// acceleration `qdd` and time `t`. `state` carries the hysteresis and compliance states
-    /// from sample to sample. Payload and delay have no joint-wise features and write nothing.
-    pub fn features(&self, q: f64, v: f64, qdd: f64, t: f64, state: &mut TermState, out: &mut [f64]) {
-        self.kind.law().features(self, Sample { q, v, qdd, t }, state, out);
+    /// The term's columns at one sample of its joint. `state` carries the hysteresis and
+    /// compliance states from sample to sample. Payload and delay have no joint-wise features and
+    /// write nothing.
+    pub fn features(&self, x: Sample, state: &mut TermState, out: &mut [f64]) {
+        self.kind.law().features(self, x, state, out);
     }
 
     /// A one-line description with units, for reports.

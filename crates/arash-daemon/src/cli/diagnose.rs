@@ -37,7 +37,8 @@ pub struct Args {
     /// bundled ARASH:ASiST drive's, or no cogging search for another robot.
     #[arg(long, value_delimiter = ',')]
     transmission: Option<Vec<f64>>,
-    /// Low-pass cut-off (Hz); default: 20 Hz, at most a fifth of the sample rate
+    /// Low-pass cut-off (Hz); default: the widest up to 20 Hz (and a fifth of the sample rate)
+    /// that the encoders' noise does not spoil (docs/diagnosis.md, "Prepare")
     /// (docs/diagnosis.md).
     #[arg(long)]
     cutoff: Option<f64>,
@@ -64,6 +65,10 @@ pub struct Args {
     /// Search only these effects (comma-separated identifiers; see docs/diagnosis.md).
     #[arg(long, value_delimiter = ',')]
     effects: Option<Vec<String>>,
+    /// The logged torque was computed from motor currents: also search a drive gain error per
+    /// joint (drive_gain; a torque constant or current scale that is off).
+    #[arg(long)]
+    torque_from_currents: bool,
     /// Also fit the physically consistent model together with the effects found and write it
     /// as model_consistent.json: the model the model-based controllers accept.
     #[arg(long)]
@@ -139,6 +144,7 @@ fn options(args: &Args, model: &arash_core::Model) -> anyhow::Result<DiagnoseOpt
         batch_s: args.batch,
         alpha: args.alpha,
         min_gain: args.min_gain,
+        torque_from_currents: args.torque_from_currents,
         ..DiagnoseOptions::default()
     };
     if let Some(ids) = &args.effects {
@@ -237,6 +243,7 @@ pub fn write_figures(dir: &Path, d: &Diagnosis) -> anyhow::Result<Vec<PathBuf>> 
                 "t" => ("t (s)".to_string(), s.t.clone()),
                 "qd" => (format!("q̇ of {name} ({position}/s)"), column(&s.qd)),
                 "qdd" => (format!("q̈ of {name} ({position}/s²)"), column(&s.qdd)),
+                "tau" => (format!("measured torque of {name} ({torque})"), column(&s.tau)),
                 _ => (format!("q of {name} ({position})"), column(&s.q)),
             };
             let after = column(&s.residual_after);

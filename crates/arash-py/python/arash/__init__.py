@@ -195,6 +195,7 @@ def diagnose(
     alpha: Optional[float] = None,
     min_gain: Optional[float] = None,
     effects: Optional[Sequence[str]] = None,
+    torque_from_currents: Optional[bool] = None,
     refit: Optional[bool] = None,
     hold_friction: Optional[bool] = None,
     consistent: Optional[bool] = None,
@@ -210,8 +211,10 @@ def diagnose(
         the odd-numbered blocks of the training log.
     transmission: joint motion per motor radian, per joint (enables the cogging search).
     cutoff_hz, friction_cutoff_hz, order: the preprocessing, as ``identify`` takes it (None: the
-    diagnosis's 20 Hz, at most a fifth of the sample rate; the friction velocity at that cut-off;
-    order 5). effects: identifiers to search (docs/diagnosis.md). refit: with a model, refit all its base
+    widest cut-off up to 20 Hz, at most a fifth of the sample rate, that the encoders' noise
+    does not spoil, with its reason in ``Diagnosis.settings['reasons']``; the friction velocity at that cut-off;
+    order 5). effects: identifiers to search (docs/diagnosis.md; default: all but drive_gain).
+    torque_from_currents: the torque was computed from motor currents; search drive_gain too. refit: with a model, refit all its base
     parameters too. hold_friction: with a model, hold its friction too. consistent: also fit the
     physically consistent model with the effects found (``Diagnosis.model_consistent``), at
     ``consistent_cutoff_hz`` (default: the diagnosis's cut-off; the calibration's own is the
@@ -229,7 +232,7 @@ def diagnose(
     options = DiagnoseOptions(**_given(
         transmission=None if transmission is None else list(transmission), cutoff_hz=cutoff_hz,
         friction_cutoff_hz=friction_cutoff_hz, order=order, block_s=block_s, batch_s=batch_s, alpha=alpha, min_gain=min_gain,
-        effects=None if effects is None else list(effects),
+        effects=None if effects is None else list(effects), torque_from_currents=torque_from_currents,
         refit=refit, hold_friction=hold_friction, consistent=consistent,
         consistent_cutoff_hz=consistent_cutoff_hz))
     return _diagnose(robot, (t, q, tau), options, model, validation)

@@ -193,7 +193,8 @@ class DiagnoseOptions:
     def __new__(cls, **kwargs: Any) -> DiagnoseOptions: ...
     @property
     def cutoff_hz(self) -> Optional[float]:
-        """The cut-off set, or None: the diagnosis's own (20 Hz, at most a fifth of the rate)."""
+        """The cut-off set, or None: the diagnosis's own (the widest up to 20 Hz, at most a fifth of the
+        rate, that the encoders' noise does not spoil)."""
     @property
     def friction_cutoff_hz(self) -> Optional[float]:
         """The friction velocity's cut-off set, or None: the diagnosis's cut-off."""
@@ -218,6 +219,9 @@ class DiagnoseOptions:
     def transmission(self) -> Optional[list[float]]: ...
     @property
     def effects(self) -> list[str]: ...
+    @property
+    def torque_from_currents(self) -> bool:
+        """The torque came from motor currents: ``drive_gain`` is searched too."""
     @property
     def refit(self) -> bool: ...
     @property
@@ -276,7 +280,8 @@ class Diagnosis:
     @property
     def rejected(self) -> list[dict[str, Any]]: ...
     @property
-    def settings(self) -> dict[str, Any]: ...
+    def settings(self) -> dict[str, Any]:
+        """The settings it ran with; ``reasons`` says what chose the cut-offs."""
     @property
     def joint_names(self) -> list[str]: ...
     @property
