@@ -93,8 +93,8 @@ def test_fixed_2_s_batches_could_not_find_them():
     assert named_first(effect, names, batch_s=2.0) <= 1
 
 
-# KUKA LWR4+ at 200 Hz with 12-bit encoders (1.5 mrad): at the diagnosis's former fixed 20 Hz the
-# quantisation reached q̈, and an armature column took up the errors-in-variables on 7 of 20 logs
+# KUKA LWR4+ at 200 Hz with 12-bit encoders (1.5 mrad): at the diagnosis's fixed 20 Hz the
+# quantisation reaches q̈, and an armature column takes up the errors-in-variables on 7 of 20 logs
 # (on the validation log too: a bias, not noise).
 COARSE = ("kuka", 200, 12, 0.05, "sign", None, 10.0)
 
@@ -111,28 +111,13 @@ def coarse_accepts(**options):
     return accepted, cutoffs
 
 
-def test_a_coarse_encoder_narrows_the_band_instead_of_adding_an_effect():
+@pytest.mark.xfail(strict=True, reason="issue 19: at the fixed 20 Hz band the 12-bit quantisation reaches "
+                   "q̈ and an armature term absorbs it (4 of 10 here). A band chosen per log by the declared "
+                   "model's in-sample prediction fixed it (0 of 10) but chose 1-1.6 Hz on the real KUKA logs and "
+                   "lost their joint-0 offset; docs/diagnosis.md")
+def test_a_coarse_encoder_adds_no_effect():
     accepted, cutoffs = coarse_accepts()
     assert accepted <= 1, cutoffs
-    assert max(cutoffs) < 20.0, f"the band did not narrow: {cutoffs}"
-
-
-def test_at_a_fixed_20_hz_the_coarse_encoder_made_effects():
-    """The control: the same logs at the old fixed band accept effects, so the test above can
-    fail."""
-    accepted, _ = coarse_accepts(cutoff_hz=20.0)
-    assert accepted >= 3
-
-
-def test_a_clean_log_keeps_a_wide_band():
-    """The band narrows only where the noise spoils the model materially: on 20-bit, 1 kHz logs
-    it stays within an octave of 20 Hz (the coarse logs above go below 7 Hz), and says why."""
-    for seed in (21, 22, 23):
-        robot, train, held = logs(Condition("arash_asist", 1000, 20, 0.005, "sign", None, 10.0, seed=seed))
-        d = arash.diagnose(robot, *train, validation=held)
-        reason = [r for r in d.settings["reasons"] if r.startswith("cut-off")]
-        assert d.settings["cutoff_hz"] >= 10.0, reason
-        assert "the widest up to 20.00 Hz" in reason[0], reason
 
 
 def gained(robot_name, joint, seed, duration):

@@ -44,8 +44,7 @@ impl DiagnoseOptions {
         }
         Ok(options)
     }
-    /// The cut-off set, or None: the diagnosis's own (the widest up to 20 Hz, at most a fifth
-    /// of the rate, that the encoders' noise does not spoil).
+    /// The cut-off set, or None: the diagnosis's own (20 Hz, at most a fifth of the rate).
     #[getter]
     fn cutoff_hz(&self) -> Option<f64> {
         self.inner.preprocess.cutoff_hz

@@ -4,11 +4,9 @@ use crate::effects::EffectKind;
 use crate::identify::preprocess::{PreprocessError, PreprocessOptions};
 use crate::identify::IdentifyError;
 
-/// The diagnosis's widest cut-off when the user sets none (Hz), at most
-/// [`DIAGNOSIS_CUTOFF_SHARE`] of the sample rate: far above identification's, so that ripple,
-/// friction transitions and delays survive the filter. The log's own cut-off is the widest up to
-/// this one that does not spoil the declared model's prediction
-/// ([`crate::identify::cutoff::widest_unspoilt`]).
+/// The diagnosis's cut-off when the user sets none (Hz), at most [`DIAGNOSIS_CUTOFF_SHARE`] of
+/// the sample rate: far above identification's, so that ripple, friction transitions and delays
+/// survive the filter; where the diagnosis's false-positive rate was measured (docs/diagnosis.md).
 pub const DIAGNOSIS_CUTOFF_HZ: f64 = 20.0;
 
 /// ... and at most this share of the sample rate, so that the residual keeps five samples per
@@ -18,10 +16,10 @@ pub const DIAGNOSIS_CUTOFF_SHARE: f64 = 0.2;
 /// Settings of [`super::diagnose`]; `Default` gives the documented defaults.
 #[derive(Clone, Debug)]
 pub struct DiagnoseOptions {
-    /// Preprocessing, in the settings identification takes: `cutoff_hz` (`None`: the widest up
-    /// to [`DIAGNOSIS_CUTOFF_HZ`] and [`DIAGNOSIS_CUTOFF_SHARE`] of the sample rate that does not
-    /// spoil the declared model's prediction), `friction_cutoff_hz` (`None`: the cut-off; see
-    /// `prepare` for why not the fit's choice) and `order`.
+    /// Preprocessing, in the settings identification takes: `cutoff_hz` (`None`:
+    /// [`DIAGNOSIS_CUTOFF_HZ`], at most [`DIAGNOSIS_CUTOFF_SHARE`] of the sample rate),
+    /// `friction_cutoff_hz` (`None`: the cut-off; see `prepare` for why not the fit's choice)
+    /// and `order`.
     /// The diagnosis reads residuals in time, so it never averages periods, and it thins with
     /// `decimate` below.
     pub preprocess: PreprocessOptions,
@@ -134,7 +132,7 @@ impl DiagnoseOptions {
         self.effects.contains(&kind) || (kind == EffectKind::DriveGain && self.torque_from_currents)
     }
 
-    /// The widest cut-off a log at `fs` Hz may get when the user sets none (Hz).
+    /// The cut-off a log at `fs` Hz gets when the user sets none (Hz).
     pub fn ceiling_hz(fs: f64) -> f64 {
         DIAGNOSIS_CUTOFF_HZ.min(DIAGNOSIS_CUTOFF_SHARE * fs)
     }

@@ -1,13 +1,12 @@
 //! A log made ready for the diagnosis: filtered, differentiated, trimmed and sampled, with the
 //! declared model's columns and each candidate's columns on it.
 
-use super::options::DiagnoseOptions;
+use super::options::{DiagnoseOptions, DIAGNOSIS_CUTOFF_HZ, DIAGNOSIS_CUTOFF_SHARE};
 use super::regression::Column;
 use crate::base_parameters::BaseParameters;
 use crate::data::Data;
 use crate::effects::{EffectKind, EffectTerm, Sample, TermState};
-use crate::identify::cutoff::{widest_unspoilt, BandLimits};
-use crate::identify::preprocess::{preprocess, PreprocessError, PreprocessOptions, Preprocessed, EDGE_CUTOFF_PERIODS};
+use crate::identify::preprocess::{preprocess, PreprocessError, PreprocessOptions, Preprocessed};
 use crate::identify::Log;
 use crate::model::Model;
 use crate::regressor::regressor;
@@ -75,8 +74,7 @@ impl Prepared {
 }
 
 /// Prepare `log` for the diagnosis: filtered in `band` (a training log's), or at the user's
-/// cut-off, or at the widest up to the diagnosis's ceiling that does not spoil the declared
-/// model's prediction; its Coulomb columns switching with the velocity filtered at the band's
+/// cut-off, or at the diagnosis's; its Coulomb columns switching with the velocity filtered at the band's
 /// friction cut-off, the user's, or the cut-off; and trimmed by `margin_s` at each end.
 ///
 /// The friction velocity is not chosen by the fit here, as identification chooses it: the
@@ -100,21 +98,13 @@ pub(super) fn prepare(
             let cutoff = band.cutoff_hz.min(ceiling);
             (cutoff, Some(format!("cut-off {cutoff:.3} Hz: the training log's, at most {ceiling:.2} Hz")))
         }
-        (None, None) => {
-            // A band is spoilt where its noise adds more than `min_gain` to a joint's squared
-            // error: an effect that took up all of it would cut that joint's error by less than
-            // `min_gain` (x / (1 + x) < x), the least an accepted effect must.
-            // A cut-off the log is too short to diagnose at (its filter's ends and thinning
-            // leave too few samples) is not a candidate.
-            let n = log.t.len();
-            let usable = |cutoff: f64| {
-                let edge = (EDGE_CUTOFF_PERIODS * fs / cutoff).ceil() as usize;
-                n >= 2 * edge.max((margin_s * fs).ceil() as usize) + MIN_KEPT * stride(options, fs, cutoff)
-            };
-            let limits = BandLimits { ceiling_hz: ceiling, usable: &usable, tolerance: options.min_gain };
-            let (cutoff, reason) = widest_unspoilt((model, base), log, &options.preprocessing(None), &limits)?;
-            (cutoff, Some(reason))
-        }
+        (None, None) => (
+            ceiling,
+            Some(format!(
+                "cut-off {ceiling:.3} Hz: the diagnosis's band, {DIAGNOSIS_CUTOFF_HZ} Hz at most \
+                 {DIAGNOSIS_CUTOFF_SHARE} of the sample rate"
+            )),
+        ),
     };
     let pre_options = PreprocessOptions {
         friction_cutoff_hz: band.map(|b| b.friction_hz).or(options.preprocess.friction_cutoff_hz),

@@ -30,8 +30,6 @@ use super::preprocess::{
 };
 use super::signals::{filter_columns, mean_of, periods_of};
 use super::{Declared, Log};
-use crate::base_parameters::BaseParameters;
-use crate::model::Model;
 use std::borrow::Cow;
 
 /// Cut-offs tried per doubling: a step of 19 %, which changes the fit by far less than a point.
@@ -98,8 +96,6 @@ struct Trial {
     /// Squared error of that prediction at each scored sample, each joint's over its torque's
     /// variance, summed over the joints: what the cut-offs are compared by.
     errors: Vec<f64>,
-    /// Each joint's squared error of that prediction, summed over the scored samples.
-    joint_errors: Vec<f64>,
     /// Mean training FP% of each friction velocity tried: what chose it.
     frictions: Vec<(f64, f64)>,
     /// Mean training FP% with the chosen one: what breaks ties between cut-offs.
@@ -121,7 +117,7 @@ pub fn preprocess_for_fit(
     // The period, the rate and the spectral rule, found once; every candidate keeps the period.
     let reference = preprocess(log.t, log.q, log.tau, dof, &PreprocessOptions { decimate: 1, ..options.clone() })?;
     let fixed = PreprocessOptions { period_s: reference.period_s, periods: Some(1), decimate: 1, ..options.clone() };
-    let search = Search::new((declared.model, declared.base), log, &reference, &fixed);
+    let search = Search::new(declared, log, &reference, &fixed);
     let cutoffs = match options.cutoff_hz {
         Some(cutoff) => vec![cutoff],
         None => search.grid.iter().copied().take_while(|c| *c <= search.top * (1.0 + 1e-9)).collect(),
@@ -150,8 +146,7 @@ pub fn preprocess_for_fit(
 /// What every trial shares: the model, the log, the grid of cut-offs, and the friction
 /// velocities' Coulomb directions, computed once per cut-off of the grid.
 struct Search<'a> {
-    model: &'a Model,
-    base: &'a BaseParameters,
+    declared: Declared<'a>,
     log: Log<'a>,
     fixed: &'a PreprocessOptions,
     reference: &'a Preprocessed,
@@ -197,12 +192,7 @@ impl Folds {
 }
 
 impl<'a> Search<'a> {
-    fn new(
-        (model, base): (&'a Model, &'a BaseParameters),
-        log: Log<'a>,
-        reference: &'a Preprocessed,
-        fixed: &'a PreprocessOptions,
-    ) -> Self {
+    fn new(declared: Declared<'a>, log: Log<'a>, reference: &'a Preprocessed, fixed: &'a PreprocessOptions) -> Self {
         let fs = reference.sample_rate_hz;
         let n = reference.samples();
         let shortest = edge_limited_cutoff_hz(log.t.len(), fs, reference.periodic);
@@ -220,8 +210,8 @@ impl<'a> Search<'a> {
         let scored = spread(edge.min(n / 2)..n.saturating_sub(edge).max(n / 2), 1, MOST_SCORED);
         let directions = vec![std::cell::OnceCell::new(); grid.len()];
         let raw_velocity = reference.raw_velocity(log.q);
-        let folds = Folds::of(&log, reference, model.dof());
-        Self { model, base, log, fixed, reference, grid, top, length_limited, scored, directions, raw_velocity, folds }
+        let folds = Folds::of(&log, reference, declared.model.dof());
+        Self { declared, log, fixed, reference, grid, top, length_limited, scored, directions, raw_velocity, folds }
     }
 
     /// The unfiltered Coulomb directions of the friction velocity at grid point `i` (full rate).
@@ -230,7 +220,7 @@ impl<'a> Search<'a> {
             return Ok(d);
         }
         let velocity = self.raw_velocity.filtered((self.reference.order, self.grid[i]), 1)?;
-        Ok(self.directions[i].get_or_init(|| velocity.directions(self.model.coulomb_shape)))
+        Ok(self.directions[i].get_or_init(|| velocity.directions(self.declared.model.coulomb_shape)))
     }
 
     /// The friction velocities tried at `cutoff`: the user's, or grid points an octave apart
@@ -255,7 +245,7 @@ impl<'a> Search<'a> {
     /// Fit at `cutoff` with each friction velocity, keep the best-fitting one, and score the
     /// model on the unfiltered torque. `None` when the log cannot be filtered or fitted there.
     fn trial(&self, cutoff: f64, user_friction: Option<f64>) -> Result<Option<Trial>, PreprocessError> {
-        let (model, base) = (self.model, self.base);
+        let Declared { model, base, .. } = self.declared;
         let (dof, fs) = (model.dof(), self.reference.sample_rate_hz);
         let options = PreprocessOptions { cutoff_hz: Some(cutoff), ..self.fixed.clone() };
         let pre = match preprocess(self.log.t, self.log.q, self.log.tau, dof, &options) {
@@ -297,7 +287,7 @@ impl<'a> Search<'a> {
             put_coulomb(&mut v, dof, &positions, (&directions, &self.scored));
             v
         };
-        let (predicted_fp, errors, joint_errors) = match &self.folds {
+        let (predicted_fp, errors) = match &self.folds {
             None => self.unfiltered_fit(&pre.tau_unfiltered, &scored_columns(&pre), &beta),
             Some(folds) => {
                 // The fit is done with `pre`'s own motion: each half's takes its place in turn.
@@ -310,11 +300,10 @@ impl<'a> Search<'a> {
                     scores.push(self.unfiltered_fit(&folds.torques[other], &scored_columns(&moved), &beta));
                 }
                 let fp = scores.iter().map(|s| s.0).sum::<f64>() / 2.0;
-                let joint_errors = (0..dof).map(|k| scores.iter().map(|s| s.2[k]).sum()).collect();
-                (fp, scores.into_iter().flat_map(|s| s.1).collect(), joint_errors)
+                (fp, scores.into_iter().flat_map(|s| s.1).collect())
             }
         };
-        Ok(Some(Trial { cutoff_hz: cutoff, friction_hz, predicted_fp, errors, joint_errors, frictions, training_fp }))
+        Ok(Some(Trial { cutoff_hz: cutoff, friction_hz, predicted_fp, errors, frictions, training_fp }))
     }
 
     /// The regressor's base columns filtered like the torque ([`filter_each_column`]) at the
@@ -328,7 +317,7 @@ impl<'a> Search<'a> {
         pre: &Preprocessed,
         cutoff: f64,
     ) -> Result<(faer::Mat<f64>, Vec<usize>), PreprocessError> {
-        let (model, base) = (self.model, self.base);
+        let Declared { model, base, .. } = self.declared;
         let (n, dof, fs) = (pre.samples(), model.dof(), pre.sample_rate_hz);
         let most = ((fs / (SAMPLES_PER_CUTOFF * cutoff)).floor() as usize).max(1);
         // A periodic log is filtered circularly: its thinned samples must still be whole periods.
@@ -349,10 +338,10 @@ impl<'a> Search<'a> {
 
     /// The model `beta` (its columns at the scored samples, `v`, the Coulomb ones unfiltered)
     /// against the unfiltered torque `tau` (one period, or the whole log) there: mean FP% over the
-    /// joints, each sample's squared error summed over the joints, each joint's divided by its
-    /// torque's variance, and each joint's summed squared error.
-    fn unfiltered_fit(&self, tau: &[f64], v: &faer::Mat<f64>, beta: &[f64]) -> (f64, Vec<f64>, Vec<f64>) {
-        let dof = self.model.dof();
+    /// joints, and each sample's squared error summed over the joints, each joint's divided by its
+    /// torque's variance.
+    fn unfiltered_fit(&self, tau: &[f64], v: &faer::Mat<f64>, beta: &[f64]) -> (f64, Vec<f64>) {
+        let dof = self.declared.model.dof();
         let measured = rows_of(tau, dof, &self.scored);
         let predicted = apply(v, beta);
         let fp = joint_metrics(&measured, &predicted, dof).fp_percent.iter().sum::<f64>() / dof as f64;
@@ -369,10 +358,7 @@ impl<'a> Search<'a> {
             .zip(predicted.chunks(dof))
             .map(|(t, p)| (0..dof).map(|k| (t[k] - p[k]).powi(2) / variances[k]).sum())
             .collect();
-        let joint_errors = (0..dof)
-            .map(|k| measured.iter().zip(&predicted).skip(k).step_by(dof).map(|(t, p)| (t - p).powi(2)).sum())
-            .collect();
-        (fp, errors, joint_errors)
+        (fp, errors)
     }
 
     /// Scored samples per comparison block: [`COMPARISON_BLOCK_PERIODS`] periods of the lowest
@@ -391,87 +377,18 @@ fn rows_of(x: &[f64], dof: usize, rows: &[usize]) -> Vec<f64> {
     rows.iter().flat_map(|&s| x[s * dof..(s + 1) * dof].iter().copied()).collect()
 }
 
-/// Among the trials that predict as well as the best ([`predicts_as_well`]), the one whose model
-/// fits its filtered torque best; `None` when there are no trials.
+/// Among the trials whose prediction is not worse than the best one's by more than
+/// [`EQUAL_PREDICTION_SIGMAS`] standard errors of the paired difference (blocks of
+/// `block_rows` scored samples) nor by more than [`EQUAL_PREDICTION_POINTS`], the one whose
+/// model fits its filtered torque best; `None` when there are no trials.
 fn chosen(trials: &[Trial], block_rows: usize) -> Option<&Trial> {
     let best = most_accurate(trials)?;
-    trials
-        .iter()
-        .filter(|t| predicts_as_well(t, best, block_rows))
-        .max_by(|a, b| a.training_fp.total_cmp(&b.training_fp))
-}
-
-/// Whether `trial`'s prediction is not worse than `best`'s by more than
-/// [`EQUAL_PREDICTION_SIGMAS`] standard errors of the paired difference (blocks of `block_rows`
-/// scored samples) nor by more than [`EQUAL_PREDICTION_POINTS`].
-fn predicts_as_well(trial: &Trial, best: &Trial, block_rows: usize) -> bool {
-    let differences: Vec<f64> = trial.errors.iter().zip(&best.errors).map(|(a, b)| a - b).collect();
-    let (mean, error) = mean_and_block_error(&differences, block_rows);
-    mean <= EQUAL_PREDICTION_SIGMAS * error && trial.predicted_fp >= best.predicted_fp - EQUAL_PREDICTION_POINTS
-}
-
-/// The cut-offs a caller may filter at, and what spoils one: how the diagnosis asks for its band.
-pub struct BandLimits<'a> {
-    /// The widest cut-off wanted (Hz); always tried.
-    pub ceiling_hz: f64,
-    /// Whether a cut-off can be used at all (the log leaves enough samples at it).
-    pub usable: &'a dyn Fn(f64) -> bool,
-    /// A cut-off is spoilt when its prediction is worse than the best one's
-    /// ([`predicts_as_well`] fails) and some joint's squared error is larger than the best
-    /// one's by more than this share.
-    pub tolerance: f64,
-}
-
-/// The widest usable cut-off up to the ceiling that is not spoilt (see [`BandLimits`]), and why.
-/// Each candidate's Coulomb columns switch with the velocity filtered at the candidate (or at
-/// the user's friction cut-off).
-///
-/// This is the diagnosis's band. The diagnosis reads effects in the residual's fast content, so
-/// it keeps all the bandwidth it can; it narrows only where the encoders' noise, differentiated
-/// twice, makes the declared model's prediction materially worse (a coarse encoder at a low
-/// sample rate). That noise is in the regressor, not the torque: a candidate effect correlated
-/// with it would be accepted for absorbing arash's own bias, not anything the robot does. A
-/// difference that is merely significant is not enough: on a clean log a few hundredths of a
-/// point separate the cut-offs, and resolving them would narrow the band for nothing.
-pub fn widest_unspoilt(
-    (model, base): (&Model, &BaseParameters),
-    log: Log,
-    options: &PreprocessOptions,
-    limits: &BandLimits,
-) -> Result<(f64, String), PreprocessError> {
-    let (dof, ceiling) = (model.dof(), limits.ceiling_hz);
-    let spectral = PreprocessOptions { cutoff_hz: None, decimate: 1, ..options.clone() };
-    let reference = preprocess(log.t, log.q, log.tau, dof, &spectral)?;
-    let fixed = PreprocessOptions { period_s: reference.period_s, decimate: 1, ..options.clone() };
-    let search = Search::new((model, base), log, &reference, &fixed);
-    let mut cutoffs: Vec<f64> = search.grid.iter().copied().filter(|c| *c < ceiling * (1.0 - 1e-9)).collect();
-    cutoffs.push(ceiling);
-    cutoffs.retain(|&c| (limits.usable)(c) || c == ceiling);
-    let mut trials = Vec::with_capacity(cutoffs.len());
-    for &cutoff in &cutoffs {
-        if let Some(trial) = search.trial(cutoff, Some(options.friction_cutoff_hz.unwrap_or(cutoff)))? {
-            trials.push(trial);
-        }
-    }
-    let Some(best) = most_accurate(&trials) else {
-        return Ok((ceiling, format!("cut-off {ceiling:.3} Hz: the ceiling; no lower cut-off could be fitted")));
+    let as_good = |t: &&Trial| {
+        let differences: Vec<f64> = t.errors.iter().zip(&best.errors).map(|(a, b)| a - b).collect();
+        let (mean, error) = mean_and_block_error(&differences, block_rows);
+        mean <= EQUAL_PREDICTION_SIGMAS * error && t.predicted_fp >= best.predicted_fp - EQUAL_PREDICTION_POINTS
     };
-    let spoilt = |t: &Trial| {
-        let worse = t.joint_errors.iter().zip(&best.joint_errors).any(|(a, b)| *a > (1.0 + limits.tolerance) * b);
-        worse && !predicts_as_well(t, best, search.block_rows())
-    };
-    let widest = trials.iter().filter(|t| !spoilt(t)).max_by(|a, b| a.cutoff_hz.total_cmp(&b.cutoff_hz));
-    let widest = widest.unwrap_or(best);
-    let line = format!(
-        "cut-off {:.3} Hz: the widest up to {ceiling:.2} Hz whose fitted model predicts the unfiltered torque as well \
-         as the best one ({:.2} Hz), or worse by at most {:.0} % of any joint's squared error; mean FP% on the \
-         unfiltered torque by cut-off: {}",
-        widest.cutoff_hz,
-        best.cutoff_hz,
-        100.0 * limits.tolerance,
-        trials.iter().map(|t| format!("{:.2} Hz {:.2}", t.cutoff_hz, t.predicted_fp)).collect::<Vec<_>>().join(", "),
-    );
-    Ok((widest.cutoff_hz, line))
+    trials.iter().filter(as_good).max_by(|a, b| a.training_fp.total_cmp(&b.training_fp))
 }
 
 /// The trial whose prediction of the unfiltered torque has the highest mean FP%.

@@ -37,8 +37,7 @@ pub struct Args {
     /// bundled ARASH:ASiST drive's, or no cogging search for another robot.
     #[arg(long, value_delimiter = ',')]
     transmission: Option<Vec<f64>>,
-    /// Low-pass cut-off (Hz); default: the widest up to 20 Hz (and a fifth of the sample rate)
-    /// that the encoders' noise does not spoil (docs/diagnosis.md, "Prepare")
+    /// Low-pass cut-off (Hz); default: 20 Hz, at most a fifth of the sample rate
     /// (docs/diagnosis.md).
     #[arg(long)]
     cutoff: Option<f64>,

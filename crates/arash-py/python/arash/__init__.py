@@ -211,8 +211,7 @@ def diagnose(
         the odd-numbered blocks of the training log.
     transmission: joint motion per motor radian, per joint (enables the cogging search).
     cutoff_hz, friction_cutoff_hz, order: the preprocessing, as ``identify`` takes it (None: the
-    widest cut-off up to 20 Hz, at most a fifth of the sample rate, that the encoders' noise
-    does not spoil, with its reason in ``Diagnosis.settings['reasons']``; the friction velocity at that cut-off;
+    diagnosis's 20 Hz, at most a fifth of the sample rate; the friction velocity at that cut-off;
     order 5). effects: identifiers to search (docs/diagnosis.md; default: all but drive_gain).
     torque_from_currents: the torque was computed from motor currents; search drive_gain too. refit: with a model, refit all its base
     parameters too. hold_friction: with a model, hold its friction too. consistent: also fit the

@@ -193,8 +193,7 @@ class DiagnoseOptions:
     def __new__(cls, **kwargs: Any) -> DiagnoseOptions: ...
     @property
     def cutoff_hz(self) -> Optional[float]:
-        """The cut-off set, or None: the diagnosis's own (the widest up to 20 Hz, at most a fifth of the
-        rate, that the encoders' noise does not spoil)."""
+        """The cut-off set, or None: the diagnosis's own (20 Hz, at most a fifth of the rate)."""
     @property
     def friction_cutoff_hz(self) -> Optional[float]:
         """The friction velocity's cut-off set, or None: the diagnosis's cut-off."""

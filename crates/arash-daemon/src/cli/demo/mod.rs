@@ -322,8 +322,8 @@ fn calibrate(
 /// model into `out`, and fit the physically consistent model together with the effects found:
 /// the model the third tracking run uses, whose path is returned.
 ///
-/// The diagnosis filters at its own default (the widest band up to 20 Hz the encoders' noise
-/// does not spoil, where its false-positive rate was measured); the consistent fit with the effects at the calibration's cut-offs (the main one
+/// The diagnosis filters at its own default (20 Hz, where its false-positive rate was
+/// measured); the consistent fit with the effects at the calibration's cut-offs (the main one
 /// and the friction velocity's), so that the controller's model sees the data as the calibrated
 /// one did. (At 20 Hz that fit trades
 /// Stribeck friction for a viscous coefficient many times the true one, which the controller
