@@ -83,12 +83,12 @@ impl<'a> Context<'a> {
             block_count,
             batching,
         };
-        let x = ctx.declared_fit()?;
-        ctx.weights = ctx.joint_weights(&x);
+        let (x, weights) = ctx.declared_fit()?;
+        ctx.weights = weights;
         ctx.train.predicted = ctx.declared_torque(&ctx.train, &x);
-        if let Some(v) = &ctx.validation {
-            let predicted = ctx.declared_torque(v, &x);
-            ctx.validation.as_mut().expect("just seen").predicted = predicted;
+        let validation = ctx.validation.as_ref().map(|v| ctx.declared_torque(v, &x));
+        if let (Some(v), Some(predicted)) = (ctx.validation.as_mut(), validation) {
+            v.predicted = predicted;
         }
         Ok(ctx)
     }
@@ -123,22 +123,16 @@ impl<'a> Context<'a> {
         pred
     }
 
-    /// The declared model's free coefficients fitted to the training log, unweighted.
-    fn declared_fit(&self) -> Result<Vec<f64>, DiagnoseError> {
-        let unit = self.problem(&self.train, 0);
-        let cols: Vec<&Column> = unit.free_columns().collect();
-        least_squares(&cols, &unit.y, self.model.dof(), Rows::All).ok_or(DiagnoseError::Singular)
-    }
-
-    /// 1 / RMS per joint of the declared model's unweighted residual (free coefficients `x`) on
-    /// the training log.
-    fn joint_weights(&self, x: &[f64]) -> Vec<f64> {
+    /// The declared model's free coefficients fitted to the training log, unweighted, and the
+    /// joint weights: 1 / RMS per joint of that fit's residual.
+    fn declared_fit(&self) -> Result<(Vec<f64>, Vec<f64>), DiagnoseError> {
         let dof = self.model.dof();
         let unit = self.problem(&self.train, 0);
         let cols: Vec<&Column> = unit.free_columns().collect();
-        let e = residual(&cols, x, &unit.y, dof);
+        let x = least_squares(&cols, &unit.y, dof, Rows::All).ok_or(DiagnoseError::Singular)?;
+        let e = residual(&cols, &x, &unit.y, dof);
         let n = self.train.samples() as f64;
-        (0..dof)
+        let weights = (0..dof)
             .map(|k| {
                 let rms = (e.iter().skip(k).step_by(dof).map(|v| v * v).sum::<f64>() / n).sqrt();
                 if rms > 0.0 {
@@ -147,7 +141,8 @@ impl<'a> Context<'a> {
                     1.0
                 }
             })
-            .collect()
+            .collect();
+        Ok((x, weights))
     }
 
     /// The declared model's torque on `data`: the given model's held part and the free

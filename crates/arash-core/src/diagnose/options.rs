@@ -133,18 +133,18 @@ impl DiagnoseOptions {
     }
 
     /// The cut-off a log at `fs` Hz gets when the user sets none (Hz).
-    pub fn ceiling_hz(fs: f64) -> f64 {
+    pub fn default_cutoff_hz(fs: f64) -> f64 {
         DIAGNOSIS_CUTOFF_HZ.min(DIAGNOSIS_CUTOFF_SHARE * fs)
     }
 
     /// The preprocessing a log gets at `cutoff_hz`: the user's other settings, no averaging,
     /// derivatives not filtered again (they pass the filter once, as the torque does), and no
     /// thinning before the diagnosis's own.
-    pub fn preprocessing(&self, cutoff_hz: Option<f64>) -> PreprocessOptions {
+    pub fn preprocessing(&self, cutoff_hz: f64) -> PreprocessOptions {
         PreprocessOptions {
             periods: Some(1),
             period_s: None,
-            cutoff_hz,
+            cutoff_hz: Some(cutoff_hz),
             decimate: 1,
             filter_derivatives: false,
             ..self.preprocess.clone()

@@ -91,24 +91,24 @@ pub(super) fn prepare(
     let dof = model.dof();
     let dt = crate::identify::preprocess::validate_log(log.t, log.q, log.tau, dof)?;
     let fs = 1.0 / dt;
-    let ceiling = DiagnoseOptions::ceiling_hz(fs);
+    let default = DiagnoseOptions::default_cutoff_hz(fs);
     let (cutoff, reason) = match (options.preprocess.cutoff_hz, band) {
         (Some(user), _) => (user, None),
         (None, Some(band)) => {
-            let cutoff = band.cutoff_hz.min(ceiling);
-            (cutoff, Some(format!("cut-off {cutoff:.3} Hz: the training log's, at most {ceiling:.2} Hz")))
+            let cutoff = band.cutoff_hz.min(default);
+            (cutoff, Some(format!("cut-off {cutoff:.3} Hz: the training log's, at most {default:.2} Hz")))
         }
         (None, None) => (
-            ceiling,
+            default,
             Some(format!(
-                "cut-off {ceiling:.3} Hz: the diagnosis's band, {DIAGNOSIS_CUTOFF_HZ} Hz at most \
+                "cut-off {default:.3} Hz: the diagnosis's band, {DIAGNOSIS_CUTOFF_HZ} Hz at most \
                  {DIAGNOSIS_CUTOFF_SHARE} of the sample rate"
             )),
         ),
     };
     let pre_options = PreprocessOptions {
         friction_cutoff_hz: band.map(|b| b.friction_hz).or(options.preprocess.friction_cutoff_hz),
-        ..options.preprocessing(Some(cutoff))
+        ..options.preprocessing(cutoff)
     };
     let mut pre = preprocess(log.t, log.q, log.tau, dof, &pre_options)?;
     if let Some(reason) = reason {
