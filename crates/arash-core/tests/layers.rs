@@ -46,6 +46,7 @@ const FOLDERS: &[(&str, &[&str])] = &[
             "options",
             "findings",
             "regression",
+            "band",
             "prepare",
             "problem",
             "candidates",

@@ -44,7 +44,8 @@ impl DiagnoseOptions {
         }
         Ok(options)
     }
-    /// The cut-off set, or None: the diagnosis's own (20 Hz, at most a fifth of the rate).
+    /// The cut-off set, or None: the diagnosis's own (20 Hz, at most a fifth of the rate,
+    /// narrower where the encoder's noise would bias q̈; `settings["reasons"]` says why).
     #[getter]
     fn cutoff_hz(&self) -> Option<f64> {
         self.inner.preprocess.cutoff_hz

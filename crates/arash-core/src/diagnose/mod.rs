@@ -16,6 +16,7 @@
 //!    at least `min_gain` is not worth a term;
 //! 6. the best is added, the model refitted, and the search repeated until nothing passes.
 
+mod band;
 mod candidates;
 mod context;
 mod delay;

@@ -1,7 +1,8 @@
 //! A log made ready for the diagnosis: filtered, differentiated, trimmed and sampled, with the
 //! declared model's columns and each candidate's columns on it.
 
-use super::options::{DiagnoseOptions, DIAGNOSIS_CUTOFF_HZ, DIAGNOSIS_CUTOFF_SHARE};
+use super::band::{noise_limited_cutoff, Band};
+use super::options::DiagnoseOptions;
 use super::regression::Column;
 use crate::base_parameters::BaseParameters;
 use crate::data::Data;
@@ -60,13 +61,6 @@ impl Prepared {
     }
 }
 
-/// The band the training log was filtered in, which a validation log is filtered in too.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct Band {
-    pub(super) cutoff_hz: f64,
-    pub(super) friction_hz: f64,
-}
-
 impl Prepared {
     pub(super) fn band(&self) -> Band {
         Band { cutoff_hz: self.pre.cutoff_hz, friction_hz: self.pre.friction_cutoff_hz }
@@ -92,19 +86,18 @@ pub(super) fn prepare(
     let dt = crate::identify::preprocess::validate_log(log.t, log.q, log.tau, dof)?;
     let fs = 1.0 / dt;
     let default = DiagnoseOptions::default_cutoff_hz(fs);
+    let mut warning = None;
     let (cutoff, reason) = match (options.preprocess.cutoff_hz, band) {
         (Some(user), _) => (user, None),
         (None, Some(band)) => {
             let cutoff = band.cutoff_hz.min(default);
             (cutoff, Some(format!("cut-off {cutoff:.3} Hz: the training log's, at most {default:.2} Hz")))
         }
-        (None, None) => (
-            default,
-            Some(format!(
-                "cut-off {default:.3} Hz: the diagnosis's band, {DIAGNOSIS_CUTOFF_HZ} Hz at most \
-                 {DIAGNOSIS_CUTOFF_SHARE} of the sample rate"
-            )),
-        ),
+        (None, None) => {
+            let chosen = noise_limited_cutoff(log.q, (dof, fs), options.preprocess.order)?;
+            warning = chosen.warning;
+            (chosen.cutoff_hz, Some(chosen.reason))
+        }
     };
     let pre_options = PreprocessOptions {
         friction_cutoff_hz: band.map(|b| b.friction_hz).or(options.preprocess.friction_cutoff_hz),
@@ -114,6 +107,7 @@ pub(super) fn prepare(
     if let Some(reason) = reason {
         pre.choices.reasons.iter_mut().filter(|r| r.starts_with("cut-off")).for_each(|r| *r = reason.clone());
     }
+    pre.choices.warnings.extend(warning);
     let stride = stride(options, fs, pre.cutoff_hz);
     let n = pre.samples();
     let margin = ((margin_s * fs).ceil() as usize).max(pre.settled.start);

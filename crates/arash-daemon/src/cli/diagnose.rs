@@ -37,7 +37,7 @@ pub struct Args {
     /// bundled ARASH:ASiST drive's, or no cogging search for another robot.
     #[arg(long, value_delimiter = ',')]
     transmission: Option<Vec<f64>>,
-    /// Low-pass cut-off (Hz); default: 20 Hz, at most a fifth of the sample rate
+    /// Low-pass cut-off (Hz); default: 20 Hz, at most a fifth of the sample rate, narrower where the encoder's noise would bias q̈
     /// (docs/diagnosis.md).
     #[arg(long)]
     cutoff: Option<f64>,

@@ -193,7 +193,8 @@ class DiagnoseOptions:
     def __new__(cls, **kwargs: Any) -> DiagnoseOptions: ...
     @property
     def cutoff_hz(self) -> Optional[float]:
-        """The cut-off set, or None: the diagnosis's own (20 Hz, at most a fifth of the rate)."""
+        """The cut-off set, or None: the diagnosis's own (20 Hz, at most a fifth of the rate,
+        narrower where the encoder's noise would bias q̈; ``settings["reasons"]`` says why)."""
     @property
     def friction_cutoff_hz(self) -> Optional[float]:
         """The friction velocity's cut-off set, or None: the diagnosis's cut-off."""

@@ -1,0 +1,279 @@
+//! The diagnosis's band: how wide the filter is, chosen from the log's own position noise.
+//!
+//! The diagnosis filters wide (up to [`DIAGNOSIS_CUTOFF_HZ`]) so that ripple, friction
+//! transitions and delays survive. But the two differences that give q̈ amplify position noise as
+//! f²: a coarse encoder's quantisation, which is white over the band, reaches q̈ with a variance
+//! that grows as the cut-off's fifth power. Noise in a regressor biases least squares
+//! (errors-in-variables: each inertial coefficient shrinks by about the noise's share of its
+//! column's variance), the same bias on every log of the robot, so an extra q̈ column (rotor
+//! inertia) or any other column correlated with the inertial torque takes it up and passes every
+//! test, the held-out one included. On 12-bit logs at 200 Hz the noise at 20 Hz is as large as
+//! q̈ itself; at 10 Hz it is a few per cent (docs/diagnosis.md, "The band").
+//!
+//! What q̈ gains above the motion's bandwidth is not all noise: in closed loop the controller
+//! answers the encoder's steps with torque and the joint really moves (the torque, filtered alike,
+//! carries that motion's inertia, so it biases nothing). Where the positions are whole multiples
+//! of an encoder step, the quantisation's own share is known (Δ²/12, white, through the filter
+//! and the differences), and the smaller of the two is taken as the noise.
+
+use super::options::{DiagnoseOptions, DIAGNOSIS_CUTOFF_HZ, DIAGNOSIS_CUTOFF_SHARE, MAX_ACCELERATION_NOISE};
+use crate::identify::decide::bandwidth;
+use crate::identify::filter::{Butterworth, FilterError};
+use crate::identify::preprocess::{lowest_cutoff_hz, CUTOFF_PER_BANDWIDTH, EDGE_CUTOFF_PERIODS};
+use crate::identify::signals::{central_difference, filter_columns};
+
+/// The band the training log was filtered in, which a validation log is filtered in too.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Band {
+    pub(super) cutoff_hz: f64,
+    pub(super) friction_hz: f64,
+}
+
+/// Cut-offs tried per halving, from the top down.
+const STEPS_PER_OCTAVE: i32 = 4;
+
+/// The diagnosis's cut-off for a log, why, and a warning when the noise could not be kept out.
+pub(super) struct Chosen {
+    pub(super) cutoff_hz: f64,
+    pub(super) reason: String,
+    pub(super) warning: Option<String>,
+}
+
+/// The widest cut-off up to the diagnosis's default at which the position noise makes up at most
+/// [`MAX_ACCELERATION_NOISE`] of every joint's q̈ variance, never below what the motion needs
+/// ([`CUTOFF_PER_BANDWIDTH`] times its bandwidth).
+///
+/// The noise at a cut-off c is measured as what q̈ gains between c/2 (or that floor, if higher)
+/// and c: above the motion's bandwidth that is noise alone, and since white position noise
+/// reaches q̈ with a power that grows as f⁴, the octave below c holds 97 % of all the noise q̈
+/// has at c. Where the joint's encoder step shows, its quantisation noise is used if smaller.
+pub(super) fn noise_limited_cutoff(q: &[f64], (dof, fs): (usize, f64), order: usize) -> Result<Chosen, FilterError> {
+    let top = DiagnoseOptions::default_cutoff_hz(fs);
+    let floor = bandwidth(q, dof, fs, false).map_or(0.0, |b| CUTOFF_PER_BANDWIDTH * b).max(lowest_cutoff_hz(
+        q.len() / dof,
+        fs,
+        false,
+    ));
+    let limit = 100.0 * MAX_ACCELERATION_NOISE;
+    let mut widest: Option<(f64, NoiseShare)> = None;
+    for step in 0.. {
+        let cutoff = top * 0.5_f64.powf(step as f64 / STEPS_PER_OCTAVE as f64);
+        if cutoff <= floor {
+            break;
+        }
+        let share = noise_share(q, (dof, fs), (cutoff, (cutoff / 2.0).max(floor)), order)?;
+        if share.value <= MAX_ACCELERATION_NOISE {
+            let here = share.describe();
+            let reason = match widest {
+                None => format!(
+                    "cut-off {cutoff:.3} Hz: the diagnosis's band, {DIAGNOSIS_CUTOFF_HZ} Hz at most \
+                     {DIAGNOSIS_CUTOFF_SHARE} of the sample rate; the position noise makes up {here} there (at most \
+                     {limit:.0} %)"
+                ),
+                Some((wide, worst)) => format!(
+                    "cut-off {cutoff:.3} Hz: the position noise makes up {} at {wide:.1} Hz and {here} here (at most \
+                     {limit:.0} %); wider, a q̈ column would take up the bias the noise makes",
+                    worst.describe()
+                ),
+            };
+            return Ok(Chosen { cutoff_hz: cutoff, reason, warning: None });
+        }
+        widest = widest.or(Some((cutoff, share)));
+    }
+    let cutoff = floor.min(top);
+    let Some((wide, worst)) = widest else {
+        let reason = format!(
+            "cut-off {cutoff:.3} Hz: the diagnosis's band, {DIAGNOSIS_CUTOFF_HZ} Hz at most {DIAGNOSIS_CUTOFF_SHARE} of \
+             the sample rate; the motion's bandwidth leaves no room to narrow it"
+        );
+        return Ok(Chosen { cutoff_hz: cutoff, reason, warning: None });
+    };
+    let reason = format!(
+        "cut-off {cutoff:.3} Hz: {CUTOFF_PER_BANDWIDTH} × the motion's bandwidth, the lowest the motion allows"
+    );
+    let warning = format!(
+        "the position noise makes up more than {limit:.0} % of q̈'s variance at every cut-off the motion allows ({} \
+         at {wide:.1} Hz): rotor inertia or another q̈-like term may be found where only the encoder's noise is",
+        worst.describe()
+    );
+    Ok(Chosen { cutoff_hz: cutoff, reason, warning: Some(warning) })
+}
+
+/// The largest share of a joint's q̈ variance that position noise makes up at a cut-off.
+#[derive(Clone, Copy, Debug)]
+struct NoiseShare {
+    joint: usize,
+    value: f64,
+}
+
+impl NoiseShare {
+    fn describe(&self) -> String {
+        format!("{:.2} % of joint {}'s q̈ variance", 100.0 * self.value, self.joint)
+    }
+}
+
+/// Each joint's noise in q̈ at the `wide` cut-off over the variance of q̈ at the `narrow` one,
+/// away from the filter's end transients; the largest. The noise is what q̈ gains between the
+/// two, or, where the joint's encoder step shows, the step's quantisation noise if smaller. A
+/// joint whose q̈ does not vary is left out.
+fn noise_share(
+    q: &[f64],
+    (dof, fs): (usize, f64),
+    (wide, narrow): (f64, f64),
+    order: usize,
+) -> Result<NoiseShare, FilterError> {
+    let n = q.len() / dof;
+    let edge = ((EDGE_CUTOFF_PERIODS * fs / narrow).ceil() as usize).min(n / 4);
+    let gain = white_noise_gain((fs, wide), order)?;
+    let (wide, narrow) = (acceleration(q, (dof, fs), wide, order)?, acceleration(q, (dof, fs), narrow, order)?);
+    let mut worst = NoiseShare { joint: 0, value: 0.0 };
+    for j in 0..dof {
+        let rows = edge..n - edge;
+        let gained = variance(rows.clone().map(|k| wide[k * dof + j] - narrow[k * dof + j]));
+        let noise = encoder_step(q, dof, j).map_or(gained, |step| gained.min(step * step / 12.0 * gain));
+        let signal = variance(rows.map(|k| narrow[k * dof + j]));
+        if signal > 0.0 && noise / signal > worst.value {
+            worst = NoiseShare { joint: j, value: noise / signal };
+        }
+    }
+    Ok(worst)
+}
+
+/// q̈ as the diagnosis computes it: the position filtered at `cutoff`, differenced twice.
+fn acceleration(q: &[f64], (dof, fs): (usize, f64), cutoff: f64, order: usize) -> Result<Vec<f64>, FilterError> {
+    let filtered = filter_columns(&Butterworth::lowpass(order, cutoff, fs)?, q, dof, false)?;
+    let h = 1.0 / fs;
+    Ok(central_difference(&central_difference(&filtered, dof, h, false), dof, h, false))
+}
+
+/// The variance q̈ gets from unit white noise on the position: the sum of squares of the impulse
+/// response of the filter at `cutoff` and the two central differences.
+fn white_noise_gain((fs, cutoff): (f64, f64), order: usize) -> Result<f64, FilterError> {
+    let filter = Butterworth::lowpass(order, cutoff, fs)?;
+    let n = 2 * filter.padlen() + (40.0 * fs / cutoff).ceil() as usize;
+    let mut impulse = vec![0.0; n];
+    impulse[n / 2] = 1.0;
+    let response = acceleration(&impulse, (1, fs), cutoff, order)?;
+    Ok(response.iter().map(|r| r * r).sum())
+}
+
+/// Positions that are whole multiples of a step, as an encoder's are, cut by at most this share of
+/// the step.
+const ON_THE_GRID: f64 = 1e-3;
+
+/// Joint `j`'s encoder step, when its positions move only in whole multiples of the smallest
+/// step between two samples; `None` when they do not (filtered or interpolated positions) or never
+/// move.
+fn encoder_step(q: &[f64], dof: usize, j: usize) -> Option<f64> {
+    let x: Vec<f64> = q.iter().skip(j).step_by(dof).copied().collect();
+    let scale = x.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let moves = || x.windows(2).map(|w| (w[1] - w[0]).abs()).filter(move |d| *d > 1e-12 * scale);
+    let step = moves().fold(f64::INFINITY, f64::min);
+    let on_grid = |d: f64| ((d / step) - (d / step).round()).abs() <= ON_THE_GRID;
+    (step.is_finite() && moves().all(on_grid)).then_some(step)
+}
+
+fn variance(x: impl Iterator<Item = f64> + Clone) -> f64 {
+    let (n, sum) = x.clone().fold((0usize, 0.0), |(n, s), v| (n + 1, s + v));
+    if n < 2 {
+        return 0.0;
+    }
+    let mean = sum / n as f64;
+    x.map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::{FRAC_PI_4, TAU};
+
+    /// Positions on the grid of a `bits` encoder (a turn, or 0.1 m for the insertion).
+    fn quantum(joint: usize, bits: u32) -> f64 {
+        [TAU, TAU, 0.1][joint] / 2f64.powi(bits as i32)
+    }
+
+    /// Three joints (two rotations and an insertion, as ARASH:ASiST's) moving in two tones each at
+    /// `fs` for `seconds`, plus `dither` (a share of the amplitude) at 12 Hz, read through `bits`
+    /// encoders.
+    fn rig_log(fs: f64, seconds: f64, bits: u32, dither: f64) -> Vec<f64> {
+        let (amplitude, n) = ([0.3, 0.2, 0.02], (fs * seconds) as usize);
+        let mut q = vec![0.0; 3 * n];
+        for k in 0..n {
+            let t = k as f64 / fs;
+            for j in 0..3 {
+                let (a, w1, w2, w3) = (amplitude[j], TAU * 0.3, TAU * 0.9, TAU * 12.0);
+                let x = a * (w1 * t).sin() + 0.2 * a * (w2 * t).cos() + dither * a * (w3 * t).sin();
+                q[3 * k + j] = (x / quantum(j, bits)).round() * quantum(j, bits);
+            }
+        }
+        q
+    }
+
+    fn chosen(fs: f64, q: &[f64]) -> Chosen {
+        noise_limited_cutoff(q, (3, fs), 5).unwrap()
+    }
+
+    #[test]
+    fn a_fine_encoder_keeps_the_whole_band() {
+        let c = chosen(1000.0, &rig_log(1000.0, 20.0, 24, 0.0));
+        assert_eq!(c.cutoff_hz, DIAGNOSIS_CUTOFF_HZ, "{}", c.reason);
+        assert!(c.warning.is_none());
+    }
+
+    /// A 12 Hz oscillation of the joints themselves, as a closed loop's dither is, adds more to q̈
+    /// than the limit; the positions sit on a fine encoder's grid, so the band stays. Off the grid the same motion is read as noise.
+    #[test]
+    fn a_real_fast_motion_on_a_fine_encoder_is_not_noise() {
+        let fs = 1000.0;
+        let mut q = rig_log(fs, 20.0, 22, 4e-4);
+        let c = chosen(fs, &q);
+        assert_eq!(c.cutoff_hz, DIAGNOSIS_CUTOFF_HZ, "{}", c.reason);
+        q.iter_mut().enumerate().for_each(|(k, x)| *x += 1e-9 * ((k * 7919) % 13) as f64);
+        let blind = chosen(fs, &q);
+        assert!(blind.cutoff_hz < 12.0, "{}", blind.reason);
+    }
+
+    /// The quantisation noise reaching q̈ at c is Δ²/12 · (2/fs) · (2π)⁴ c⁵/5 · π/4 (see the gain's
+    /// test): the chosen band keeps it under the limit of the slowest joint's q̈ variance, and the
+    /// next wider step does not.
+    #[test]
+    fn a_coarse_encoder_narrows_the_band_where_the_noise_formula_says() {
+        let (fs, bits) = (200.0, 12);
+        let Chosen { cutoff_hz: cutoff, reason, warning } = chosen(fs, &rig_log(fs, 60.0, bits, 0.0));
+        assert!(warning.is_none(), "{warning:?}");
+        let noise = |c: f64| {
+            let d = quantum(0, bits);
+            d * d / 12.0 * (2.0 / fs) * TAU.powi(4) * c.powi(5) / 5.0 * FRAC_PI_4
+        };
+        // Yaw's q̈ variance: two tones of amplitude 0.3 and 0.06 rad at 0.3 and 0.9 Hz.
+        let w = |f: f64| (TAU * f).powi(2);
+        let signal = 0.5 * (0.3 * w(0.3)).powi(2) + 0.5 * (0.06 * w(0.9)).powi(2);
+        let wider = cutoff * 2f64.powf(0.25);
+        assert!(cutoff < DIAGNOSIS_CUTOFF_HZ, "{reason}");
+        assert!(noise(cutoff) / signal < 1.5 * MAX_ACCELERATION_NOISE, "{cutoff} Hz: {}", noise(cutoff) / signal);
+        assert!(noise(wider) / signal > 0.5 * MAX_ACCELERATION_NOISE, "{wider} Hz: {}", noise(wider) / signal);
+    }
+
+    #[test]
+    fn the_encoder_step_is_read_from_the_positions() {
+        let q = rig_log(1000.0, 5.0, 12, 0.0);
+        for j in 0..3 {
+            let step = encoder_step(&q, 3, j).unwrap();
+            assert!((step / quantum(j, 12) - 1.0).abs() < 1e-9, "{step}");
+        }
+        let smooth: Vec<f64> = (0..1000).map(|k| (k as f64 * 0.01).sin()).collect();
+        assert_eq!(encoder_step(&smooth, 1, 0), None);
+    }
+
+    /// The gain against its closed form: white noise of unit variance has the one-sided density
+    /// 2/fs, two differences multiply it by (2πf)⁴ (less a droop of 1 % at 20 Hz of 1 kHz), and
+    /// an order-n Butterworth run forward and backward by 1/(1 + (f/c)^2n)², whose integral
+    /// against f⁴ is c⁵/5 · π/4 for n = 5.
+    #[test]
+    fn the_white_noise_gain_is_close_to_the_ideal_low_pass() {
+        let (fs, c) = (1000.0, 20.0_f64);
+        let exact = 2.0 / fs * TAU.powi(4) * c.powi(5) / 5.0 * FRAC_PI_4;
+        let gain = white_noise_gain((fs, c), 5).unwrap();
+        assert!((gain / exact - 1.0).abs() < 0.02, "{gain} against {exact}");
+    }
+}
