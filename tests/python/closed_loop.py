@@ -58,3 +58,66 @@ def closed_loop_log(condition, loop_hz=LOOP_HZ, damping=LOOP_DAMPING):
             qd = qd + h * qdd
             q = q + h * qd
     return robot, (t, q_log, tau_log), truth
+
+
+def pd_gravity_log(condition, truth_params, *, loop_hz=LOOP_HZ, damping=LOOP_DAMPING, actuator_noise=0.02,
+                   noise_hz=None):
+    """PD with gravity compensation from the CAD model, τ = g(q; π_CAD) − K_p e − K_d ė, the law
+    IDIM-IV can name, running ``condition``'s trajectory on the robot ``truth_params`` (a full
+    parameter vector: bodies, friction with the tanh law of ``TANH_EPSILON``, cable stiffness).
+
+    The drive adds white noise of ``actuator_noise`` times each joint's RMS torque to what the
+    controller commands, and the log records the torque applied: that noise moves the robot, so
+    the positions and the torque error are correlated, which is what biases least squares in
+    closed loop. ``noise_hz`` gives that noise a first-order band (a drive's disturbance, slow
+    enough to pass the identification's filter); None keeps it white. The encoders quantise at ``condition.bits`` and the controller differences them.
+    Returns the robot (tanh law declared), the log (t, q, τ), the reference (q_d, q̇_d, q̈_d) and
+    the controller as IDIM-IV takes it."""
+    rng = np.random.default_rng(condition.seed)
+    path = urdf_path(condition.robot)
+    robot = arash.Robot.from_urdf(path, coulomb_epsilon=TANH_EPSILON)
+    plant, cad = Expanded(path, robot), Expanded(path, robot)
+    plant.set_parameters(truth_params)
+    cad_params = robot.cad_parameters()
+    cad.set_parameters(cad_params)
+    n, nb = robot.dof, len(robot.body_names())
+    fv = truth_params[10 * nb : 10 * nb + 2 * n : 2]
+    fc = truth_params[10 * nb + 1 : 10 * nb + 2 * n : 2]
+    ke = truth_params[10 * nb + 2 * n :]
+
+    def joint_terms(q, qd):
+        return fv * qd + fc * np.tanh(qd / TANH_EPSILON) + ke * q
+
+    t, q_d, qd_d, qdd_d = trajectory(robot, condition, rng)
+    inertia = np.diag(plant.mass_matrix(q_d[0]))
+    w = 2 * np.pi * loop_hz
+    kp, kd = inertia * w * w, 2 * damping * inertia * w
+    # The noise's scale: the torque the trajectory needs, joint by joint.
+    needed = rigid_torques(plant, q_d[:: max(1, len(t) // 2000)], qd_d[:: max(1, len(t) // 2000)],
+                           qdd_d[:: max(1, len(t) // 2000)])
+    noise = actuator_noise * np.sqrt(np.mean(needed**2, axis=0))
+    step = quantum(path, robot) / 2**condition.bits
+    dt = 1.0 / condition.fs
+    h = dt / SUBSTEPS
+    q, qd = q_d[0].copy(), qd_d[0].copy()
+    q_log, tau_log = np.empty_like(q_d), np.empty_like(q_d)
+    disturbance = rng.normal(size=(len(t), n))
+    if noise_hz is not None:
+        # x ← a x + √(1 − a²) w keeps the unit variance with a first-order band of noise_hz.
+        a = np.exp(-2 * np.pi * noise_hz * dt)
+        for i in range(1, len(t)):
+            disturbance[i] = a * disturbance[i - 1] + np.sqrt(1 - a * a) * disturbance[i]
+    for i in range(len(t)):
+        measured = np.round(q / step) * step
+        velocity = qd_d[0] if i == 0 else (measured - measured_before) / dt
+        measured_before = measured
+        tau = cad.torque(measured, np.zeros(n), np.zeros(n)) - kp * (measured - q_d[i]) - kd * (velocity - qd_d[i])
+        tau = tau + noise * disturbance[i]
+        q_log[i], tau_log[i] = measured, tau
+        for _ in range(SUBSTEPS):
+            bias = plant.torque(q, qd, np.zeros(n))
+            qdd = np.linalg.solve(plant.mass_matrix(q), tau - bias - joint_terms(q, qd))
+            qd = qd + h * qdd
+            q = q + h * qd
+    controller = {"law": "pd", "params": cad_params, "kp": kp, "kd": kd}
+    return robot, (t, q_log, tau_log), (q_d, qd_d, qdd_d), controller

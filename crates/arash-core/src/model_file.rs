@@ -48,6 +48,13 @@ pub enum IdentifyMethod {
     Wls,
     /// Full standard parameters with every body physically consistent (SDP).
     Consistent,
+    /// IDIM-IV for closed-loop logs: instruments from the loop simulated with the estimate
+    /// ([`crate::identify::closed_loop`]).
+    #[serde(rename = "idim-iv")]
+    IdimIv,
+    /// IDIM-IV with every body physically consistent (the SDP on the instrumented regressor).
+    #[serde(rename = "idim-iv-consistent")]
+    IdimIvConsistent,
 }
 
 impl IdentifyMethod {
@@ -57,8 +64,22 @@ impl IdentifyMethod {
             Self::Ols => "ols",
             Self::Wls => "wls",
             Self::Consistent => "consistent",
+            Self::IdimIv => "idim-iv",
+            Self::IdimIvConsistent => "idim-iv-consistent",
         }
     }
+
+    /// Whether the method needs the closed loop's reference and controller.
+    pub fn closed_loop(self) -> bool {
+        matches!(self, Self::IdimIv | Self::IdimIvConsistent)
+    }
+
+    /// Whether the result is a physically consistent π̂.
+    pub fn consistent(self) -> bool {
+        matches!(self, Self::Consistent | Self::IdimIvConsistent)
+    }
+
+    pub const ALL: [Self; 5] = [Self::Ols, Self::Wls, Self::Consistent, Self::IdimIv, Self::IdimIvConsistent];
 }
 
 impl std::fmt::Display for IdentifyMethod {
@@ -70,10 +91,10 @@ impl std::fmt::Display for IdentifyMethod {
 impl std::str::FromStr for IdentifyMethod {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        [Self::Ols, Self::Wls, Self::Consistent]
+        Self::ALL
             .into_iter()
             .find(|m| m.name() == s)
-            .ok_or_else(|| format!("unknown method `{s}` (ols, wls or consistent)"))
+            .ok_or_else(|| format!("unknown method `{s}` (ols, wls, consistent, idim-iv or idim-iv-consistent)"))
     }
 }
 
@@ -381,7 +402,11 @@ impl ModelFile {
             self.condition_number
         );
         // The consistent β is a constrained estimate; its spread is reported from the least squares.
-        let sigma = if self.settings.method == IdentifyMethod::Consistent { "σ% (OLS)" } else { "σ%" };
+        let sigma = match self.settings.method {
+            IdentifyMethod::Consistent => "σ% (OLS)",
+            IdentifyMethod::IdimIvConsistent => "σ% (IV)",
+            _ => "σ%",
+        };
         s += &format!("  Coulomb friction as {}\n", CoulombShape::of_epsilon(self.settings.coulomb_epsilon));
         s += &self.settings.reasons.iter().map(|r| format!("  {r}\n")).collect::<String>();
         s += &self.settings.warnings.iter().map(|w| format!("  warning: {w}\n")).collect::<String>();

@@ -420,3 +420,234 @@ fn a_closed_loop_log_does_not_lead_the_cutoff_into_the_encoders_noise() {
     eprintln!("cut-off {:.2} Hz, ‖e‖/‖τ‖ {relative:.4?}\n{reasons}", file.settings.cutoff_hz);
     assert!(relative.iter().all(|r| *r < 0.05), "‖e‖/‖τ‖ {relative:?} at {:.2} Hz\n{reasons}", file.settings.cutoff_hz);
 }
+
+/// What disturbs a simulated closed loop ([`closed_loop_log`]).
+#[derive(Clone, Copy)]
+struct LoopNoise {
+    /// Noise the drive adds to the commanded torque, as a share of each joint's RMS torque, in a
+    /// first-order 2 Hz band (the log records the torque applied).
+    disturbance: f64,
+    /// White noise on the encoder readings, in 16-bit counts, before they are quantised to whole
+    /// counts; `None` reads the exact position.
+    encoder_counts: Option<f64>,
+}
+
+/// A closed-loop log of the true robot `pi`: PD with gravity compensation from CAD (5 Hz,
+/// damping 0.7 on the diagonal of `M(q₀)`) follows `traj` for `seconds` at 1 kHz. The
+/// controller differences the encoders for its velocity, so their noise passes through its gain
+/// into the torque the log holds. The plant is integrated by semi-implicit Euler in
+/// quarter-millisecond steps (IDIM-IV's own simulation is RK4).
+struct LoopLog {
+    t: Vec<f64>,
+    q: Vec<f64>,
+    tau: Vec<f64>,
+    reference: [Vec<f64>; 3],
+    controller: arash_core::identify::closed_loop::LoggedController,
+}
+
+fn closed_loop_log(
+    model: &Model,
+    pi: &[f64],
+    (traj, seconds): (&Fourier, f64),
+    noise: LoopNoise,
+    rng: &mut ChaCha8Rng,
+) -> LoopLog {
+    use arash_core::identify::closed_loop::LoggedController;
+    let (fs, n, substeps) = (1000.0, model.dof(), 4);
+    let (dt, h) = (1.0 / fs, 1.0 / fs / substeps as f64);
+    let cad = model.cad_parameters();
+    let mut data = Data::new(model);
+    let (q0, qd0, _) = traj.at(0.0);
+    let mut mass = vec![0.0; n * n];
+    mass_matrix(model, &mut data, &q0, pi, &mut mass);
+    let w = 2.0 * std::f64::consts::PI * 5.0;
+    let kp: Vec<f64> = (0..n).map(|k| mass[k * n + k] * w * w).collect();
+    let kd: Vec<f64> = (0..n).map(|k| 1.4 * mass[k * n + k] * w).collect();
+    // The disturbance's scale: the RMS torque the trajectory needs.
+    let mut scale = vec![0.0; n];
+    let mut tau = vec![0.0; n];
+    for i in 0..1000 {
+        let (q, qd, qdd) = traj.at(i as f64 * 0.015);
+        inverse_dynamics(model, &mut data, &q, &qd, &qdd, pi, &mut tau);
+        scale.iter_mut().zip(&tau).for_each(|(s, t)| *s += t * t / 1000.0);
+    }
+    let scale: Vec<f64> = scale.iter().map(|s| noise.disturbance * s.sqrt()).collect();
+    let quantum: Vec<f64> = model
+        .joints
+        .iter()
+        .map(|j| if j.kind == JointKind::Prismatic { 0.2 } else { 2.0 * std::f64::consts::PI } / 65536.0)
+        .collect();
+    let a = (-2.0 * std::f64::consts::PI * 2.0 * dt).exp();
+    let (mut q, mut qd) = (q0.clone(), qd0.clone());
+    let (mut disturbance, mut read_before) = (vec![0.0; n], q0.clone());
+    let controller = LoggedController::Pd { params: cad.clone(), kp: kp.clone(), kd: kd.clone() };
+    let mut log = LoopLog { t: vec![], q: vec![], tau: vec![], reference: Default::default(), controller };
+    let (mut gravity, mut qdd) = (vec![0.0; n], vec![0.0; n]);
+    for i in 0..(seconds * fs) as usize {
+        let ti = i as f64 * dt;
+        let (q_d, qd_d, qdd_d) = traj.at(ti);
+        let read: Vec<f64> = (0..n)
+            .map(|k| match noise.encoder_counts {
+                Some(counts) => ((q[k] / quantum[k]) + counts * gaussian(rng)).round() * quantum[k],
+                None => q[k],
+            })
+            .collect();
+        let velocity: Vec<f64> = match (i, noise.encoder_counts) {
+            (0, _) => qd0.clone(),
+            (_, Some(_)) => (0..n).map(|k| (read[k] - read_before[k]) / dt).collect(),
+            (_, None) => qd.clone(),
+        };
+        read_before.clone_from(&read);
+        gravity_torque(model, &mut data, &read, &cad, &mut gravity);
+        for k in 0..n {
+            disturbance[k] = a * disturbance[k] + (1.0 - a * a).sqrt() * gaussian(rng);
+            tau[k] =
+                gravity[k] - kp[k] * (read[k] - q_d[k]) - kd[k] * (velocity[k] - qd_d[k]) + scale[k] * disturbance[k];
+        }
+        log.t.push(ti);
+        log.q.extend_from_slice(&read);
+        log.tau.extend_from_slice(&tau);
+        log.reference[0].extend_from_slice(&q_d);
+        log.reference[1].extend_from_slice(&qd_d);
+        log.reference[2].extend_from_slice(&qdd_d);
+        for _ in 0..substeps {
+            forward_dynamics(model, &mut data, &q, &qd, &tau, pi, &mut qdd).unwrap();
+            for k in 0..n {
+                qd[k] += h * qdd[k];
+                q[k] += h * qd[k];
+            }
+        }
+    }
+    log
+}
+
+fn closed_loop_truth(seed: u64) -> (Model, BaseParameters, Vec<f64>, Fourier, ChaCha8Rng) {
+    let (mut model, base, pi, _, mut rng) = drawn_truth(seed);
+    model.coulomb_shape = CoulombShape::Tanh { epsilon: 0.01 };
+    // Four 10 s periods.
+    let traj = Fourier::random(&model, 10.0, &mut rng);
+    (model, base, pi, traj, rng)
+}
+
+/// IDIM-IV's simulation of the loop is an independent integration of the same closed loop: on a
+/// log with no noise and exact encoders it reproduces the logged positions.
+#[test]
+fn the_loop_idim_iv_simulates_follows_a_noise_free_closed_loop_log() {
+    use arash_core::identify::closed_loop::{simulate_loop, ClosedLoop};
+    let (model, _, pi, traj, mut rng) = closed_loop_truth(41);
+    let log =
+        closed_loop_log(&model, &pi, (&traj, 10.0), LoopNoise { disturbance: 0.0, encoder_counts: None }, &mut rng);
+    let closed_loop = ClosedLoop {
+        q_des: &log.reference[0],
+        qd_des: &log.reference[1],
+        qdd_des: &log.reference[2],
+        controller: &log.controller,
+    };
+    let (q, tau) = simulate_loop(&model, &pi, &closed_loop, &log.t).unwrap();
+    let n = model.dof();
+    for k in 0..n {
+        let column = |x: &[f64]| x.iter().skip(k).step_by(n).copied().collect::<Vec<f64>>();
+        let (sim, logged, desired) = (column(&q), column(&log.q), column(&log.reference[0]));
+        let error = sim.iter().zip(&logged).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        let tracking = logged.iter().zip(&desired).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        let (torque_sim, torque_log) = (column(&tau), column(&log.tau));
+        let torque_error = torque_sim.iter().zip(&torque_log).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        let torque_span = torque_log.iter().map(|x| x.abs()).fold(0.0, f64::max);
+        eprintln!("joint {k}: |q_sim − q_log| ≤ {error:.2e}, tracking error ≤ {tracking:.2e}, |τ_sim − τ_log| ≤ {torque_error:.2e} of {torque_span:.2e}");
+        // The two integrations differ by Euler's O(h) error; the loop's own tracking error is
+        // what a wrong controller or plant would show.
+        assert!(
+            error < 0.02 * tracking,
+            "joint {k}: the simulated loop is {error:.2e} off; tracking error {tracking:.2e}"
+        );
+        assert!(torque_error < 0.02 * torque_span, "joint {k}: torque {torque_error:.2e} off of {torque_span:.2e}");
+    }
+}
+
+/// On closed-loop logs of a PD loop whose drive adds a disturbance in the identification's band
+/// (a tenth of the RMS torque, in 2 Hz) and whose 16-bit encoders the controller differences,
+/// IDIM-IV settles in a few iterations and its σ cover the truth. The estimate comes from the
+/// instruments alone: a wrong solve or a wrong σ fails here.
+#[test]
+fn idim_iv_settles_and_its_sigma_cover_the_truth_on_closed_loop_logs() {
+    use arash_core::identify::closed_loop::ClosedLoop;
+    use arash_core::identify::{identify_in_closed_loop, Declared, IdentifyOptions, Log};
+    use arash_core::model_file::IdentifyMethod;
+    let (mut covered, mut total) = (0, 0);
+    for seed in 0..4 {
+        let (model, base, pi, traj, mut rng) = closed_loop_truth(100 + seed);
+        let noise = LoopNoise { disturbance: 0.1, encoder_counts: Some(0.0) };
+        let log = closed_loop_log(&model, &pi, (&traj, 40.0), noise, &mut rng);
+        let mut beta_true = vec![0.0; base.rank];
+        base.project(&pi, &mut beta_true);
+        let closed_loop = ClosedLoop {
+            q_des: &log.reference[0],
+            qd_des: &log.reference[1],
+            qdd_des: &log.reference[2],
+            controller: &log.controller,
+        };
+        let iv = identify_in_closed_loop(
+            Declared { model: &model, base: &base, urdf: "" },
+            Log { t: &log.t, q: &log.q, tau: &log.tau },
+            closed_loop,
+            IdentifyMethod::IdimIv,
+            &IdentifyOptions::default(),
+        )
+        .unwrap();
+        let reasons = iv.settings.reasons.join("\n");
+        eprintln!("seed {seed}: {}", iv.settings.reasons.last().unwrap());
+        assert!(iv.settings.warnings.iter().all(|w| !w.contains("IDIM-IV")), "{:?}", iv.settings.warnings);
+        assert!(reasons.contains("IDIM-IV"), "{reasons}");
+        for ((beta, sigma_percent), truth) in iv.beta.iter().zip(&iv.sigma_percent).zip(&beta_true) {
+            covered += usize::from((beta - truth).abs() <= 3.0 * sigma_percent / 100.0 * beta.abs());
+            total += 1;
+        }
+    }
+    let coverage = covered as f64 / total as f64;
+    eprintln!("IDIM-IV: {covered} of {total} base parameters within 3σ of the truth");
+    assert!(coverage >= 0.9, "IDIM-IV's 3σ cover {:.1} % of the base parameters", 100.0 * coverage);
+}
+
+/// IDIM-IV without its closed loop, or with one that does not fit the log, is refused by name.
+#[test]
+fn idim_iv_names_what_its_closed_loop_lacks() {
+    use arash_core::identify::closed_loop::{ClosedLoop, LoggedController};
+    use arash_core::identify::{identify, identify_in_closed_loop, Declared, IdentifyOptions, Log};
+    use arash_core::model_file::IdentifyMethod;
+    let (model, base, pi, traj, mut rng) = closed_loop_truth(7);
+    let log = closed_loop_log(
+        &model,
+        &pi,
+        (&traj, 20.0),
+        LoopNoise { disturbance: 0.0, encoder_counts: Some(1.0) },
+        &mut rng,
+    );
+    let declared = Declared { model: &model, base: &base, urdf: "" };
+    let data = Log { t: &log.t, q: &log.q, tau: &log.tau };
+    let options = IdentifyOptions::default();
+    let message = identify(declared, data, IdentifyMethod::IdimIv, &options).unwrap_err().to_string();
+    assert!(message.contains("reference") && message.contains("controller") && message.contains("ols"), "{message}");
+    let short = &log.reference[1][..log.reference[1].len() - 3];
+    let closed_loop =
+        ClosedLoop { q_des: &log.reference[0], qd_des: short, qdd_des: &log.reference[2], controller: &log.controller };
+    let message =
+        identify_in_closed_loop(declared, data, closed_loop, IdentifyMethod::IdimIv, &options).unwrap_err().to_string();
+    assert!(message.contains("qd_des"), "{message}");
+    let mut nan = log.reference[2].clone();
+    nan[30] = f64::NAN;
+    let closed_loop =
+        ClosedLoop { q_des: &log.reference[0], qd_des: &log.reference[1], qdd_des: &nan, controller: &log.controller };
+    let message =
+        identify_in_closed_loop(declared, data, closed_loop, IdentifyMethod::IdimIv, &options).unwrap_err().to_string();
+    assert!(message.contains("qdd_des") && message.contains("sample 10"), "{message}");
+    let wrong = LoggedController::Pd { params: vec![0.0; 5], kp: vec![1.0; 3], kd: vec![1.0; 3] };
+    let closed_loop = ClosedLoop {
+        q_des: &log.reference[0],
+        qd_des: &log.reference[1],
+        qdd_des: &log.reference[2],
+        controller: &wrong,
+    };
+    let message =
+        identify_in_closed_loop(declared, data, closed_loop, IdentifyMethod::IdimIv, &options).unwrap_err().to_string();
+    assert!(message.contains("5 entries"), "{message}");
+}

@@ -38,7 +38,18 @@ const FOLDERS: &[(&str, &[&str])] = &[
     ("control", &["gains", "safety", "fourier", "trajectory", "estimator", "feedforward", "laws"]),
     (
         "identify",
-        &["filter", "decide", "signals", "friction", "preprocess", "estimate", "cutoff", "consistent", "excitation"],
+        &[
+            "filter",
+            "decide",
+            "signals",
+            "friction",
+            "preprocess",
+            "estimate",
+            "cutoff",
+            "consistent",
+            "closed_loop",
+            "excitation",
+        ],
     ),
     (
         "diagnose",

@@ -27,6 +27,8 @@ use crate::link::MotorLink;
 use crate::live::server::LiveServer;
 use crate::live::window::display_scales;
 use crate::logger::{LogContext, Logger, RunInfo, RunRegistry};
+use arash_core::identify::closed_loop::LoggedController;
+
 use crate::rt::clock::setup_realtime;
 use crate::rt::cycle::{ControlCycle, Garbage, Request};
 use crate::rt::reference::RunRequest;
@@ -52,6 +54,8 @@ struct Operator {
     /// The live stream, when it is on.
     live: Option<Arc<LiveServer>>,
     next_run: Mutex<u32>,
+    /// The controller last sent to the cycle, as each run's log describes it.
+    controller: Mutex<LoggedController>,
     /// What a trajectory may ask of the joints, checked before a run is queued.
     plan_limits: PlanLimits,
     /// Control period (s): the spacing at which a trajectory is checked.
@@ -59,13 +63,15 @@ struct Operator {
 }
 
 /// Build a controller of `kind` for `model` with parameters from `model_file` (or CAD). The
-/// model-based laws also compensate the effects a diagnosis added to the file.
+/// model-based laws also compensate the effects a diagnosis added to the file. Returns it with
+/// its description, which each run's log carries (`controller.json`) so that a closed-loop
+/// estimator can simulate the loop.
 pub fn build_controller(
     model: &Model,
     kind: ControllerKind,
     model_file: Option<&std::path::Path>,
     gains: Option<&RobustGains>,
-) -> anyhow::Result<Box<dyn Controller>> {
+) -> anyhow::Result<(Box<dyn Controller>, LoggedController)> {
     let (params, effects) = match model_file {
         None => (model.cad_parameters(), vec![]),
         Some(path) => {
@@ -80,7 +86,8 @@ pub fn build_controller(
             (params, id.effects)
         }
     };
-    Ok(controller_with_effects(kind, model, &params, &effects, gains)?)
+    let controller = controller_with_effects(kind, model, &params, &effects, gains)?;
+    Ok((controller, LoggedController::Standard { kind, params, effects, gains: gains.cloned() }))
 }
 
 /// Largest model or trajectory file the daemon reads: a model file embeds its URDF (15 kB for
@@ -190,7 +197,8 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     let units = config.control.gain_units.parse().map_err(anyhow::Error::msg)?;
     let gains = RobustGains::from_paper(&model, units).ok();
     let kind = config.controller()?;
-    let controller = build_controller(&model, kind, config.control.model.as_deref(), gains.as_ref())?;
+    let (controller, logged_controller) =
+        build_controller(&model, kind, config.control.model.as_deref(), gains.as_ref())?;
     let cycle = ControlCycle::new(config.cycle_config(&model)?, controller);
 
     let (request_tx, request_rx) = rtrb::RingBuffer::new(64);
@@ -280,6 +288,7 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
         runs,
         live: live.as_ref().map(|(server, _)| server.clone()),
         next_run: Mutex::new(0),
+        controller: Mutex::new(logged_controller),
     });
     let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
     let served = runtime.block_on(async {
@@ -503,6 +512,7 @@ async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::Result<serd
                 RunInfo {
                     label: label.unwrap_or_else(|| "trajectory".into()),
                     trajectory_json: text,
+                    controller_json: operator.controller.lock().expect("controller lock").to_json(),
                     controller,
                     log: None,
                     state: "approaching".into(),
@@ -515,8 +525,10 @@ async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::Result<serd
         CtlRequest::Controller { kind, model } => {
             let kind = crate::config::controller_kind(&kind).context("controller kind")?;
             let path = model.map(PathBuf::from);
-            let controller = build_controller(&operator.model, kind, path.as_deref(), operator.gains.as_ref())?;
+            let (controller, logged) =
+                build_controller(&operator.model, kind, path.as_deref(), operator.gains.as_ref())?;
             applied(operator, send(operator, Request::Controller(controller))?).await?;
+            *operator.controller.lock().expect("controller lock") = logged;
             Ok(status(operator))
         }
     }

@@ -61,6 +61,10 @@ pub struct RunInfo {
     /// Attached to the run's log; left out of `ctl status`, which polls often.
     #[serde(skip)]
     pub trajectory_json: String,
+    /// The controller that runs it ([`arash_core::identify::closed_loop::LoggedController`]),
+    /// attached to the run's log as `controller.json`.
+    #[serde(skip)]
+    pub controller_json: String,
     pub controller: String,
     /// The finished log file, once the run has ended.
     pub log: Option<PathBuf>,
@@ -390,6 +394,11 @@ impl Logger {
                 "trajectory.json".to_string(),
                 "application/json".to_string(),
                 info.trajectory_json.as_bytes().to_vec(),
+            ));
+            attachments.push((
+                "controller.json".to_string(),
+                "application/json".to_string(),
+                info.controller_json.as_bytes().to_vec(),
             ));
         }
         let start_unix_ns =

@@ -8,6 +8,7 @@ use std::path::Path;
 
 use anyhow::{bail, Context};
 use arash_core::control::Trajectory;
+use arash_core::identify::closed_loop::LoggedController;
 use arash_core::Model;
 
 /// A log: `t` (N) and row-major `q`, `tau` (N × dof).
@@ -18,6 +19,15 @@ pub struct Log {
     /// The reference the run followed, when the log says (flight logs of `arash simulate` and
     /// of daemon runs).
     pub trajectory: Option<Trajectory>,
+    /// What a closed-loop estimator needs beyond `t`, `q`, `τ`, when the log has it.
+    pub closed_loop: Option<ClosedLoopChannels>,
+}
+
+/// The reference `(q_des, q̇_des, q̈_des)` at every sample (row-major N × dof each), and the
+/// controller the run was made with, or why the log does not name one.
+pub struct ClosedLoopChannels {
+    pub reference: [Vec<f64>; 3],
+    pub controller: Result<LoggedController, String>,
 }
 
 /// Read a run, by extension: `.mcap` is a flight log, anything else CSV.
@@ -43,8 +53,17 @@ fn read_flight_log(path: &Path, model: &Model) -> anyhow::Result<Log> {
     }
     let dof = model.dof();
     let trajectory = logged_trajectory(&log, dof);
+    let controller = match log.logged_controller() {
+        Some(named) => named.map_err(|e| e.to_string()),
+        None => Err(format!(
+            "{} names no controller (neither controller.json nor run.json is attached); give it with --controller",
+            path.display()
+        )),
+    };
+    let c = log.cycles;
+    let closed_loop = ClosedLoopChannels { reference: [c.q_des, c.qd_des, c.qdd_des], controller };
     let (mut log, repaired) =
-        regrid(Log { t: log.cycles.t, q: log.cycles.q, tau: log.cycles.tau_meas, trajectory: None }, dof);
+        regrid(Log { t: c.t, q: c.q, tau: c.tau_meas, trajectory: None, closed_loop: Some(closed_loop) }, dof);
     log.trajectory = trajectory;
     if repaired > 0 {
         eprintln!(
@@ -93,6 +112,10 @@ fn regrid(log: Log, dof: usize) -> (Log, usize) {
         q: Vec::with_capacity(n * dof),
         tau: Vec::with_capacity(n * dof),
         trajectory: log.trajectory,
+        closed_loop: log
+            .closed_loop
+            .as_ref()
+            .map(|c| ClosedLoopChannels { reference: Default::default(), controller: c.controller.clone() }),
     };
     let mut repaired = log.t.len() - keep.len();
     let mut j = 0;
@@ -108,9 +131,15 @@ fn regrid(log: Log, dof: usize) -> (Log, usize) {
             repaired += 1;
         }
         out.t.push(t);
+        let between = |x: &[f64], k: usize| x[a * dof + k] * (1.0 - w) + x[b * dof + k] * w;
         for k in 0..dof {
-            out.q.push(log.q[a * dof + k] * (1.0 - w) + log.q[b * dof + k] * w);
-            out.tau.push(log.tau[a * dof + k] * (1.0 - w) + log.tau[b * dof + k] * w);
+            out.q.push(between(&log.q, k));
+            out.tau.push(between(&log.tau, k));
+        }
+        if let (Some(from), Some(to)) = (&log.closed_loop, &mut out.closed_loop) {
+            for (x, y) in from.reference.iter().zip(&mut to.reference) {
+                y.extend((0..dof).map(|k| between(x, k)));
+            }
         }
     }
     (out, repaired)
@@ -132,7 +161,14 @@ fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
     let q_cols: Vec<usize> = model.joints.iter().map(|j| find(&format!("q.{}", j.name))).collect::<Result<_, _>>()?;
     let tau_cols: Vec<usize> =
         model.joints.iter().map(|j| find(&format!("tau.{}", j.name))).collect::<Result<_, _>>()?;
-    let mut log = Log { t: Vec::new(), q: Vec::new(), tau: Vec::new(), trajectory: None };
+    let reference_cols: Option<Vec<Vec<usize>>> = ["q_des", "qd_des", "qdd_des"]
+        .iter()
+        .map(|channel| {
+            model.joints.iter().map(|j| find(&format!("{channel}.{}", j.name)).ok()).collect::<Option<Vec<usize>>>()
+        })
+        .collect();
+    let mut log = Log { t: Vec::new(), q: Vec::new(), tau: Vec::new(), trajectory: None, closed_loop: None };
+    let mut reference: [Vec<f64>; 3] = Default::default();
     for (line, record) in reader.records().enumerate() {
         let record = record.with_context(|| format!("{}: record {}", path.display(), line + 1))?;
         let value = |col: usize| -> anyhow::Result<f64> {
@@ -154,6 +190,16 @@ fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
         for &c in &tau_cols {
             log.tau.push(value(c)?);
         }
+        for (columns, out) in reference_cols.iter().flatten().zip(&mut reference) {
+            for &c in columns {
+                out.push(value(c)?);
+            }
+        }
+    }
+    if reference_cols.is_some() {
+        let controller =
+            Err(format!("{} is a CSV log, which names no controller; give it with --controller", path.display()));
+        log.closed_loop = Some(ClosedLoopChannels { reference, controller });
     }
     if log.t.is_empty() {
         bail!("{} has no data rows", path.display());
@@ -164,7 +210,10 @@ fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
 /// Concatenate logs recorded back to back at the same rate (their time stamps are re-based).
 pub fn concatenate(logs: Vec<Log>) -> Log {
     let trajectory = logs.first().and_then(|l| l.trajectory.clone());
-    let mut out = Log { t: Vec::new(), q: Vec::new(), tau: Vec::new(), trajectory };
+    let mut out = Log { t: Vec::new(), q: Vec::new(), tau: Vec::new(), trajectory, closed_loop: None };
+    if let [_] = logs.as_slice() {
+        return logs.into_iter().next().expect("one log");
+    }
     for log in logs {
         let dt = if log.t.len() > 1 { log.t[1] - log.t[0] } else { 0.0 };
         let offset = out.t.last().map_or(0.0, |last| last + dt) - log.t[0];
@@ -184,7 +233,7 @@ mod tests {
         // A ramp sampled at 1 ms with one repeat (t = 2 ms twice) and one gap (no 5 ms).
         let t = [0.0, 0.001, 0.002, 0.002, 0.003, 0.004, 0.006, 0.007];
         let q: Vec<f64> = t.iter().map(|t| 3.0 * t).collect();
-        let log = Log { t: t.to_vec(), q: q.clone(), tau: q, trajectory: None };
+        let log = Log { t: t.to_vec(), q: q.clone(), tau: q, trajectory: None, closed_loop: None };
         let (out, repaired) = regrid(log, 1);
         assert_eq!(repaired, 2);
         assert_eq!(out.t.len(), 8, "one sample per logged cycle");
@@ -197,7 +246,7 @@ mod tests {
     #[test]
     fn a_uniform_log_is_untouched() {
         let t: Vec<f64> = (0..10).map(|i| i as f64 * 1e-3).collect();
-        let log = Log { t: t.clone(), q: t.clone(), tau: t.clone(), trajectory: None };
+        let log = Log { t: t.clone(), q: t.clone(), tau: t.clone(), trajectory: None, closed_loop: None };
         let (out, repaired) = regrid(log, 1);
         assert_eq!((repaired, out.t), (0, t));
     }

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+use arash_core::control::ControllerKind;
 use arash_core::flightlog::read_log;
 
 mod common;
@@ -164,6 +165,32 @@ fn an_excitation_run_through_the_daemon_identifies_the_mock() {
         eprintln!("FP% ({fit}) on the daemon's excitation log: {fp:?}");
         assert!(fp.iter().all(|&x| x >= bound), "{fit}: FP% {fp:?}");
     }
+
+    // The run's log names the controller that ran it, so the closed-loop estimator (which
+    // simulates the loop) needs nothing beyond the log.
+    let named = flight.logged_controller().expect("a run's log names its controller").unwrap();
+    assert!(
+        matches!(
+            named,
+            arash_core::identify::closed_loop::LoggedController::Standard { kind: ControllerKind::Idc, .. }
+        ),
+        "{named:?}"
+    );
+    let iv = dir.join("iv.json");
+    let out = Command::new(ARASH)
+        .arg("identify")
+        .arg(&log)
+        .args(["--periods", "2", "--method", "idim-iv", "-o"])
+        .arg(&iv)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let iv: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&iv).unwrap()).unwrap();
+    let reasons = iv["settings"]["reasons"].to_string();
+    let fp: Vec<f64> = serde_json::from_value(iv["training"]["fp_percent"].clone()).unwrap();
+    eprintln!("IDIM-IV on the daemon's log: FP% {fp:?}; {reasons}");
+    assert!(reasons.contains("IDIM-IV: instruments from the closed loop"), "{reasons}");
+    assert!(fp.iter().all(|&x| x >= 90.0), "IDIM-IV training FP% {fp:?}");
 
     // A model that is not physically consistent is refused for the model-based laws.
     let ols = dir.join("ols.json");

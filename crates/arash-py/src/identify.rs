@@ -6,9 +6,12 @@ use std::sync::Arc;
 
 use arash_core::base_parameters::{BaseParameterOptions, BaseParameters as CoreBase};
 use arash_core::control::trajectory::paper_validation_state;
+use arash_core::identify::closed_loop::{ClosedLoop, LoggedController};
 use arash_core::identify::consistent::{identify_consistent, ConsistentOptions};
 use arash_core::identify::preprocess::PreprocessOptions;
-use arash_core::identify::{identify as core_identify, validate, Declared, IdentifyOptions, Log};
+use arash_core::identify::{
+    identify as core_identify, identify_in_closed_loop, validate, Declared, IdentifyOptions, Log,
+};
 use arash_core::model_file::{IdentifyMethod, ModelFile as CoreIdentification};
 use arash_core::Model;
 use faer::Mat;
@@ -229,8 +232,19 @@ fn _identify<'py>(
     let method: IdentifyMethod =
         method.map_or(Ok(IdentifyMethod::default()), str::parse).map_err(PyValueError::new_err)?;
     let mut o = IdentifyOptions::default();
+    let dof = robot.model.dof();
+    let mut reference: Option<[crate::Batch; 3]> = None;
+    let mut controller: Option<String> = None;
     crate::each_option(options, |key, value| {
         match key {
+            "reference" => {
+                let (a, b, c): (PyReadonlyArrayDyn<f64>, PyReadonlyArrayDyn<f64>, PyReadonlyArrayDyn<f64>) =
+                    value.extract()?;
+                reference = Some([batch("q_des", &a, dof)?, batch("qd_des", &b, dof)?, batch("qdd_des", &c, dof)?]);
+            }
+            "controller" => controller = Some(value.extract()?),
+            "iv_iterations" => o.iv.max_iterations = value.extract()?,
+            "iv_tolerance" => o.iv.tolerance = value.extract()?,
             "periods" => o.preprocess.periods = value.extract()?,
             "period_s" => o.preprocess.period_s = value.extract()?,
             "cutoff_hz" => o.preprocess.cutoff_hz = value.extract()?,
@@ -251,9 +265,55 @@ fn _identify<'py>(
     let model = Arc::clone(&robot.model);
     let base = robot.default_base()?;
     let declared = Declared { model: &model, base, urdf: &robot.urdf };
-    let inner =
-        py.detach(|| core_identify(declared, Log { t: &t, q: &q, tau: &tau }, method, &o)).map_err(value_error)?;
+    let log = Log { t: &t, q: &q, tau: &tau };
+    let inner = match closed_loop_arrays(reference, controller.as_deref(), model.dof(), t.len())? {
+        Some((reference, controller)) => {
+            let closed_loop = ClosedLoop {
+                q_des: &reference[0],
+                qd_des: &reference[1],
+                qdd_des: &reference[2],
+                controller: &controller,
+            };
+            py.detach(|| identify_in_closed_loop(declared, log, closed_loop, method, &o))
+        }
+        None => py.detach(|| core_identify(declared, log, method, &o)),
+    }
+    .map_err(value_error)?;
     Ok(Identification { model, inner })
+}
+
+/// The closed loop's reference `(q_des, qd_des, qdd_des)`, each `(N, dof)`, and its controller (JSON),
+/// checked: both or neither.
+fn closed_loop_arrays(
+    reference: Option<[crate::Batch; 3]>,
+    controller: Option<&str>,
+    dof: usize,
+    samples: usize,
+) -> PyResult<Option<([Vec<f64>; 3], LoggedController)>> {
+    let (reference, controller) = match (reference, controller) {
+        (None, None) => return Ok(None),
+        (Some(r), Some(c)) => (r, c),
+        (Some(_), None) => {
+            return Err(PyValueError::new_err(
+                "reference was given without controller: IDIM-IV simulates the loop and needs both",
+            ))
+        }
+        (None, Some(_)) => {
+            return Err(PyValueError::new_err(
+                "controller was given without reference (q_des, qd_des, qdd_des): IDIM-IV simulates the loop and \
+                 needs both",
+            ))
+        }
+    };
+    let controller = LoggedController::from_json(controller).map_err(value_error)?;
+    for (name, b) in ["q_des", "qd_des", "qdd_des"].into_iter().zip(&reference) {
+        if b.single || b.n != samples {
+            return Err(PyValueError::new_err(format!(
+                "reference {name} must have shape ({samples}, {dof}), one row per sample of the log"
+            )));
+        }
+    }
+    Ok(Some((reference.map(|b| b.values), controller)))
 }
 
 /// Read a model file written by `Identification.save` or `arash identify`.

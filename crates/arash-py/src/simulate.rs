@@ -8,6 +8,7 @@ use arash_core::control::gains::PaperUnits;
 use arash_core::control::{RobustGains, Trajectory};
 use arash_core::diagnose::EffectTerm;
 use arash_core::flightlog::{read_log as core_read_log, FlightLog, LogWriter};
+use arash_core::identify::closed_loop::LoggedController;
 use arash_core::record::{Columns, TruthColumns};
 use arash_core::sim::{named_parameters, true_parameters, ControllerChoice, RunSpec, Scenario};
 use numpy::PyReadonlyArrayDyn;
@@ -73,6 +74,8 @@ fn log_dict<'py>(py: Python<'py>, log: &FlightLog) -> PyResult<Bound<'py, PyDict
     }
     d.set_item("attachments", attachments)?;
     d.set_item("urdf", log.attachment_text("robot.urdf"))?;
+    let controller = log.logged_controller().transpose().map_err(value_error)?;
+    d.set_item("logged_controller", controller.map(|c| c.to_json()))?;
     d.set_item("truncated", log.truncated)?;
     // JSON channels (the daemon's /arash/timing and /arash/event): topic → [(t_ns, document)].
     let json = PyDict::new(py);
@@ -213,6 +216,8 @@ fn _simulate<'py>(
     d.set_item("true_params", vector(py, &true_params)?)?;
     d.set_item("joint_names", model.joint_names())?;
     d.set_item("scenario", spec.scenario.to_toml())?;
+    let controller = LoggedController::from_run_json(&spec.to_json()).map_err(value_error)?;
+    d.set_item("logged_controller", controller.to_json())?;
     Ok(d)
 }
 

@@ -10,6 +10,7 @@ use prost::Message;
 use super::schema::{Cycle, Truth};
 use super::{LogError, CYCLE_TOPIC, FORMAT, METADATA_NAME, TRUTH_TOPIC};
 use crate::control::{ControllerKind, Faults};
+use crate::identify::closed_loop::{ClosedLoopError, LoggedController};
 use crate::record::{Columns, CycleRecord, Mode, TruthColumns, TruthRecord};
 
 /// A whole log.
@@ -40,6 +41,16 @@ impl FlightLog {
 
     pub fn is_empty(&self) -> bool {
         self.cycles.t.is_empty()
+    }
+
+    /// The controller the log's run was made with, for IDIM-IV: the daemon attaches it to each
+    /// run's log as `controller.json`, `arash simulate` names it in `run.json`. `None` when the
+    /// log names none; an error when it names one that cannot be read.
+    pub fn logged_controller(&self) -> Option<Result<LoggedController, ClosedLoopError>> {
+        if let Some(text) = self.attachment_text("controller.json") {
+            return Some(LoggedController::from_json(&text));
+        }
+        Some(LoggedController::from_run_json(&self.attachment_text("run.json")?))
     }
 
     /// The attachment called `name`, as text.

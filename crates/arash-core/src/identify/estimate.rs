@@ -375,12 +375,7 @@ fn householder_qr(w: &Mat<f64>, b: &Mat<f64>) -> (Vec<f64>, DMatrix<f64>, f64) {
     ((0..p).map(|i| beta_mat[(i, 0)]).collect(), r_factor, condition)
 }
 
-/// σ_β from the sandwich (see [`fit_stacked`]) on the weighted system, with the small-sample
-/// factor `m / (m − p)`. Its middle is the overlapping-batch-means estimate of the scores'
-/// long-run covariance: every run of `block_samples` consecutive samples, not only disjoint
-/// blocks. Disjoint blocks give a middle of rank at most their number, which at a low cut-off
-/// (a few blocks per period) is below the number of parameters and under-states σ_β by a large
-/// factor; the overlapping runs keep its rank and the same bandwidth (Bartlett's kernel).
+/// σ_β from the sandwich (see [`fit_stacked`]) on the weighted system ([`sandwich_sigma`]).
 fn block_sandwich_sigma(
     w: &Mat<f64>,
     weighted_residual: &[f64],
@@ -389,14 +384,27 @@ fn block_sandwich_sigma(
     block_samples: usize,
     r_inv: &DMatrix<f64>,
 ) -> Vec<f64> {
-    let (m, p) = (w.nrows(), w.ncols());
+    // Row-weighted residuals once; each sample's score is then g_s = Σ_k W_(s,k)ᵀ e_(s,k).
+    let e: Vec<f64> = weighted_residual.iter().enumerate().map(|(i, r)| r * weights[i % dof]).collect();
+    // (W̃ᵀW̃)⁻¹ = R⁻¹R⁻ᵀ for the weighted W̃.
+    let gram_inv = r_inv * r_inv.transpose();
+    sandwich_sigma(w, &e, dof, block_samples, &gram_inv)
+}
+
+/// σ from the sandwich `bread · Ω · breadᵀ`, with the small-sample factor `m / (m − p)`. Ω is
+/// the overlapping-batch-means estimate of the long-run covariance of the scores
+/// `g_s = Σ_k X_(s,k)ᵀ e_(s,k)` of `x` (W for least squares, the instruments for IV) on the
+/// residual `e`: every run of `block_samples` consecutive samples, not only disjoint blocks.
+/// Disjoint blocks give an Ω of rank at most their number, which at a low cut-off (a few blocks
+/// per period) is below the number of parameters and under-states σ by a large factor; the
+/// overlapping runs keep its rank and the same bandwidth (Bartlett's kernel).
+pub fn sandwich_sigma(x: &Mat<f64>, e: &[f64], dof: usize, block_samples: usize, bread: &DMatrix<f64>) -> Vec<f64> {
+    let (m, p) = (x.nrows(), x.ncols());
     let samples = m / dof;
     let block = block_samples.clamp(1, samples.max(1));
-    // Row-weighted residuals once; each sample's score g_s = Σ_k W_(s,k)ᵀ e_(s,k).
-    let e: Vec<f64> = weighted_residual.iter().enumerate().map(|(i, r)| r * weights[i % dof]).collect();
     let mut scores = Mat::<f64>::zeros(samples, p);
     for a in 0..p {
-        let column = w.col_as_slice(a);
+        let column = x.col_as_slice(a);
         for s in 0..samples {
             scores[(s, a)] = dot(&column[s * dof..(s + 1) * dof], &e[s * dof..(s + 1) * dof]);
         }
@@ -415,9 +423,7 @@ fn block_sandwich_sigma(
     let gram = sums.transpose() * &sums;
     let scale = samples as f64 / (block as f64 * runs as f64);
     let meat = DMatrix::from_fn(p, p, |i, j| gram[(i, j)] * scale);
-    // (W̃ᵀW̃)⁻¹ = R⁻¹R⁻ᵀ for the weighted W̃.
-    let gram_inv = r_inv * r_inv.transpose();
-    let cov = &gram_inv * meat * &gram_inv * degrees_of_freedom_factor(m, p, samples, block);
+    let cov = bread * meat * bread.transpose() * degrees_of_freedom_factor(m, p, samples, block);
     (0..p).map(|i| cov[(i, i)].max(0.0).sqrt()).collect()
 }
 

@@ -2,6 +2,7 @@
 //! estimation, tied together by [`identify`] into a [`ModelFile`] that can be saved, loaded,
 //! printed as the paper's tables and used for prediction.
 
+pub mod closed_loop;
 pub mod consistent;
 pub mod cutoff;
 pub mod decide;
@@ -16,6 +17,7 @@ use crate::base_parameters::BaseParameters;
 use crate::model::Model;
 use crate::model_file::{DataSummary, Fitted, IdentifyMethod, Metrics, ModelFile, ModelFileError, Settings};
 use crate::physical::{min_pseudo_inertia_eigenvalues, nearest_standard_parameters};
+use closed_loop::{idim_iv, instrumented_full, ClosedLoop, ClosedLoopError, IvOptions};
 use consistent::{identify_consistent, ConsistentError, ConsistentOptions};
 use estimate::{fit, joint_metrics, stack_full, EstimateError, JointMetrics, Method};
 use preprocess::{preprocess, PreprocessError, PreprocessOptions};
@@ -25,6 +27,8 @@ use preprocess::{preprocess, PreprocessError, PreprocessOptions};
 pub struct IdentifyOptions {
     pub preprocess: PreprocessOptions,
     pub consistent: ConsistentOptions,
+    /// The IDIM-IV iteration (closed-loop methods only).
+    pub iv: IvOptions,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -39,6 +43,13 @@ pub enum IdentifyError {
     Base(#[from] crate::base_parameters::BaseParameterError),
     #[error(transparent)]
     File(#[from] ModelFileError),
+    #[error(transparent)]
+    ClosedLoop(#[from] ClosedLoopError),
+    #[error(
+        "method {0} needs the closed loop's reference (q_des, qd_des, qdd_des at every sample) and the controller that \
+         ran it, and none was given; ols, wls and consistent work on the log alone"
+    )]
+    NeedsClosedLoop(IdentifyMethod),
 }
 
 impl From<JointMetrics> for Metrics {
@@ -64,14 +75,41 @@ pub struct Log<'a> {
     pub tau: &'a [f64],
 }
 
-/// Identify the declared robot's parameters from `log`.
+/// Identify the declared robot's parameters from `log`. The closed-loop methods (IDIM-IV) need
+/// [`identify_in_closed_loop`].
 pub fn identify(
     declared: Declared,
     log: Log,
     method: IdentifyMethod,
     options: &IdentifyOptions,
 ) -> Result<ModelFile, IdentifyError> {
-    let pre = cutoff::preprocess_for_fit(declared, log, &options.preprocess)?;
+    if method.closed_loop() {
+        return Err(IdentifyError::NeedsClosedLoop(method));
+    }
+    identify_with(declared, log, method, None, options)
+}
+
+/// Identify from a log recorded in closed loop, whose reference and controller are known: any
+/// method, IDIM-IV among them ([`closed_loop`]).
+pub fn identify_in_closed_loop(
+    declared: Declared,
+    log: Log,
+    closed_loop: ClosedLoop,
+    method: IdentifyMethod,
+    options: &IdentifyOptions,
+) -> Result<ModelFile, IdentifyError> {
+    identify_with(declared, log, method, Some(closed_loop), options)
+}
+
+fn identify_with(
+    declared: Declared,
+    log: Log,
+    method: IdentifyMethod,
+    closed_loop: Option<ClosedLoop>,
+    options: &IdentifyOptions,
+) -> Result<ModelFile, IdentifyError> {
+    options.iv.validate()?;
+    let mut pre = cutoff::preprocess_for_fit(declared, log, &options.preprocess)?;
     let Declared { model, base, urdf } = declared;
     let samples_in = log.t.len();
     let ls_method = if method == IdentifyMethod::Wls { Method::Wls } else { Method::Ols };
@@ -81,9 +119,44 @@ pub fn identify(
     } else {
         fit(model, base, &pre, Method::Ols)?.metrics.into()
     };
-    let (beta, params, training, min_eig) = if method == IdentifyMethod::Consistent {
+    let (ls, instruments) = match closed_loop.filter(|_| method.closed_loop()) {
+        Some(closed_loop) => {
+            let settings = (&options.iv, &options.consistent);
+            let iv = idim_iv((model, base), log.t, &pre, &options.preprocess, &closed_loop, &ls, settings)?;
+            let line = format!(
+                "IDIM-IV: instruments from the closed loop simulated with the estimate, {} iteration(s); the last moved \
+                 no β by more than {:.3} σ",
+                iv.iterations, iv.last_change_sigma
+            );
+            pre.choices.reasons.push(line);
+            if let Some(first) = iv.detours.first() {
+                pre.choices.reasons.push(format!(
+                    "IDIM-IV: the estimate of {} of the {} iteration(s) did not simulate (first: iteration {first}); their \
+                     instruments came from the nearest physically consistent model",
+                    iv.detours.len(),
+                    iv.iterations
+                ));
+            }
+            if !iv.converged {
+                pre.choices.warnings.push(format!(
+                    "IDIM-IV did not settle in {} iterations (the last moved a β by {:.2} σ): the estimate is the last one",
+                    iv.iterations, iv.last_change_sigma
+                ));
+            }
+            (iv.fit, Some(iv.instruments))
+        }
+        None if method.closed_loop() => return Err(IdentifyError::NeedsClosedLoop(method)),
+        None => (ls, None),
+    };
+    let (beta, params, training, min_eig) = if method.consistent() {
         let (w, tau_f) = stack_full(model, &pre);
-        let c = identify_consistent(model, &w, &tau_f, &options.consistent)?;
+        let c = match &instruments {
+            Some(z) => {
+                let (instrumented, tau_i) = instrumented_full(model, &pre, z);
+                identify_consistent(model, &instrumented, &tau_i, &options.consistent)?
+            }
+            None => identify_consistent(model, &w, &tau_f, &options.consistent)?,
+        };
         let predicted: Vec<f64> = estimate::apply(&w, &c.params);
         let mut beta = vec![0.0; base.rank];
         base.project(&c.params, &mut beta);

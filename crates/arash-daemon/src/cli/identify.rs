@@ -5,9 +5,12 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
+use arash_core::identify::closed_loop::{ClosedLoop, IvOptions, LoggedController};
 use arash_core::identify::consistent::ConsistentOptions;
 use arash_core::identify::preprocess::PreprocessOptions;
-use arash_core::identify::{identify, validate, validation_table, Declared, IdentifyOptions, Log};
+use arash_core::identify::{
+    identify, identify_in_closed_loop, validate, validation_table, Declared, IdentifyOptions, Log,
+};
 use arash_core::model_file::IdentifyMethod;
 
 use arash_core::BaseParameters;
@@ -16,9 +19,17 @@ use arash_core::BaseParameters;
 pub struct Args {
     #[command(flatten)]
     runs: super::Runs,
-    /// ols, wls or consistent.
+    /// ols, wls, consistent, or for a log recorded in closed loop idim-iv and idim-iv-consistent
+    /// (instruments from the loop simulated with the estimate; docs/identification.md).
     #[arg(long, default_value_t)]
     method: IdentifyMethod,
+    /// The controller a closed-loop log ran (JSON, docs/identification.md), for the idim-iv
+    /// methods; default: the one the flight log names.
+    #[arg(long)]
+    controller: Option<PathBuf>,
+    /// IDIM-IV's most iterations (each one simulation of the loop).
+    #[arg(long, default_value_t = IvOptions::default().max_iterations)]
+    iv_iterations: usize,
     /// Whole excitation periods in the training data (averaged); default: found from the data;
     /// 1 says the data are not periodic.
     #[arg(long)]
@@ -68,15 +79,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ..Default::default()
         },
         consistent: ConsistentOptions { pull: args.pull, ..Default::default() },
+        iv: IvOptions { max_iterations: args.iv_iterations, ..Default::default() },
     };
     eprintln!("identifying from {} samples ({} file(s)) with {:?} ...", log.t.len(), args.runs.logs.len(), args.method);
     let base = BaseParameters::compute(&model, &BaseParameterOptions::default())?;
-    let mut identification = identify(
-        Declared { model: &model, base: &base, urdf: &urdf },
-        Log { t: &log.t, q: &log.q, tau: &log.tau },
-        args.method,
-        &options,
-    )
+    let declared = Declared { model: &model, base: &base, urdf: &urdf };
+    let data = Log { t: &log.t, q: &log.q, tau: &log.tau };
+    let mut identification = match args.method.closed_loop() {
+        true => {
+            let (reference, controller) = closed_loop_of(&args, &log)?;
+            let closed_loop = ClosedLoop {
+                q_des: &reference[0],
+                qd_des: &reference[1],
+                qdd_des: &reference[2],
+                controller: &controller,
+            };
+            identify_in_closed_loop(declared, data, closed_loop, args.method, &options)
+        }
+        false => identify(declared, data, args.method, &options),
+    }
     .context("identification failed")?;
     identification.data.sources = args.runs.logs.iter().map(|p| p.display().to_string()).collect();
     for warning in &identification.settings.warnings {
@@ -103,4 +124,35 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     crate::report::write_atomically(&args.output, &identification.to_json())?;
     println!("wrote {}", args.output.display());
     Ok(())
+}
+
+/// The closed loop of the one log the idim-iv methods take: its reference and the controller
+/// (`--controller`, or the one the log names). Whatever is missing is named, with the methods
+/// that still work.
+fn closed_loop_of<'a>(
+    args: &Args,
+    log: &'a crate::runlog::Log,
+) -> anyhow::Result<(&'a [Vec<f64>; 3], LoggedController)> {
+    let method = args.method;
+    let fallback = "ols, wls and consistent work on the log alone";
+    if let [_, _, ..] = args.runs.logs.as_slice() {
+        anyhow::bail!("--method {method} simulates one closed-loop run: give one log, not {}", args.runs.logs.len());
+    }
+    let path = args.runs.logs[0].display();
+    let Some(channels) = &log.closed_loop else {
+        anyhow::bail!(
+            "--method {method} needs the reference the controller followed: {path} has no q_des, qd_des and qdd_des \
+             (a CSV log needs q_des.<joint>, qd_des.<joint> and qdd_des.<joint> columns); {fallback}"
+        );
+    };
+    let controller = match &args.controller {
+        Some(file) => {
+            let text = std::fs::read_to_string(file).with_context(|| format!("reading {}", file.display()))?;
+            LoggedController::from_json(&text).with_context(|| format!("--controller {}", file.display()))?
+        }
+        None => channels.controller.clone().map_err(|why| {
+            anyhow::anyhow!("--method {method} needs the controller that ran the log: {why}; {fallback}")
+        })?,
+    };
+    Ok((&channels.reference, controller))
 }

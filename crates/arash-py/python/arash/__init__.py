@@ -114,6 +114,13 @@ def simulate(
                      (duration, seed), (log, log_truth))
 
 
+def _as_list(value: Any) -> Any:
+    """numpy arrays and scalars in a controller dict, as JSON takes them."""
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    raise TypeError(f"controller holds a {type(value).__name__}, which is not a number or an array")
+
+
 def identify(
     robot: Robot,
     t: Any,
@@ -130,10 +137,15 @@ def identify(
     pull: Optional[float] = None,
     stiffness_bounds: Optional[tuple[float, float]] = None,
     motor_side: Optional[Transmission] = None,
+    reference: Optional[tuple[Any, Any, Any]] = None,
+    controller: Optional[Union[str, dict[str, Any]]] = None,
+    iv_iterations: Optional[int] = None,
+    iv_tolerance: Optional[float] = None,
 ) -> Identification:
     """Identify the robot's parameters from a log: t (N,), q and tau (N, dof), SI units.
 
-    method: "ols" (the default), "wls" or "consistent" (docs/identification.md). periods: whole
+    method: "ols" (the default), "wls", "consistent", or for a log recorded in closed loop
+    "idim-iv" and "idim-iv-consistent" (docs/identification.md). periods: whole
     excitation periods in the log, averaged (None: found from the data; 1: not periodic).
     period_s: the period, when it is known but not how many the log holds.
     cutoff_hz: the low-pass cut-off (None: chosen from the data: among the cut-offs whose fitted
@@ -143,12 +155,22 @@ def identify(
     pull: the consistent fit's pull toward CAD.
     stiffness_bounds: the cable stiffness's (lower, upper). None keeps arash's default for each (docs/identification.md).
     motor_side: a ``Transmission`` when q and tau are motor angles and motor torques.
+    reference: the closed loop's (q_des, qd_des, qdd_des), each (N, dof), and controller: the
+    controller that ran it, as a dict or its JSON: ``{"law": "pd", "params": π_c, "kp": [...],
+    "kd": [...]}`` (PD with gravity compensation) or ``{"law": "standard", "kind": "robust",
+    "params": π_c, "gains": {...}}`` (an arash controller; ``read_log`` and ``simulate`` give it as
+    ``"logged_controller"``). Both are needed by the idim-iv methods, which simulate the loop.
+    iv_iterations, iv_tolerance: IDIM-IV's most iterations, and the move of β̂ (in σ) it stops at.
 
     ``Identification.settings`` says what was chosen and why; a choice the data support only
     weakly is also raised as a ``UserWarning``.
     """
+    if isinstance(controller, dict):
+        controller = _json.dumps(controller, default=_as_list)
     options = _given(periods=periods, period_s=period_s, cutoff_hz=cutoff_hz, order=order, decimate=decimate,
-                     friction_cutoff_hz=friction_cutoff_hz, pull=pull, stiffness_bounds=stiffness_bounds)
+                     friction_cutoff_hz=friction_cutoff_hz, pull=pull, stiffness_bounds=stiffness_bounds,
+                     reference=reference, controller=controller, iv_iterations=iv_iterations,
+                     iv_tolerance=iv_tolerance)
     if motor_side is not None:
         q, tau = motor_side.to_joints(q, tau)
     identification = _identify(robot, (t, q, tau), method, options)

@@ -1,0 +1,83 @@
+"""OLS against IDIM-IV on closed-loop logs with known truth (issue 18's coverage table).
+
+Each log comes from the independent PD loop on Pinocchio (tests/python/closed_loop.py,
+``pd_gravity_log``): ARASH:ASiST with perturbed inertials, friction and stiffness
+(tests/python/simulated.py), four 10 s periods of a random Fourier excitation at 1 kHz, 16-bit
+encoders that the controller differences, and a drive disturbance of the given share of the RMS
+torque in a 2 Hz band. Prints, per disturbance and method, the share of base parameters within
+3σ of the truth over all seeds, the worst seed's share, the parameters whose mean error over the
+seeds exceeds 1σ (a bias), and the median time per fit.
+
+    .venv/bin/python bench/closed_loop_iv.py [SEEDS] [DISTURBANCE...]   # default 20 seeds, 0.1 0.3
+"""
+
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
+import arash  # noqa: E402
+from closed_loop import pd_gravity_log  # noqa: E402
+from conftest import ROBOT_FILES  # noqa: E402
+from independent import Condition  # noqa: E402
+from simulated import true_parameters  # noqa: E402
+
+METHODS = ["ols", "idim-iv"]
+
+
+def one_seed(seed, disturbance):
+    robot = arash.Robot.from_urdf(ROBOT_FILES["arash_asist"])
+    truth = true_parameters(robot, np.random.default_rng(seed))
+    condition = Condition("arash_asist", 1000, 16, 0.0, "tanh", 4, 40.0, seed=seed)
+    robot, log, reference, controller = pd_gravity_log(condition, truth, actuator_noise=disturbance, noise_hz=2.0)
+    beta_true = robot.base_parameters().project(truth)
+    out = {}
+    for method in METHODS:
+        given = dict(reference=reference, controller=controller) if method != "ols" else {}
+        start = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            try:
+                model = arash.identify(robot, *log, method=method, **given)
+            except ValueError as error:
+                out[method] = (None, None, str(error))
+                continue
+        seconds = time.perf_counter() - start
+        sigma = np.abs(model.sigma_percent / 100 * model.beta)
+        out[method] = ((model.beta - beta_true) / sigma, model.beta - beta_true, seconds)
+    return robot.base_parameters().names, out
+
+
+def main():
+    seeds = int(sys.argv[1]) if len(sys.argv) > 1 else 20
+    disturbances = [float(a) for a in sys.argv[2:]] or [0.1, 0.3]
+    print("| disturbance | method | within 3σ (all seeds) | worst seed | failed | mean error beyond 1σ | s per fit (median) |")
+    print("|---|---|---|---|---|---|---|")
+    for disturbance in disturbances:
+        results = {m: [] for m in METHODS}
+        failures = {m: [] for m in METHODS}
+        for seed in range(seeds):
+            names, out = one_seed(seed, disturbance)
+            for method, (z, error, extra) in out.items():
+                if z is None:
+                    failures[method].append(extra)
+                else:
+                    results[method].append((z, error, extra))
+            print(f"  seed {seed} done", file=sys.stderr, flush=True)
+        for method in METHODS:
+            if not results[method]:
+                print(f"| {disturbance:g} | {method} | – | – | {len(failures[method])} | – | – |")
+                continue
+            z = np.array([r[0] for r in results[method]])
+            inside = np.abs(z) <= 3
+            biased = [f"{names[i]} {np.mean(z[:, i]):+.1f}σ" for i in range(z.shape[1]) if abs(np.mean(z[:, i])) > 1]
+            seconds = np.median([r[2] for r in results[method]])
+            print(f"| {disturbance:g} | {method} | {100 * inside.mean():.1f} % | {100 * inside.mean(axis=1).min():.0f} % "
+                  f"| {len(failures[method])} | {', '.join(biased) or 'none'} | {seconds:.2f} |")
+
+
+if __name__ == "__main__":
+    main()

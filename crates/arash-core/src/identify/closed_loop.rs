@@ -1,0 +1,487 @@
+//! IDIM-IV: identification of a robot that was logged in closed loop, with instruments from the
+//! closed loop simulated with the current estimate (Janot, Vandanjon and Gautier, "A generic
+//! instrumental variable approach for industrial robot identification", IEEE TCST 22(1), 2014).
+//!
+//! In closed loop the controller turns the encoders' noise (and the torque noise, through the
+//! plant) into torque, so the regressor built from the measured positions is correlated with the
+//! error of the torque it explains, and least squares is biased. The instruments `Z` are the same
+//! regressor built from a simulation of the same loop: the same reference, the same controller,
+//! and a plant with the current estimate β̂. That simulation carries none of the log's noise, so
+//! `Z` is uncorrelated with the error but tracks the measured motion closely, and
+//!
+//!   β̂ₖ₊₁ = (Zₖᵀ W)⁻¹ Zₖᵀ τ
+//!
+//! is consistent. The loop starts from least squares and stops when β̂ moves by less than
+//! [`IvOptions::tolerance`] of its σ (Gautier and Janot report two or three iterations).
+//!
+//! The simulated signals go through exactly the preprocessing the log went through (the same
+//! period, cut-offs and decimation), so `Z` and `W` hold the same samples filtered alike.
+//!
+//! Physically consistent IDIM-IV solves the consistent problem on the instrumented regressor
+//! `P_Z W` (two-stage least squares: with as many instruments as parameters it is the IV
+//! estimate), after the plain iteration has settled the instruments.
+
+use faer::Mat;
+use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
+
+use super::consistent::{identify_consistent, ConsistentOptions};
+use super::estimate::{self, stack, stack_full, Fit};
+use super::preprocess::{preprocess, PreprocessError, PreprocessOptions, Preprocessed};
+use crate::base_parameters::BaseParameters;
+use crate::control::{controller_with_effects, Controller, ControllerKind, Desired, PdGains, PdGravity, RobustGains};
+use crate::data::Data;
+use crate::dynamics::forward_dynamics;
+use crate::effects::EffectTerm;
+use crate::model::Model;
+
+/// The controller a closed-loop log ran, as IDIM-IV simulates it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "law", rename_all = "kebab-case")]
+pub enum LoggedController {
+    /// PD with gravity compensation, `τ = g(q; π_c) − K_p (q − q_d) − K_d (q̇ − q̇_d)`, with the
+    /// controller's own parameter vector `params` and these gains.
+    Pd { params: Vec<f64>, kp: Vec<f64>, kd: Vec<f64> },
+    /// One of arash's controllers as `arash simulate` and the daemon build it
+    /// ([`crate::control::controller_with_effects`]): the law, its parameter vector, the effects it
+    /// compensates and the robust gains (PD sizes its own).
+    Standard {
+        kind: ControllerKind,
+        params: Vec<f64>,
+        #[serde(default)]
+        effects: Vec<EffectTerm>,
+        #[serde(default)]
+        gains: Option<RobustGains>,
+    },
+}
+
+/// The controller part of a run specification (`run.json`, which `arash simulate` attaches to
+/// its flight log and the daemon to each run's log).
+#[derive(Deserialize)]
+struct RunController {
+    controller: ControllerKind,
+    params: Vec<f64>,
+    #[serde(default)]
+    effects: Vec<EffectTerm>,
+    #[serde(default)]
+    gains: Option<RobustGains>,
+}
+
+impl LoggedController {
+    /// The controller named by a run specification (`run.json`): its law, parameter vector,
+    /// compensated effects and robust gains.
+    pub fn from_run_json(text: &str) -> Result<Self, ClosedLoopError> {
+        let run: RunController = serde_json::from_str(text)
+            .map_err(|e| ClosedLoopError::Controller(format!("run.json does not name one: {e}")))?;
+        Ok(Self::Standard { kind: run.controller, params: run.params, effects: run.effects, gains: run.gains })
+    }
+
+    /// Read from JSON (`{"law": "pd", "params": [...], "kp": [...], "kd": [...]}`, or
+    /// `{"law": "standard", "kind": "robust", "params": [...], "gains": {...}}`).
+    pub fn from_json(text: &str) -> Result<Self, ClosedLoopError> {
+        serde_json::from_str(text).map_err(|e| ClosedLoopError::Controller(format!("not a controller: {e}")))
+    }
+
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).expect("a controller serialises")
+    }
+
+    /// The controller, built for `model`; an error names what does not fit the robot.
+    pub fn build(&self, model: &Model) -> Result<Box<dyn Controller>, ClosedLoopError> {
+        let (n, big_p) = (model.dof(), model.num_params());
+        let params = match self {
+            Self::Pd { params, .. } | Self::Standard { params, .. } => params,
+        };
+        if params.len() != big_p {
+            return Err(ClosedLoopError::Controller(format!(
+                "its parameter vector has {} entries; the robot has {big_p} parameters",
+                params.len()
+            )));
+        }
+        if let Some(x) = params.iter().find(|x| !x.is_finite()) {
+            return Err(ClosedLoopError::Controller(format!("its parameter vector holds {x}")));
+        }
+        match self {
+            Self::Pd { params, kp, kd } => {
+                for (name, gains) in [("kp", kp), ("kd", kd)] {
+                    if gains.len() != n || gains.iter().any(|g| !(g.is_finite() && *g >= 0.0)) {
+                        return Err(ClosedLoopError::Controller(format!(
+                            "{name} must hold {n} non-negative numbers, one per joint, not {gains:?}"
+                        )));
+                    }
+                }
+                Ok(Box::new(PdGravity::new(model, params, PdGains { kp: kp.clone(), kd: kd.clone() })))
+            }
+            Self::Standard { kind, params, effects, gains } => {
+                controller_with_effects(*kind, model, params, effects, gains.as_ref())
+                    .map_err(|e| ClosedLoopError::Controller(e.to_string()))
+            }
+        }
+    }
+}
+
+/// What a closed-loop log holds beyond `(t, q, τ)`: the reference the controller followed at each
+/// sample (`samples × dof` each, SI) and the controller.
+#[derive(Clone, Copy, Debug)]
+pub struct ClosedLoop<'a> {
+    pub q_des: &'a [f64],
+    pub qd_des: &'a [f64],
+    pub qdd_des: &'a [f64],
+    pub controller: &'a LoggedController,
+}
+
+/// Settings of the IDIM-IV iteration, with their defaults.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IvOptions {
+    /// Most simulations of the loop (each one IV solve).
+    pub max_iterations: usize,
+    /// Stop when no β̂ moves by more than this fraction of its σ.
+    pub tolerance: f64,
+}
+
+impl Default for IvOptions {
+    fn default() -> Self {
+        // Janot et al. see convergence in 2–3 iterations; a tenth of σ is far below what the
+        // estimate can resolve.
+        Self { max_iterations: 10, tolerance: 0.1 }
+    }
+}
+
+impl IvOptions {
+    pub fn validate(&self) -> Result<(), ClosedLoopError> {
+        if self.max_iterations == 0 {
+            return Err(ClosedLoopError::Setting("max_iterations must be at least 1".into()));
+        }
+        if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
+            return Err(ClosedLoopError::Setting(format!(
+                "tolerance must be a positive number, not {}",
+                self.tolerance
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Why IDIM-IV could not run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ClosedLoopError {
+    #[error("IDIM-IV: the logged controller cannot be rebuilt: {0}")]
+    Controller(String),
+    #[error("IDIM-IV: {0}")]
+    Setting(String),
+    #[error(
+        "IDIM-IV: the reference's `{name}` has {got} values, the log {expected} ({samples} samples × {dof} joints)"
+    )]
+    Reference { name: &'static str, got: usize, expected: usize, samples: usize, dof: usize },
+    #[error("IDIM-IV: the reference's `{name}` is not finite at sample {sample}")]
+    ReferenceNotFinite { name: &'static str, sample: usize },
+    #[error(
+        "IDIM-IV: the closed loop simulated with the estimate of iteration {iteration} diverged at t = {time:.3} s \
+         ({why}); the estimate is too far from the robot for the simulation to follow the log (try more or richer \
+         data, or the least-squares methods)"
+    )]
+    Diverged { iteration: usize, time: f64, why: String },
+    #[error(
+        "IDIM-IV: the instruments do not determine the parameters (ZᵀW is singular at iteration {iteration}): the \
+         simulated loop does not excite what the log does"
+    )]
+    Singular { iteration: usize },
+    #[error(transparent)]
+    Preprocess(#[from] PreprocessError),
+}
+
+/// The IDIM-IV estimate, with the iteration's history.
+#[derive(Clone, Debug)]
+pub struct IvFit {
+    /// β̂, σ and the training metrics (the prediction `W β̂` against the filtered torque).
+    pub fit: Fit,
+    /// The last instruments (`Z`, stacked like `W`), for the consistent solve.
+    pub instruments: Mat<f64>,
+    /// Iterations run, and the largest move of any β̂ in its σ at the last one.
+    pub iterations: usize,
+    pub last_change_sigma: f64,
+    /// Whether the last move was within [`IvOptions::tolerance`].
+    pub converged: bool,
+    /// The iterations whose estimate did not simulate, and why: their instruments came from the
+    /// nearest physically consistent model.
+    pub detours: Vec<String>,
+}
+
+/// Check the reference against the log's length and the robot's joints.
+fn check_reference(closed_loop: &ClosedLoop, samples: usize, dof: usize) -> Result<(), ClosedLoopError> {
+    let channels = [("q_des", closed_loop.q_des), ("qd_des", closed_loop.qd_des), ("qdd_des", closed_loop.qdd_des)];
+    for (name, x) in channels {
+        if x.len() != samples * dof {
+            return Err(ClosedLoopError::Reference { name, got: x.len(), expected: samples * dof, samples, dof });
+        }
+        if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+            return Err(ClosedLoopError::ReferenceNotFinite { name, sample: i / dof });
+        }
+    }
+    Ok(())
+}
+
+/// The loop simulated over the log's samples `t`: positions and the torque the controller
+/// applied (`samples × dof` each). The plant is `model` with the parameter vector `params` (its
+/// product with the regressor is the model's torque: β̂ placed on the independent columns will
+/// do, since `M`, `C` and `g` are linear in π); the controller sees the exact state (the
+/// instruments carry no noise), its torque is held over each sample (zero-order hold), and the
+/// plant is integrated by RK4 in steps of at most a millisecond.
+pub fn simulate_loop(
+    model: &Model,
+    params: &[f64],
+    closed_loop: &ClosedLoop,
+    t: &[f64],
+) -> Result<(Vec<f64>, Vec<f64>), (f64, String)> {
+    let n = model.dof();
+    let samples = t.len();
+    let mut controller = closed_loop.controller.build(model).map_err(|e| (t[0], e.to_string()))?;
+    let mut data = Data::new(model);
+    let mut q = closed_loop.q_des[..n].to_vec();
+    let mut qd = closed_loop.qd_des[..n].to_vec();
+    let mut q_out = Vec::with_capacity(samples * n);
+    let mut tau_out = Vec::with_capacity(samples * n);
+    let mut tau = vec![0.0; n];
+    let mut stages = Stages::new(n);
+    for i in 0..samples {
+        let range = i * n..(i + 1) * n;
+        let desired = Desired {
+            q: &closed_loop.q_des[range.clone()],
+            qd: &closed_loop.qd_des[range.clone()],
+            qdd: &closed_loop.qdd_des[range],
+        };
+        let dt = if i + 1 < samples { t[i + 1] - t[i] } else { t[i] - t[i.saturating_sub(1)] };
+        controller.step(dt, &q, &qd, &desired, &mut tau);
+        if let Some(x) = tau.iter().find(|x| !x.is_finite()) {
+            return Err((t[i], format!("the controller commanded {x}")));
+        }
+        q_out.extend_from_slice(&q);
+        tau_out.extend_from_slice(&tau);
+        if i + 1 == samples {
+            break;
+        }
+        let substeps = (dt / 1e-3).ceil().max(1.0) as usize;
+        let h = dt / substeps as f64;
+        for _ in 0..substeps {
+            stages.rk4(model, &mut data, params, &tau, h, (&mut q, &mut qd)).map_err(|why| (t[i], why))?;
+        }
+        if q.iter().chain(&qd).any(|x| !x.is_finite()) {
+            return Err((t[i], "the state is no longer finite".into()));
+        }
+    }
+    Ok((q_out, tau_out))
+}
+
+/// RK4's stage buffers for `ẋ = [q̇, q̈(q, q̇, τ)]`.
+struct Stages {
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    k_q: [Vec<f64>; 4],
+    k_qd: [Vec<f64>; 4],
+}
+
+impl Stages {
+    fn new(n: usize) -> Self {
+        Self {
+            q: vec![0.0; n],
+            qd: vec![0.0; n],
+            k_q: std::array::from_fn(|_| vec![0.0; n]),
+            k_qd: std::array::from_fn(|_| vec![0.0; n]),
+        }
+    }
+
+    fn rk4(
+        &mut self,
+        model: &Model,
+        data: &mut Data,
+        params: &[f64],
+        tau: &[f64],
+        h: f64,
+        (q, qd): (&mut [f64], &mut [f64]),
+    ) -> Result<(), String> {
+        let n = q.len();
+        for stage in 0..4 {
+            let a = [0.0, 0.5, 0.5, 1.0][stage] * h;
+            for k in 0..n {
+                let (dq, dqd) = if stage == 0 { (0.0, 0.0) } else { (self.k_q[stage - 1][k], self.k_qd[stage - 1][k]) };
+                self.q[k] = q[k] + a * dq;
+                self.qd[k] = qd[k] + a * dqd;
+            }
+            self.k_q[stage].copy_from_slice(&self.qd);
+            forward_dynamics(model, data, &self.q, &self.qd, tau, params, &mut self.k_qd[stage])
+                .map_err(|e| e.to_string())?;
+        }
+        for k in 0..n {
+            let (kq, kqd) = (&self.k_q, &self.k_qd);
+            q[k] += h / 6.0 * (kq[0][k] + 2.0 * kq[1][k] + 2.0 * kq[2][k] + kq[3][k]);
+            qd[k] += h / 6.0 * (kqd[0][k] + 2.0 * kqd[1][k] + 2.0 * kqd[2][k] + kqd[3][k]);
+        }
+        Ok(())
+    }
+}
+
+/// The preprocessing `pre` was made with, fixed: what the simulated log must go through so that
+/// its regressor matches the log's sample for sample.
+fn same_preprocessing(pre: &Preprocessed, options: &PreprocessOptions) -> PreprocessOptions {
+    PreprocessOptions {
+        periods: if pre.periodic { None } else { Some(1) },
+        period_s: pre.period_s,
+        cutoff_hz: Some(pre.cutoff_hz),
+        friction_cutoff_hz: Some(pre.friction_cutoff_hz),
+        order: pre.order,
+        decimate: pre.decimate,
+        ..options.clone()
+    }
+}
+
+/// β placed on the independent columns of a full parameter vector.
+fn placed(base: &BaseParameters, beta: &[f64]) -> Vec<f64> {
+    let mut full = vec![0.0; base.num_params];
+    for (&j, b) in base.independent.iter().zip(beta) {
+        full[j] = *b;
+    }
+    full
+}
+
+/// IDIM-IV on a log preprocessed as `pre` (from `t`, `q`, `τ` with `options`), starting from the
+/// least-squares fit `start`.
+pub fn idim_iv(
+    (model, base): (&Model, &BaseParameters),
+    t: &[f64],
+    pre: &Preprocessed,
+    options: &PreprocessOptions,
+    closed_loop: &ClosedLoop,
+    start: &Fit,
+    (iv, consistent): (&IvOptions, &ConsistentOptions),
+) -> Result<IvFit, ClosedLoopError> {
+    iv.validate()?;
+    check_reference(closed_loop, t.len(), model.dof())?;
+    closed_loop.controller.build(model)?;
+    let (w, tau) = stack(model, base, pre);
+    let fixed = same_preprocessing(pre, options);
+    let instruments = |params: &[f64], iteration: usize| -> Result<Mat<f64>, ClosedLoopError> {
+        let (q_sim, tau_sim) = simulate_loop(model, params, closed_loop, t)
+            .map_err(|(time, why)| ClosedLoopError::Diverged { iteration, time, why })?;
+        let simulated = preprocess(t, &q_sim, &tau_sim, model.dof(), &fixed)?;
+        Ok(stack(model, base, &simulated).0)
+    };
+    // An estimate whose mass matrix is not positive definite somewhere on the way cannot drive a
+    // simulation. Its instruments then come from the physically consistent model nearest the
+    // data (the consistent fit of the current, instrumented, problem), which always simulates.
+    let mut detours = Vec::new();
+    let mut simulated = |beta: &[f64], z: Option<&Mat<f64>>, iteration: usize| -> Result<Mat<f64>, ClosedLoopError> {
+        match instruments(&placed(base, beta), iteration) {
+            Err(ClosedLoopError::Diverged { time, why, .. }) => {
+                let (w_full, tau_full) = match z {
+                    Some(z) => instrumented_full(model, pre, z),
+                    None => stack_full(model, pre),
+                };
+                let physical = identify_consistent(model, &w_full, &tau_full, consistent)
+                    .map_err(|e| ClosedLoopError::Diverged { iteration, time, why: format!("{why}; {e}") })?;
+                detours.push(format!("{iteration} (t = {time:.3} s: {why})"));
+                instruments(&physical.params, iteration)
+            }
+            other => other,
+        }
+    };
+    let (mut beta, mut sigma) = (start.beta.clone(), start.sigma_beta.clone());
+    let mut z = simulated(&beta, None, 1)?;
+    let mut iteration = 1;
+    loop {
+        let next = iv_solve(&z, &w, &tau).ok_or(ClosedLoopError::Singular { iteration })?;
+        let change =
+            next.iter().zip(&beta).zip(&sigma).map(|((a, b), s)| (a - b).abs() / s.max(1e-300)).fold(0.0, f64::max);
+        beta = next;
+        let fit = iv_fit(model, base, pre, (&z, &w, &tau), &beta, start);
+        sigma = fit.sigma_beta.clone();
+        let converged = change <= iv.tolerance;
+        if converged || iteration >= iv.max_iterations {
+            return Ok(IvFit {
+                fit,
+                instruments: z,
+                iterations: iteration,
+                last_change_sigma: change,
+                converged,
+                detours,
+            });
+        }
+        iteration += 1;
+        z = simulated(&beta, Some(&z), iteration)?;
+    }
+}
+
+/// `(Zᵀ W)⁻¹ Zᵀ τ`, with the columns scaled to unit norm for the solve; `None` when singular.
+fn iv_solve(z: &Mat<f64>, w: &Mat<f64>, tau: &[f64]) -> Option<Vec<f64>> {
+    let (zw, zt) = cross(z, w, tau);
+    let p = zw.ncols();
+    // β = D x with D = diag(1 / ‖W_j‖): Zᵀ W D has columns of like size.
+    let scale: Vec<f64> = (0..p).map(|j| 1.0 / w.col(j).norm_l2().max(f64::MIN_POSITIVE)).collect();
+    let scaled = DMatrix::from_fn(p, p, |i, j| zw[(i, j)] * scale[j]);
+    let x = scaled.full_piv_lu().solve(&zt)?;
+    let out: Vec<f64> = (0..p).map(|j| x[j] * scale[j]).collect();
+    out.iter().all(|v| v.is_finite()).then_some(out)
+}
+
+/// `Zᵀ W` and `Zᵀ τ`.
+fn cross(z: &Mat<f64>, w: &Mat<f64>, tau: &[f64]) -> (DMatrix<f64>, nalgebra::DVector<f64>) {
+    let zw = z.transpose() * w;
+    let tau_mat = Mat::<f64>::from_fn(tau.len(), 1, |i, _| tau[i]);
+    let zt = z.transpose() * &tau_mat;
+    let p = zw.ncols();
+    (DMatrix::from_fn(p, p, |i, j| zw[(i, j)]), nalgebra::DVector::from_fn(p, |i, _| zt[(i, 0)]))
+}
+
+/// The IV estimate `beta` as a [`Fit`]: σ from the IV sandwich `(ZᵀW)⁻¹ Ω (WᵀZ)⁻¹`, Ω the
+/// long-run covariance of the instruments' scores on the unfiltered residual, in blocks as
+/// least squares takes them ([`estimate::fit`]).
+fn iv_fit(
+    model: &Model,
+    base: &BaseParameters,
+    pre: &Preprocessed,
+    (z, w, tau): (&Mat<f64>, &Mat<f64>, &[f64]),
+    beta: &[f64],
+    start: &Fit,
+) -> Fit {
+    let dof = model.dof();
+    let predicted = estimate::apply(w, beta);
+    let residual: Vec<f64> = tau.iter().zip(&predicted).map(|(t, p)| t - p).collect();
+    let (m, p) = (w.nrows(), w.ncols());
+    let sigma_p2 = residual.iter().map(|e| e * e).sum::<f64>() / (m - p) as f64;
+    let unfiltered = estimate::unfiltered_prediction(model, pre, &base.independent, beta);
+    let meat_residual: Vec<f64> =
+        pre.settled_rows(&pre.tau_unfiltered, dof).iter().zip(&unfiltered).map(|(t, p)| t - p).collect();
+    let (zw, _) = cross(z, w, tau);
+    let bread = zw.clone().try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::NAN));
+    let block = ((2.0 * pre.rate_hz() / pre.cutoff_hz).ceil() as usize).max(1);
+    let sigma_beta = estimate::sandwich_sigma(z, &meat_residual, dof, block, &bread);
+    let sigma_percent = sigma_beta.iter().zip(beta).map(|(s, b)| 100.0 * s / b.abs()).collect();
+    Fit {
+        method: estimate::Method::Ols,
+        beta: beta.to_vec(),
+        sigma_beta,
+        sigma_percent,
+        sigma_p2,
+        joint_weights: vec![1.0; dof],
+        condition_number: start.condition_number,
+        metrics: estimate::joint_metrics(tau, &predicted, dof),
+    }
+}
+
+/// The full regressor projected on the instruments' span, `P_Z W_full`, and the filtered torque:
+/// the consistent problem on these is two-stage least squares, the IV estimate with the
+/// consistent constraints.
+pub fn instrumented_full(model: &Model, pre: &Preprocessed, z: &Mat<f64>) -> (Mat<f64>, Vec<f64>) {
+    let (w_full, tau) = stack_full(model, pre);
+    let p = z.ncols();
+    let gram = z.transpose() * z;
+    let gram = DMatrix::from_fn(p, p, |i, j| gram[(i, j)]);
+    let coefficients = z.transpose() * &w_full;
+    let big_p = w_full.ncols();
+    let rhs = DMatrix::from_fn(p, big_p, |i, j| coefficients[(i, j)]);
+    let solved = match gram.clone().cholesky() {
+        Some(c) => c.solve(&rhs),
+        None => gram.full_piv_lu().solve(&rhs).unwrap_or_else(|| DMatrix::zeros(p, big_p)),
+    };
+    let solved = Mat::<f64>::from_fn(p, big_p, |i, j| solved[(i, j)]);
+    (z * &solved, tau)
+}

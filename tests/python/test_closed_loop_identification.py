@@ -1,0 +1,100 @@
+"""IDIM-IV on closed-loop logs that arash did not make (issue 18): a PD loop with gravity
+compensation from CAD, written here on Pinocchio's dynamics (``closed_loop.pd_gravity_log``), whose
+drive adds a disturbance the log records and whose 16-bit encoders the controller differences.
+The true parameters are known, so the estimates and their σ are checked against them."""
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pinocchio")
+import arash  # noqa: E402
+
+from closed_loop import pd_gravity_log  # noqa: E402
+from conftest import ROBOT_FILES, ROOT  # noqa: E402
+from independent import Condition  # noqa: E402
+from simulated import true_parameters  # noqa: E402
+
+
+def closed_loop_case(seed, disturbance=0.1):
+    """Four 10 s periods of a random Fourier excitation at 1 kHz, 16-bit encoders, a disturbance
+    of ``disturbance`` of the RMS torque in a 2 Hz band; the robot, log, reference, controller and
+    the true base parameters."""
+    robot = arash.Robot.from_urdf(ROBOT_FILES["arash_asist"])
+    truth = true_parameters(robot, np.random.default_rng(seed))
+    condition = Condition("arash_asist", 1000, 16, 0.0, "tanh", 4, 40.0, seed=seed)
+    robot, log, reference, controller = pd_gravity_log(condition, truth, actuator_noise=disturbance, noise_hz=2.0)
+    return robot, log, reference, controller, robot.base_parameters().project(truth)
+
+
+def within_three_sigma(model, beta_true):
+    sigma = np.abs(model.sigma_percent / 100 * model.beta)
+    return np.abs(model.beta - beta_true) <= 3 * sigma
+
+
+def test_idim_iv_settles_and_its_sigma_cover_the_truth_of_an_independent_loop():
+    covered = []
+    for seed in range(3):
+        robot, log, reference, controller, beta_true = closed_loop_case(seed)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            model = arash.identify(robot, *log, method="idim-iv", reference=reference, controller=controller)
+        reasons = " ".join(model.settings["reasons"])
+        assert "IDIM-IV: instruments from the closed loop" in reasons, reasons
+        assert not any("IDIM-IV" in w for w in model.settings["warnings"]), model.settings["warnings"]
+        covered.extend(within_three_sigma(model, beta_true))
+        print(f"seed {seed}: {model.settings['reasons'][-1]}; {np.mean(within_three_sigma(model, beta_true)):.2f} within 3σ")
+    assert np.mean(covered) >= 0.9, f"IDIM-IV's 3σ cover {100 * np.mean(covered):.1f} % of the base parameters"
+
+
+def test_consistent_idim_iv_is_physical_with_no_pull_toward_cad():
+    robot, log, reference, controller, beta_true = closed_loop_case(4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        model = arash.identify(robot, *log, method="idim-iv-consistent", pull=0.0, reference=reference,
+                               controller=controller)
+    assert model.method == "idim-iv-consistent"
+    assert np.min(model.min_pseudo_inertia_eigenvalue) >= 0.0, model.min_pseudo_inertia_eigenvalue
+    assert np.mean(within_three_sigma(model, beta_true)) >= 0.9
+
+
+def test_a_simulated_run_and_its_flight_log_carry_the_controller_idim_iv_needs(tmp_path):
+    """arash's own rig under PD: the run and the log it writes both name the controller, and the
+    estimate from the log through IDIM-IV predicts the rig as OLS does (the rig's loop is not
+    biased: its torque noise is the current sensor's, which the loop never sees)."""
+    robot = arash.Robot.arash_asist(coulomb_epsilon=1e-3)
+    path = tmp_path / "run.mcap"
+    run = arash.simulate(ROOT / "scenarios" / "nominal.toml", ROOT / "trajectories" / "excitation_L5_T15.json",
+                         controller="pd", duration=45.0, log=path)
+    logged = arash.read_log(path)
+    assert json.loads(run["logged_controller"]) == json.loads(logged["logged_controller"])
+    assert json.loads(run["logged_controller"])["kind"] == "pd"
+    log = (logged["t"], logged["q"], logged["tau_meas"])
+    reference = (logged["q_des"], logged["qd_des"], logged["qdd_des"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        ols = arash.identify(robot, *log)
+        iv = arash.identify(robot, *log, method="idim-iv", reference=reference, controller=logged["logged_controller"])
+    assert iv.method == "idim-iv"
+    assert "IDIM-IV" in " ".join(iv.settings["reasons"])
+    np.testing.assert_allclose(iv.fp_percent, ols.fp_percent, atol=0.5)
+
+
+def test_idim_iv_names_what_its_closed_loop_lacks():
+    robot, log, reference, controller, _ = closed_loop_case(5, disturbance=0.0)
+    with pytest.raises(ValueError, match="needs the closed loop's reference .* ols, wls and consistent"):
+        arash.identify(robot, *log, method="idim-iv")
+    with pytest.raises(ValueError, match="reference was given without controller"):
+        arash.identify(robot, *log, method="idim-iv", reference=reference)
+    with pytest.raises(ValueError, match="controller was given without reference"):
+        arash.identify(robot, *log, method="idim-iv", controller=controller)
+    with pytest.raises(ValueError, match=r"reference qd_des must have shape \(40000, 3\)"):
+        arash.identify(robot, *log, method="idim-iv", reference=(reference[0], reference[1][:-1], reference[2]),
+                       controller=controller)
+    with pytest.raises(ValueError, match="parameter vector has 5 entries"):
+        arash.identify(robot, *log, method="idim-iv", reference=reference,
+                       controller={**controller, "params": np.zeros(5)})
+    with pytest.raises(ValueError, match="not a controller"):
+        arash.identify(robot, *log, method="idim-iv", reference=reference, controller={"law": "lqr"})
