@@ -14,7 +14,7 @@ import arash  # noqa: E402
 
 from closed_loop import pd_gravity_log  # noqa: E402
 from conftest import ROBOT_FILES, ROOT  # noqa: E402
-from independent import Condition  # noqa: E402
+from independent import TANH_EPSILON, Condition, Expanded, rigid_torques  # noqa: E402
 from simulated import true_parameters  # noqa: E402
 
 
@@ -26,38 +26,71 @@ def closed_loop_case(seed, disturbance=0.1):
     truth = true_parameters(robot, np.random.default_rng(seed))
     condition = Condition("arash_asist", 1000, 16, 0.0, "tanh", 4, 40.0, seed=seed)
     robot, log, reference, controller = pd_gravity_log(condition, truth, actuator_noise=disturbance, noise_hz=2.0)
-    return robot, log, reference, controller, robot.base_parameters().project(truth)
+    return robot, log, reference, controller, truth
 
 
-def within_three_sigma(model, beta_true):
+def paper_validation_fp(robot, model, truth):
+    """FP% per joint of ``model`` on the paper's four validation trajectories (ω = 0.3, 0.5, 0.7,
+    0.9, one period at 1 kHz), against the noise-free torque of the true robot from Pinocchio."""
+    expanded = Expanded(ROBOT_FILES["arash_asist"], robot)
+    expanded.set_parameters(truth)
+    n, nb = robot.dof, len(robot.body_names())
+    fv, fc, ke = truth[10 * nb : 10 * nb + 2 * n : 2], truth[10 * nb + 1 : 10 * nb + 2 * n : 2], truth[10 * nb + 2 * n :]
+    rows = []
+    for omega in (0.3, 0.5, 0.7, 0.9):
+        t = np.arange(int(round(2 * np.pi / omega * 1000))) / 1000
+        q, qd, qdd = arash.paper_validation_trajectory(omega, t)
+        exact = rigid_torques(expanded, q, qd, qdd) + fv * qd + fc * np.tanh(qd / TANH_EPSILON) + ke * q
+        error = np.linalg.norm(exact - model.predict(q, qd, qdd), axis=0)
+        rows.append(100 * (1 - error / np.linalg.norm(exact - exact.mean(axis=0), axis=0)))
+    return np.array(rows)
+
+
+def within_three_sigma(model, truth):
+    beta_true = model.robot.base_parameters().project(truth)
     sigma = np.abs(model.sigma_percent / 100 * model.beta)
     return np.abs(model.beta - beta_true) <= 3 * sigma
 
 
 def test_idim_iv_settles_and_its_sigma_cover_the_truth_of_an_independent_loop():
+    """Three seeds: IDIM-IV settles and its σ cover the truth."""
     covered = []
     for seed in range(3):
-        robot, log, reference, controller, beta_true = closed_loop_case(seed)
+        robot, log, reference, controller, truth = closed_loop_case(seed)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
             model = arash.identify(robot, *log, method="idim-iv", reference=reference, controller=controller)
         reasons = " ".join(model.settings["reasons"])
         assert "IDIM-IV: instruments from the closed loop" in reasons, reasons
         assert not any("IDIM-IV" in w for w in model.settings["warnings"]), model.settings["warnings"]
-        covered.extend(within_three_sigma(model, beta_true))
-        print(f"seed {seed}: {model.settings['reasons'][-1]}; {np.mean(within_three_sigma(model, beta_true)):.2f} within 3σ")
+        covered.extend(within_three_sigma(model, truth))
+        print(f"seed {seed}: {model.settings['reasons'][-1]}; {np.mean(within_three_sigma(model, truth)):.2f} within 3σ")
     assert np.mean(covered) >= 0.9, f"IDIM-IV's 3σ cover {100 * np.mean(covered):.1f} % of the base parameters"
 
 
+def test_idim_iv_from_a_noise_free_loop_validates_on_the_papers_trajectories():
+    """The loop without a disturbance (its encoders still 16-bit): the model predicts the true
+    robot on the paper's four validation trajectories at FP% ≥ 95 on every joint (issue 18's bar).
+    With the disturbance of the test above, yaw reaches 93.7–93.8 % at ω = 0.9 with IDIM-IV and OLS
+    alike: a limit of that log, not of the estimator (docs/identification.md)."""
+    robot, log, reference, controller, truth = closed_loop_case(0, disturbance=0.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        model = arash.identify(robot, *log, method="idim-iv", reference=reference, controller=controller)
+    validation = paper_validation_fp(robot, model, truth)
+    print(f"FP% on the paper's trajectories (rows ω = 0.3 … 0.9):\n{np.round(validation, 2)}")
+    assert np.all(validation >= 95.0), validation
+
+
 def test_consistent_idim_iv_is_physical_with_no_pull_toward_cad():
-    robot, log, reference, controller, beta_true = closed_loop_case(4)
+    robot, log, reference, controller, truth = closed_loop_case(4)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         model = arash.identify(robot, *log, method="idim-iv-consistent", pull=0.0, reference=reference,
                                controller=controller)
     assert model.method == "idim-iv-consistent"
     assert np.min(model.min_pseudo_inertia_eigenvalue) >= 0.0, model.min_pseudo_inertia_eigenvalue
-    assert np.mean(within_three_sigma(model, beta_true)) >= 0.9
+    assert np.mean(within_three_sigma(model, truth)) >= 0.9
 
 
 def test_a_simulated_run_and_its_flight_log_carry_the_controller_idim_iv_needs(tmp_path):

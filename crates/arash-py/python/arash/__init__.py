@@ -93,7 +93,8 @@ def simulate(
 
     The dict holds "t" (N,), "cycle", "q", "qd", "tau_cmd", "tau_meas", "q_des", "qd_des",
     "qdd_des" (N, dof), "controller", "mode", "faults" (N,), "truth" (a dict with "q", "qd",
-    "qdd", "tau_motor", "motor_q"), "true_params" (P,), "joint_names" and "scenario" (TOML).
+    "qdd", "tau_motor", "motor_q"), "true_params" (P,), "joint_names", "scenario" (TOML) and
+    "logged_controller" (the controller as ``identify(..., method="idim-iv")`` takes it).
     """
     if robot is None:
         robot = Robot.arash_asist()
