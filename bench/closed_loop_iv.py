@@ -1,4 +1,4 @@
-"""OLS against IDIM-IV on closed-loop logs with known truth (issue 18's coverage table).
+"""OLS against IDIM-IV and DIDIM on closed-loop logs with known truth (issue 18's coverage table).
 
 Each log comes from the independent PD loop on Pinocchio (tests/python/closed_loop.py,
 ``pd_gravity_log``): ARASH:ASiST with perturbed inertials, friction and stiffness
@@ -30,7 +30,7 @@ from conftest import ROBOT_FILES  # noqa: E402
 from independent import Condition  # noqa: E402
 from simulated import true_parameters  # noqa: E402
 
-METHODS = ["ols", "idim-iv"]
+METHODS = ["ols", "idim-iv", "didim"]
 
 
 def one_seed(seed, disturbance):
@@ -66,16 +66,16 @@ def timing(repeats):
     medians = {}
     print(f"| method | median s ({repeats} runs, {len(run['t'])} samples) | × OLS | iterations |")
     print("|---|---|---|---|")
-    for method in ["ols", "consistent", "idim-iv", "idim-iv-consistent"]:
+    for method in ["ols", "consistent", "idim-iv", "idim-iv-consistent", "didim", "didim-consistent"]:
         seconds = []
         for _ in range(repeats):
             start = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", UserWarning)
-                model = arash.identify(robot, *log, method=method, **(given if "iv" in method else {}))
+                model = arash.identify(robot, *log, method=method, **(given if "i" in method[:2] else {}))
             seconds.append(time.perf_counter() - start)
         medians[method] = float(np.median(seconds))
-        line = next((r for r in model.settings["reasons"] if r.startswith("IDIM-IV: instruments")), "")
+        line = next((r for r in model.settings["reasons"] if ": the closed loop simulated" in r), "")
         iterations = line.split(", ")[1].split(" ")[0] if line else "–"
         print(f"| {method} | {medians[method]:.2f} | {medians[method] / medians['ols']:.2f} | {iterations} |")
 

@@ -52,20 +52,21 @@ def within_three_sigma(model, truth):
     return np.abs(model.beta - beta_true) <= 3 * sigma
 
 
-def test_idim_iv_settles_and_its_sigma_cover_the_truth_of_an_independent_loop():
-    """Three seeds: IDIM-IV settles and its σ cover the truth."""
+@pytest.mark.parametrize("method,name", [("idim-iv", "IDIM-IV"), ("didim", "DIDIM")])
+def test_the_estimate_settles_and_its_sigma_cover_the_truth_of_an_independent_loop(method, name):
+    """Three seeds: IDIM-IV and DIDIM settle and their σ cover the truth."""
     covered = []
     for seed in range(3):
         robot, log, reference, controller, truth = closed_loop_case(seed)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
-            model = arash.identify(robot, *log, method="idim-iv", reference=reference, controller=controller)
+            model = arash.identify(robot, *log, method=method, reference=reference, controller=controller)
         reasons = " ".join(model.settings["reasons"])
-        assert "IDIM-IV: instruments from the closed loop" in reasons, reasons
-        assert not any("IDIM-IV" in w for w in model.settings["warnings"]), model.settings["warnings"]
+        assert f"{name}: the closed loop simulated" in reasons, reasons
+        assert not any(name in w for w in model.settings["warnings"]), model.settings["warnings"]
         covered.extend(within_three_sigma(model, truth))
         print(f"seed {seed}: {model.settings['reasons'][-1]}; {np.mean(within_three_sigma(model, truth)):.2f} within 3σ")
-    assert np.mean(covered) >= 0.9, f"IDIM-IV's 3σ cover {100 * np.mean(covered):.1f} % of the base parameters"
+    assert np.mean(covered) >= 0.9, f"{name}'s 3σ cover {100 * np.mean(covered):.1f} % of the base parameters"
 
 
 def test_idim_iv_from_a_noise_free_loop_validates_on_the_papers_trajectories():
@@ -82,13 +83,13 @@ def test_idim_iv_from_a_noise_free_loop_validates_on_the_papers_trajectories():
     assert np.all(validation >= 95.0), validation
 
 
-def test_consistent_idim_iv_is_physical_with_no_pull_toward_cad():
+@pytest.mark.parametrize("method", ["idim-iv-consistent", "didim-consistent"])
+def test_the_consistent_closed_loop_fits_are_physical_with_no_pull_toward_cad(method):
     robot, log, reference, controller, truth = closed_loop_case(4)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
-        model = arash.identify(robot, *log, method="idim-iv-consistent", pull=0.0, reference=reference,
-                               controller=controller)
-    assert model.method == "idim-iv-consistent"
+        model = arash.identify(robot, *log, method=method, pull=0.0, reference=reference, controller=controller)
+    assert model.method == method
     assert np.min(model.min_pseudo_inertia_eigenvalue) >= 0.0, model.min_pseudo_inertia_eigenvalue
     assert np.mean(within_three_sigma(model, truth)) >= 0.9
 
@@ -117,8 +118,9 @@ def test_a_simulated_run_and_its_flight_log_carry_the_controller_idim_iv_needs(t
 
 def test_idim_iv_names_what_its_closed_loop_lacks():
     robot, log, reference, controller, _ = closed_loop_case(5, disturbance=0.0)
-    with pytest.raises(ValueError, match="needs the closed loop's reference .* ols, wls and consistent"):
-        arash.identify(robot, *log, method="idim-iv")
+    for method in ("idim-iv", "didim-consistent"):
+        with pytest.raises(ValueError, match=f"method {method} needs the closed loop's reference .* ols, wls and"):
+            arash.identify(robot, *log, method=method)
     with pytest.raises(ValueError, match="reference was given without controller"):
         arash.identify(robot, *log, method="idim-iv", reference=reference)
     with pytest.raises(ValueError, match="controller was given without reference"):

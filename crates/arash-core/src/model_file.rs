@@ -55,6 +55,12 @@ pub enum IdentifyMethod {
     /// IDIM-IV with every body physically consistent (the SDP on the instrumented regressor).
     #[serde(rename = "idim-iv-consistent")]
     IdimIvConsistent,
+    /// DIDIM for closed-loop logs: the simulated loop's torque fitted to the measured torque.
+    #[serde(rename = "didim")]
+    Didim,
+    /// DIDIM with every body physically consistent.
+    #[serde(rename = "didim-consistent")]
+    DidimConsistent,
 }
 
 impl IdentifyMethod {
@@ -66,20 +72,40 @@ impl IdentifyMethod {
             Self::Consistent => "consistent",
             Self::IdimIv => "idim-iv",
             Self::IdimIvConsistent => "idim-iv-consistent",
+            Self::Didim => "didim",
+            Self::DidimConsistent => "didim-consistent",
         }
     }
 
     /// Whether the method needs the closed loop's reference and controller.
     pub fn closed_loop(self) -> bool {
-        matches!(self, Self::IdimIv | Self::IdimIvConsistent)
+        self.estimator().is_some()
+    }
+
+    /// The closed-loop estimator of the method, if it is one.
+    pub fn estimator(self) -> Option<crate::identify::closed_loop::Estimator> {
+        use crate::identify::closed_loop::Estimator;
+        match self {
+            Self::IdimIv | Self::IdimIvConsistent => Some(Estimator::InstrumentalVariables),
+            Self::Didim | Self::DidimConsistent => Some(Estimator::OutputError),
+            Self::Ols | Self::Wls | Self::Consistent => None,
+        }
     }
 
     /// Whether the result is a physically consistent π̂.
     pub fn consistent(self) -> bool {
-        matches!(self, Self::Consistent | Self::IdimIvConsistent)
+        matches!(self, Self::Consistent | Self::IdimIvConsistent | Self::DidimConsistent)
     }
 
-    pub const ALL: [Self; 5] = [Self::Ols, Self::Wls, Self::Consistent, Self::IdimIv, Self::IdimIvConsistent];
+    pub const ALL: [Self; 7] = [
+        Self::Ols,
+        Self::Wls,
+        Self::Consistent,
+        Self::IdimIv,
+        Self::IdimIvConsistent,
+        Self::Didim,
+        Self::DidimConsistent,
+    ];
 }
 
 impl std::fmt::Display for IdentifyMethod {
@@ -91,10 +117,10 @@ impl std::fmt::Display for IdentifyMethod {
 impl std::str::FromStr for IdentifyMethod {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|m| m.name() == s)
-            .ok_or_else(|| format!("unknown method `{s}` (ols, wls, consistent, idim-iv or idim-iv-consistent)"))
+        Self::ALL.into_iter().find(|m| m.name() == s).ok_or_else(|| {
+            let names: Vec<&str> = Self::ALL.iter().map(|m| m.name()).collect();
+            format!("unknown method `{s}` ({})", names.join(", "))
+        })
     }
 }
 
@@ -405,6 +431,7 @@ impl ModelFile {
         let sigma = match self.settings.method {
             IdentifyMethod::Consistent => "σ% (OLS)",
             IdentifyMethod::IdimIvConsistent => "σ% (IV)",
+            IdentifyMethod::DidimConsistent => "σ% (DIDIM)",
             _ => "σ%",
         };
         s += &format!("  Coulomb friction as {}\n", CoulombShape::of_epsilon(self.settings.coulomb_epsilon));

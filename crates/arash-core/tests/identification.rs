@@ -566,13 +566,19 @@ fn the_loop_idim_iv_simulates_follows_a_noise_free_closed_loop_log() {
 
 /// On closed-loop logs of a PD loop whose drive adds a disturbance in the identification's band
 /// (a tenth of the RMS torque, in 2 Hz) and whose 16-bit encoders the controller differences,
-/// IDIM-IV settles in a few iterations and its σ cover the truth. The estimate comes from the
-/// instruments alone: a wrong solve or a wrong σ fails here.
+/// IDIM-IV and DIDIM settle in a few iterations and their σ cover the truth. Both estimates come
+/// from the simulated loop's regressor: a wrong solve or a wrong σ fails here.
 #[test]
-fn idim_iv_settles_and_its_sigma_cover_the_truth_on_closed_loop_logs() {
+fn idim_iv_and_didim_settle_and_their_sigma_cover_the_truth_on_closed_loop_logs() {
+    use arash_core::model_file::IdentifyMethod;
+    for method in [IdentifyMethod::IdimIv, IdentifyMethod::Didim] {
+        closed_loop_coverage(method);
+    }
+}
+
+fn closed_loop_coverage(method: arash_core::model_file::IdentifyMethod) {
     use arash_core::identify::closed_loop::ClosedLoop;
     use arash_core::identify::{identify_in_closed_loop, Declared, IdentifyOptions, Log};
-    use arash_core::model_file::IdentifyMethod;
     let (mut covered, mut total) = (0, 0);
     for seed in 0..4 {
         let (model, base, pi, traj, mut rng) = closed_loop_truth(100 + seed);
@@ -590,22 +596,23 @@ fn idim_iv_settles_and_its_sigma_cover_the_truth_on_closed_loop_logs() {
             Declared { model: &model, base: &base, urdf: "" },
             Log { t: &log.t, q: &log.q, tau: &log.tau },
             closed_loop,
-            IdentifyMethod::IdimIv,
+            method,
             &IdentifyOptions::default(),
         )
         .unwrap();
         let reasons = iv.settings.reasons.join("\n");
-        eprintln!("seed {seed}: {}", iv.settings.reasons.last().unwrap());
-        assert!(iv.settings.warnings.iter().all(|w| !w.contains("IDIM-IV")), "{:?}", iv.settings.warnings);
-        assert!(reasons.contains("IDIM-IV"), "{reasons}");
+        let name = method.estimator().unwrap().name();
+        eprintln!("{method} seed {seed}: {}", iv.settings.reasons.last().unwrap());
+        assert!(iv.settings.warnings.iter().all(|w| !w.contains(name)), "{:?}", iv.settings.warnings);
+        assert!(reasons.contains(&format!("{name}: the closed loop simulated")), "{reasons}");
         for ((beta, sigma_percent), truth) in iv.beta.iter().zip(&iv.sigma_percent).zip(&beta_true) {
             covered += usize::from((beta - truth).abs() <= 3.0 * sigma_percent / 100.0 * beta.abs());
             total += 1;
         }
     }
     let coverage = covered as f64 / total as f64;
-    eprintln!("IDIM-IV: {covered} of {total} base parameters within 3σ of the truth");
-    assert!(coverage >= 0.9, "IDIM-IV's 3σ cover {:.1} % of the base parameters", 100.0 * coverage);
+    eprintln!("{method}: {covered} of {total} base parameters within 3σ of the truth");
+    assert!(coverage >= 0.9, "{method}'s 3σ cover {:.1} % of the base parameters", 100.0 * coverage);
 }
 
 /// IDIM-IV without its closed loop, or with one that does not fit the log, is refused by name.

@@ -189,7 +189,7 @@ fn an_excitation_run_through_the_daemon_identifies_the_mock() {
     let reasons = iv["settings"]["reasons"].to_string();
     let fp: Vec<f64> = serde_json::from_value(iv["training"]["fp_percent"].clone()).unwrap();
     eprintln!("IDIM-IV on the daemon's log: FP% {fp:?}; {reasons}");
-    assert!(reasons.contains("IDIM-IV: instruments from the closed loop"), "{reasons}");
+    assert!(reasons.contains("IDIM-IV: the closed loop simulated"), "{reasons}");
     assert!(fp.iter().all(|&x| x >= 90.0), "IDIM-IV training FP% {fp:?}");
 
     // A model that is not physically consistent is refused for the model-based laws.

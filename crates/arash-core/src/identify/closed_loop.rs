@@ -1,25 +1,28 @@
-//! IDIM-IV: identification of a robot that was logged in closed loop, with instruments from the
-//! closed loop simulated with the current estimate (Janot, Vandanjon and Gautier, "A generic
-//! instrumental variable approach for industrial robot identification", IEEE TCST 22(1), 2014).
+//! Identification of a robot logged in closed loop, from the loop simulated with the current
+//! estimate: IDIM-IV (Janot, Vandanjon and Gautier, "A generic instrumental variable approach for
+//! industrial robot identification", IEEE TCST 22(1), 2014) and DIDIM (Gautier, Janot and
+//! Vandanjon, "A new closed-loop output error method for parameter identification of robot
+//! dynamics", IEEE TCST 21(2), 2013).
 //!
 //! In closed loop the controller turns the encoders' noise (and the torque noise, through the
 //! plant) into torque, so the regressor built from the measured positions is correlated with the
-//! error of the torque it explains, and least squares is biased. The instruments `Z` are the same
-//! regressor built from a simulation of the same loop: the same reference, the same controller,
-//! and a plant with the current estimate β̂. That simulation carries none of the log's noise, so
-//! `Z` is uncorrelated with the error but tracks the measured motion closely, and
+//! error of the torque it explains, and least squares is biased. `Z` is the same regressor built
+//! from a simulation of the same loop: the same reference, the same controller, and a plant with
+//! the current estimate β̂. That simulation carries none of the log's noise, but tracks the
+//! measured motion closely. Each iteration solves
 //!
-//!   β̂ₖ₊₁ = (Zₖᵀ W)⁻¹ Zₖᵀ τ
+//!   IDIM-IV: β̂ₖ₊₁ = (Zₖᵀ W)⁻¹ Zₖᵀ τ   (Z instruments the measured regressor W)
+//!   DIDIM:   β̂ₖ₊₁ = (Zₖᵀ Zₖ)⁻¹ Zₖᵀ τ  (the simulated torque Z β fitted to the measured one)
 //!
-//! is consistent. The loop starts from least squares and stops when β̂ moves by less than
-//! [`IvOptions::tolerance`] of its σ (Gautier and Janot report two or three iterations).
+//! Both start from least squares and stop when no β̂ moves by more than
+//! [`IvOptions::tolerance`] of its σ (the papers report two to five iterations).
 //!
 //! The simulated signals go through exactly the preprocessing the log went through (the same
 //! period, cut-offs and decimation), so `Z` and `W` hold the same samples filtered alike.
 //!
-//! Physically consistent IDIM-IV solves the consistent problem on the instrumented regressor
-//! `P_Z W` (two-stage least squares: with as many instruments as parameters it is the IV
-//! estimate), after the plain iteration has settled the instruments.
+//! The physically consistent forms solve the consistent problem, after the plain iteration has
+//! settled `Z`, on the instrumented regressor `P_Z W` for IV (two-stage least squares: with as
+//! many instruments as parameters it is the IV estimate) and on `Z` itself for DIDIM.
 
 use faer::Mat;
 use nalgebra::DMatrix;
@@ -130,7 +133,7 @@ pub struct ClosedLoop<'a> {
     pub controller: &'a LoggedController,
 }
 
-/// Settings of the IDIM-IV iteration, with their defaults.
+/// Settings of the IDIM-IV and DIDIM iteration, with their defaults.
 #[derive(Clone, Debug, PartialEq)]
 pub struct IvOptions {
     /// Most simulations of the loop (each one IV solve).
@@ -141,7 +144,7 @@ pub struct IvOptions {
 
 impl Default for IvOptions {
     fn default() -> Self {
-        // Janot et al. see convergence in 2–3 iterations; a tenth of σ is far below what the
+        // The papers see convergence in 2–5 iterations; a tenth of σ is far below what the
         // estimate can resolve.
         Self { max_iterations: 10, tolerance: 0.1 }
     }
@@ -165,24 +168,24 @@ impl IvOptions {
 /// Why IDIM-IV could not run.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ClosedLoopError {
-    #[error("IDIM-IV: the logged controller cannot be rebuilt: {0}")]
+    #[error("closed-loop identification: the logged controller cannot be rebuilt: {0}")]
     Controller(String),
-    #[error("IDIM-IV: {0}")]
+    #[error("closed-loop identification: {0}")]
     Setting(String),
     #[error(
-        "IDIM-IV: the reference's `{name}` has {got} values, the log {expected} ({samples} samples × {dof} joints)"
+        "closed-loop identification: the reference's `{name}` has {got} values, the log {expected} ({samples} samples × {dof} joints)"
     )]
     Reference { name: &'static str, got: usize, expected: usize, samples: usize, dof: usize },
-    #[error("IDIM-IV: the reference's `{name}` is not finite at sample {sample}")]
+    #[error("closed-loop identification: the reference's `{name}` is not finite at sample {sample}")]
     ReferenceNotFinite { name: &'static str, sample: usize },
     #[error(
-        "IDIM-IV: the closed loop simulated with the estimate of iteration {iteration} diverged at t = {time:.3} s \
+        "closed-loop identification: the loop simulated with the estimate of iteration {iteration} diverged at t = {time:.3} s \
          ({why}); the estimate is too far from the robot for the simulation to follow the log (try more or richer \
          data, or the least-squares methods)"
     )]
     Diverged { iteration: usize, time: f64, why: String },
     #[error(
-        "IDIM-IV: the instruments do not determine the parameters (ZᵀW is singular at iteration {iteration}): the \
+        "closed-loop identification: the simulated regressor does not determine the parameters (ZᵀW is singular at iteration {iteration}): the \
          simulated loop does not excite what the log does"
     )]
     Singular { iteration: usize },
@@ -343,15 +346,56 @@ fn placed(base: &BaseParameters, beta: &[f64]) -> Vec<f64> {
     full
 }
 
-/// IDIM-IV on a log preprocessed as `pre` (from `t`, `q`, `τ` with `options`), starting from the
-/// least-squares fit `start`.
-pub fn idim_iv(
+/// What is solved on the simulated loop's regressor `Z` at each iteration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Estimator {
+    /// IDIM-IV: `Z` instruments the measured regressor, `β = (ZᵀW)⁻¹ Zᵀ τ`.
+    InstrumentalVariables,
+    /// DIDIM (Gautier, Janot and Vandanjon, IEEE TCST 21(2), 2013): the simulated loop's torque
+    /// `Z β` is fitted to the measured torque, `β = (ZᵀZ)⁻¹ Zᵀ τ`, an output error through the
+    /// closed loop. Nothing measured enters the regressor, so its noise cannot either.
+    OutputError,
+}
+
+impl Estimator {
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::InstrumentalVariables => "IDIM-IV",
+            Self::OutputError => "DIDIM",
+        }
+    }
+
+    /// The regressor `Z` is paired with: the measured `W` for IV, `Z` itself for DIDIM.
+    fn partner<'a>(self, w: &'a Mat<f64>, z: &'a Mat<f64>) -> &'a Mat<f64> {
+        match self {
+            Self::InstrumentalVariables => w,
+            Self::OutputError => z,
+        }
+    }
+
+    /// The full regressor and torque whose consistent fit is this estimator's with the
+    /// constraints: `P_Z W_full` (two-stage least squares) for IV, `Z_full = Z B` for DIDIM.
+    pub fn full(self, model: &Model, base: &BaseParameters, pre: &Preprocessed, z: &Mat<f64>) -> (Mat<f64>, Vec<f64>) {
+        match self {
+            Self::InstrumentalVariables => instrumented_full(model, pre, z),
+            Self::OutputError => {
+                let (p, big_p) = (base.rank, base.num_params);
+                let b = Mat::<f64>::from_fn(p, big_p, |i, j| base.b[i * big_p + j]);
+                (z * &b, pre.settled_rows(&pre.tau, pre.dof).to_vec())
+            }
+        }
+    }
+}
+
+/// IDIM-IV or DIDIM (`estimator`) on a log preprocessed as `pre` (from `t`, `q`, `τ` with
+/// `options`), starting from the least-squares fit `start`.
+pub fn closed_loop_fit(
     (model, base): (&Model, &BaseParameters),
     t: &[f64],
-    pre: &Preprocessed,
-    options: &PreprocessOptions,
+    (pre, options): (&Preprocessed, &PreprocessOptions),
     closed_loop: &ClosedLoop,
     start: &Fit,
+    estimator: Estimator,
     (iv, consistent): (&IvOptions, &ConsistentOptions),
 ) -> Result<IvFit, ClosedLoopError> {
     iv.validate()?;
@@ -373,7 +417,7 @@ pub fn idim_iv(
         match instruments(&placed(base, beta), iteration) {
             Err(ClosedLoopError::Diverged { time, why, .. }) => {
                 let (w_full, tau_full) = match z {
-                    Some(z) => instrumented_full(model, pre, z),
+                    Some(z) => estimator.full(model, base, pre, z),
                     None => stack_full(model, pre),
                 };
                 let physical = identify_consistent(model, &w_full, &tau_full, consistent)
@@ -388,11 +432,12 @@ pub fn idim_iv(
     let mut z = simulated(&beta, None, 1)?;
     let mut iteration = 1;
     loop {
-        let next = iv_solve(&z, &w, &tau).ok_or(ClosedLoopError::Singular { iteration })?;
+        let partner = estimator.partner(&w, &z);
+        let next = iv_solve(&z, partner, &tau).ok_or(ClosedLoopError::Singular { iteration })?;
         let change =
             next.iter().zip(&beta).zip(&sigma).map(|((a, b), s)| (a - b).abs() / s.max(1e-300)).fold(0.0, f64::max);
         beta = next;
-        let fit = iv_fit(model, base, pre, (&z, &w, &tau), &beta, start);
+        let fit = iv_fit(model, base, pre, (&z, &w, &tau), (&beta, partner), start);
         sigma = fit.sigma_beta.clone();
         let converged = change <= iv.tolerance;
         if converged || iteration >= iv.max_iterations {
@@ -431,15 +476,16 @@ fn cross(z: &Mat<f64>, w: &Mat<f64>, tau: &[f64]) -> (DMatrix<f64>, nalgebra::DV
     (DMatrix::from_fn(p, p, |i, j| zw[(i, j)]), nalgebra::DVector::from_fn(p, |i, _| zt[(i, 0)]))
 }
 
-/// The IV estimate `beta` as a [`Fit`]: σ from the IV sandwich `(ZᵀW)⁻¹ Ω (WᵀZ)⁻¹`, Ω the
-/// long-run covariance of the instruments' scores on the unfiltered residual, in blocks as
-/// least squares takes them ([`estimate::fit`]).
+/// The estimate `beta` as a [`Fit`]: σ from the sandwich `(ZᵀX)⁻¹ Ω (XᵀZ)⁻¹` (X the `partner`:
+/// W for IV, Z for DIDIM), Ω the long-run covariance of Z's scores on the unfiltered residual of
+/// the measured motion (the torque's noise), in blocks as least squares takes them
+/// ([`estimate::fit`]). The training metrics are the measured motion's prediction `W β`.
 fn iv_fit(
     model: &Model,
     base: &BaseParameters,
     pre: &Preprocessed,
     (z, w, tau): (&Mat<f64>, &Mat<f64>, &[f64]),
-    beta: &[f64],
+    (beta, partner): (&[f64], &Mat<f64>),
     start: &Fit,
 ) -> Fit {
     let dof = model.dof();
@@ -450,8 +496,8 @@ fn iv_fit(
     let unfiltered = estimate::unfiltered_prediction(model, pre, &base.independent, beta);
     let meat_residual: Vec<f64> =
         pre.settled_rows(&pre.tau_unfiltered, dof).iter().zip(&unfiltered).map(|(t, p)| t - p).collect();
-    let (zw, _) = cross(z, w, tau);
-    let bread = zw.clone().try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::NAN));
+    let (zw, _) = cross(z, partner, tau);
+    let bread = zw.try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::NAN));
     let block = ((2.0 * pre.rate_hz() / pre.cutoff_hz).ceil() as usize).max(1);
     let sigma_beta = estimate::sandwich_sigma(z, &meat_residual, dof, block, &bread);
     let sigma_percent = sigma_beta.iter().zip(beta).map(|(s, b)| 100.0 * s / b.abs()).collect();

@@ -17,7 +17,7 @@ use crate::base_parameters::BaseParameters;
 use crate::model::Model;
 use crate::model_file::{DataSummary, Fitted, IdentifyMethod, Metrics, ModelFile, ModelFileError, Settings};
 use crate::physical::{min_pseudo_inertia_eigenvalues, nearest_standard_parameters};
-use closed_loop::{idim_iv, instrumented_full, ClosedLoop, ClosedLoopError, IvOptions};
+use closed_loop::{closed_loop_fit, ClosedLoop, ClosedLoopError, IvOptions};
 use consistent::{identify_consistent, ConsistentError, ConsistentOptions};
 use estimate::{fit, joint_metrics, stack_full, EstimateError, JointMetrics, Method};
 use preprocess::{preprocess, PreprocessError, PreprocessOptions};
@@ -121,29 +121,31 @@ fn identify_with(
     };
     let (ls, instruments) = match closed_loop.filter(|_| method.closed_loop()) {
         Some(closed_loop) => {
+            let estimator = method.estimator().expect("a closed-loop method names its estimator");
             let settings = (&options.iv, &options.consistent);
-            let iv = idim_iv((model, base), log.t, &pre, &options.preprocess, &closed_loop, &ls, settings)?;
-            let line = format!(
-                "IDIM-IV: instruments from the closed loop simulated with the estimate, {} iteration(s); the last moved \
-                 no β by more than {:.3} σ",
+            let preprocessed = (&pre, &options.preprocess);
+            let iv = closed_loop_fit((model, base), log.t, preprocessed, &closed_loop, &ls, estimator, settings)?;
+            let name = estimator.name();
+            pre.choices.reasons.push(format!(
+                "{name}: the closed loop simulated with the estimate, {} iteration(s); the last moved no β by more than \
+                 {:.3} σ",
                 iv.iterations, iv.last_change_sigma
-            );
-            pre.choices.reasons.push(line);
+            ));
             if let Some(first) = iv.detours.first() {
                 pre.choices.reasons.push(format!(
-                    "IDIM-IV: the estimate of {} of the {} iteration(s) did not simulate (first: iteration {first}); their \
-                     instruments came from the nearest physically consistent model",
+                    "{name}: the estimate of {} of the {} iteration(s) did not simulate (first: iteration {first}); their \
+                     simulation used the nearest physically consistent model",
                     iv.detours.len(),
                     iv.iterations
                 ));
             }
             if !iv.converged {
                 pre.choices.warnings.push(format!(
-                    "IDIM-IV did not settle in {} iterations (the last moved a β by {:.2} σ): the estimate is the last one",
+                    "{name} did not settle in {} iterations (the last moved a β by {:.2} σ): the estimate is the last one",
                     iv.iterations, iv.last_change_sigma
                 ));
             }
-            (iv.fit, Some(iv.instruments))
+            (iv.fit, Some((estimator, iv.instruments)))
         }
         None if method.closed_loop() => return Err(IdentifyError::NeedsClosedLoop(method)),
         None => (ls, None),
@@ -151,8 +153,8 @@ fn identify_with(
     let (beta, params, training, min_eig) = if method.consistent() {
         let (w, tau_f) = stack_full(model, &pre);
         let c = match &instruments {
-            Some(z) => {
-                let (instrumented, tau_i) = instrumented_full(model, &pre, z);
+            Some((estimator, z)) => {
+                let (instrumented, tau_i) = estimator.full(model, base, &pre, z);
                 identify_consistent(model, &instrumented, &tau_i, &options.consistent)?
             }
             None => identify_consistent(model, &w, &tau_f, &options.consistent)?,

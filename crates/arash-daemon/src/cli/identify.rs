@@ -19,15 +19,15 @@ use arash_core::BaseParameters;
 pub struct Args {
     #[command(flatten)]
     runs: super::Runs,
-    /// ols, wls, consistent, or for a log recorded in closed loop idim-iv and idim-iv-consistent
-    /// (instruments from the loop simulated with the estimate; docs/identification.md).
+    /// ols, wls, consistent, or for a log recorded in closed loop idim-iv, didim and their
+    /// -consistent forms (the loop simulated with the estimate; docs/identification.md).
     #[arg(long, default_value_t)]
     method: IdentifyMethod,
-    /// The controller a closed-loop log ran (JSON, docs/identification.md), for the idim-iv
-    /// methods; default: the one the flight log names.
+    /// The controller a closed-loop log ran (JSON, docs/identification.md), for the idim-iv and
+    /// didim methods; default: the one the flight log names.
     #[arg(long)]
     controller: Option<PathBuf>,
-    /// IDIM-IV's most iterations (each one simulation of the loop).
+    /// Most iterations of idim-iv and didim (each one simulation of the loop).
     #[arg(long, default_value_t = IvOptions::default().max_iterations)]
     iv_iterations: usize,
     /// Whole excitation periods in the training data (averaged); default: found from the data;
@@ -126,7 +126,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The closed loop of the one log the idim-iv methods take: its reference and the controller
+/// The closed loop of the one log the idim-iv and didim methods take: its reference and the controller
 /// (`--controller`, or the one the log names). Whatever is missing is named, with the methods
 /// that still work.
 fn closed_loop_of<'a>(

@@ -146,7 +146,7 @@ def identify(
     """Identify the robot's parameters from a log: t (N,), q and tau (N, dof), SI units.
 
     method: "ols" (the default), "wls", "consistent", or for a log recorded in closed loop
-    "idim-iv" and "idim-iv-consistent" (docs/identification.md). periods: whole
+    "idim-iv", "didim", "idim-iv-consistent" and "didim-consistent" (docs/identification.md). periods: whole
     excitation periods in the log, averaged (None: found from the data; 1: not periodic).
     period_s: the period, when it is known but not how many the log holds.
     cutoff_hz: the low-pass cut-off (None: chosen from the data: among the cut-offs whose fitted
@@ -160,8 +160,9 @@ def identify(
     controller that ran it, as a dict or its JSON: ``{"law": "pd", "params": π_c, "kp": [...],
     "kd": [...]}`` (PD with gravity compensation) or ``{"law": "standard", "kind": "robust",
     "params": π_c, "gains": {...}}`` (an arash controller; ``read_log`` and ``simulate`` give it as
-    ``"logged_controller"``). Both are needed by the idim-iv methods, which simulate the loop.
-    iv_iterations, iv_tolerance: IDIM-IV's most iterations, and the move of β̂ (in σ) it stops at.
+    ``"logged_controller"``). Both are needed by the idim-iv and didim methods, which simulate
+    the loop. iv_iterations, iv_tolerance: their most iterations, and the move of β̂ (in σ) they
+    stop at.
 
     ``Identification.settings`` says what was chosen and why; a choice the data support only
     weakly is also raised as a ``UserWarning``.
