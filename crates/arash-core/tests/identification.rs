@@ -537,12 +537,7 @@ fn the_loop_idim_iv_simulates_follows_a_noise_free_closed_loop_log() {
     let (model, _, pi, traj, mut rng) = closed_loop_truth(41);
     let log =
         closed_loop_log(&model, &pi, (&traj, 10.0), LoopNoise { disturbance: 0.0, encoder_counts: None }, &mut rng);
-    let closed_loop = ClosedLoop {
-        q_des: &log.reference[0],
-        qd_des: &log.reference[1],
-        qdd_des: &log.reference[2],
-        controller: &log.controller,
-    };
+    let closed_loop = ClosedLoop::new(&log.reference, &log.controller);
     let (q, tau) = simulate_loop(&model, &pi, &closed_loop, &log.t).unwrap();
     let n = model.dof();
     for k in 0..n {
@@ -586,12 +581,7 @@ fn closed_loop_coverage(method: arash_core::model_file::IdentifyMethod) {
         let log = closed_loop_log(&model, &pi, (&traj, 40.0), noise, &mut rng);
         let mut beta_true = vec![0.0; base.rank];
         base.project(&pi, &mut beta_true);
-        let closed_loop = ClosedLoop {
-            q_des: &log.reference[0],
-            qd_des: &log.reference[1],
-            qdd_des: &log.reference[2],
-            controller: &log.controller,
-        };
+        let closed_loop = ClosedLoop::new(&log.reference, &log.controller);
         let iv = identify_in_closed_loop(
             Declared { model: &model, base: &base, urdf: "" },
             Log { t: &log.t, q: &log.q, tau: &log.tau },
@@ -648,12 +638,7 @@ fn idim_iv_names_what_its_closed_loop_lacks() {
         identify_in_closed_loop(declared, data, closed_loop, IdentifyMethod::IdimIv, &options).unwrap_err().to_string();
     assert!(message.contains("qdd_des") && message.contains("sample 10"), "{message}");
     let wrong = LoggedController::Pd { params: vec![0.0; 5], kp: vec![1.0; 3], kd: vec![1.0; 3] };
-    let closed_loop = ClosedLoop {
-        q_des: &log.reference[0],
-        qd_des: &log.reference[1],
-        qdd_des: &log.reference[2],
-        controller: &wrong,
-    };
+    let closed_loop = ClosedLoop::new(&log.reference, &wrong);
     let message =
         identify_in_closed_loop(declared, data, closed_loop, IdentifyMethod::IdimIv, &options).unwrap_err().to_string();
     assert!(message.contains("5 entries"), "{message}");

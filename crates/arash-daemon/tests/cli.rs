@@ -183,6 +183,77 @@ fn simulate_writes_a_flight_log_that_identify_reads() {
     assert!(model.exists());
 }
 
+/// A closed-loop run through `identify --method didim`: the flight log names its reference and
+/// controller; the same run as CSV needs the reference columns and `--controller`, and each
+/// missing piece is named with the methods that still work.
+#[test]
+fn identify_fits_a_closed_loop_log_and_names_what_a_log_lacks_for_it() {
+    let dir = Scratch::new("cli", "closed-loop");
+    let log = dir.join("run.mcap");
+    let excitation = repo_file("trajectories/excitation_L5_T15.json");
+    let out = simulate(&repo_file("scenarios/nominal.toml"), &excitation, "pd", &log, &["--duration", "30"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let model = dir.join("didim.json");
+    let (log_path, model_path) = (log.to_str().unwrap(), model.to_str().unwrap());
+    let out = arash(&["identify", log_path, "--method", "didim", "--coulomb-epsilon", "0.001", "-o", model_path]);
+    let (text, err) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "{err}");
+    assert!(text.contains("DIDIM: the closed loop simulated with the estimate"), "{text}");
+
+    // The same cycles as CSV, with and without the reference columns.
+    let flight = arash_core::flightlog::read_log(&log).unwrap();
+    let joints = ["yaw", "pitch", "insertion"];
+    let header = |reference: bool| {
+        let mut names = vec!["t".to_string()];
+        let channels: &[&str] = if reference { &["q", "tau", "q_des", "qd_des", "qdd_des"] } else { &["q", "tau"] };
+        for channel in channels {
+            names.extend(joints.iter().map(|j| format!("{channel}.{j}")));
+        }
+        names.join(",") + "\n"
+    };
+    let c = &flight.cycles;
+    let rows = |reference: bool| -> String {
+        (0..c.t.len())
+            .map(|i| {
+                let mut row = vec![c.t[i]];
+                let channels: Vec<&Vec<f64>> = match reference {
+                    true => vec![&c.q, &c.tau_meas, &c.q_des, &c.qd_des, &c.qdd_des],
+                    false => vec![&c.q, &c.tau_meas],
+                };
+                for x in channels {
+                    row.extend_from_slice(&x[3 * i..3 * i + 3]);
+                }
+                row.iter().map(|v| format!("{v:e}")).collect::<Vec<_>>().join(",") + "\n"
+            })
+            .collect()
+    };
+    let plain = dir.file("plain.csv", &(header(false) + &rows(false)));
+    let with_reference = dir.file("reference.csv", &(header(true) + &rows(true)));
+    let never = dir.join("from-csv.json");
+    let identify = |csv: &std::path::Path, extra: &[&str]| {
+        let mut args = vec!["identify", csv.to_str().unwrap(), "--method", "didim", "--coulomb-epsilon", "0.001"];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["-o", never.to_str().unwrap()]);
+        arash(&args)
+    };
+    let out = identify(&plain, &[]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success()
+            && err.contains("no q_des, qd_des and qdd_des")
+            && err.contains("ols, wls and consistent"),
+        "{err}"
+    );
+    let out = identify(&with_reference, &[]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("names no controller; give it with --controller"), "{err}");
+    let controller = dir.file("controller.json", &flight.logged_controller().unwrap().unwrap().to_json());
+    let out = identify(&with_reference, &["--controller", controller.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let written: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&never).unwrap()).unwrap();
+    assert_eq!(written["settings"]["method"], "didim");
+}
+
 #[test]
 fn simulate_refuses_bad_inputs_by_name() {
     let traj = repo_file("trajectories/paper_validation_0.5.json");

@@ -268,12 +268,7 @@ fn _identify<'py>(
     let log = Log { t: &t, q: &q, tau: &tau };
     let inner = match closed_loop_arrays(reference, controller.as_deref(), model.dof(), t.len())? {
         Some((reference, controller)) => {
-            let closed_loop = ClosedLoop {
-                q_des: &reference[0],
-                qd_des: &reference[1],
-                qdd_des: &reference[2],
-                controller: &controller,
-            };
+            let closed_loop = ClosedLoop::new(&reference, &controller);
             py.detach(|| identify_in_closed_loop(declared, log, closed_loop, method, &o))
         }
         None => py.detach(|| core_identify(declared, log, method, &o)),

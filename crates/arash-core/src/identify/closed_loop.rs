@@ -133,6 +133,13 @@ pub struct ClosedLoop<'a> {
     pub controller: &'a LoggedController,
 }
 
+impl<'a> ClosedLoop<'a> {
+    /// The loop of a reference held as `[q_des, qd_des, qdd_des]` and its controller.
+    pub fn new(reference: &'a [Vec<f64>; 3], controller: &'a LoggedController) -> Self {
+        Self { q_des: &reference[0], qd_des: &reference[1], qdd_des: &reference[2], controller }
+    }
+}
+
 /// Settings of the IDIM-IV and DIDIM iteration, with their defaults.
 #[derive(Clone, Debug, PartialEq)]
 pub struct IvOptions {

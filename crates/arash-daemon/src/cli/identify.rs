@@ -88,12 +88,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut identification = match args.method.closed_loop() {
         true => {
             let (reference, controller) = closed_loop_of(&args, &log)?;
-            let closed_loop = ClosedLoop {
-                q_des: &reference[0],
-                qd_des: &reference[1],
-                qdd_des: &reference[2],
-                controller: &controller,
-            };
+            let closed_loop = ClosedLoop::new(reference, &controller);
             identify_in_closed_loop(declared, data, closed_loop, args.method, &options)
         }
         false => identify(declared, data, args.method, &options),
