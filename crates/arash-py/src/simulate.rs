@@ -74,7 +74,9 @@ fn log_dict<'py>(py: Python<'py>, log: &FlightLog) -> PyResult<Bound<'py, PyDict
     }
     d.set_item("attachments", attachments)?;
     d.set_item("urdf", log.attachment_text("robot.urdf"))?;
-    let controller = log.logged_controller().transpose().map_err(value_error)?;
+    // A log whose controller cannot be read is still a log: the key is None, and identify's
+    // closed-loop methods then ask for the controller.
+    let controller = log.logged_controller().and_then(Result::ok);
     d.set_item("logged_controller", controller.map(|c| c.to_json()))?;
     d.set_item("truncated", log.truncated)?;
     // JSON channels (the daemon's /arash/timing and /arash/event): topic → [(t_ns, document)].
