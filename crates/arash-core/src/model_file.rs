@@ -79,17 +79,7 @@ impl IdentifyMethod {
 
     /// Whether the method needs the closed loop's reference and controller.
     pub fn closed_loop(self) -> bool {
-        self.estimator().is_some()
-    }
-
-    /// The closed-loop estimator of the method, if it is one.
-    pub fn estimator(self) -> Option<crate::identify::closed_loop::Estimator> {
-        use crate::identify::closed_loop::Estimator;
-        match self {
-            Self::IdimIv | Self::IdimIvConsistent => Some(Estimator::InstrumentalVariables),
-            Self::Didim | Self::DidimConsistent => Some(Estimator::OutputError),
-            Self::Ols | Self::Wls | Self::Consistent => None,
-        }
+        matches!(self, Self::IdimIv | Self::IdimIvConsistent | Self::Didim | Self::DidimConsistent)
     }
 
     /// Whether the result is a physically consistent π̂.

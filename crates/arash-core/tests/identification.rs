@@ -591,7 +591,7 @@ fn closed_loop_coverage(method: arash_core::model_file::IdentifyMethod) {
         )
         .unwrap();
         let reasons = iv.settings.reasons.join("\n");
-        let name = method.estimator().unwrap().name();
+        let name = arash_core::identify::closed_loop::Estimator::of(method).unwrap().name();
         eprintln!("{method} seed {seed}: {}", iv.settings.reasons.last().unwrap());
         assert!(iv.settings.warnings.iter().all(|w| !w.contains(name)), "{:?}", iv.settings.warnings);
         assert!(reasons.contains(&format!("{name}: the closed loop simulated")), "{reasons}");

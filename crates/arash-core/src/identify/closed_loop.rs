@@ -37,6 +37,7 @@ use crate::data::Data;
 use crate::dynamics::forward_dynamics;
 use crate::effects::EffectTerm;
 use crate::model::Model;
+use crate::model_file::IdentifyMethod;
 
 /// The controller a closed-loop log ran, as IDIM-IV simulates it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -192,28 +193,32 @@ pub enum ClosedLoopError {
     )]
     Diverged { iteration: usize, time: f64, why: String },
     #[error(
-        "closed-loop identification: the simulated regressor does not determine the parameters (ZᵀW is singular at iteration {iteration}): the \
-         simulated loop does not excite what the log does"
+        "closed-loop identification: the simulated regressor does not determine the parameters (its normal matrix \
+         is singular at iteration {iteration}): the simulated loop does not excite what the log does"
     )]
     Singular { iteration: usize },
-    #[error(transparent)]
-    Preprocess(#[from] PreprocessError),
+    #[error(
+        "closed-loop identification: the loop simulated with the estimate of iteration {iteration} cannot be \
+         preprocessed as the log was ({source}); the estimate does not reproduce the logged motion (try more or \
+         richer data, or the least-squares methods)"
+    )]
+    SimulatedLog { iteration: usize, source: PreprocessError },
 }
 
-/// The IDIM-IV estimate, with the iteration's history.
+/// The IDIM-IV or DIDIM estimate, with the iteration's history.
 #[derive(Clone, Debug)]
 pub struct IvFit {
     /// β̂, σ and the training metrics (the prediction `W β̂` against the filtered torque).
     pub fit: Fit,
-    /// The last instruments (`Z`, stacked like `W`), for the consistent solve.
+    /// The last simulated regressor (`Z`, stacked like `W`), for the consistent solve.
     pub instruments: Mat<f64>,
     /// Iterations run, and the largest move of any β̂ in its σ at the last one.
     pub iterations: usize,
     pub last_change_sigma: f64,
     /// Whether the last move was within [`IvOptions::tolerance`].
     pub converged: bool,
-    /// The iterations whose estimate did not simulate, and why: their instruments came from the
-    /// nearest physically consistent model.
+    /// The iterations whose estimate did not simulate, and why: their `Z` came from the nearest
+    /// physically consistent model.
     pub detours: Vec<String>,
 }
 
@@ -365,6 +370,15 @@ pub enum Estimator {
 }
 
 impl Estimator {
+    /// The estimator of a closed-loop method (`None` for the others).
+    pub fn of(method: IdentifyMethod) -> Option<Self> {
+        match method {
+            IdentifyMethod::IdimIv | IdentifyMethod::IdimIvConsistent => Some(Self::InstrumentalVariables),
+            IdentifyMethod::Didim | IdentifyMethod::DidimConsistent => Some(Self::OutputError),
+            IdentifyMethod::Ols | IdentifyMethod::Wls | IdentifyMethod::Consistent => None,
+        }
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             Self::InstrumentalVariables => "IDIM-IV",
@@ -413,7 +427,8 @@ pub fn closed_loop_fit(
     let instruments = |params: &[f64], iteration: usize| -> Result<Mat<f64>, ClosedLoopError> {
         let (q_sim, tau_sim) = simulate_loop(model, params, closed_loop, t)
             .map_err(|(time, why)| ClosedLoopError::Diverged { iteration, time, why })?;
-        let simulated = preprocess(t, &q_sim, &tau_sim, model.dof(), &fixed)?;
+        let simulated = preprocess(t, &q_sim, &tau_sim, model.dof(), &fixed)
+            .map_err(|source| ClosedLoopError::SimulatedLog { iteration, source })?;
         Ok(stack(model, base, &simulated).0)
     };
     // An estimate whose mass matrix is not positive definite somewhere on the way cannot drive a

@@ -17,7 +17,7 @@ use crate::base_parameters::BaseParameters;
 use crate::model::Model;
 use crate::model_file::{DataSummary, Fitted, IdentifyMethod, Metrics, ModelFile, ModelFileError, Settings};
 use crate::physical::{min_pseudo_inertia_eigenvalues, nearest_standard_parameters};
-use closed_loop::{closed_loop_fit, ClosedLoop, ClosedLoopError, IvOptions};
+use closed_loop::{closed_loop_fit, ClosedLoop, ClosedLoopError, Estimator, IvOptions};
 use consistent::{identify_consistent, ConsistentError, ConsistentOptions};
 use estimate::{fit, joint_metrics, stack_full, EstimateError, JointMetrics, Method};
 use preprocess::{preprocess, PreprocessError, PreprocessOptions};
@@ -121,7 +121,7 @@ fn identify_with(
     };
     let (ls, instruments) = match closed_loop.filter(|_| method.closed_loop()) {
         Some(closed_loop) => {
-            let estimator = method.estimator().expect("a closed-loop method names its estimator");
+            let estimator = Estimator::of(method).expect("a closed-loop method names its estimator");
             let settings = (&options.iv, &options.consistent);
             let preprocessed = (&pre, &options.preprocess);
             let iv = closed_loop_fit((model, base), log.t, preprocessed, &closed_loop, &ls, estimator, settings)?;
