@@ -27,7 +27,7 @@ use preprocess::{preprocess, PreprocessError, PreprocessOptions};
 pub struct IdentifyOptions {
     pub preprocess: PreprocessOptions,
     pub consistent: ConsistentOptions,
-    /// The IDIM-IV iteration (closed-loop methods only).
+    /// The IDIM-IV and DIDIM iteration (closed-loop methods only).
     pub iv: IvOptions,
 }
 
@@ -75,8 +75,8 @@ pub struct Log<'a> {
     pub tau: &'a [f64],
 }
 
-/// Identify the declared robot's parameters from `log`. The closed-loop methods (IDIM-IV) need
-/// [`identify_in_closed_loop`].
+/// Identify the declared robot's parameters from `log`. The closed-loop methods (IDIM-IV,
+/// DIDIM) need [`identify_in_closed_loop`].
 pub fn identify(
     declared: Declared,
     log: Log,
@@ -90,7 +90,7 @@ pub fn identify(
 }
 
 /// Identify from a log recorded in closed loop, whose reference and controller are known: any
-/// method, IDIM-IV among them ([`closed_loop`]).
+/// method, IDIM-IV and DIDIM among them ([`closed_loop`]).
 pub fn identify_in_closed_loop(
     declared: Declared,
     log: Log,
