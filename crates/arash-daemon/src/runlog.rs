@@ -207,13 +207,15 @@ fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
     Ok(log)
 }
 
-/// Concatenate logs recorded back to back at the same rate (their time stamps are re-based).
-pub fn concatenate(logs: Vec<Log>) -> Log {
+/// Concatenate logs recorded back to back at the same rate (their time stamps are re-based). One
+/// log keeps its closed-loop channels; several runs have no single reference and controller.
+pub fn concatenate(mut logs: Vec<Log>) -> Log {
     let trajectory = logs.first().and_then(|l| l.trajectory.clone());
-    let mut out = Log { t: Vec::new(), q: Vec::new(), tau: Vec::new(), trajectory, closed_loop: None };
-    if let [_] = logs.as_slice() {
-        return logs.into_iter().next().expect("one log");
-    }
+    let closed_loop = match logs.as_mut_slice() {
+        [one] => one.closed_loop.take(),
+        _ => None,
+    };
+    let mut out = Log { t: Vec::new(), q: Vec::new(), tau: Vec::new(), trajectory, closed_loop };
     for log in logs {
         let dt = if log.t.len() > 1 { log.t[1] - log.t[0] } else { 0.0 };
         let offset = out.t.last().map_or(0.0, |last| last + dt) - log.t[0];
@@ -241,6 +243,29 @@ mod tests {
             assert!((t - i as f64 * 1e-3).abs() < 1e-12);
             assert!((q - 3.0 * t).abs() < 1e-12, "a ramp interpolates exactly");
         }
+    }
+
+    /// A daemon run's log starts at the daemon's clock: one log is re-based to 0 like several, and
+    /// keeps its reference and controller; two runs have no single one.
+    #[test]
+    fn one_log_is_rebased_and_keeps_its_closed_loop_and_two_do_not() {
+        let run = |t0: f64| Log {
+            t: (0..4).map(|i| t0 + i as f64 * 1e-3).collect(),
+            q: vec![0.0; 4],
+            tau: vec![0.0; 4],
+            trajectory: None,
+            closed_loop: Some(ClosedLoopChannels {
+                reference: [vec![0.0; 4], vec![0.0; 4], vec![0.0; 4]],
+                controller: Err("none".into()),
+            }),
+        };
+        let one = concatenate(vec![run(12.5)]);
+        assert!((one.t[0] - 0.0).abs() < 1e-12 && (one.t[3] - 3e-3).abs() < 1e-12, "{:?}", one.t);
+        assert!(one.closed_loop.is_some());
+        let two = concatenate(vec![run(12.5), run(40.0)]);
+        assert_eq!(two.t.len(), 8);
+        assert!((two.t[4] - 4e-3).abs() < 1e-12, "{:?}", two.t);
+        assert!(two.closed_loop.is_none());
     }
 
     #[test]

@@ -290,13 +290,13 @@ fn closed_loop_arrays(
         (Some(r), Some(c)) => (r, c),
         (Some(_), None) => {
             return Err(PyValueError::new_err(
-                "reference was given without controller: IDIM-IV simulates the loop and needs both",
+                "reference was given without controller: idim-iv and didim simulate the loop and need both",
             ))
         }
         (None, Some(_)) => {
             return Err(PyValueError::new_err(
-                "controller was given without reference (q_des, qd_des, qdd_des): IDIM-IV simulates the loop and \
-                 needs both",
+                "controller was given without reference (q_des, qd_des, qdd_des): idim-iv and didim simulate the \
+                 loop and need both",
             ))
         }
     };

@@ -394,15 +394,15 @@ impl Estimator {
         }
     }
 
-    /// The full regressor and torque whose consistent fit is this estimator's with the
-    /// constraints: `P_Z W_full` (two-stage least squares) for IV, `Z_full = Z B` for DIDIM.
-    pub fn full(self, model: &Model, base: &BaseParameters, pre: &Preprocessed, z: &Mat<f64>) -> (Mat<f64>, Vec<f64>) {
+    /// The full regressor whose consistent fit against the log's filtered torque is this
+    /// estimator's with the constraints: `P_Z W_full` (two-stage least squares) for IV, with
+    /// `w_full` the log's own ([`stack_full`]), and `Z_full = Z B` for DIDIM.
+    pub fn full(self, base: &BaseParameters, w_full: &Mat<f64>, z: &Mat<f64>) -> Mat<f64> {
         match self {
-            Self::InstrumentalVariables => instrumented_full(model, pre, z),
+            Self::InstrumentalVariables => instrumented(w_full, z),
             Self::OutputError => {
                 let (p, big_p) = (base.rank, base.num_params);
-                let b = Mat::<f64>::from_fn(p, big_p, |i, j| base.b[i * big_p + j]);
-                (z * &b, pre.settled_rows(&pre.tau, pre.dof).to_vec())
+                z * Mat::<f64>::from_fn(p, big_p, |i, j| base.b[i * big_p + j])
             }
         }
     }
@@ -435,14 +435,14 @@ pub fn closed_loop_fit(
     // simulation. Its instruments then come from the physically consistent model nearest the
     // data (the consistent fit of the current, instrumented, problem), which always simulates.
     let mut detours = Vec::new();
+    // The log's full regressor, stacked only when a detour first needs it.
+    let w_full = std::cell::OnceCell::new();
     let mut simulated = |beta: &[f64], z: Option<&Mat<f64>>, iteration: usize| -> Result<Mat<f64>, ClosedLoopError> {
         match instruments(&placed(base, beta), iteration) {
             Err(ClosedLoopError::Diverged { time, why, .. }) => {
-                let (w_full, tau_full) = match z {
-                    Some(z) => estimator.full(model, base, pre, z),
-                    None => stack_full(model, pre),
-                };
-                let physical = identify_consistent(model, &w_full, &tau_full, consistent)
+                let w_full = w_full.get_or_init(|| stack_full(model, pre).0);
+                let projected = z.map(|z| estimator.full(base, w_full, z));
+                let physical = identify_consistent(model, projected.as_ref().unwrap_or(w_full), &tau, consistent)
                     .map_err(|e| ClosedLoopError::Diverged { iteration, time, why: format!("{why}; {e}") })?;
                 detours.push(format!("{iteration} (t = {time:.3} s: {why})"));
                 instruments(&physical.params, iteration)
@@ -455,11 +455,12 @@ pub fn closed_loop_fit(
     let mut iteration = 1;
     loop {
         let partner = estimator.partner(&w, &z);
-        let next = iv_solve(&z, partner, &tau).ok_or(ClosedLoopError::Singular { iteration })?;
+        let products = cross(&z, partner, &tau);
+        let next = iv_solve(&products, partner).ok_or(ClosedLoopError::Singular { iteration })?;
         let change =
             next.iter().zip(&beta).zip(&sigma).map(|((a, b), s)| (a - b).abs() / s.max(1e-300)).fold(0.0, f64::max);
         beta = next;
-        let fit = iv_fit(model, base, pre, (&z, &w, &tau), (&beta, partner), start);
+        let fit = iv_fit(model, base, pre, (&z, &w, &tau), (&beta, &products.0), start);
         sigma = fit.sigma_beta.clone();
         let converged = change <= iv.tolerance;
         if converged || iteration >= iv.max_iterations {
@@ -477,14 +478,14 @@ pub fn closed_loop_fit(
     }
 }
 
-/// `(Zᵀ W)⁻¹ Zᵀ τ`, with the columns scaled to unit norm for the solve; `None` when singular.
-fn iv_solve(z: &Mat<f64>, w: &Mat<f64>, tau: &[f64]) -> Option<Vec<f64>> {
-    let (zw, zt) = cross(z, w, tau);
+/// `(Zᵀ W)⁻¹ Zᵀ τ` from the products `(ZᵀW, Zᵀτ)`, with W's columns scaled to unit norm for
+/// the solve; `None` when singular.
+fn iv_solve((zw, zt): &(DMatrix<f64>, nalgebra::DVector<f64>), w: &Mat<f64>) -> Option<Vec<f64>> {
     let p = zw.ncols();
     // β = D x with D = diag(1 / ‖W_j‖): Zᵀ W D has columns of like size.
     let scale: Vec<f64> = (0..p).map(|j| 1.0 / w.col(j).norm_l2().max(f64::MIN_POSITIVE)).collect();
     let scaled = DMatrix::from_fn(p, p, |i, j| zw[(i, j)] * scale[j]);
-    let x = scaled.full_piv_lu().solve(&zt)?;
+    let x = scaled.full_piv_lu().solve(zt)?;
     let out: Vec<f64> = (0..p).map(|j| x[j] * scale[j]).collect();
     out.iter().all(|v| v.is_finite()).then_some(out)
 }
@@ -498,8 +499,8 @@ fn cross(z: &Mat<f64>, w: &Mat<f64>, tau: &[f64]) -> (DMatrix<f64>, nalgebra::DV
     (DMatrix::from_fn(p, p, |i, j| zw[(i, j)]), nalgebra::DVector::from_fn(p, |i, _| zt[(i, 0)]))
 }
 
-/// The estimate `beta` as a [`Fit`]: σ from the sandwich `(ZᵀX)⁻¹ Ω (XᵀZ)⁻¹` (X the `partner`:
-/// W for IV, Z for DIDIM), Ω the long-run covariance of Z's scores on the unfiltered residual of
+/// The estimate `beta` as a [`Fit`]: σ from the sandwich `(ZᵀX)⁻¹ Ω (XᵀZ)⁻¹` (`zx` is ZᵀX, X
+/// the partner: W for IV, Z for DIDIM), Ω the long-run covariance of Z's scores on the unfiltered residual of
 /// the measured motion (the torque's noise), in blocks as least squares takes them
 /// ([`estimate::fit`]). The training metrics are the measured motion's prediction `W β`.
 fn iv_fit(
@@ -507,7 +508,7 @@ fn iv_fit(
     base: &BaseParameters,
     pre: &Preprocessed,
     (z, w, tau): (&Mat<f64>, &Mat<f64>, &[f64]),
-    (beta, partner): (&[f64], &Mat<f64>),
+    (beta, zx): (&[f64], &DMatrix<f64>),
     start: &Fit,
 ) -> Fit {
     let dof = model.dof();
@@ -518,8 +519,7 @@ fn iv_fit(
     let unfiltered = estimate::unfiltered_prediction(model, pre, &base.independent, beta);
     let meat_residual: Vec<f64> =
         pre.settled_rows(&pre.tau_unfiltered, dof).iter().zip(&unfiltered).map(|(t, p)| t - p).collect();
-    let (zw, _) = cross(z, partner, tau);
-    let bread = zw.try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::NAN));
+    let bread = zx.clone().try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::NAN));
     let block = ((2.0 * pre.rate_hz() / pre.cutoff_hz).ceil() as usize).max(1);
     let sigma_beta = estimate::sandwich_sigma(z, &meat_residual, dof, block, &bread);
     let sigma_percent = sigma_beta.iter().zip(beta).map(|(s, b)| 100.0 * s / b.abs()).collect();
@@ -535,21 +535,17 @@ fn iv_fit(
     }
 }
 
-/// The full regressor projected on the instruments' span, `P_Z W_full`, and the filtered torque:
-/// the consistent problem on these is two-stage least squares, the IV estimate with the
-/// consistent constraints.
-pub fn instrumented_full(model: &Model, pre: &Preprocessed, z: &Mat<f64>) -> (Mat<f64>, Vec<f64>) {
-    let (w_full, tau) = stack_full(model, pre);
-    let p = z.ncols();
+/// `w_full` projected on the instruments' span, `P_Z W_full`: the consistent problem on it is
+/// two-stage least squares, the IV estimate with the consistent constraints.
+fn instrumented(w_full: &Mat<f64>, z: &Mat<f64>) -> Mat<f64> {
+    let (p, big_p) = (z.ncols(), w_full.ncols());
     let gram = z.transpose() * z;
     let gram = DMatrix::from_fn(p, p, |i, j| gram[(i, j)]);
-    let coefficients = z.transpose() * &w_full;
-    let big_p = w_full.ncols();
+    let coefficients = z.transpose() * w_full;
     let rhs = DMatrix::from_fn(p, big_p, |i, j| coefficients[(i, j)]);
     let solved = match gram.clone().cholesky() {
         Some(c) => c.solve(&rhs),
         None => gram.full_piv_lu().solve(&rhs).unwrap_or_else(|| DMatrix::zeros(p, big_p)),
     };
-    let solved = Mat::<f64>::from_fn(p, big_p, |i, j| solved[(i, j)]);
-    (z * &solved, tau)
+    z * Mat::<f64>::from_fn(p, big_p, |i, j| solved[(i, j)])
 }

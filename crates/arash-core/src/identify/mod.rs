@@ -83,9 +83,6 @@ pub fn identify(
     method: IdentifyMethod,
     options: &IdentifyOptions,
 ) -> Result<ModelFile, IdentifyError> {
-    if method.closed_loop() {
-        return Err(IdentifyError::NeedsClosedLoop(method));
-    }
     identify_with(declared, log, method, None, options)
 }
 
@@ -108,6 +105,9 @@ fn identify_with(
     closed_loop: Option<ClosedLoop>,
     options: &IdentifyOptions,
 ) -> Result<ModelFile, IdentifyError> {
+    if method.closed_loop() && closed_loop.is_none() {
+        return Err(IdentifyError::NeedsClosedLoop(method));
+    }
     options.iv.validate()?;
     let mut pre = cutoff::preprocess_for_fit(declared, log, &options.preprocess)?;
     let Declared { model, base, urdf } = declared;
@@ -147,18 +147,12 @@ fn identify_with(
             }
             (iv.fit, Some((estimator, iv.instruments)))
         }
-        None if method.closed_loop() => return Err(IdentifyError::NeedsClosedLoop(method)),
         None => (ls, None),
     };
     let (beta, params, training, min_eig) = if method.consistent() {
         let (w, tau_f) = stack_full(model, &pre);
-        let c = match &instruments {
-            Some((estimator, z)) => {
-                let (instrumented, tau_i) = estimator.full(model, base, &pre, z);
-                identify_consistent(model, &instrumented, &tau_i, &options.consistent)?
-            }
-            None => identify_consistent(model, &w, &tau_f, &options.consistent)?,
-        };
+        let projected = instruments.as_ref().map(|(estimator, z)| estimator.full(base, &w, z));
+        let c = identify_consistent(model, projected.as_ref().unwrap_or(&w), &tau_f, &options.consistent)?;
         let predicted: Vec<f64> = estimate::apply(&w, &c.params);
         let mut beta = vec![0.0; base.rank];
         base.project(&c.params, &mut beta);
