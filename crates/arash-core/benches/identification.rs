@@ -27,6 +27,7 @@ fn excitation(model: &Model) -> Excitation {
         a: (0..model.dof()).map(|j| (0..harmonics).map(|l| coefficient(j, l, 0.3)).collect()).collect(),
         b: (0..model.dof()).map(|j| (0..harmonics).map(|l| coefficient(j, l, 1.9)).collect()).collect(),
         condition_number: f64::NAN,
+        condition_number_with_weak: f64::NAN,
     }
 }
 

@@ -339,12 +339,11 @@ impl ModelFile {
         if let Some(params) = &self.params {
             return Ok(min_pseudo_inertia_eigenvalues(model, params));
         }
-        let base = BaseParameters::compute(model, &Default::default())?;
-        if base.independent != self.base_independent {
+        let Some(base) = BaseParameters::with_independent(model, &self.base_independent)? else {
             return Err(ModelFileError::Shape(
                 "its base parameters are not this robot's (independent columns differ)".into(),
             ));
-        }
+        };
         Ok(min_pseudo_inertia_eigenvalues(model, &nearest_standard_parameters(model, &base, &self.beta)))
     }
 

@@ -195,7 +195,7 @@ fn forward_dynamics_refuses_a_non_physical_mass_matrix() {
 #[test]
 fn base_regressor_reproduces_the_full_regressor_for_any_parameters() {
     for model in all_models() {
-        let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
+        let base = BaseParameters::compute(&model, &BaseParameterOptions::default().keep_weak()).unwrap();
         let (mut data, mut rng, n, p) = (Data::new(&model), rng(8), model.dof(), model.num_params());
         let (mut y, mut y_r, mut beta) = (vec![0.0; n * p], vec![0.0; n * base.rank], vec![0.0; base.rank]);
         for _ in 0..STATES {
@@ -241,10 +241,10 @@ fn regressor_of_the_bodies_a_base_needs_gives_the_same_base_regressor() {
 #[test]
 fn base_parameter_count_is_stable_across_sample_sets() {
     for model in all_models() {
-        let reference = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
+        let reference = BaseParameters::compute(&model, &BaseParameterOptions::default().keep_weak()).unwrap();
         for seed in 1..6 {
             for samples in [100, 400, 1000] {
-                let options = BaseParameterOptions { seed, samples, ..Default::default() };
+                let options = BaseParameterOptions { seed, samples, ..Default::default() }.keep_weak();
                 let other = BaseParameters::compute(&model, &options).unwrap();
                 assert_eq!(other.rank, reference.rank, "{}: seed {seed}, {samples} samples", model.name);
                 assert_eq!(other.independent, reference.independent, "{}: seed {seed}", model.name);
@@ -261,10 +261,78 @@ fn base_parameter_count_is_stable_across_sample_sets() {
 }
 
 #[test]
-fn arash_asist_has_23_base_parameters() {
-    let base = BaseParameters::compute(&arash_asist(), &BaseParameterOptions::default()).unwrap();
-    assert_eq!(base.rank, 23, "{:#?}", base.expressions);
+fn arash_asist_has_23_base_parameters_of_which_22_are_identifiable_within_its_limits() {
+    let exact = BaseParameters::compute(&arash_asist(), &BaseParameterOptions::default().keep_weak()).unwrap();
+    assert_eq!(exact.rank, 23, "{:#?}", exact.expressions);
+    assert!(exact.weak.is_empty());
     assert_eq!(arash_asist().num_params(), 89);
+    let base = BaseParameters::compute(&arash_asist(), &BaseParameterOptions::default().identifiable()).unwrap();
+    assert_eq!(base.rank, 22, "{:#?}", base.expressions);
+    let weak: Vec<&str> = base.weak.iter().map(|w| w.name.as_str()).collect();
+    assert_eq!(weak, ["instrument_holder.my_R"], "{}", base.weak_report());
+    // A clear decision: the weak column and the weakest kept one are decades apart.
+    let (kept, weak) = base.reach_gap;
+    assert!(kept > 30.0 * weak, "{kept:e} vs {weak:e}");
+}
+
+/// The regrouped base parameters are an approximation, exact only up to what no trajectory within
+/// the limits sees: on a trajectory the weak test never saw (other seed, other shape: one sine per
+/// joint over its whole range at its speed limit, as far as acceleration allows), `Y_r β`
+/// reproduces `Y π` for CAD parameters to a thousandth of the torque.
+#[test]
+fn the_regrouped_base_parameters_reproduce_the_torque_on_a_trajectory_within_the_limits() {
+    let model = arash_asist();
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::default().identifiable()).unwrap();
+    let (n, p) = (model.dof(), model.num_params());
+    // CAD puts the holder's centre of mass on its axis, where the weak column has no weight; move
+    // it 2 cm off.
+    let mut pi = model.cad_parameters();
+    let names = model.parameter_names();
+    let at = |name: &str| names.iter().position(|x| x == name).unwrap();
+    pi[at("instrument_holder.my")] += 0.02 * pi[at("instrument_holder.m")];
+    let mut beta = vec![0.0; base.rank];
+    base.project(&pi, &mut beta);
+    // Dropping the weak parameter instead of regrouping it: what the regrouping must beat.
+    let exact = BaseParameters::compute(&model, &BaseParameterOptions::default().keep_weak()).unwrap();
+    let mut beta_exact = vec![0.0; exact.rank];
+    exact.project(&pi, &mut beta_exact);
+    let beta_dropped: Vec<f64> =
+        base.independent.iter().map(|c| beta_exact[exact.independent.iter().position(|e| e == c).unwrap()]).collect();
+    let mut data = Data::new(&model);
+    let (mut y, mut y_r) = (vec![0.0; n * p], vec![0.0; n * base.rank]);
+    let (mut full, mut error, mut dropped) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    for i in 0..2000 {
+        let t = i as f64 * 0.005;
+        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        for (j, joint) in model.joints.iter().enumerate() {
+            let (mid, half) = (0.5 * (joint.upper + joint.lower), 0.45 * (joint.upper - joint.lower));
+            let w = (joint.velocity / half).min((5.0 * joint.velocity / half).sqrt()) * (1.0 + 0.37 * j as f64).recip();
+            let phase = 1.3 * j as f64;
+            (q[j], qd[j], qdd[j]) = (
+                mid + half * (w * t + phase).sin(),
+                half * w * (w * t + phase).cos(),
+                -half * w * w * (w * t + phase).sin(),
+            );
+        }
+        regressor(&model, &mut data, &q, &qd, &qdd, &mut y);
+        base.reduce(&y, &mut y_r);
+        let (tau, tau_r, tau_dropped) = (apply(&y, &pi), apply(&y_r, &beta), apply(&y_r, &beta_dropped));
+        for k in 0..n {
+            full[k] += tau[k] * tau[k];
+            error[k] += (tau[k] - tau_r[k]).powi(2);
+            dropped[k] += (tau[k] - tau_dropped[k]).powi(2);
+        }
+    }
+    for k in 0..n {
+        let relative = (error[k] / full[k]).sqrt();
+        assert!(relative < 1e-3, "joint {k}: ‖Yπ − Y_r β‖/‖Yπ‖ = {relative:e}");
+        assert!(
+            error[k] < 1e-2 * dropped[k].max(1e-300) || dropped[k] < 1e-20 * full[k],
+            "joint {k}: regrouped error {:e} against {:e} when dropped",
+            error[k].sqrt(),
+            dropped[k].sqrt()
+        );
+    }
 }
 
 #[test]

@@ -41,6 +41,8 @@ fn model_describes_the_bundled_robot() {
     assert!(text.contains("standard parameters: 89"), "{text}");
     assert!(text.contains("base parameters: p = 23"), "{text}");
     assert!(text.contains("β23 = insertion.ke"), "{text}");
+    assert!(text.contains("weak base parameters: 1, which no trajectory"), "{text}");
+    assert!(text.contains("instrument_holder.my_R (residual"), "{text}");
     assert!(text.contains("[ -14.00,   27.00] mm"), "limits are shown in mm at the edge: {text}");
 }
 

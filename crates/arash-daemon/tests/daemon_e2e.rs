@@ -138,7 +138,12 @@ fn an_excitation_run_through_the_daemon_identifies_the_mock() {
     let log = PathBuf::from(log.trim());
     let flight = read_log(&log).unwrap();
     assert!(!flight.truncated);
-    assert_eq!(flight.len(), 30_000, "one message per cycle of the 30 s run");
+    // The run lasts 30 s on the drive's clock. A measurement the mock's link repeats or skips
+    // (a few dozen in 30,000 on a loaded host) holds or advances that clock by a cycle, so the
+    // count of cycles may differ from 30,000 by as many; none may be lost (next assertion).
+    let span = flight.cycles.t.last().unwrap() - flight.cycles.t[0];
+    assert!((span - 30.0).abs() < 0.01, "the run spans {span} s of the drive's clock");
+    assert!(flight.len().abs_diff(30_000) <= 100, "one message per cycle of the 30 s run: {}", flight.len());
     assert!(flight.cycles.cycle.windows(2).all(|w| w[1] == w[0] + 1), "consecutive cycles, none lost to the log");
     assert!(flight.cycles.faults.iter().all(|&f| f == 0));
     let timing = &flight.json["/arash/timing"];

@@ -406,7 +406,10 @@ fn _diagnose<'py>(
     let (t, q, tau) = log_arrays(&log.0, &log.1, &log.2, dof)?;
     let held = validation.as_ref().map(|(vt, vq, vtau)| log_arrays(vt, vq, vtau, dof)).transpose()?;
     options.inner.validate(dof).map_err(value_error)?;
-    let base = robot.default_base()?;
+    let base = match model {
+        Some(m) => robot.base_of(&m.inner().base_independent)?,
+        None => robot.default_base(false)?,
+    };
     let robot_model = Arc::clone(&robot.model);
     let given = model.map(|m| m.inner().clone());
     let (inner, consistent) = py

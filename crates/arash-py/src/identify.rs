@@ -4,7 +4,7 @@
 use std::borrow::Cow;
 use std::sync::Arc;
 
-use arash_core::base_parameters::{BaseParameterOptions, BaseParameters as CoreBase};
+use arash_core::base_parameters::BaseParameters as CoreBase;
 use arash_core::control::trajectory::paper_validation_state;
 use arash_core::identify::closed_loop::{ClosedLoop, LoggedController};
 use arash_core::identify::consistent::{identify_consistent, ConsistentOptions};
@@ -147,7 +147,9 @@ impl Identification {
     /// The base parameters the β refer to.
     #[getter]
     fn base(&self) -> PyResult<BaseParameters> {
-        let base = CoreBase::compute(&self.model, &BaseParameterOptions::default()).map_err(value_error)?;
+        let base = CoreBase::with_independent(&self.model, &self.inner.base_independent)
+            .map_err(value_error)?
+            .ok_or_else(|| PyValueError::new_err("the model's base parameters are not its robot's"))?;
         Ok(BaseParameters { model: Arc::clone(&self.model), base })
     }
     /// The robot the model belongs to.
@@ -235,8 +237,10 @@ fn _identify<'py>(
     let dof = robot.model.dof();
     let mut reference: Option<[crate::Batch; 3]> = None;
     let mut controller: Option<String> = None;
+    let mut regroup_weak = false;
     crate::each_option(options, |key, value| {
         match key {
+            "regroup_weak" => regroup_weak = value.extract()?,
             "reference" => {
                 let (a, b, c): (PyReadonlyArrayDyn<f64>, PyReadonlyArrayDyn<f64>, PyReadonlyArrayDyn<f64>) =
                     value.extract()?;
@@ -263,7 +267,7 @@ fn _identify<'py>(
     }
     let (t, q, tau) = log_arrays(&log.0, &log.1, &log.2, robot.model.dof())?;
     let model = Arc::clone(&robot.model);
-    let base = robot.default_base()?;
+    let base = robot.default_base(regroup_weak)?;
     let declared = Declared { model: &model, base, urdf: &robot.urdf };
     let log = Log { t: &t, q: &q, tau: &tau };
     let inner = match closed_loop_arrays(reference, controller.as_deref(), model.dof(), t.len())? {
@@ -392,6 +396,11 @@ impl Excitation {
     fn condition_number(&self) -> f64 {
         self.inner.condition_number
     }
+    /// κ with the weak base parameters kept (equal to `condition_number` when none was regrouped).
+    #[getter]
+    fn condition_number_with_weak(&self) -> f64 {
+        self.inner.condition_number_with_weak
+    }
     #[getter]
     fn period_s(&self) -> f64 {
         self.inner.period_s
@@ -441,21 +450,25 @@ impl Excitation {
 #[pyo3(signature = (robot, options, quiet))]
 fn _design_excitation(py: Python<'_>, robot: &Robot, options: &Bound<'_, PyDict>, quiet: bool) -> PyResult<Excitation> {
     use arash_core::identify::excitation::{design_excitation as design, ExcitationOptions};
-    let base = robot.default_base()?;
     let mut o = ExcitationOptions::default();
+    let mut keep_weak = false;
     crate::each_option(options, |key, value| {
         match key {
+            "keep_weak" => keep_weak = value.extract()?,
             "harmonics" => o.harmonics = value.extract()?,
             "period_s" => o.period_s = value.extract()?,
             "restarts" => o.restarts = value.extract()?,
             "seed" => o.seed = value.extract()?,
             "iterations" => o.iterations = value.extract()?,
             "acceleration_limits" => o.acceleration_limits = value.extract()?,
+            "min_range_fraction" => o.min_range_fraction = value.extract()?,
+            "min_speed_fraction" => o.min_speed_fraction = value.extract()?,
             _ => return Ok(false),
         }
         Ok(true)
     })?;
     let options = o;
+    let base = robot.default_base(!keep_weak)?;
     let model = Arc::clone(&robot.model);
     let inner = py
         .detach(|| {

@@ -162,8 +162,8 @@ pub(crate) struct Robot {
     pub(crate) model: Arc<Model>,
     /// The URDF text the model was built from (identified models embed it).
     pub(crate) urdf: Arc<str>,
-    /// Base parameters with default options, computed on first use.
-    pub(crate) default_base: std::sync::OnceLock<CoreBase>,
+    /// The exact base parameters, and the identifiable ones (weak regrouped), computed on first use.
+    pub(crate) default_base: [std::sync::OnceLock<CoreBase>; 2],
 }
 
 impl Robot {
@@ -414,15 +414,22 @@ impl Robot {
     }
 
     /// The base parameters (identifiable combinations), from `samples` random states.
-    /// None keeps the default of each.
-    #[pyo3(signature = (samples=None, seed=None))]
-    fn base_parameters(&self, samples: Option<usize>, seed: Option<u64>) -> PyResult<BaseParameters> {
+    /// None keeps the default of each; `regroup_weak` regroups the combinations no trajectory
+    /// within the limits separates (then `Y π = Y_r β` only on such trajectories, to their residual).
+    #[pyo3(signature = (samples=None, seed=None, regroup_weak=false))]
+    fn base_parameters(
+        &self,
+        samples: Option<usize>,
+        seed: Option<u64>,
+        regroup_weak: bool,
+    ) -> PyResult<BaseParameters> {
         let defaults = BaseParameterOptions::default();
         let options = BaseParameterOptions {
             samples: samples.unwrap_or(defaults.samples),
             seed: seed.unwrap_or(defaults.seed),
             ..defaults
         };
+        let options = if regroup_weak { options.identifiable() } else { options };
         let base = CoreBase::compute(&self.model, &options).map_err(|e| PyValueError::new_err(e.to_string()))?;
         Ok(BaseParameters { model: Arc::clone(&self.model), base })
     }
@@ -440,12 +447,27 @@ impl Robot {
 
 impl Robot {
     /// Base parameters with the default sampling, cached: they depend only on the model.
-    pub(crate) fn default_base(&self) -> PyResult<&CoreBase> {
-        if let Some(base) = self.default_base.get() {
+    /// `regroup_weak` regroups those no trajectory within the limits separates.
+    pub(crate) fn default_base(&self, regroup_weak: bool) -> PyResult<&CoreBase> {
+        let cell = &self.default_base[usize::from(regroup_weak)];
+        if let Some(base) = cell.get() {
             return Ok(base);
         }
-        let base = CoreBase::compute(&self.model, &BaseParameterOptions::default()).map_err(value_error)?;
-        Ok(self.default_base.get_or_init(|| base))
+        let options =
+            if regroup_weak { BaseParameterOptions::default().identifiable() } else { BaseParameterOptions::default() };
+        let base = CoreBase::compute(&self.model, &options).map_err(value_error)?;
+        Ok(cell.get_or_init(|| base))
+    }
+
+    /// The default base parameters whose columns are `independent` (a model file's), weak kept or not.
+    pub(crate) fn base_of(&self, independent: &[usize]) -> PyResult<&CoreBase> {
+        for regroup_weak in [false, true] {
+            let base = self.default_base(regroup_weak)?;
+            if base.independent == independent {
+                return Ok(base);
+            }
+        }
+        self.default_base(false)
     }
 
     pub(crate) fn from_text(urdf: &str, coulomb_epsilon: Option<f64>) -> PyResult<Self> {
@@ -455,7 +477,7 @@ impl Robot {
                 PyValueError::new_err(format!("coulomb_epsilon must be positive and finite, got {epsilon}"))
             })?;
         }
-        Ok(Self { model: Arc::new(model), urdf: Arc::from(urdf), default_base: std::sync::OnceLock::new() })
+        Ok(Self { model: Arc::new(model), urdf: Arc::from(urdf), default_base: Default::default() })
     }
 }
 
@@ -496,6 +518,18 @@ impl BaseParameters {
         self.base.independent.clone()
     }
 
+    /// The weak base parameters, regrouped because no trajectory within the limits separates them:
+    /// `(name, residual, expression)` each (empty unless `regroup_weak=True`).
+    #[getter]
+    fn weak(&self) -> Vec<(String, f64, String)> {
+        self.base.weak.iter().map(|w| (w.name.clone(), w.residual, w.expression.clone())).collect()
+    }
+
+    /// What the weak-parameter test found, as text.
+    fn weak_report(&self) -> String {
+        self.base.weak_report()
+    }
+
     /// β = B π for a standard parameter vector.
     fn project<'py>(
         &self,
@@ -532,7 +566,7 @@ impl BaseParameters {
     }
 
     fn __repr__(&self) -> String {
-        format!("BaseParameters(p={}, P={})", self.base.rank, self.base.num_params)
+        format!("BaseParameters(p={}, P={}, weak={})", self.base.rank, self.base.num_params, self.base.weak.len())
     }
 }
 

@@ -19,8 +19,17 @@ pub struct Excitation {
     /// `a[j][l]`, `b[j][l]` for joint j and harmonic l + 1 (rad/s or m/s).
     pub a: Vec<Vec<f64>>,
     pub b: Vec<Vec<f64>>,
-    /// Normalised condition number achieved (see the module documentation).
+    /// Normalised condition number achieved over the base parameters it was designed for (see
+    /// `crate::identify::excitation`).
     pub condition_number: f64,
+    /// The same with the weak base parameters kept (`crate::base_parameters`); equal to
+    /// `condition_number` when none was regrouped, NaN when unknown (files written before it).
+    #[serde(default = "unknown")]
+    pub condition_number_with_weak: f64,
+}
+
+fn unknown() -> f64 {
+    f64::NAN
 }
 
 impl Excitation {

@@ -24,10 +24,10 @@ use nalgebra::DMatrix;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::base_parameters::BaseParameters;
+use crate::base_parameters::{BaseParameterOptions, BaseParameters, ReachableLimits, DEFAULT_POSITION_MARGIN};
 use crate::control::fourier::Excitation;
 use crate::data::Data;
-use crate::model::{JointKind, Model};
+use crate::model::Model;
 use crate::regressor::regressor;
 
 /// Settings for [`design_excitation`]; `Default` is the paper's L = 5, T = 15 s.
@@ -40,12 +40,18 @@ pub struct ExcitationOptions {
     pub seed: u64,
     /// Instants per period in the condition-number objective.
     pub samples: usize,
-    /// Acceleration limit per joint (rad/s² or m/s²); `None` uses 5 × the speed limit per second.
+    /// Acceleration limit per joint (rad/s² or m/s²); `None` uses
+    /// [`crate::base_parameters::DEFAULT_ACCELERATION_PER_SPEED`] × the speed limit.
     pub acceleration_limits: Option<Vec<f64>>,
     /// Fraction of each position range kept clear at both ends.
     pub margin: f64,
     /// Nelder–Mead iterations per restart.
     pub iterations: u64,
+    /// Least share of each joint's usable position range the trajectory must cover.
+    pub min_range_fraction: f64,
+    /// Least peak speed of each joint, as a share of the fastest the series can move over that
+    /// range (the speed limit, or ω·L times half the range when that is lower).
+    pub min_speed_fraction: f64,
 }
 
 impl Default for ExcitationOptions {
@@ -53,12 +59,14 @@ impl Default for ExcitationOptions {
         Self {
             harmonics: 5,
             period_s: 15.0,
-            restarts: 6,
+            restarts: 12,
             seed: 1,
             samples: 150,
             acceleration_limits: None,
-            margin: 0.05,
-            iterations: 4000,
+            margin: DEFAULT_POSITION_MARGIN,
+            iterations: 1000,
+            min_range_fraction: 0.7,
+            min_speed_fraction: 0.5,
         }
     }
 }
@@ -67,67 +75,91 @@ impl Default for ExcitationOptions {
 pub enum ExcitationError {
     #[error("{0}")]
     BadOptions(String),
-    #[error("no restart found a trajectory within the limits (best violation {0:.3e}); widen the limits or use fewer harmonics")]
+    #[error("no restart found a trajectory within the limits that covers the least range and speed (best shortfall {0:.3e}); widen the limits, lower min_range_fraction or min_speed_fraction, or use more harmonics")]
     Infeasible(f64),
 }
 
 /// Sum of `excitation`'s limit violations (each relative to its limit) over a fine grid; 0 when
 /// feasible.
 pub fn limit_violation(excitation: &Excitation, limits: &Limits) -> f64 {
+    sweep(excitation, limits).0
+}
+
+/// Instants per period on which limits and coverage are checked.
+const GRID: usize = 400;
+
+/// How far above the least range and speed (as shares) the optimiser aims; see
+/// `Problem::violation_and_aim`.
+const COVERAGE_AIM: f64 = 0.02;
+
+/// How each joint moves over one period: the share of its usable range covered, its peak speed
+/// against the fastest the series can reach over that range, and the share of the period it
+/// moves faster than a tenth of its peak (where Coulomb friction is sliding, not switching).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Coverage {
+    pub range_fraction: Vec<f64>,
+    pub speed_fraction: Vec<f64>,
+    pub moving_fraction: Vec<f64>,
+}
+
+impl Coverage {
+    pub fn of(excitation: &Excitation, limits: &Limits) -> Self {
+        sweep(excitation, limits).1
+    }
+
+    /// How far short of `options`' least range and speed, raised by `aim`, the joints fall,
+    /// summed (0 when none).
+    fn shortfall(&self, options: &ExcitationOptions, aim: f64) -> f64 {
+        // A least share of 0 asks for nothing, not for the aim above it.
+        let short = |x: &[f64], least: f64| {
+            if least > 0.0 {
+                x.iter().map(|v| (least + aim - v).max(0.0)).sum::<f64>()
+            } else {
+                0.0
+            }
+        };
+        short(&self.range_fraction, options.min_range_fraction)
+            + short(&self.speed_fraction, options.min_speed_fraction)
+    }
+}
+
+/// One pass over the grid: the limit violation and the coverage.
+fn sweep(excitation: &Excitation, limits: &Limits) -> (f64, Coverage) {
+    let n = excitation.q0.len();
+    let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let (mut lo, mut hi, mut peak) = (vec![f64::INFINITY; n], vec![f64::NEG_INFINITY; n], vec![0.0_f64; n]);
+    let mut speeds = Vec::with_capacity(GRID * n);
     let mut violation = 0.0;
-    for i in 0..400 {
-        let (q, qd, qdd) = excitation.state(excitation.period_s * i as f64 / 400.0);
-        for j in 0..q.len() {
+    for i in 0..GRID {
+        excitation.state_into(excitation.period_s * i as f64 / GRID as f64, &mut q, &mut qd, &mut qdd);
+        for j in 0..n {
             let range = limits.upper[j] - limits.lower[j];
             violation += ((limits.lower[j] - q[j]).max(0.0) + (q[j] - limits.upper[j]).max(0.0)) / range;
             violation += (qd[j].abs() - limits.velocity[j]).max(0.0) / limits.velocity[j];
             violation += (qdd[j].abs() - limits.acceleration[j]).max(0.0) / limits.acceleration[j];
+            (lo[j], hi[j], peak[j]) = (lo[j].min(q[j]), hi[j].max(q[j]), peak[j].max(qd[j].abs()));
         }
+        speeds.extend_from_slice(&qd);
     }
-    violation
+    let fastest_harmonic = 2.0 * std::f64::consts::PI * excitation.harmonics as f64 / excitation.period_s;
+    let range = |j: usize| limits.upper[j] - limits.lower[j];
+    let coverage = Coverage {
+        range_fraction: (0..n).map(|j| (hi[j] - lo[j]) / range(j)).collect(),
+        speed_fraction: (0..n).map(|j| peak[j] / limits.velocity[j].min(0.5 * fastest_harmonic * range(j))).collect(),
+        moving_fraction: (0..n)
+            .map(|j| speeds.chunks(n).filter(|v| v[j].abs() > 0.1 * peak[j]).count() as f64 / GRID as f64)
+            .collect(),
+    };
+    (violation, coverage)
 }
 
 /// The limits a trajectory must respect (margins already applied).
-#[derive(Clone, Debug)]
-pub struct Limits {
-    pub lower: Vec<f64>,
-    pub upper: Vec<f64>,
-    pub velocity: Vec<f64>,
-    pub acceleration: Vec<f64>,
-}
+pub type Limits = ReachableLimits;
 
-impl Limits {
-    pub fn from_model(model: &Model, options: &ExcitationOptions) -> Result<Self, ExcitationError> {
-        let n = model.dof();
-        let (mut lower, mut upper, mut velocity) = (vec![], vec![], vec![]);
-        for joint in &model.joints {
-            let (lo, hi) = if joint.lower.is_finite() && joint.upper.is_finite() {
-                (joint.lower, joint.upper)
-            } else if joint.kind == JointKind::Prismatic {
-                (-0.1, 0.1)
-            } else {
-                (-std::f64::consts::PI, std::f64::consts::PI)
-            };
-            let m = options.margin * (hi - lo);
-            lower.push(lo + m);
-            upper.push(hi - m);
-            velocity.push(if joint.velocity.is_finite() { joint.velocity } else { 2.0 });
-        }
-        let acceleration = match &options.acceleration_limits {
-            Some(a) if a.len() != n => {
-                return Err(ExcitationError::BadOptions(format!(
-                    "acceleration_limits has {} entries, the robot {n} joints",
-                    a.len()
-                )))
-            }
-            Some(a) if a.iter().any(|x| !(x.is_finite() && *x > 0.0)) => {
-                return Err(ExcitationError::BadOptions("acceleration limits must be positive and finite".into()))
-            }
-            Some(a) => a.clone(),
-            None => velocity.iter().map(|v| 5.0 * v).collect(),
-        };
-        Ok(Self { lower, upper, velocity, acceleration })
-    }
+/// The limits of `options`: the model's, less the margin, with its acceleration limits.
+pub fn limits(model: &Model, options: &ExcitationOptions) -> Result<Limits, ExcitationError> {
+    ReachableLimits::new(model, options.acceleration_limits.as_deref(), options.margin)
+        .map_err(ExcitationError::BadOptions)
 }
 
 /// Progress of [`design_excitation`], for a progress display.
@@ -209,7 +241,28 @@ impl Problem<'_> {
             a.push(aj);
             b.push(bj);
         }
-        Excitation { harmonics: l, period_s: self.options.period_s, q0, a, b, condition_number: f64::NAN }
+        Excitation {
+            harmonics: l,
+            period_s: self.options.period_s,
+            q0,
+            a,
+            b,
+            condition_number: f64::NAN,
+            condition_number_with_weak: f64::NAN,
+        }
+    }
+
+    /// Limit violations plus the shortfall from the least range and speed: 0 when acceptable.
+    fn violation(&self, excitation: &Excitation) -> f64 {
+        self.violation_and_aim(excitation).0
+    }
+
+    /// [`Problem::violation`], and the shortfall from two points above the least range and
+    /// speed. The optimiser aims there: a simplex that crawls up to the least range from below
+    /// stalls at the kink of max(0, ·) a hair short of it, and the restart is lost.
+    fn violation_and_aim(&self, excitation: &Excitation) -> (f64, f64) {
+        let (violation, coverage) = sweep(excitation, self.limits);
+        (violation + coverage.shortfall(self.options, 0.0), violation + coverage.shortfall(self.options, COVERAGE_AIM))
     }
 
     fn condition(&self, excitation: &Excitation) -> f64 {
@@ -227,12 +280,12 @@ impl CostFunction for Problem<'_> {
 
     fn cost(&self, x: &Vec<f64>) -> Result<f64, ArgminError> {
         let excitation = self.excitation(x);
-        let violation = limit_violation(&excitation, self.limits);
+        let (violation, aim) = self.violation_and_aim(&excitation);
         if violation > 0.0 {
             // Outside the limits the condition number is irrelevant; steer back first.
-            return Ok(100.0 + 1e3 * violation);
+            return Ok(100.0 + 1e3 * aim);
         }
-        Ok(self.condition(&excitation).ln())
+        Ok(self.condition(&excitation).ln() + 1e3 * aim)
     }
 }
 
@@ -255,7 +308,7 @@ pub fn design_excitation(
             2 * base.rank
         )));
     }
-    let limits = Limits::from_model(model, options)?;
+    let limits = limits(model, options)?;
     let problem = Problem { model, base, limits: &limits, options };
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(options.restarts);
     let mut best: Option<(f64, Vec<f64>)> = None;
@@ -286,6 +339,13 @@ pub fn design_excitation(
     let (_, x) = best.ok_or(ExcitationError::Infeasible(least_violation))?;
     let mut excitation = problem.excitation(&x);
     excitation.condition_number = normalised_condition_number(model, base, &excitation, options.samples);
+    excitation.condition_number_with_weak = if base.weak.is_empty() {
+        excitation.condition_number
+    } else {
+        let exact = BaseParameters::compute(model, &BaseParameterOptions::default().keep_weak())
+            .expect("the default options are valid");
+        normalised_condition_number(model, &exact, &excitation, options.samples)
+    };
     Ok(excitation)
 }
 
@@ -304,13 +364,47 @@ fn run_restart(problem: &Problem, limits: &Limits, restart: usize) -> (f64, Opti
         .expect("the cost function cannot fail");
     let x = result.state().get_best_param().cloned().unwrap_or(x0);
     let excitation = problem.excitation(&x);
-    let violation = limit_violation(&excitation, limits);
+    let violation = problem.violation(&excitation);
     let kappa = (violation == 0.0).then(|| problem.condition(&excitation));
     (violation, kappa, x)
 }
 
-/// A random start well inside the limits: small coefficients around mid-range offsets.
+/// Draws of [`scaled_start`] tried per restart for joints that meet the least range and speed.
+const START_DRAWS: usize = 256;
+
+/// A scaled random start whose every joint aims above the least range and speed: each joint that
+/// falls short is drawn again (joints are independent here), up to [`START_DRAWS`] times.
+/// Nelder–Mead from an infeasible start spends its iterations crawling toward the constraints,
+/// and often stalls short of them.
 fn feasible_start(problem: &Problem, limits: &Limits, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let options = problem.options;
+    if options.min_range_fraction <= 0.0 && options.min_speed_fraction <= 0.0 {
+        return small_start(problem, limits, rng);
+    }
+    let per_joint = 1 + 2 * (options.harmonics - 1);
+    let mut x = scaled_start(problem, limits, rng);
+    for _ in 0..START_DRAWS {
+        let (_, coverage) = sweep(&problem.excitation(&x), limits);
+        let short: Vec<usize> = (0..problem.model.dof())
+            .filter(|&j| {
+                coverage.range_fraction[j] < options.min_range_fraction + COVERAGE_AIM
+                    || coverage.speed_fraction[j] < options.min_speed_fraction + COVERAGE_AIM
+            })
+            .collect();
+        if short.is_empty() {
+            break;
+        }
+        let fresh = scaled_start(problem, limits, rng);
+        for j in short {
+            x[j * per_joint..(j + 1) * per_joint].copy_from_slice(&fresh[j * per_joint..(j + 1) * per_joint]);
+        }
+    }
+    x
+}
+
+/// Without a least range and speed: small random coefficients around mid-range offsets, well
+/// inside the limits (the design before the least range and speed existed).
+fn small_start(problem: &Problem, limits: &Limits, rng: &mut ChaCha8Rng) -> Vec<f64> {
     let l = problem.options.harmonics;
     let w = 2.0 * std::f64::consts::PI / problem.options.period_s;
     let mut x = Vec::new();
@@ -326,6 +420,39 @@ fn feasible_start(problem: &Problem, limits: &Limits, rng: &mut ChaCha8Rng) -> V
         for _ in 0..2 * (l - 1) {
             x.push(scale * rng.random_range(-1.0..1.0));
         }
+    }
+    x
+}
+
+/// A random start that reaches its limits: random coefficients on each joint, scaled until its
+/// range, speed or acceleration reaches 95 % of its limit, and centred in the range. Small
+/// coefficients would start far short of the least range and speed.
+fn scaled_start(problem: &Problem, limits: &Limits, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let (n, l) = (problem.model.dof(), problem.options.harmonics);
+    let per_joint = 1 + 2 * (l - 1);
+    let mut x = Vec::with_capacity(n * per_joint);
+    for j in 0..n {
+        x.push(0.5 * (limits.lower[j] + limits.upper[j]));
+        x.extend((0..2 * (l - 1)).map(|_| rng.random_range(-1.0..1.0)));
+    }
+    let excitation = problem.excitation(&x);
+    let (mut lo, mut hi) = (vec![f64::INFINITY; n], vec![f64::NEG_INFINITY; n]);
+    let (mut speed, mut acceleration) = (vec![0.0_f64; n], vec![0.0_f64; n]);
+    for i in 0..GRID {
+        let (q, qd, qdd) = excitation.state(excitation.period_s * i as f64 / GRID as f64);
+        for j in 0..n {
+            (lo[j], hi[j]) = (lo[j].min(q[j]), hi[j].max(q[j]));
+            (speed[j], acceleration[j]) = (speed[j].max(qd[j].abs()), acceleration[j].max(qdd[j].abs()));
+        }
+    }
+    for j in 0..n {
+        let scale = 0.95
+            * ((limits.upper[j] - limits.lower[j]) / (hi[j] - lo[j]))
+                .min(limits.velocity[j] / speed[j])
+                .min(limits.acceleration[j] / acceleration[j]);
+        let block = &mut x[j * per_joint..(j + 1) * per_joint];
+        block[0] = 0.5 * (limits.upper[j] + limits.lower[j]) - scale * 0.5 * (hi[j] + lo[j] - 2.0 * block[0]);
+        block[1..].iter_mut().for_each(|c| *c *= scale);
     }
     x
 }

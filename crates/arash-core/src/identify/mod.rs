@@ -98,6 +98,20 @@ pub fn identify_in_closed_loop(
     identify_with(declared, log, method, Some(closed_loop), options)
 }
 
+/// Why the base parameters are fewer than the exact rank: the weak ones, regrouped.
+fn weak_reason(base: &BaseParameters) -> String {
+    let names: Vec<&str> = base.weak.iter().map(|w| w.name.as_str()).collect();
+    format!(
+        "base parameters: {}; {} regrouped, since no trajectory within the limits separates {} from the others (residual \
+         ≤ {:.1e} against ≥ {:.1e} for every kept one), as regroup_weak=True / --regroup-weak asked",
+        base.rank,
+        names.join(", "),
+        if names.len() == 1 { "it" } else { "them" },
+        base.reach_gap.1,
+        base.reach_gap.0,
+    )
+}
+
 fn identify_with(
     declared: Declared,
     log: Log,
@@ -111,6 +125,9 @@ fn identify_with(
     options.iv.validate()?;
     let mut pre = cutoff::preprocess_for_fit(declared, log, &options.preprocess)?;
     let Declared { model, base, urdf } = declared;
+    if !base.weak.is_empty() {
+        pre.choices.reasons.push(weak_reason(base));
+    }
     let samples_in = log.t.len();
     let ls_method = if method == IdentifyMethod::Wls { Method::Wls } else { Method::Ols };
     let ls = fit(model, base, &pre, ls_method)?;

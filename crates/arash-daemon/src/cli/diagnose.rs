@@ -107,7 +107,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         validation.as_ref().map_or(String::new(), |v| format!(", holding out {} samples", v.t.len()))
     );
     let started = std::time::Instant::now();
-    let base = BaseParameters::compute(&model, &BaseParameterOptions::default())?;
+    // A given model names its base parameters (the default ones, or the exact ones it kept).
+    let base = match &given {
+        Some(g) => BaseParameters::with_independent(&model, &g.base_independent)?,
+        None => None,
+    };
+    let base = base.map_or_else(|| BaseParameters::compute(&model, &BaseParameterOptions::default()), Ok)?;
     let diagnosis = diagnose(
         Declared { model: &model, base: &base, urdf: &urdf },
         Log { t: &train.t, q: &train.q, tau: &train.tau },

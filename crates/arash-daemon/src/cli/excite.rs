@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::control::fourier::{Excitation, DEFAULT_SAMPLE_RATE_HZ};
-use arash_core::identify::excitation::{design_excitation, ExcitationOptions};
+use arash_core::identify::excitation::{design_excitation, Coverage, ExcitationOptions};
 use arash_core::BaseParameters;
 use serde::Serialize;
 
@@ -24,12 +24,19 @@ pub struct Args {
     /// Seeded optimiser restarts.
     #[arg(long, default_value_t = ExcitationOptions::default().restarts)]
     restarts: usize,
+    /// Nelder–Mead iterations per restart.
+    #[arg(long, default_value_t = ExcitationOptions::default().iterations)]
+    iterations: u64,
     /// Seed: the same seed gives the same trajectory.
     #[arg(long, default_value_t = ExcitationOptions::default().seed)]
     seed: u64,
     /// Acceleration limit per joint, comma-separated (rad/s² or m/s²); default 5 × speed limit/s.
     #[arg(long, value_delimiter = ',')]
     acceleration_limits: Option<Vec<f64>>,
+    /// Design for every base parameter, the weak ones too (those no trajectory within the limits
+    /// separates; `arash model` lists them).
+    #[arg(long)]
+    keep_weak: bool,
     /// Sample rate of the written trajectory (Hz).
     #[arg(long, default_value_t = DEFAULT_SAMPLE_RATE_HZ)]
     rate: f64,
@@ -56,12 +63,15 @@ struct TrajectoryFile<'a> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let (model, _) = super::load_robot(args.robot.as_deref())?;
-    let base = BaseParameters::compute(&model, &BaseParameterOptions::default())?;
+    let base_options = BaseParameterOptions::default();
+    let base_options = if args.keep_weak { base_options } else { base_options.identifiable() };
+    let base = BaseParameters::compute(&model, &base_options)?;
     let options = ExcitationOptions {
         harmonics: args.harmonics,
         period_s: args.period,
         restarts: args.restarts,
         seed: args.seed,
+        iterations: args.iterations,
         acceleration_limits: args.acceleration_limits,
         ..Default::default()
     };
@@ -79,15 +89,54 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     .context("designing the excitation")?;
     eprintln!();
     let samples = write(&args.output, &model, &excitation, args.rate)?;
-    println!(
-        "excitation: L = {}, T = {} s, normalised condition number κ = {:.3}; wrote {} ({samples} samples at {} Hz)",
-        excitation.harmonics,
-        excitation.period_s,
-        excitation.condition_number,
-        args.output.display(),
-        args.rate
-    );
+    let limits = arash_core::identify::excitation::limits(&model, &options)?;
+    let seconds = started.elapsed().as_secs_f64();
+    print!("{}", summary(&model, &base, &excitation, &Coverage::of(&excitation, &limits), seconds));
+    println!("wrote {} ({samples} samples at {} Hz)", args.output.display(), args.rate);
     Ok(())
+}
+
+/// The design's figures: κ both ways, what it means against the paper's, and each joint's motion.
+fn summary(
+    model: &arash_core::Model,
+    base: &BaseParameters,
+    excitation: &Excitation,
+    coverage: &Coverage,
+    seconds: f64,
+) -> String {
+    let mut s = format!(
+        "excitation: L = {}, T = {} s, designed in {:.1} s\n",
+        excitation.harmonics, excitation.period_s, seconds
+    );
+    s += &format!(
+        "normalised condition number κ (σmax/σmin of the reduced regressor over one period, each column scaled to unit \
+         norm):\n  over the {} base parameters designed for: {:.3}\n",
+        base.rank, excitation.condition_number
+    );
+    if base.weak.is_empty() {
+        s += &format!("  (no weak base parameter: {})\n", base.weak_report().trim_end());
+    } else {
+        s += &format!(
+            "  with the weak ones kept ({}): {:.4e}\n",
+            base.weak.iter().map(|w| w.name.as_str()).collect::<Vec<_>>().join(", "),
+            excitation.condition_number_with_weak
+        );
+    }
+    s +=
+        "  the paper quotes 2.132 for its excitation without defining the normalisation or the parameter set; compare \
+          with care (docs/identification.md)\n";
+    s += "joint motion over one period (range: share of the usable range; peak speed: share of the fastest the series can \
+          reach over that range; moving: share of the period above a tenth of the peak speed):\n";
+    for (j, joint) in model.joints.iter().enumerate() {
+        s += &format!(
+            "  {:<12} range {:>5.1} %   peak speed {:>5.1} %   moving {:>5.1} %\n",
+            joint.name,
+            100.0 * coverage.range_fraction[j],
+            100.0 * coverage.speed_fraction[j],
+            100.0 * coverage.moving_fraction[j]
+        );
+    }
+    s
 }
 
 /// Write the trajectory file: the coefficients, and one period sampled at `rate` Hz. Returns

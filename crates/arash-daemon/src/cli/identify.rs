@@ -27,6 +27,10 @@ pub struct Args {
     /// didim methods; default: the one the flight log names.
     #[arg(long)]
     controller: Option<PathBuf>,
+    /// Regroup the base parameters no trajectory within the limits separates (`arash model` lists
+    /// them); by default every exact base parameter is fitted.
+    #[arg(long)]
+    regroup_weak: bool,
     /// Most iterations of idim-iv and didim (each one simulation of the loop).
     #[arg(long, default_value_t = IvOptions::default().max_iterations)]
     iv_iterations: usize,
@@ -82,7 +86,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         iv: IvOptions { max_iterations: args.iv_iterations, ..Default::default() },
     };
     eprintln!("identifying from {} samples ({} file(s)) with {:?} ...", log.t.len(), args.runs.logs.len(), args.method);
-    let base = BaseParameters::compute(&model, &BaseParameterOptions::default())?;
+    let base_options = BaseParameterOptions::default();
+    let base =
+        BaseParameters::compute(&model, &if args.regroup_weak { base_options.identifiable() } else { base_options })?;
     let declared = Declared { model: &model, base: &base, urdf: &urdf };
     let data = Log { t: &log.t, q: &log.q, tau: &log.tau };
     let mut identification = match args.method.closed_loop() {

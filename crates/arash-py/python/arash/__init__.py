@@ -142,6 +142,7 @@ def identify(
     controller: Optional[Union[str, dict[str, Any]]] = None,
     iv_iterations: Optional[int] = None,
     iv_tolerance: Optional[float] = None,
+    regroup_weak: bool = False,
 ) -> Identification:
     """Identify the robot's parameters from a log: t (N,), q and tau (N, dof), SI units.
 
@@ -162,7 +163,8 @@ def identify(
     "params": π_c, "gains": {...}}`` (an arash controller; ``read_log`` and ``simulate`` give it as
     ``"logged_controller"``). Both are needed by the idim-iv and didim methods, which simulate
     the loop. iv_iterations, iv_tolerance: their most iterations, and the move of β̂ (in σ) they
-    stop at.
+    stop at. regroup_weak: regroup the base parameters no trajectory within the limits separates
+    (``robot.base_parameters(regroup_weak=True).weak`` lists them; by default all are fitted).
 
     ``Identification.settings`` says what was chosen and why; a choice the data support only
     weakly is also raised as a ``UserWarning``.
@@ -172,7 +174,7 @@ def identify(
     options = _given(periods=periods, period_s=period_s, cutoff_hz=cutoff_hz, order=order, decimate=decimate,
                      friction_cutoff_hz=friction_cutoff_hz, pull=pull, stiffness_bounds=stiffness_bounds,
                      reference=reference, controller=controller, iv_iterations=iv_iterations,
-                     iv_tolerance=iv_tolerance)
+                     iv_tolerance=iv_tolerance, regroup_weak=regroup_weak or None)
     if motor_side is not None:
         q, tau = motor_side.to_joints(q, tau)
     identification = _identify(robot, (t, q, tau), method, options)
@@ -190,14 +192,20 @@ def design_excitation(
     seed: Optional[int] = None,
     iterations: Optional[int] = None,
     acceleration_limits: Optional[Sequence[float]] = None,
+    min_range_fraction: Optional[float] = None,
+    min_speed_fraction: Optional[float] = None,
+    keep_weak: bool = False,
     quiet: bool = False,
 ) -> Excitation:
     """Design a persistently exciting Fourier trajectory: the paper's L harmonics over a period
-    T, at rest at both ends, minimising the normalised condition number within the limits.
-    None keeps arash's default for each (docs/identification.md); progress goes to stderr unless
-    ``quiet``."""
+    T, at rest at both ends, minimising the normalised condition number within the limits, each
+    joint covering at least ``min_range_fraction`` of its usable range at a peak speed of at least
+    ``min_speed_fraction`` of the fastest the series can reach. keep_weak: design for the weak base
+    parameters too (by default the design measures only the identifiable ones). None keeps arash's default for each (docs/identification.md); progress goes
+    to stderr unless ``quiet``."""
     options = _given(harmonics=harmonics, period_s=period_s, restarts=restarts, seed=seed,
-                     iterations=iterations,
+                     iterations=iterations, min_range_fraction=min_range_fraction,
+                     min_speed_fraction=min_speed_fraction, keep_weak=keep_weak or None,
                      acceleration_limits=None if acceleration_limits is None else list(acceleration_limits))
     return _design_excitation(robot, options, quiet)
 

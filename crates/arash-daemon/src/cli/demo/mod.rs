@@ -91,7 +91,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 fn plan(args: &Args) -> anyhow::Result<Plan> {
-    let excitation = ExcitationOptions { seed: args.seed, restarts: args.restarts, ..Default::default() };
+    // The demo keeps the design it had before the least range and speed and the weak-parameter
+    // regrouping (issue 18): with the designs those give (κ 65–97 over the identifiable base
+    // parameters), the identified model cut the demo rig's tracking error by only 1.3–2.1×,
+    // against 2.3–2.8× with this one; docs/demo.md gives the figures. The rig's undeclared
+    // wiring disturbance and Stribeck friction are fitted differently over the wider motion.
+    let excitation = ExcitationOptions {
+        seed: args.seed,
+        restarts: args.restarts,
+        iterations: 4000,
+        min_range_fraction: 0.0,
+        min_speed_fraction: 0.0,
+        ..Default::default()
+    };
     let periods = (args.duration / excitation.period_s).round();
     anyhow::ensure!(
         args.duration.is_finite() && periods >= 2.0 && (periods * excitation.period_s - args.duration).abs() < 1e-6,
@@ -197,7 +209,8 @@ fn experiment(
         "\n[2/7] excitation design: L = {}, T = {} s, {} restart(s), seed {}",
         plan.excitation.harmonics, plan.excitation.period_s, plan.excitation.restarts, plan.excitation.seed
     );
-    let excitation = design_excitation(model, base, &plan.excitation, &mut |p| {
+    let exact = BaseParameters::compute(model, &BaseParameterOptions::default().keep_weak())?;
+    let excitation = design_excitation(model, &exact, &plan.excitation, &mut |p| {
         eprint!("\r    restart {}/{}, best normalised κ = {:.3}   ", p.restart, p.restarts, p.best_condition_number);
     })
     .context("designing the excitation")?;
