@@ -2,7 +2,9 @@
 //! determinism, and an improvement over where the optimiser started.
 
 use arash_core::base_parameters::BaseParameterOptions;
-use arash_core::identify::excitation::{design_excitation, normalised_condition_number, ExcitationOptions};
+use arash_core::identify::excitation::{
+    design_excitation, normalised_condition_number, sigma_factors, ExcitationOptions,
+};
 use arash_core::*;
 
 fn quick() -> ExcitationOptions {
@@ -73,6 +75,13 @@ fn no_design_separates_the_weak_base_parameter() {
     assert!(designed.condition_number < 300.0, "κ without it {}", designed.condition_number);
     assert!(designed.condition_number_with_weak > 1e3, "{}", designed.condition_number_with_weak);
     assert_eq!(trying.condition_number_with_weak, trying.condition_number);
+    // Per parameter: on the trajectory that tried, the weak one's σ factor dwarfs the rest; on the
+    // design for the identifiable ones, every factor (friction and stiffness included) is modest.
+    let trying_factors = sigma_factors(&model, &exact, &trying, 300).unwrap();
+    let weak = exact.names.iter().position(|n| n == "instrument_holder.my_R").unwrap();
+    assert!(trying_factors[weak] > 1e3, "{trying_factors:?}");
+    let factors = sigma_factors(&model, &base, &designed, 300).unwrap();
+    assert!(factors.iter().all(|f| (1.0..50.0).contains(f)), "{factors:?}");
 }
 
 #[test]

@@ -184,6 +184,21 @@ pub fn normalised_condition_number(
     sv.max() / sv.min()
 }
 
+/// Each base parameter's σ factor over one period: √[(WₙᵀWₙ)⁻¹]ᵢᵢ for the column-normalised
+/// stacked regressor Wₙ. It is how much more the parameter's relative spread is than if its column
+/// were orthogonal to all the others (1 at best); a parameter the trajectory barely separates has
+/// a large factor. `None` when Wₙ has no full column rank.
+pub fn sigma_factors(
+    model: &Model,
+    base: &BaseParameters,
+    excitation: &Excitation,
+    samples: usize,
+) -> Option<Vec<f64>> {
+    let w = normalise_columns(stacked(model, base, excitation, samples));
+    let inverse = (w.transpose() * &w).cholesky()?.inverse();
+    Some((0..base.rank).map(|i| inverse[(i, i)].sqrt()).collect())
+}
+
 fn stacked(model: &Model, base: &BaseParameters, excitation: &Excitation, samples: usize) -> DMatrix<f64> {
     let (n, big_p, p) = (model.dof(), model.num_params(), base.rank);
     let mut data = Data::new(model);

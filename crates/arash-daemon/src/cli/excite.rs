@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::control::fourier::{Excitation, DEFAULT_SAMPLE_RATE_HZ};
-use arash_core::identify::excitation::{design_excitation, Coverage, ExcitationOptions};
+use arash_core::identify::excitation::{design_excitation, sigma_factors, Coverage, ExcitationOptions};
 use arash_core::BaseParameters;
 use serde::Serialize;
 
@@ -125,6 +125,7 @@ fn summary(
     s +=
         "  the paper quotes 2.132 for its excitation without defining the normalisation or the parameter set; compare \
           with care (docs/identification.md)\n";
+    s += &sigma_report(model, base, excitation);
     s += "joint motion over one period (range: share of the usable range; peak speed: share of the fastest the series can \
           reach over that range; moving: share of the period above a tenth of the peak speed):\n";
     for (j, joint) in model.joints.iter().enumerate() {
@@ -137,6 +138,26 @@ fn summary(
         );
     }
     s
+}
+
+/// Each base parameter's σ factor (1 when its column is orthogonal to the others): the friction
+/// and stiffness terms, which a joint that barely moves leaves in the noise, and the worst three.
+fn sigma_report(model: &arash_core::Model, base: &BaseParameters, excitation: &Excitation) -> String {
+    let Some(factors) = sigma_factors(model, base, excitation, ExcitationOptions::default().samples) else {
+        return "σ factors: the regressor over one period has no full column rank\n".into();
+    };
+    let first_joint_term = model.layout().friction().start;
+    let named = |i: usize| format!("{} {:.1}", base.names[i], factors[i]);
+    let joint_terms: Vec<String> =
+        (0..base.rank).filter(|&i| base.independent[i] >= first_joint_term).map(named).collect();
+    let mut order: Vec<usize> = (0..base.rank).collect();
+    order.sort_by(|a, b| factors[*b].total_cmp(&factors[*a]));
+    format!(
+        "σ factor per base parameter (√[(WₙᵀWₙ)⁻¹]ᵢᵢ: 1 when its column is orthogonal to the others):\n  friction and \
+         stiffness: {}\n  largest: {}\n",
+        joint_terms.join(", "),
+        order.iter().take(3).map(|&i| named(i)).collect::<Vec<_>>().join(", ")
+    )
 }
 
 /// Write the trajectory file: the coefficients, and one period sampled at `rate` Hz. Returns
