@@ -129,6 +129,19 @@ impl ReachableLimits {
     }
 }
 
+impl ReachableLimits {
+    /// How joint `j`'s motion `x(t)` (extremes `lo`, `hi`; peak speed and acceleration) fits
+    /// these limits: the `(scale, centre)` for which `centre + scale·x` reaches `fill` of the
+    /// binding limit (range, speed or acceleration) and sits in the middle of the range.
+    pub fn fit(&self, j: usize, (lo, hi): (f64, f64), speed: f64, acceleration: f64, fill: f64) -> (f64, f64) {
+        let scale = fill
+            * ((self.upper[j] - self.lower[j]) / (hi - lo))
+                .min(self.velocity[j] / speed)
+                .min(self.acceleration[j] / acceleration);
+        (scale, 0.5 * (self.upper[j] + self.lower[j]) - scale * 0.5 * (hi + lo))
+    }
+}
+
 /// A joint's position limits, or ±π rad (revolute) and ±0.1 m (prismatic) when unbounded.
 fn position_range(joint: &crate::model::ActuatedJoint) -> (f64, f64) {
     if joint.lower.is_finite() && joint.upper.is_finite() {
@@ -171,8 +184,9 @@ pub struct BaseParameters {
     /// (empty with [`BaseParameterOptions::keep_weak`]).
     pub weak: Vec<WeakParameter>,
     /// Over the trajectories within the limits: the smallest relative residual among the base
-    /// parameters kept and the largest among the weak ones (0 when none is weak).
-    pub reach_gap: (f64, f64),
+    /// parameters kept and the largest among the weak ones (0 when none is weak); `None` when the
+    /// weak-parameter test was not run.
+    pub reach_gap: Option<(f64, f64)>,
 }
 
 /// A combination of the exact base parameters that no trajectory within the limits separates.
@@ -208,6 +222,13 @@ impl BaseParameters {
         }
     }
 
+    /// These exact base parameters with the weak ones regrouped, as [`BaseParameters::compute`]
+    /// gives them for `options` with a positive weak tolerance ([`WEAK_TOLERANCE`] when 0).
+    pub fn identifiable(&self, model: &Model, options: &BaseParameterOptions) -> Self {
+        let tolerance = if options.weak_tolerance > 0.0 { options.weak_tolerance } else { WEAK_TOLERANCE };
+        self.clone().regroup_weak(model, &BaseParameterOptions { weak_tolerance: tolerance, ..options.clone() })
+    }
+
     fn from_b(model: &Model, independent: Vec<usize>, b: Vec<f64>, rank_gap: (f64, f64)) -> Self {
         let p = model.num_params();
         let names = model.parameter_names();
@@ -220,17 +241,7 @@ impl BaseParameters {
             short.push(if regrouped { format!("{}_R", names[lead]) } else { names[lead].clone() });
             expressions.push(format!("β{} = {}", i + 1, linear_combination(row, &names)));
         }
-        Self {
-            rank,
-            num_params: p,
-            independent,
-            b,
-            names: short,
-            expressions,
-            rank_gap,
-            weak: vec![],
-            reach_gap: (0.0, 0.0),
-        }
+        Self { rank, num_params: p, independent, b, names: short, expressions, rank_gap, weak: vec![], reach_gap: None }
     }
 
     /// Repeat the column test on `Y_r` stacked over random trajectories within the limits, with
@@ -243,7 +254,7 @@ impl BaseParameters {
         let (kept, (min_kept, max_weak), residuals) =
             select_independent_columns(&w, options.weak_tolerance, options.zero_column);
         if kept.len() == self.rank {
-            return Self { reach_gap: (min_kept, 0.0), ..self };
+            return Self { reach_gap: Some((min_kept, 0.0)), ..self };
         }
         let t = weak_regrouping(&w, &kept, options.weak_tolerance);
         let (p, big_p) = (self.rank, self.num_params);
@@ -271,39 +282,38 @@ impl BaseParameters {
                 }
             })
             .collect();
-        regrouped.reach_gap = (min_kept, max_weak);
+        regrouped.reach_gap = Some((min_kept, max_weak));
         regrouped
     }
 
     /// The exact base parameters of `model`, or its identifiable ones, whichever has `independent`
     /// as its columns (a model file made with or without the weak ones); `None` when neither has.
     pub fn with_independent(model: &Model, independent: &[usize]) -> Result<Option<Self>, BaseParameterError> {
-        for options in [BaseParameterOptions::default(), BaseParameterOptions::default().identifiable()] {
-            let base = Self::compute(model, &options)?;
-            if base.independent == independent {
-                return Ok(Some(base));
-            }
+        let options = BaseParameterOptions::default();
+        let exact = Self::compute(model, &options)?;
+        if exact.independent == independent {
+            return Ok(Some(exact));
         }
-        Ok(None)
+        let regrouped = exact.identifiable(model, &options);
+        Ok((regrouped.independent == independent).then_some(regrouped))
     }
 
     /// What the weak-parameter test found, in a few lines: the gap it decided across, and each
     /// weak parameter with its residual and how it was regrouped.
     pub fn weak_report(&self) -> String {
-        if self.reach_gap == (0.0, 0.0) {
+        let Some((kept, weak)) = self.reach_gap else {
             return "weak base parameters: kept (the test was not run)\n".into();
-        }
+        };
         if self.weak.is_empty() {
             return format!(
-                "weak base parameters: none (over trajectories within the limits every column keeps ≥ {:.1e} of its norm outside the others)\n",
-                self.reach_gap.0
+                "weak base parameters: none (over trajectories within the limits every column keeps ≥ {kept:.1e} of its norm outside the others)\n"
             );
         }
         let mut s = format!(
             "weak base parameters: {}, which no trajectory within the limits separates (residual ≤ {:.1e}, every other ≥ {:.1e}); the excitation design and --regroup-weak regroup them:\n",
             self.weak.len(),
-            self.reach_gap.1,
-            self.reach_gap.0
+            weak,
+            kept
         );
         for w in &self.weak {
             s += &format!("  {} (residual {:.1e}): {}\n", w.name, w.residual, w.expression);
@@ -336,11 +346,12 @@ impl BaseParameters {
 }
 
 /// A uniformly random state within the limits: position limits (±π, or ±0.1 m, when unbounded),
-/// speed limits (or 2 rad/s or m/s), and accelerations up to ten times the speed limit per second.
+/// speed limits (or 2 rad/s, 0.2 m/s), and accelerations up to ten times the speed limit per second.
 pub fn random_state(model: &Model, rng: &mut ChaCha8Rng, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
     for (k, joint) in model.joints.iter().enumerate() {
         let (lo, hi) = position_range(joint);
-        let speed = if joint.velocity.is_finite() { joint.velocity } else { 2.0 };
+        let default_speed = if joint.kind == JointKind::Prismatic { 0.2 } else { 2.0 };
+        let speed = if joint.velocity.is_finite() { joint.velocity } else { default_speed };
         q[k] = rng.random_range(lo..=hi);
         qd[k] = rng.random_range(-speed..=speed);
         qdd[k] = rng.random_range(-10.0 * speed..=10.0 * speed);
@@ -476,10 +487,7 @@ fn fill_scaled_fourier(
     let (lo, hi) =
         (x.iter().copied().fold(f64::INFINITY, f64::min), x.iter().copied().fold(f64::NEG_INFINITY, f64::max));
     let peak = |y: &[f64]| y.iter().fold(0.0_f64, |m, z| m.max(z.abs()));
-    let scale = ((limits.upper[j] - limits.lower[j]) / (hi - lo))
-        .min(limits.velocity[j] / peak(&v))
-        .min(limits.acceleration[j] / peak(&a));
-    let centre = 0.5 * (limits.upper[j] + limits.lower[j]) - scale * 0.5 * (hi + lo);
+    let (scale, centre) = limits.fit(j, (lo, hi), peak(&v), peak(&a), 1.0);
     for s in 0..samples {
         q[s * n + j] = centre + scale * x[s];
         qd[s * n + j] = scale * v[s];

@@ -123,11 +123,20 @@ impl Coverage {
     }
 }
 
-/// One pass over the grid: the limit violation and the coverage.
-fn sweep(excitation: &Excitation, limits: &Limits) -> (f64, Coverage) {
+/// Each joint's extremes over the grid: positions, peak speed and peak acceleration.
+struct Extremes {
+    lo: Vec<f64>,
+    hi: Vec<f64>,
+    speed: Vec<f64>,
+    acceleration: Vec<f64>,
+}
+
+/// One pass over the grid: the limit violation, the coverage and the extremes.
+fn sweep(excitation: &Excitation, limits: &Limits) -> (f64, Coverage, Extremes) {
     let n = excitation.q0.len();
     let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let (mut lo, mut hi, mut peak) = (vec![f64::INFINITY; n], vec![f64::NEG_INFINITY; n], vec![0.0_f64; n]);
+    let mut peak_acceleration = vec![0.0_f64; n];
     let mut speeds = Vec::with_capacity(GRID * n);
     let mut violation = 0.0;
     for i in 0..GRID {
@@ -138,6 +147,7 @@ fn sweep(excitation: &Excitation, limits: &Limits) -> (f64, Coverage) {
             violation += (qd[j].abs() - limits.velocity[j]).max(0.0) / limits.velocity[j];
             violation += (qdd[j].abs() - limits.acceleration[j]).max(0.0) / limits.acceleration[j];
             (lo[j], hi[j], peak[j]) = (lo[j].min(q[j]), hi[j].max(q[j]), peak[j].max(qd[j].abs()));
+            peak_acceleration[j] = peak_acceleration[j].max(qdd[j].abs());
         }
         speeds.extend_from_slice(&qd);
     }
@@ -150,7 +160,7 @@ fn sweep(excitation: &Excitation, limits: &Limits) -> (f64, Coverage) {
             .map(|j| speeds.chunks(n).filter(|v| v[j].abs() > 0.1 * peak[j]).count() as f64 / GRID as f64)
             .collect(),
     };
-    (violation, coverage)
+    (violation, coverage, Extremes { lo, hi, speed: peak, acceleration: peak_acceleration })
 }
 
 /// The limits a trajectory must respect (margins already applied).
@@ -276,7 +286,7 @@ impl Problem<'_> {
     /// speed. The optimiser aims there: a simplex that crawls up to the least range from below
     /// stalls at the kink of max(0, ·) a hair short of it, and the restart is lost.
     fn violation_and_aim(&self, excitation: &Excitation) -> (f64, f64) {
-        let (violation, coverage) = sweep(excitation, self.limits);
+        let (violation, coverage, _) = sweep(excitation, self.limits);
         (violation + coverage.shortfall(self.options, 0.0), violation + coverage.shortfall(self.options, COVERAGE_AIM))
     }
 
@@ -399,7 +409,7 @@ fn feasible_start(problem: &Problem, limits: &Limits, rng: &mut ChaCha8Rng) -> V
     let per_joint = 1 + 2 * (options.harmonics - 1);
     let mut x = scaled_start(problem, limits, rng);
     for _ in 0..START_DRAWS {
-        let (_, coverage) = sweep(&problem.excitation(&x), limits);
+        let (_, coverage, _) = sweep(&problem.excitation(&x), limits);
         let short: Vec<usize> = (0..problem.model.dof())
             .filter(|&j| {
                 coverage.range_fraction[j] < options.min_range_fraction + COVERAGE_AIM
@@ -450,23 +460,13 @@ fn scaled_start(problem: &Problem, limits: &Limits, rng: &mut ChaCha8Rng) -> Vec
         x.push(0.5 * (limits.lower[j] + limits.upper[j]));
         x.extend((0..2 * (l - 1)).map(|_| rng.random_range(-1.0..1.0)));
     }
-    let excitation = problem.excitation(&x);
-    let (mut lo, mut hi) = (vec![f64::INFINITY; n], vec![f64::NEG_INFINITY; n]);
-    let (mut speed, mut acceleration) = (vec![0.0_f64; n], vec![0.0_f64; n]);
-    for i in 0..GRID {
-        let (q, qd, qdd) = excitation.state(excitation.period_s * i as f64 / GRID as f64);
-        for j in 0..n {
-            (lo[j], hi[j]) = (lo[j].min(q[j]), hi[j].max(q[j]));
-            (speed[j], acceleration[j]) = (speed[j].max(qd[j].abs()), acceleration[j].max(qdd[j].abs()));
-        }
-    }
+    let extremes = sweep(&problem.excitation(&x), limits).2;
     for j in 0..n {
-        let scale = 0.95
-            * ((limits.upper[j] - limits.lower[j]) / (hi[j] - lo[j]))
-                .min(limits.velocity[j] / speed[j])
-                .min(limits.acceleration[j] / acceleration[j]);
         let block = &mut x[j * per_joint..(j + 1) * per_joint];
-        block[0] = 0.5 * (limits.upper[j] + limits.lower[j]) - scale * 0.5 * (hi[j] + lo[j] - 2.0 * block[0]);
+        // The series is q₀ + h(t); fit h, whose extremes are the swept ones less q₀.
+        let h = (extremes.lo[j] - block[0], extremes.hi[j] - block[0]);
+        let (scale, centre) = limits.fit(j, h, extremes.speed[j], extremes.acceleration[j], 0.95);
+        block[0] = centre;
         block[1..].iter_mut().for_each(|c| *c *= scale);
     }
     x

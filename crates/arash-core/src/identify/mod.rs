@@ -101,14 +101,13 @@ pub fn identify_in_closed_loop(
 /// Why the base parameters are fewer than the exact rank: the weak ones, regrouped.
 fn weak_reason(base: &BaseParameters) -> String {
     let names: Vec<&str> = base.weak.iter().map(|w| w.name.as_str()).collect();
+    let (kept, weak) = base.reach_gap.unwrap_or_default(); // the test ran: there are weak ones
     format!(
         "base parameters: {}; {} regrouped, since no trajectory within the limits separates {} from the others (residual \
-         ≤ {:.1e} against ≥ {:.1e} for every kept one), as regroup_weak=True / --regroup-weak asked",
+         ≤ {weak:.1e} against ≥ {kept:.1e} for every kept one), as regroup_weak=True / --regroup-weak asked",
         base.rank,
         names.join(", "),
         if names.len() == 1 { "it" } else { "them" },
-        base.reach_gap.1,
-        base.reach_gap.0,
     )
 }
 

@@ -22,8 +22,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (model, _) = super::load_robot(Some(&args.urdf))?;
     let options = BaseParameterOptions { samples: args.samples, seed: args.seed, ..Default::default() };
     let base = BaseParameters::compute(&model, &options).context("computing base parameters")?;
-    let identifiable = BaseParameters::compute(&model, &options.identifiable()).context("the weak-parameter test")?;
-    print!("{}{}", describe(&model, &base), identifiable.weak_report());
+    print!("{}{}", describe(&model, &base), base.identifiable(&model, &options).weak_report());
     Ok(())
 }
 
