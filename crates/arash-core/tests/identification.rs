@@ -299,6 +299,36 @@ fn consistent_identification_is_physical_and_fits_like_ols() {
     assert!(err(&beta_c) < 2.0 * err(&ols.beta) + 1e-6, "consistent {} vs OLS {}", err(&beta_c), err(&ols.beta));
 }
 
+/// An extra column with a physical sign (an effect a diagnosis found) keeps it in the consistent
+/// fit even where least squares wants the other sign; a free one follows the data.
+#[test]
+fn a_signed_extra_column_keeps_its_sign_in_the_consistent_fit() {
+    use arash_core::identify::consistent::{identify_consistent_signed, ConsistentOptions};
+    use arash_core::identify::estimate::stack_full;
+    let (model, _, pi, traj, mut rng) = drawn_truth(25);
+    let (t, q, tau) = simulated_log(&model, &pi, &traj, 2, &mut rng);
+    let pre = preprocess(&t, &q, &tau, 3, &PreprocessOptions { periods: Some(2), decimate: 5, ..Default::default() })
+        .unwrap();
+    let (w, tau_f) = stack_full(&model, &pre);
+    let p = w.ncols();
+    // A q̇·|q̇| column on the insertion rows, and a torque with −0.5 of it: energy fed in.
+    let fv = model.layout().viscous(2);
+    let extra: Vec<f64> = (0..w.nrows()).map(|r| w[(r, fv)] * w[(r, fv)].abs()).collect();
+    let scale = 0.5 * extra.iter().map(|e| e.abs()).fold(0.0, f64::max).recip();
+    let tau_e: Vec<f64> = tau_f.iter().zip(&extra).map(|(t, e)| t - scale * e).collect();
+    let w_e = Mat::<f64>::from_fn(w.nrows(), p + 1, |r, c| if c < p { w[(r, c)] } else { extra[r] });
+    let options = ConsistentOptions::default();
+    let free = identify_consistent_signed(&model, &w_e, &tau_e, &options, &[None]).unwrap();
+    let signed = identify_consistent_signed(&model, &w_e, &tau_e, &options, &[Some(1.0)]).unwrap();
+    assert!((free.params[p] + scale).abs() < 0.05 * scale, "free: {} against {}", free.params[p], -scale);
+    assert!(signed.params[p] >= -1e-9 * scale, "signed: {}", signed.params[p]);
+    let cost = |x: &[f64]| {
+        let r = arash_core::identify::estimate::apply(&w_e, x);
+        r.iter().zip(&tau_e).map(|(a, b)| (a - b).powi(2)).sum::<f64>()
+    };
+    assert!(cost(&signed.params) > cost(&free.params), "the sign must cost fit when the data want the other one");
+}
+
 #[test]
 fn a_model_file_is_judged_by_its_parameters_not_by_what_it_claims() {
     use arash_core::identify::{identify, Declared, IdentifyOptions, Log};

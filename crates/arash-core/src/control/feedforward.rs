@@ -4,6 +4,8 @@
 //! A term acts per cycle through [`EffectTerm::features`], the same function the diagnosis fitted
 //! it with. A payload is not a feedforward: it is a change of one body's inertial parameters, so
 //! [`EffectFeedforward::new`] folds it into the parameter vector the controller already uses.
+//! A joint term is evaluated with the joint's motion clamped into the range it was fitted on
+//! ([`EffectTerm::within_fitted`]), so its torque stays what the data checked.
 //! Two effects are properties of a log, not of the robot, and are left out: `delay` and `drift`
 //! (a function of the log's own clock).
 
@@ -58,7 +60,7 @@ impl EffectFeedforward {
             match term.joint {
                 Some(k) => {
                     let width = term.width();
-                    let x = Sample { q: q[k], v: qd[k], qdd: qdd[k], t: 0.0, tau: tau[k] };
+                    let x = term.within_fitted(Sample { q: q[k], v: qd[k], qdd: qdd[k], t: 0.0, tau: tau[k] });
                     term.features(x, state, &mut features[..width]);
                     tau[k] += features[..width].iter().zip(&term.coefficients).map(|(a, c)| a * c).sum::<f64>();
                 }
@@ -107,6 +109,27 @@ mod tests {
         assert_eq!(tau[0], 1.0);
         assert_eq!(tau[2], 3.0);
         assert!((tau[1] - 2.0 - expected).abs() < 1e-15, "{} vs {expected}", tau[1] - 2.0);
+    }
+
+    /// A term fitted on slow motion is evaluated at the edge of what it was fitted on, not
+    /// extrapolated: its torque at twice the fitted speed is its torque at the fitted speed.
+    #[test]
+    fn a_term_is_evaluated_within_the_motion_it_was_fitted_on() {
+        use crate::effects::FittedRange;
+        let model = crate::arash_asist();
+        let mut term = EffectTerm::new(EffectKind::ViscousNonlinear, Some(2));
+        term.coefficients = vec![40.0];
+        let torque = |term: &EffectTerm, v: f64| {
+            let mut params = model.cad_parameters();
+            let mut ff = EffectFeedforward::new(&model, std::slice::from_ref(term), &[0.01; 3], &mut params);
+            let mut tau = [0.0; 3];
+            ff.add(&[0.0, 0.0, 0.01], &[0.0, 0.0, v], &[0.0; 3], &mut tau);
+            tau[2]
+        };
+        assert!((torque(&term, -0.02) + 40.0 * 0.02 * 0.02).abs() < 1e-15, "unbounded without a range");
+        term.fitted_on = Some(FittedRange { position: (0.0, 0.02), speed: 0.01, acceleration: 0.1 });
+        assert!((torque(&term, 0.005) - 40.0 * 0.005 * 0.005).abs() < 1e-15, "inside: unchanged");
+        assert!((torque(&term, -0.02) + 40.0 * 0.01 * 0.01).abs() < 1e-15, "outside: held at the edge");
     }
 
     /// A drive's gain g scales the whole command on its joint, the other effects' torque too:

@@ -22,18 +22,22 @@ pub(super) fn candidates(
     let mut skipped = Vec::new();
     let q = train.at_kept(&train.pre.q);
     let qd = train.at_kept(&train.pre.qd);
+    let qdd = train.at_kept(&train.pre.qdd);
     let t0 = train.pre.t[train.kept[0]];
     let t1 = train.pre.t[*train.kept.last().expect("prepared logs have samples")];
     let wanted: Vec<EffectKind> = EffectKind::ALL.into_iter().filter(|k| options.searches(*k)).collect();
     for k in 0..dof {
         let column = |x: &[f64]| x.iter().skip(k).step_by(dof).copied().collect::<Vec<f64>>();
-        let (qk, vk) = (column(&q), column(&qd));
+        let (qk, vk, ak) = (column(&q), column(&qd), column(&qdd));
+        let peak = |x: &[f64]| x.iter().fold(0.0, |m: f64, v| m.max(v.abs()));
         let lo = qk.iter().copied().fold(f64::INFINITY, f64::min);
         let hi = qk.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let joint = JointData {
             joint: k,
             span: (lo, hi),
             speed_rms: (vk.iter().map(|v| v * v).sum::<f64>() / vk.len() as f64).sqrt(),
+            peak_speed: peak(&vk),
+            peak_acceleration: peak(&ak),
             epsilon: match model.coulomb_shape {
                 CoulombShape::Tanh { epsilon } => Some(epsilon),
                 CoulombShape::Sign => None,

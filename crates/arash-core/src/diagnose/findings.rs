@@ -87,6 +87,9 @@ pub enum RejectionReason {
     NotSignificant { p_value: f64, threshold: f64, round: usize },
     /// Significant, but its coefficient has the sign the physical effect cannot have.
     WrongSign { p_value: f64, coefficient: f64 },
+    /// Significant, but fitted with the accepted effects it gives `label` (an accepted effect or
+    /// itself) the sign that effect cannot have (`coefficient`).
+    FlipsSign { p_value: f64, label: String, coefficient: f64 },
     /// A cable term where the joint's fitted Coulomb friction is not positive.
     NoFrictionForACable { p_value: f64, coulomb: f64 },
     /// A cable term that carries too little of the joint's Coulomb friction to be the cable.
@@ -122,6 +125,7 @@ impl RejectionReason {
             Self::NotIdentifiable { .. } => "not_identifiable",
             Self::NotSignificant { .. } => "not_significant",
             Self::WrongSign { .. } => "wrong_sign",
+            Self::FlipsSign { .. } => "flips_sign",
             Self::NoFrictionForACable { .. } => "no_friction_for_a_cable",
             Self::TooLittleFrictionForACable { .. } => "too_little_friction_for_a_cable",
             Self::SmallGain { .. } => "small_gain",
@@ -151,6 +155,10 @@ impl std::fmt::Display for RejectionReason {
             Self::WrongSign { p_value, coefficient } => write!(
                 f,
                 "significant (p = {p_value:.2e}) but with the wrong sign for this effect (coefficient {coefficient:.3e}): some other error correlates with it"
+            ),
+            Self::FlipsSign { p_value, label, coefficient } => write!(
+                f,
+                "significant (p = {p_value:.2e}) but fitted with the effects already found it gives {label} the wrong sign for that effect (coefficient {coefficient:.3e}): the two share some other error"
             ),
             Self::NoFrictionForACable { p_value, coulomb } => write!(
                 f,

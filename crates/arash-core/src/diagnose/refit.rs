@@ -13,7 +13,7 @@ use super::options::{DiagnoseError, DiagnoseOptions};
 use super::prepare::{full_columns, prepare, term_columns};
 use crate::base_parameters::BaseParameters;
 use crate::effects::EffectKind;
-use crate::identify::consistent::{identify_consistent, ConsistentOptions};
+use crate::identify::consistent::{identify_consistent_signed, ConsistentOptions};
 use crate::identify::estimate::joint_metrics;
 use crate::identify::Log;
 use crate::model::Model;
@@ -53,9 +53,11 @@ pub fn consistent_with_effects(
         found.effects.iter().filter(|t| t.kind.at_run_time() && t.kind != EffectKind::Payload).cloned().collect();
     let mut columns = full_columns(model, &data.pre, &data.kept);
     let mut widths = Vec::with_capacity(terms.len());
+    let mut signs = Vec::new();
     for term in &terms {
         let term_columns = term_columns(model, term, &data);
         widths.push(term_columns.len());
+        signs.extend((0..term_columns.len()).map(|i| term.coefficient_sign(i)));
         for column in term_columns {
             let rows = data.samples() * dof;
             columns.push((0..rows).map(|r| column.at(r / dof, r % dof, dof)).collect());
@@ -63,7 +65,8 @@ pub fn consistent_with_effects(
     }
     let tau = data.tau(delay);
     let w = Mat::<f64>::from_fn(tau.len(), columns.len(), |i, j| columns[j][i]);
-    let fit = identify_consistent(model, &w, &tau, consistent).map_err(crate::identify::IdentifyError::from)?;
+    let fit = identify_consistent_signed(model, &w, &tau, consistent, &signs)
+        .map_err(crate::identify::IdentifyError::from)?;
     let predicted = crate::identify::estimate::apply(&w, &fit.params);
 
     let mut extra = fit.params[standard..].iter().copied();

@@ -112,9 +112,23 @@ impl Search<'_> {
         if tested.is_empty() {
             return Ok(false);
         }
-        let passing = self.judge(round, &tested, &coef, state);
-        let Some(best) = most_useful(passing, |o| self.pool[tested[o].0].columns.len()) else {
-            return Ok(false);
+        let mut passing = self.judge(round, &tested, &coef, state);
+        // The most useful candidate that leaves every effect its physical sign in the joint fit.
+        let best = loop {
+            let Some(best) = most_useful(&passing, |o| self.pool[tested[o].0].columns.len()) else {
+                return Ok(false);
+            };
+            let (i, t) = &tested[passing[best].test];
+            match self.flipped_by(*i, state) {
+                None => break passing.swap_remove(best),
+                Some((label, coefficient)) => {
+                    let reason = RejectionReason::FlipsSign { p_value: t.p_value, label, coefficient };
+                    let gain = Some(passing[best].gain);
+                    state.status[*i] =
+                        Some(rejection(self.ctx.model, &self.pool[*i].term, reason, Some(t.p_value), gain));
+                    passing.swap_remove(best);
+                }
+            }
         };
         let (winner, test) = tested[best.test].clone();
         let aliases = self.aliases(winner, &tested, &e0, state);
@@ -231,6 +245,32 @@ impl Search<'_> {
             }
         }
         passing
+    }
+
+    /// The effect (accepted, or `candidate` itself) whose coefficient the joint fit of the model,
+    /// the accepted effects and `candidate` gives the sign its effect cannot have, with that
+    /// coefficient. Each effect was tested with the sign right against the model of its round; a
+    /// later one that flips it means the two share some other error between them, and neither
+    /// can be reported as what it claims. Rotor inertia on every joint is left to its own test,
+    /// which allows a nil joint within its σ.
+    fn flipped_by(&self, candidate: usize, state: &State) -> Option<(String, f64)> {
+        let (problem, pool) = (self.problem, self.pool);
+        let mut chosen = state.chosen.clone();
+        chosen.push(candidate);
+        let x = least_squares(&model_columns(problem, pool, &chosen), &problem.y, problem.dof, Rows::All)?;
+        let mut offset = problem.free_columns().count();
+        for &i in &chosen {
+            let term = &pool[i].term;
+            let width = pool[i].columns.len();
+            let all_joints = term.kind == EffectKind::Armature && term.joint.is_none();
+            if let (false, Some(sign)) = (all_joints, term.coefficient_sign(0)) {
+                if x[offset] * sign < 0.0 {
+                    return Some((term.describe(&self.ctx.model.joint_names()), x[offset]));
+                }
+            }
+            offset += width;
+        }
+        None
     }
 
     /// Candidates that passed too but that the winner explains: its aliases, rejected as such.
@@ -379,12 +419,12 @@ impl Search<'_> {
 /// candidate with fewer columns within 10 % of it is preferred. A payload's four columns can
 /// mimic an offset on one joint; the simpler explanation should win when the data cannot tell
 /// them apart.
-fn most_useful(passing: Vec<Passed>, width: impl Fn(usize) -> usize) -> Option<Passed> {
+fn most_useful(passing: &[Passed], width: impl Fn(usize) -> usize) -> Option<usize> {
     let best = passing.iter().map(|p| p.total).fold(f64::NEG_INFINITY, f64::max);
-    passing
-        .into_iter()
-        .filter(|p| p.total >= 0.9 * best)
-        .min_by(|a, b| width(a.test).cmp(&width(b.test)).then(b.total.total_cmp(&a.total)))
+    (0..passing.len()).filter(|&i| passing[i].total >= 0.9 * best).min_by(|&a, &b| {
+        let (a, b) = (&passing[a], &passing[b]);
+        width(a.test).cmp(&width(b.test)).then(b.total.total_cmp(&a.total))
+    })
 }
 
 /// The coefficient that gives `term` a sign its effect cannot have, if any: the first (a mass, a

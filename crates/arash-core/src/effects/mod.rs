@@ -168,6 +168,9 @@ pub struct JointData<'a> {
     pub span: (f64, f64),
     /// RMS velocity (rad/s or m/s).
     pub speed_rms: f64,
+    /// Largest |velocity| and |acceleration| (rad/s, rad/s² or m/s, m/s²).
+    pub peak_speed: f64,
+    pub peak_acceleration: f64,
     /// The `tanh(q̇/ε)` width of the joint's friction direction (`None`: `sign(q̇)`).
     pub epsilon: Option<f64>,
     /// First and last time of the training data (s).
@@ -184,6 +187,8 @@ impl JointData<'_> {
         let mut t = EffectTerm::new(kind, Some(self.joint));
         t.epsilon = self.epsilon;
         t.span = Some(self.span);
+        t.fitted_on =
+            Some(FittedRange { position: self.span, speed: self.peak_speed, acceleration: self.peak_acceleration });
         t
     }
 
@@ -290,11 +295,30 @@ pub struct EffectTerm {
     /// ε of the `tanh(q̇/ε)` direction in friction terms; `None` is `sign(q̇)`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub epsilon: Option<f64>,
+    /// The joint's motion in the data the term was fitted on; a controller evaluates the term
+    /// inside it (`None`: everywhere).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fitted_on: Option<FittedRange>,
     /// Names of the columns, in coefficient order.
     pub columns: Vec<String>,
     pub coefficients: Vec<f64>,
     /// Standard deviations of the coefficients (block sandwich).
     pub sigma: Vec<f64>,
+}
+
+/// The motion of a joint over the data a term was fitted on. A fit says nothing about motion
+/// it never saw: `q̇·|q̇|` fitted below 3 mm/s and evaluated at 9 mm/s is a guess nine times the
+/// size of anything the data checked. So a controller clamps the joint's sample into this range
+/// before it evaluates the term ([`EffectTerm::within_fitted`]), which bounds every term's torque
+/// by what its fit covered.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FittedRange {
+    /// Position (lo, hi) (rad or m).
+    pub position: (f64, f64),
+    /// Largest |velocity| (rad/s or m/s).
+    pub speed: f64,
+    /// Largest |acceleration| (rad/s² or m/s²).
+    pub acceleration: f64,
 }
 
 /// The state a term needs between samples: `z`, the hysteresis term's Dahl state or the
@@ -326,6 +350,7 @@ impl EffectTerm {
             span: None,
             transmission: None,
             epsilon: None,
+            fitted_on: None,
             columns: vec![],
             coefficients: vec![],
             sigma: vec![],
@@ -340,6 +365,26 @@ impl EffectTerm {
     /// Column names, for reports.
     pub fn column_names(&self) -> Vec<String> {
         self.kind.law().column_names()
+    }
+
+    /// The sign coefficient `i` must have for the term to be its physical effect (`None`:
+    /// either): the first coefficient ([`EffectKind::physical_sign`]), or every joint's for rotor
+    /// inertia on every joint.
+    pub fn coefficient_sign(&self, i: usize) -> Option<f64> {
+        let all = self.kind == EffectKind::Armature && self.joint.is_none();
+        (i == 0 || all).then(|| self.kind.physical_sign()).flatten()
+    }
+
+    /// `x` with its position, velocity and acceleration clamped into [`Self::fitted_on`].
+    pub fn within_fitted(&self, x: Sample) -> Sample {
+        let Some(r) = self.fitted_on else { return x };
+        let clamp = |v: f64, lo: f64, hi: f64| if lo <= hi { v.clamp(lo, hi) } else { v };
+        Sample {
+            q: clamp(x.q, r.position.0, r.position.1),
+            v: clamp(x.v, -r.speed, r.speed),
+            qdd: clamp(x.qdd, -r.acceleration, r.acceleration),
+            ..x
+        }
     }
 
     /// The direction of motion as the term's friction sees it: `tanh(v/ε)`, or `sign(v)`.

@@ -79,6 +79,20 @@ pub fn identify_consistent(
     tau: &[f64],
     options: &ConsistentOptions,
 ) -> Result<ConsistentFit, ConsistentError> {
+    identify_consistent_signed(model, w, tau, options, &[])
+}
+
+/// [`identify_consistent`] with the sign each extra column's coefficient must have
+/// (`extra_signs[j]` for column P + j; `None` or missing: free). A physical effect's sign is a
+/// constraint like a positive mass: a rotor inertia or a dissipative friction fitted negative is
+/// a model a controller cannot use (it feeds energy in).
+pub fn identify_consistent_signed(
+    model: &Model,
+    w: &Mat<f64>,
+    tau: &[f64],
+    options: &ConsistentOptions,
+    extra_signs: &[Option<f64>],
+) -> Result<ConsistentFit, ConsistentError> {
     let (standard, p) = (model.num_params(), w.ncols());
     if p < standard {
         return Err(ConsistentError::Shape { cols: w.ncols(), params: standard });
@@ -109,7 +123,7 @@ pub fn identify_consistent(
     }
     let p_mat = CscMatrix::new_from_triplets(p, p, p_triplets.0, p_triplets.1, p_triplets.2);
     let q: Vec<f64> = (0..p).map(|i| -2.0 * (wt_tau[(i, 0)] + reg(i) * cad[i]) / m).collect();
-    let (a_mat, b, cones) = constraints(model, p, options.stiffness_bounds);
+    let (a_mat, b, cones) = constraints(model, p, options.stiffness_bounds, extra_signs);
     let settings = DefaultSettingsBuilder::default().verbose(false).max_iter(200).build().expect("valid settings");
     // The semidefinite cones call BLAS and LAPACK, which `blas_lapack` provides; holding the
     // entry points here keeps them in the link whatever the linker's order.
@@ -134,12 +148,14 @@ pub fn identify_consistent(
     })
 }
 
-/// `A π + s = b`, `s ∈ K`: non-negative friction, stiffness bounds, then one 4×4 PSD cone per body.
-/// `p` counts the columns, extra ones (unconstrained) included.
+/// `A π + s = b`, `s ∈ K`: non-negative friction, stiffness bounds, the signs of the extra
+/// columns that have one, then one 4×4 PSD cone per body. `p` counts the columns, extra ones
+/// included.
 fn constraints(
     model: &Model,
     p: usize,
     (ke_lo, ke_hi): (f64, f64),
+    extra_signs: &[Option<f64>],
 ) -> (CscMatrix<f64>, Vec<f64>, Vec<SupportedConeT<f64>>) {
     let (mut rows, mut cols, mut vals, mut b) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut push = |row: usize, col: usize, val: f64, rows: &mut Vec<usize>, cols: &mut Vec<usize>| {
@@ -163,6 +179,14 @@ fn constraints(
         if ke_hi.is_finite() {
             push(row, i, 1.0, &mut rows, &mut cols);
             b.push(ke_hi);
+            row += 1;
+        }
+    }
+    let standard = model.num_params();
+    for (j, sign) in extra_signs.iter().enumerate().take(p.saturating_sub(standard)) {
+        if let Some(sign) = sign {
+            push(row, standard + j, -sign, &mut rows, &mut cols);
+            b.push(0.0);
             row += 1;
         }
     }
