@@ -13,7 +13,7 @@ use super::options::{DiagnoseError, DiagnoseOptions};
 use super::outcome::{declared_model, series};
 use super::problem::{error_summary, model_columns, Candidate, HeldOut, HeldOutBase, Problem};
 use super::regression::{self, gram, least_squares, residual, rhs, test_group, Column, GroupTest, Rows, Untested};
-use crate::effects::EffectKind;
+use crate::effects::{EffectKind, EffectTerm};
 use crate::identify::{Declared, Log};
 use crate::model::JointKind;
 use crate::model_file::ModelFile;
@@ -258,19 +258,9 @@ impl Search<'_> {
         let mut chosen = state.chosen.clone();
         chosen.push(candidate);
         let x = least_squares(&model_columns(problem, pool, &chosen), &problem.y, problem.dof, Rows::All)?;
-        let mut offset = problem.free_columns().count();
-        for &i in &chosen {
-            let term = &pool[i].term;
-            let width = pool[i].columns.len();
-            let all_joints = term.kind == EffectKind::Armature && term.joint.is_none();
-            if let (false, Some(sign)) = (all_joints, term.coefficient_sign(0)) {
-                if x[offset] * sign < 0.0 {
-                    return Some((term.describe(&self.ctx.model.joint_names()), x[offset]));
-                }
-            }
-            offset += width;
-        }
-        None
+        let terms = chosen.iter().map(|&i| (&pool[i].term, pool[i].columns.len()));
+        let (term, coefficient) = first_flipped(terms, &x, problem.free_columns().count())?;
+        Some((term.describe(&self.ctx.model.joint_names()), coefficient))
     }
 
     /// Candidates that passed too but that the winner explains: its aliases, rejected as such.
@@ -427,15 +417,61 @@ fn most_useful(passing: &[Passed], width: impl Fn(usize) -> usize) -> Option<usi
     })
 }
 
+/// The first of `terms` (each with its number of columns, in the order of the fit `x`, whose
+/// first `offset` coefficients are the model's) whose first coefficient has the sign its effect
+/// cannot have, with that coefficient. Rotor inertia on every joint is left to its own test.
+fn first_flipped<'t>(
+    terms: impl IntoIterator<Item = (&'t EffectTerm, usize)>,
+    x: &[f64],
+    mut offset: usize,
+) -> Option<(&'t EffectTerm, f64)> {
+    for (term, width) in terms {
+        let all_joints = term.kind == EffectKind::Armature && term.joint.is_none();
+        if let (false, Some(sign)) = (all_joints, term.coefficient_sign(0)) {
+            if x[offset] * sign < 0.0 {
+                return Some((term, x[offset]));
+            }
+        }
+        offset += width;
+    }
+    None
+}
+
 /// The coefficient that gives `term` a sign its effect cannot have, if any: the first (a mass, a
 /// friction), or for rotor inertia on every joint any joint's that is negative beyond two σ (one
 /// joint's may be nil, none may be clearly negative).
-fn wrong_sign(term: &crate::effects::EffectTerm, t: &GroupTest) -> Option<f64> {
+fn wrong_sign(term: &EffectTerm, t: &GroupTest) -> Option<f64> {
     let sign = term.kind.physical_sign()?;
     match (term.kind, term.joint) {
         (EffectKind::Armature, None) => {
             t.coefficients.iter().zip(&t.sigma).find(|(c, s)| **c * sign < -2.0 * **s).map(|(c, _)| *c)
         }
         _ => (t.coefficients[0] * sign < 0.0).then_some(t.coefficients[0]),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The coefficients of a fit sit after the model's, each term's after the one before; the
+    /// sign is judged on each term's first, and a payload's other columns (its first moments)
+    /// may have either sign.
+    #[test]
+    fn the_flipped_effect_is_found_at_its_own_offset() {
+        let term = |kind, joint| EffectTerm::new(kind, joint);
+        let offset = term(EffectKind::Offset, Some(0));
+        let stribeck = term(EffectKind::Stribeck, Some(2));
+        let payload = term(EffectKind::Payload, None);
+        let armature = term(EffectKind::Armature, None);
+        let terms = [(&offset, 1), (&payload, 4), (&armature, 3), (&stribeck, 1)];
+        // Two model columns, then offset (any sign), payload m, m·c (any sign), armature, Stribeck.
+        let mut x = vec![-9.0, -9.0, -1.0, 0.2, -1.0, -1.0, -1.0, -0.1, -0.1, -0.1, 0.3];
+        assert!(first_flipped(terms, &x, 2).is_none());
+        x[10] = -0.3;
+        let (flipped, c) = first_flipped(terms, &x, 2).unwrap();
+        assert_eq!((flipped.kind, c), (EffectKind::Stribeck, -0.3));
+        x[3] = -0.2;
+        assert_eq!(first_flipped(terms, &x, 2).unwrap().0.kind, EffectKind::Payload);
     }
 }
