@@ -132,6 +132,45 @@ mod tests {
         assert!((torque(&term, -0.02) + 40.0 * 0.01 * 0.01).abs() < 1e-15, "outside: held at the edge");
     }
 
+    /// A model whose effect feeds energy in, or holds a non-number, builds no controller, and
+    /// the error names the term; a bound's round-off zero and a rotor inertia nil within its σ
+    /// are accepted.
+    #[test]
+    fn a_controller_refuses_an_effect_with_the_wrong_sign_or_no_value() {
+        use crate::control::gains::PaperUnits;
+        use crate::control::{controller_with_effects, ControllerError, ControllerKind, RobustGains};
+        let model = crate::arash_asist();
+        let gains = RobustGains::from_paper(&model, PaperUnits::Si).unwrap();
+        let build = |term: &EffectTerm| {
+            controller_with_effects(
+                ControllerKind::Robust,
+                &model,
+                &model.cad_parameters(),
+                std::slice::from_ref(term),
+                Some(&gains),
+            )
+        };
+        let mut friction = EffectTerm::new(EffectKind::ViscousNonlinear, Some(2));
+        friction.coefficients = vec![-8.79e3];
+        let Err(error) = build(&friction) else { panic!("a negative q̇·|q̇| friction was accepted") };
+        assert!(matches!(error, ControllerError::UnphysicalEffect { .. }), "{error}");
+        assert!(error.to_string().contains("viscous_nonlinear on insertion"), "{error}");
+        friction.coefficients = vec![-1e-15];
+        assert!(build(&friction).is_ok(), "a refit's round-off zero must pass");
+        let mut offset = EffectTerm::new(EffectKind::Offset, Some(0));
+        offset.coefficients = vec![f64::NAN];
+        let Err(error) = build(&offset) else { panic!("a NaN offset was accepted") };
+        assert!(error.to_string().contains("not a number"), "{error}");
+        offset.coefficients = vec![-0.3];
+        assert!(build(&offset).is_ok(), "an offset may have either sign");
+        let mut armature = EffectTerm::new(EffectKind::Armature, None);
+        armature.coefficients = vec![1e-4, -1e-6, 2e-4];
+        armature.sigma = vec![1e-5, 1e-6, 1e-5];
+        assert!(build(&armature).is_ok(), "one joint's rotor inertia nil within 2σ");
+        armature.coefficients[1] = -3e-6;
+        assert!(build(&armature).is_err(), "clearly negative rotor inertia");
+    }
+
     /// A drive's gain g scales the whole command on its joint, the other effects' torque too:
     /// measured (and delivered) torque is (1 + g) times what was asked of the drive.
     #[test]

@@ -54,7 +54,7 @@ pub trait Controller: Send {
 }
 
 /// Why no controller could be built.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum ControllerError {
     #[error("controller kind `none` commands no torque; choose pd, idc or robust")]
     NoController,
@@ -64,6 +64,12 @@ pub enum ControllerError {
          own gains from the robot's mass matrix"
     )]
     NoGains { kind: ControllerKind, robot: String, dof: usize },
+    #[error(
+        "the model's effect {label} has coefficient {index} = {value:e}, which {why}: a controller that \
+         compensates it would feed energy in or command a non-number. Refit it (arash diagnose --consistent \
+         keeps each effect's physical sign) or remove it from the model file"
+    )]
+    UnphysicalEffect { label: String, index: usize, value: f64, why: &'static str },
 }
 
 /// The controllers with their standard gains for `model` with parameter vector `params`:
@@ -83,7 +89,8 @@ pub fn standard_controller(
 }
 
 /// [`standard_controller`], with the model-based laws also compensating `effects` found by a
-/// diagnosis ([`EffectFeedforward`]; PD with gravity compensation ignores them).
+/// diagnosis ([`EffectFeedforward`]; PD with gravity compensation ignores them). An effect whose
+/// coefficient is not finite or has the sign its effect cannot have is refused, by name.
 pub fn controller_with_effects(
     kind: ControllerKind,
     model: &crate::Model,
@@ -94,6 +101,9 @@ pub fn controller_with_effects(
     let q_home: Vec<f64> = model.joints.iter().map(|j| 0.5 * (j.lower + j.upper)).collect();
     let q_home: Vec<f64> = q_home.into_iter().map(|q| if q.is_finite() { q } else { 0.0 }).collect();
     let gains = || robust.ok_or_else(|| ControllerError::NoGains { kind, robot: model.name.clone(), dof: model.dof() });
+    if kind != ControllerKind::Pd {
+        check_effects(model, effects)?;
+    }
     Ok(match kind {
         ControllerKind::None => return Err(ControllerError::NoController),
         ControllerKind::Pd => {
@@ -107,4 +117,17 @@ pub fn controller_with_effects(
             Box::new(RobustController::new(model, params, gains()?.clone()).with_effects(effects))
         }
     })
+}
+
+/// Refuse the first effect a controller must not compensate
+/// ([`crate::effects::EffectTerm::unphysical_coefficient`]).
+fn check_effects(model: &crate::Model, effects: &[crate::effects::EffectTerm]) -> Result<(), ControllerError> {
+    let names = model.joint_names();
+    for term in effects.iter().filter(|t| t.kind.at_run_time()) {
+        if let Some((index, value)) = term.unphysical_coefficient() {
+            let why = if value.is_finite() { "has the sign this effect cannot have" } else { "is not a number" };
+            return Err(ControllerError::UnphysicalEffect { label: term.describe(&names), index, value, why });
+        }
+    }
+    Ok(())
 }

@@ -306,6 +306,11 @@ pub struct EffectTerm {
     pub sigma: Vec<f64>,
 }
 
+/// How far below zero (in the coefficient's SI unit) a coefficient bound to be non-negative may
+/// sit and still be read as zero: far below any effect's size on a robot (10⁻⁹ kg·m² of rotor
+/// inertia, 10⁻⁹ N·m of Stribeck excess), far above a solver's round-off.
+pub const SIGN_ROUND_OFF: f64 = 1e-9;
+
 /// The motion of a joint over the data a term was fitted on. A fit says nothing about motion
 /// it never saw: `q̇·|q̇|` fitted below 3 mm/s and evaluated at 9 mm/s is a guess nine times the
 /// size of anything the data checked. So a controller clamps the joint's sample into this range
@@ -373,6 +378,18 @@ impl EffectTerm {
     pub fn coefficient_sign(&self, i: usize) -> Option<f64> {
         let all = self.kind == EffectKind::Armature && self.joint.is_none();
         (i == 0 || all).then(|| self.kind.physical_sign()).flatten()
+    }
+
+    /// The first coefficient (index, value) a controller must not use: one that is not finite,
+    /// or has the sign its effect cannot have ([`Self::coefficient_sign`]) by more than two of
+    /// its σ, or by more than [`SIGN_ROUND_OFF`] where it has no σ (a consistent refit's,
+    /// whose solver may leave a bound's zero at −10⁻¹⁵).
+    pub fn unphysical_coefficient(&self) -> Option<(usize, f64)> {
+        self.coefficients.iter().enumerate().find_map(|(i, &c)| {
+            let slack = self.sigma.get(i).filter(|s| **s > 0.0).map_or(SIGN_ROUND_OFF, |s| 2.0 * s);
+            let wrong = self.coefficient_sign(i).is_some_and(|sign| c * sign < -slack);
+            (!c.is_finite() || wrong).then_some((i, c))
+        })
     }
 
     /// `x` with its position, velocity and acceleration clamped into [`Self::fitted_on`].
