@@ -268,15 +268,22 @@ fn data_that_does_not_move_a_joint_is_refused_naming_the_parameters() {
     assert!(text.contains("insertion"), "the message should name the insertion parameters: {text}");
 }
 
+/// Two noisy periods of a drawn truth's log, averaged and decimated by 5: the model, its base
+/// parameters, the true parameters and the preprocessed data the consistent fits are checked on.
+fn two_periods_preprocessed(seed: u64) -> (Model, BaseParameters, Vec<f64>, Preprocessed) {
+    let (model, base, pi, traj, mut rng) = drawn_truth(seed);
+    let (t, q, tau) = simulated_log(&model, &pi, &traj, 2, &mut rng);
+    let pre = preprocess(&t, &q, &tau, 3, &PreprocessOptions { periods: Some(2), decimate: 5, ..Default::default() })
+        .unwrap();
+    (model, base, pi, pre)
+}
+
 #[test]
 fn consistent_identification_is_physical_and_fits_like_ols() {
     use arash_core::identify::consistent::{identify_consistent, ConsistentOptions};
     use arash_core::identify::estimate::{joint_metrics, stack_full};
     use arash_core::physical::min_pseudo_inertia_eigenvalues;
-    let (model, base, pi, traj, mut rng) = drawn_truth(24);
-    let (t, q, tau) = simulated_log(&model, &pi, &traj, 2, &mut rng);
-    let pre = preprocess(&t, &q, &tau, 3, &PreprocessOptions { periods: Some(2), decimate: 5, ..Default::default() })
-        .unwrap();
+    let (model, base, pi, pre) = two_periods_preprocessed(24);
     let ols = fit(&model, &base, &pre, Method::Ols).unwrap();
     let (w, tau_f) = stack_full(&model, &pre);
     let consistent = identify_consistent(&model, &w, &tau_f, &ConsistentOptions::default()).unwrap();
@@ -305,10 +312,7 @@ fn consistent_identification_is_physical_and_fits_like_ols() {
 fn a_signed_extra_column_keeps_its_sign_in_the_consistent_fit() {
     use arash_core::identify::consistent::{identify_consistent_signed, ConsistentOptions};
     use arash_core::identify::estimate::stack_full;
-    let (model, _, pi, traj, mut rng) = drawn_truth(25);
-    let (t, q, tau) = simulated_log(&model, &pi, &traj, 2, &mut rng);
-    let pre = preprocess(&t, &q, &tau, 3, &PreprocessOptions { periods: Some(2), decimate: 5, ..Default::default() })
-        .unwrap();
+    let (model, _, _, pre) = two_periods_preprocessed(25);
     let (w, tau_f) = stack_full(&model, &pre);
     let p = w.ncols();
     // A q̇·|q̇| column on the insertion rows, and a torque with −0.5 of it: energy fed in.

@@ -104,8 +104,8 @@ impl Search<'_> {
         let dof = self.problem.dof;
         let base_cols = model_columns(self.problem, self.pool, &state.chosen);
         let base_gram = gram(&base_cols, dof, Rows::All);
-        let coef = regression::solve_scaled(&base_gram, &rhs(&base_cols, &self.problem.y, dof, Rows::All))
-            .ok_or(DiagnoseError::Singular)?;
+        let base_rhs = rhs(&base_cols, &self.problem.y, dof, Rows::All);
+        let coef = regression::solve_scaled(&base_gram, &base_rhs).ok_or(DiagnoseError::Singular)?;
         let coef: Vec<f64> = coef.iter().copied().collect();
         let e0 = residual(&base_cols, &coef, &self.problem.y, dof);
         let tested = self.test_open(&base_cols, &base_gram, &e0, state);
@@ -119,7 +119,7 @@ impl Search<'_> {
                 return Ok(false);
             };
             let (i, t) = &tested[passing[best].test];
-            match self.flipped_by(*i, state) {
+            match self.flipped_by(*i, state, (&base_cols, &base_gram, &base_rhs)) {
                 None => break passing.swap_remove(best),
                 Some((label, coefficient)) => {
                     let reason = RejectionReason::FlipsSign { p_value: t.p_value, label, coefficient };
@@ -252,13 +252,19 @@ impl Search<'_> {
     /// coefficient. Each effect was tested with the sign right against the model of its round; a
     /// later one that flips it means the two share some other error between them, and neither
     /// can be reported as what it claims. Rotor inertia on every joint is left to its own test,
-    /// which allows a nil joint within its σ.
-    fn flipped_by(&self, candidate: usize, state: &State) -> Option<(String, f64)> {
+    /// which allows a nil joint within its σ. `base` is the round's model (its columns, Gram
+    /// matrix and `Xᵀy`), to which the candidate's columns are added.
+    fn flipped_by(
+        &self,
+        candidate: usize,
+        state: &State,
+        (cols, gram, rhs): (&[&Column], &nalgebra::DMatrix<f64>, &nalgebra::DVector<f64>),
+    ) -> Option<(String, f64)> {
         let (problem, pool) = (self.problem, self.pool);
-        let mut chosen = state.chosen.clone();
-        chosen.push(candidate);
-        let x = least_squares(&model_columns(problem, pool, &chosen), &problem.y, problem.dof, Rows::All)?;
-        let terms = chosen.iter().map(|&i| (&pool[i].term, pool[i].columns.len()));
+        let group: Vec<&Column> = pool[candidate].columns.iter().collect();
+        let x = regression::fit_augmented(cols, gram, rhs, &group, &problem.y, problem.dof, Rows::All)?;
+        let chosen = state.chosen.iter().chain([&candidate]);
+        let terms = chosen.map(|&i| (&pool[i].term, pool[i].columns.len()));
         let (term, coefficient) = first_flipped(terms, &x, problem.free_columns().count())?;
         Some((term.describe(&self.ctx.model.joint_names()), coefficient))
     }
@@ -426,11 +432,8 @@ fn first_flipped<'t>(
     mut offset: usize,
 ) -> Option<(&'t EffectTerm, f64)> {
     for (term, width) in terms {
-        let all_joints = term.kind == EffectKind::Armature && term.joint.is_none();
-        if let (false, Some(sign)) = (all_joints, term.coefficient_sign(0)) {
-            if x[offset] * sign < 0.0 {
-                return Some((term, x[offset]));
-            }
+        if !term.is_armature_on_every_joint() && term.wrong_sign_at(0, x[offset], 0.0) {
+            return Some((term, x[offset]));
         }
         offset += width;
     }
@@ -441,13 +444,11 @@ fn first_flipped<'t>(
 /// friction), or for rotor inertia on every joint any joint's that is negative beyond two σ (one
 /// joint's may be nil, none may be clearly negative).
 fn wrong_sign(term: &EffectTerm, t: &GroupTest) -> Option<f64> {
-    let sign = term.kind.physical_sign()?;
-    match (term.kind, term.joint) {
-        (EffectKind::Armature, None) => {
-            t.coefficients.iter().zip(&t.sigma).find(|(c, s)| **c * sign < -2.0 * **s).map(|(c, _)| *c)
-        }
-        _ => (t.coefficients[0] * sign < 0.0).then_some(t.coefficients[0]),
-    }
+    let slack = |i: usize| match term.is_armature_on_every_joint() {
+        true => t.sigma.get(i).map_or(f64::INFINITY, |s| 2.0 * s),
+        false => 0.0,
+    };
+    t.coefficients.iter().enumerate().find(|&(i, &c)| term.wrong_sign_at(i, c, slack(i))).map(|(_, &c)| c)
 }
 
 #[cfg(test)]

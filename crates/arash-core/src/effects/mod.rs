@@ -372,23 +372,34 @@ impl EffectTerm {
         self.kind.law().column_names()
     }
 
+    /// Rotor inertia fitted on every joint at once: one coefficient per joint, each with the
+    /// physical sign, and one of which may be nil.
+    pub fn is_armature_on_every_joint(&self) -> bool {
+        self.kind == EffectKind::Armature && self.joint.is_none()
+    }
+
     /// The sign coefficient `i` must have for the term to be its physical effect (`None`:
     /// either): the first coefficient ([`EffectKind::physical_sign`]), or every joint's for rotor
     /// inertia on every joint.
     pub fn coefficient_sign(&self, i: usize) -> Option<f64> {
-        let all = self.kind == EffectKind::Armature && self.joint.is_none();
-        (i == 0 || all).then(|| self.kind.physical_sign()).flatten()
+        (i == 0 || self.is_armature_on_every_joint()).then(|| self.kind.physical_sign()).flatten()
+    }
+
+    /// Whether `c`, as coefficient `i` of this term (from any fit), has the sign its effect cannot
+    /// have ([`Self::coefficient_sign`]) by more than `slack`. The one sign rule of the diagnosis's
+    /// checks, the consistent refit's constraints and the controllers' refusal.
+    pub fn wrong_sign_at(&self, i: usize, c: f64, slack: f64) -> bool {
+        self.coefficient_sign(i).is_some_and(|sign| c * sign < -slack)
     }
 
     /// The first coefficient (index, value) a controller must not use: one that is not finite,
-    /// or has the sign its effect cannot have ([`Self::coefficient_sign`]) by more than two of
-    /// its σ, or by more than [`SIGN_ROUND_OFF`] where it has no σ (a consistent refit's,
-    /// whose solver may leave a bound's zero at −10⁻¹⁵).
+    /// or has the sign its effect cannot have by more than two of its σ, or by more than
+    /// [`SIGN_ROUND_OFF`] where it has no σ (a consistent refit's, whose solver may leave a
+    /// bound's zero at −10⁻¹⁵).
     pub fn unphysical_coefficient(&self) -> Option<(usize, f64)> {
         self.coefficients.iter().enumerate().find_map(|(i, &c)| {
             let slack = self.sigma.get(i).filter(|s| **s > 0.0).map_or(SIGN_ROUND_OFF, |s| 2.0 * s);
-            let wrong = self.coefficient_sign(i).is_some_and(|sign| c * sign < -slack);
-            (!c.is_finite() || wrong).then_some((i, c))
+            (!c.is_finite() || self.wrong_sign_at(i, c, slack)).then_some((i, c))
         })
     }
 
