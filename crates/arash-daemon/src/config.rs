@@ -48,6 +48,10 @@ pub struct LinkConfig {
     pub timeout_ms: f64,
     /// Torque ramp to zero after a link timeout (ms).
     pub ramp_ms: f64,
+    /// Cycles without telemetry repeat the last command for this long (ms); after it, until
+    /// telemetry returns or the link times out, they command the control law at the reference
+    /// (its feed-forward). See `rt::cycle`, "stale telemetry".
+    pub hold_ms: f64,
     /// The first valid telemetry must arrive within this time of start-up (ms).
     pub startup_timeout_ms: f64,
 }
@@ -61,6 +65,7 @@ impl Default for LinkConfig {
             interface: "can0".into(),
             timeout_ms: 20.0,
             ramp_ms: 10.0,
+            hold_ms: 3.0,
             startup_timeout_ms: 2000.0,
         }
     }
@@ -183,6 +188,9 @@ impl DaemonConfig {
         };
         positive("link.timeout_ms", self.link.timeout_ms)?;
         positive("link.ramp_ms", self.link.ramp_ms)?;
+        if !(self.link.hold_ms.is_finite() && (0.0..self.link.timeout_ms).contains(&self.link.hold_ms)) {
+            return Err(ConfigError::Hold { hold: self.link.hold_ms, timeout: self.link.timeout_ms });
+        }
         positive("link.startup_timeout_ms", self.link.startup_timeout_ms)?;
         positive("control.rate_hz", self.control.rate_hz)?;
         positive("control.velocity_cutoff_hz", self.control.velocity_cutoff_hz)?;
@@ -213,10 +221,11 @@ impl DaemonConfig {
         Ok(controller_kind(&self.control.controller)?)
     }
 
-    /// Cycles of the link timeout and of the ramp.
-    pub fn link_cycles(&self) -> (u32, u32) {
+    /// Cycles of the link timeout, of the ramp and of the hold.
+    pub fn link_cycles(&self) -> (u32, u32, u32) {
         let cycles = |ms: f64| (ms * self.control.rate_hz / 1000.0).round().max(1.0) as u32;
-        (cycles(self.link.timeout_ms), cycles(self.link.ramp_ms))
+        let hold = (self.link.hold_ms * self.control.rate_hz / 1000.0).round() as u32;
+        (cycles(self.link.timeout_ms), cycles(self.link.ramp_ms), hold)
     }
 
     pub fn safety_limits(&self, model: &Model) -> Result<SafetyLimits, ConfigError> {
@@ -240,13 +249,14 @@ impl DaemonConfig {
 
     /// What the control cycle runs with.
     pub fn cycle_config(&self, model: &Model) -> Result<crate::rt::cycle::CycleConfig, ConfigError> {
-        let (link_timeout, ramp) = self.link_cycles();
+        let (link_timeout, ramp, hold) = self.link_cycles();
         Ok(crate::rt::cycle::CycleConfig {
             dt: 1.0 / self.control.rate_hz,
             drive: self.drive.clone(),
             limits: self.safety_limits(model)?,
             link_timeout,
             ramp,
+            hold,
             following_error: self.following_error(model)?,
             mismatch_fraction: self.safety.mismatch_fraction.unwrap_or(0.25),
             mismatch_cycles: self.safety.mismatch_cycles.unwrap_or(50),
@@ -284,6 +294,8 @@ pub enum ConfigError {
     Toml(String, #[source] toml::de::Error),
     #[error("{key} must be positive and finite, not {value}")]
     NotPositive { key: &'static str, value: f64 },
+    #[error("link.hold_ms must be at least 0 and shorter than link.timeout_ms = {timeout}, not {hold}")]
+    Hold { hold: f64, timeout: f64 },
     #[error("log.queue must be at least 16 cycles, not {0}")]
     Queue(usize),
     #[error("link.timeout_ms = {0} is shorter than one control period")]
@@ -323,6 +335,10 @@ mod tests {
         let model = arash_core::arash_asist();
         let c = DaemonConfig::parse("[link]\ntimeout_ms = -1\n").unwrap();
         assert!(c.validate(&model).unwrap_err().to_string().contains("link.timeout_ms"));
+        for hold in ["-1", "20"] {
+            let c = DaemonConfig::parse(&format!("[link]\nhold_ms = {hold}\n")).unwrap();
+            assert!(c.validate(&model).unwrap_err().to_string().contains("link.hold_ms"), "{hold}");
+        }
         let c = DaemonConfig::parse("[drive]\ntorque_constant = [1.0, 2.0]\n").unwrap();
         assert!(c.validate(&model).unwrap_err().to_string().contains("drive.torque_constant"));
         let c = DaemonConfig::parse("[control]\ncontroller = \"lqr\"\n").unwrap();
@@ -346,6 +362,6 @@ mod tests {
         let model = arash_core::arash_asist();
         let c = DaemonConfig::default();
         c.validate(&model).unwrap();
-        assert_eq!(c.link_cycles(), (20, 10));
+        assert_eq!(c.link_cycles(), (20, 10, 3));
     }
 }

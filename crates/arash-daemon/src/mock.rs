@@ -171,7 +171,7 @@ impl MockMotor {
         let mut endpoint = Endpoint::new(port);
         let mut inbox: Vec<Result<Message, FrameError>> = Vec::with_capacity(64);
         while !stop.load(std::sync::atomic::Ordering::Relaxed) {
-            wait_readable(fd, 10);
+            wait_readable(fd, 1);
             inbox.clear();
             endpoint.receive(|m| inbox.push(m))?;
             for m in inbox.drain(..) {

@@ -5,8 +5,10 @@ use std::sync::atomic::AtomicBool;
 
 use anyhow::Context;
 use arash_core::sim::Scenario;
+use arash_daemon::config::RtConfig;
 use arash_daemon::drive_config::DriveConfig;
 use arash_daemon::mock::{FaultPlan, MockMotor};
+use arash_daemon::rt::clock::{setup_realtime, RtPolicy};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -33,6 +35,10 @@ pub struct Args {
     /// separated), as a drive left powered by a crashed host would.
     #[arg(long, value_delimiter = ',', num_args = 1..)]
     powered: Option<Vec<f64>>,
+    /// Real-time set-up of the serving thread (SCHED_FIFO at the daemon's default priority, and
+    /// mlockall): `ignore` tries it and serves without if refused; `require` refuses to start.
+    #[arg(long, value_enum, default_value_t = RtPolicy::Ignore)]
+    rt: RtPolicy,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -66,9 +72,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let _ = std::fs::remove_file(link);
         std::os::unix::fs::symlink(&path, link).with_context(|| format!("linking {}", link.display()))?;
     }
+    // A drive does not stall. Served at ordinary priority on a loaded host, the mock can answer
+    // several frames late, and the plant then runs open-loop on held commands: a rig fault the
+    // real drive would not have (docs/daemon.md, "The mock motor").
+    let priority = RtConfig::default().priority;
+    let rt = setup_realtime(priority, args.rt).map_err(anyhow::Error::msg)?;
     // The slave stays open here so the master never sees a hang-up between daemon runs.
     println!("{path}");
-    eprintln!("arash mock-motor: serving {path} (scenario seed {}); Ctrl-C to stop", scenario.seed);
+    let scheduling = if rt.problems.is_empty() {
+        format!("SCHED_FIFO priority {priority}, memory locked")
+    } else {
+        format!("without full real-time set-up: {}", rt.problems.join("; "))
+    };
+    eprintln!("arash mock-motor: serving {path} (scenario seed {}, {scheduling}); Ctrl-C to stop", scenario.seed);
     let stop = AtomicBool::new(false);
     let served = motor.serve(master, &stop);
     drop(slave);

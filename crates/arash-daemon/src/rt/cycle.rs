@@ -3,9 +3,14 @@
 //! the motor currents. Never allocates.
 //!
 //! Safety rules beyond [`SafetyGate`] (each has a test at its boundary in `tests/safety.rs`):
-//! - **link timeout:** a cycle without new valid telemetry re-sends the last command; the
-//!   `link_timeout`-th such cycle in a row latches `LINK_TIMEOUT` and ramps the torque to zero
-//!   over `ramp` cycles, then disables the drive;
+//! - **stale telemetry:** a cycle without new valid telemetry repeats the last command for up to
+//!   `hold` cycles; later ones command the control law at the reference (q = q_d, q̇ = q̇_d): its
+//!   feed-forward, without feedback. Feedback held on an ever older state is a sampled loop with
+//!   a long hold: telemetry every 10th cycle (seen on a loaded host behind a pseudo-terminal) made
+//!   the paper's insertion loop, near 150 rad/s, swing until the velocity limit latched. Without
+//!   any feedback the arm drifts, so a short gap keeps it (`tests/safety.rs` measures both);
+//! - **link timeout:** the `link_timeout`-th cycle without telemetry in a row latches
+//!   `LINK_TIMEOUT` and ramps the torque to zero over `ramp` cycles, then disables the drive;
 //! - **disabled means commanded off:** while the host is not enabled, every frame it sends is
 //!   DISABLE (zero current, power stage off), from the first cycle on. A drive left powered by a
 //!   crashed daemon, or one that reports power on at start-up, is switched off at once; one that
@@ -43,6 +48,9 @@ pub struct CycleConfig {
     pub link_timeout: u32,
     /// Cycles over which the torque ramps to zero after a link timeout.
     pub ramp: u32,
+    /// Cycles without telemetry that repeat the last command; later ones command the law at the
+    /// reference.
+    pub hold: u32,
     /// Per-joint following-error limit (rad or m).
     pub following_error: Vec<f64>,
     /// Current mismatch threshold, as a fraction of the torque limit.
@@ -304,9 +312,16 @@ impl ControlCycle {
             Some(PhaseChange::RunEnded(id)) => self.event(Event::RunEnded(id)),
             None => {}
         }
+        let blind = self.blind();
         let r = &mut self.record;
         let desired = Desired { q: &r.q_des, qd: &r.qd_des, qdd: &r.qdd_des };
-        self.controller.step(self.cfg.dt, &r.q, &r.qd, &desired, &mut r.tau_cmd);
+        // Past the hold, the law is evaluated at the reference: its feed-forward, with no feedback
+        // on a measurement that is getting old (see the module's "stale telemetry").
+        let (q, qd) = match blind {
+            false => (&r.q, &r.qd),
+            true => (&r.q_des, &r.qd_des),
+        };
+        self.controller.step(self.cfg.dt, q, qd, &desired, &mut r.tau_cmd);
         if self.mode == Mode::Enabled {
             self.check_link();
             self.check_following();
@@ -404,6 +419,11 @@ impl ControlCycle {
         }
     }
 
+    /// Telemetry has been missing for longer than the last command may be held.
+    fn blind(&self) -> bool {
+        self.missing > self.cfg.hold
+    }
+
     fn check_link(&mut self) {
         if self.missing >= self.cfg.link_timeout {
             self.gate.latch(Faults::LINK_TIMEOUT);
@@ -447,7 +467,7 @@ impl ControlCycle {
 
     /// The frame for this cycle.
     fn command(&mut self) -> Command {
-        let n = self.dof;
+        let (n, blind) = (self.dof, self.blind());
         let mut amps = [0f32; MAX_JOINTS];
         let mut currents = |tau: &[f64]| {
             for k in 0..n {
@@ -462,7 +482,7 @@ impl ControlCycle {
                     self.gate.clear();
                     return Command::Enable;
                 }
-                if self.missing == 0 {
+                if self.missing == 0 || blind {
                     self.last_sent[..n].copy_from_slice(&self.tau_out);
                 }
                 currents(&self.last_sent[..n])

@@ -72,7 +72,7 @@ impl Rig {
                     .arg("mock-motor")
                     .arg("--scenario")
                     .arg(scenario)
-                    .args(["--seed", &seed.to_string()])
+                    .args(["--seed", &seed.to_string(), "--rt", rt])
                     .stdout(Stdio::piped())
                     .stderr(log)
                     .process_group(0)
