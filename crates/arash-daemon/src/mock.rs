@@ -171,6 +171,8 @@ impl MockMotor {
         let mut endpoint = Endpoint::new(port);
         let mut inbox: Vec<Result<Message, FrameError>> = Vec::with_capacity(64);
         while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+            // A wake-up on a pty's bytes can come late on a loaded host; with a 10 ms timeout
+            // the daemon saw stale stretches of up to 9 cycles (docs/demo.md).
             wait_readable(fd, 1);
             inbox.clear();
             endpoint.receive(|m| inbox.push(m))?;
