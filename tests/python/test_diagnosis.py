@@ -1,6 +1,7 @@
 """arash.diagnose: the Python contract on the simulated rig, and the measured KUKA LWR4+ data."""
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -115,6 +116,29 @@ def test_bad_inputs_are_named():
         arash.diagnose(robot, t, np.zeros((1000, 3)), np.zeros((1000, 3)), effects=["gremlins"])
     with pytest.raises(ValueError, match="transmission"):
         arash.diagnose(robot, t, np.zeros((1000, 3)), np.zeros((1000, 3)), transmission=[1.0])
+
+
+def test_a_log_or_model_that_does_not_fit_the_robot_is_named():
+    robot = arash.Robot.arash_asist()
+    t = np.arange(12_000) * 1e-3
+    w = 2 * np.pi * np.array([0.5, 0.3, 0.4])
+    q = np.array([0.3, 0.2, 0.01]) * np.sin(np.outer(t, w))
+    qd = np.array([0.3, 0.2, 0.01]) * w * np.cos(np.outer(t, w))
+    qdd = -np.array([0.3, 0.2, 0.01]) * w**2 * np.sin(np.outer(t, w))
+    tau = robot.inverse_dynamics(q, qd, qdd)
+    # A validation log of another robot's two joints.
+    with pytest.raises(ValueError, match=r"validation log: q must have shape \(N, 3\), got \[12000, 2\]"):
+        arash.diagnose(robot, t, q, tau, validation=(t, q[:, :2], tau[:, :2]))
+    # A model identified on another robot with as many joints: its parameters are not these.
+    other = arash.Robot.from_urdf(ROOT / "tests/fixtures/serial_3dof.urdf")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        model = arash.identify(other, t, q, other.inverse_dynamics(q, qd, qdd))
+    with pytest.raises(ValueError, match="identified for robot"):
+        arash.diagnose(robot, t, q, tau, model=model)
+    # Shorter than one back-and-forth of any joint: no test could be run on it.
+    with pytest.raises(ValueError, match="no cycle of any joint's motion"):
+        arash.diagnose(robot, t[:1500], q[:1500], tau[:1500])
 
 
 def kuka_run(i):

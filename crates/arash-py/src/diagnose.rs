@@ -13,7 +13,7 @@ use arash_core::identify::consistent::ConsistentOptions;
 use arash_core::identify::{Declared, Log};
 use arash_core::model_file::{Metrics, ModelFile};
 use numpy::PyReadonlyArrayDyn;
-use pyo3::exceptions::PyTypeError;
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -404,7 +404,11 @@ fn _diagnose<'py>(
 ) -> PyResult<Diagnosis> {
     let dof = robot.model.dof();
     let (t, q, tau) = log_arrays(&log.0, &log.1, &log.2, dof)?;
-    let held = validation.as_ref().map(|(vt, vq, vtau)| log_arrays(vt, vq, vtau, dof)).transpose()?;
+    let held = validation
+        .as_ref()
+        .map(|(vt, vq, vtau)| log_arrays(vt, vq, vtau, dof))
+        .transpose()
+        .map_err(|e| PyValueError::new_err(format!("validation log: {}", e.value(py))))?;
     options.inner.validate(dof).map_err(value_error)?;
     let base = match model {
         Some(m) => robot.base_of(&m.inner().base_independent)?,
