@@ -257,7 +257,8 @@ def make_log(condition, states=None, truth=None, effect=None):
 
     ``states`` (t, q, q̇, q̈) replaces the generated trajectory; ``truth`` reuses a previous log's
     parameters (and an injected effect's coefficient), so that a validation log comes from the
-    same robot. ``effect`` (an ``Injected``) adds a torque the declared model lacks.
+    same robot. ``effect`` (an ``Injected``, or a tuple of them) adds a torque the declared model
+    lacks.
     """
     rng = np.random.default_rng(condition.seed)
     path = urdf_path(condition.robot)
@@ -275,12 +276,16 @@ def make_log(condition, states=None, truth=None, effect=None):
         truth = {"params": params, "fv": FRICTION_SHARE * rms / speed, "fc": FRICTION_SHARE * rms,
                  "noise": condition.noise * rms}
     tau = rigid + friction(truth, qd, condition.coulomb)
-    if effect is not None:
-        shape = injected_shape(effect, robot, q, qd, qdd, tau)
-        if "effect" not in truth:
-            joint_rms = np.sqrt(np.mean(tau[:, effect.joint] ** 2))
-            truth["effect"] = effect.size * joint_rms / np.sqrt(np.mean(shape**2))
-        tau[:, effect.joint] += truth["effect"] * shape
+    effects = () if effect is None else effect if isinstance(effect, tuple) else (effect,)
+    declared = tau.copy()
+    for i, e in enumerate(effects):
+        # Each is sized against the declared model's torque, so that two sizes do not compound.
+        shape = injected_shape(e, robot, q, qd, qdd, declared)
+        key = "effect" if i == 0 else f"effect_{i}"
+        if key not in truth:
+            joint_rms = np.sqrt(np.mean(declared[:, e.joint] ** 2))
+            truth[key] = e.size * joint_rms / np.sqrt(np.mean(shape**2))
+        tau[:, e.joint] += truth[key] * shape
     tau = tau + truth["noise"] * rng.normal(size=tau.shape)
     step = quantum(path, robot) / 2**condition.bits
     q_measured = np.round(q / step) * step

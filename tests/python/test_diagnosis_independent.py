@@ -183,3 +183,36 @@ def test_a_drive_gain_is_not_searched_unless_the_torque_comes_from_currents():
     names = {f.name for f in d.accepted} | {r["name"] for r in d.rejected}
     assert "drive_gain" not in names
     assert "drive_gain" not in arash.DiagnoseOptions().effects
+
+
+# Two effects at once, each at 15 % of its joint's RMS torque, on 30 s aperiodic logs (16-bit
+# encoders, 1 % noise, sign(q̇)). What counts as each effect's name: under sign(q̇) an offset is
+# also asymmetric Coulomb friction (see TENTH).
+NAMES = {"offset": {"offset", "coulomb_asymmetry"}}
+PAIRS = [
+    (Injected("offset", 0, 0.15), Injected("configuration_disturbance", 2, 0.15)),
+    (Injected("armature", 2, 0.15), Injected("configuration_disturbance", 1, 0.15)),
+    (Injected("stribeck", 1, 0.15), Injected("offset", 2, 0.15)),
+]
+
+
+def both_found(pair, fs):
+    """Of five seeds, on how many both effects are accepted on their joints; and the seeds'
+    accepted effects, for the message."""
+    found, accepted = 0, []
+    for seed in range(5):
+        robot, train, _ = make_log(Condition("arash_asist", fs, 16, 0.01, "sign", None, 30.0, seed=9100 + seed),
+                                   effect=pair)
+        d = arash.diagnose(robot, *train)
+        got = [(f.name, f.joints) for f in d.accepted]
+        accepted.append(got)
+        found += all(any(n in NAMES.get(e.kind, {e.kind}) and e.joint in j for n, j in got) for e in pair)
+    return found, accepted
+
+
+@pytest.mark.parametrize("fs", [200, 1000])
+@pytest.mark.parametrize("pair", PAIRS, ids=lambda p: "+".join(f"{e.kind}@{e.joint}" for e in p))
+def test_two_effects_at_once_are_both_found(pair, fs):
+    """Issue 19, item 5: neither effect hides the other, on a generator that is not arash's."""
+    found, accepted = both_found(pair, fs)
+    assert found >= 4, accepted
