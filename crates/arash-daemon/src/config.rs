@@ -223,9 +223,9 @@ impl DaemonConfig {
 
     /// Cycles of the link timeout, of the ramp and of the hold.
     pub fn link_cycles(&self) -> (u32, u32, u32) {
-        let cycles = |ms: f64| (ms * self.control.rate_hz / 1000.0).round().max(1.0) as u32;
-        let hold = (self.link.hold_ms * self.control.rate_hz / 1000.0).round() as u32;
-        (cycles(self.link.timeout_ms), cycles(self.link.ramp_ms), hold)
+        let cycles = |ms: f64| (ms * self.control.rate_hz / 1000.0).round() as u32;
+        // A hold may be nil; a timeout or a ramp lasts at least a cycle.
+        (cycles(self.link.timeout_ms).max(1), cycles(self.link.ramp_ms).max(1), cycles(self.link.hold_ms))
     }
 
     pub fn safety_limits(&self, model: &Model) -> Result<SafetyLimits, ConfigError> {
