@@ -226,13 +226,34 @@ class Injected:
     """An effect the declared model lacks, added to one joint's torque. Each is written here from
     its physics, not from arash's catalogue (crates/arash-core/src/effects/)."""
 
-    kind: str  # "offset", "configuration_disturbance", "armature", "stribeck" or "drive_gain"
+    kind: str  # "offset", "configuration_disturbance", "armature", "stribeck", "drive_gain" or "coupled_rotor"
     joint: int
     size: float  # the RMS of its torque on the training log, as a share of the joint's RMS torque
+    # For "coupled_rotor": the other joint that turns the motor of ``joint``, and the motor's
+    # motion per radian of that joint on ``joint``'s scale (the TX40's wrist: joint 5, ratio 1).
+    with_joint: Optional[int] = None
+    ratio: float = 1.0
 
 
 def injected_shape(effect, robot, q, qd, qdd, tau):
-    """The effect's torque per unit coefficient, at the true motion and torque ``tau``."""
+    """The effect's torque per unit coefficient on every joint, (N, dof), at the true motion and
+    torque ``tau``."""
+    if effect.kind == "coupled_rotor":
+        # A motor turned by two joints, θ̇ ∝ q̇_k + c·q̇_j: its rotor inertia, viscous and dry
+        # friction (each at unit RMS) reach both joints through the gear, joint j's times c.
+        k, j, c = effect.joint, effect.with_joint, effect.ratio
+        a, v = qdd[:, k] + c * qdd[:, j], qd[:, k] + c * qd[:, j]
+        motor = a / np.sqrt(np.mean(a**2)) + v / np.sqrt(np.mean(v**2)) + np.sign(v)
+        shape = np.zeros_like(q)
+        shape[:, k], shape[:, j] = motor, c * motor
+        return shape
+    shape = np.zeros_like(q)
+    shape[:, effect.joint] = joint_shape(effect, robot, q, qd, qdd, tau)
+    return shape
+
+
+def joint_shape(effect, robot, q, qd, qdd, tau):
+    """A one-joint effect's torque per unit coefficient on its joint."""
     k = effect.joint
     if effect.kind == "offset":
         return np.ones(len(q))
@@ -284,8 +305,8 @@ def make_log(condition, states=None, truth=None, effect=None):
         key = "effect" if i == 0 else f"effect_{i}"
         if key not in truth:
             joint_rms = np.sqrt(np.mean(declared[:, e.joint] ** 2))
-            truth[key] = e.size * joint_rms / np.sqrt(np.mean(shape**2))
-        tau[:, e.joint] += truth[key] * shape
+            truth[key] = e.size * joint_rms / np.sqrt(np.mean(shape[:, e.joint] ** 2))
+        tau += truth[key] * shape
     tau = tau + truth["noise"] * rng.normal(size=tau.shape)
     step = quantum(path, robot) / 2**condition.bits
     q_measured = np.round(q / step) * step

@@ -170,3 +170,19 @@ def test_kuka_measured_data_identify_on_run_1_hold_out_run_2():
     assert np.all(after <= before * 1.001)
     # Upstream practice adds a torque offset per joint; the diagnosis finds offsets where they matter.
     assert any(e.name == "offset" for e in d.accepted)
+
+
+def test_kuka_effects_found_on_runs_1_and_2_cut_the_error_on_run_3():
+    """Run 3 chose nothing (run 1 trained, run 2 ranked): the effects found score on it as held
+    out. Every joint an effect acts on is predicted better, and no other joint changes."""
+    from conftest import kuka_urdf
+
+    robot = arash.Robot.from_urdf(kuka_urdf())
+    d = arash.diagnose(robot, *kuka_run(1), validation=kuka_run(2))
+    before = arash.heldout_errors(d.model.without_effects(), *kuka_run(3))
+    after = arash.heldout_errors(d.model, *kuka_run(3))
+    print(f"\nKUKA run 3 FP% before {np.round(before['fp_percent'], 1)}, after {np.round(after['fp_percent'], 1)}")
+    touched = sorted({j for e in d.accepted for j in e.joints})
+    others = [j for j in range(robot.dof) if j not in touched]
+    assert np.all(after["rms"][touched] < before["rms"][touched]), (before, after)
+    np.testing.assert_allclose(after["rms"][others], before["rms"][others], rtol=1e-9)

@@ -9,12 +9,13 @@ the simulated rig's tanh(q̇/0.001) and accepted Stribeck friction on every such
 
 import json
 
+import numpy as np
 import pytest
 
 pytest.importorskip("pinocchio")
 import arash  # noqa: E402
 
-from independent import TANH_EPSILON, Condition, Injected, make_log, urdf_path  # noqa: E402
+from independent import TANH_EPSILON, Condition, Injected, make_log, trajectory, urdf_path  # noqa: E402
 
 NULL = [
     # The issue's case: 8 periods of 10 s at 1 kHz, 16-bit encoders, 1 % noise, sign(q̇).
@@ -216,3 +217,59 @@ def test_two_effects_at_once_are_both_found(pair, fs):
     """Issue 19, item 5: neither effect hides the other, on a generator that is not arash's."""
     found, accepted = both_found(pair, fs)
     assert found >= 4, accepted
+
+
+# The TX40's drives (upstream's T40X_config.yaml): motor radians per joint radian, and its wrist's
+# motor 6, which joint 5 turns too (θ₆ = 32 (q₅ + q₆)).
+TX40_RATIOS = [32.0, 32.0, 45.0, -48.0, 45.0, 32.0]
+TX40_COUPLING = [(6, 5, 32.0)]
+# A 9 s log of the TX40, as its measured one: 1 kHz here, 16-bit encoders, 1 % noise, sign(q̇).
+TX40_SHORT = ("tx40", 1000, 16, 0.01, "sign", None, 9.0)
+
+
+def motor_side(log):
+    """A joint-space log as the TX40's drives record it: θ = R q and τ_m = R⁻ᵀ τ, with R written
+    out here from upstream's README (not from arash's Transmission)."""
+    t, q, tau = log
+    r = np.diag(TX40_RATIOS)
+    r[5, 4] = 32.0
+    return t, q @ r.T, np.linalg.solve(r.T, tau.T).T
+
+
+def test_a_coupled_wrist_motor_is_named_on_both_joints_it_turns():
+    """Motor 6's rotor inertia and friction, injected on joints 5 and 6 through the coupling at
+    15 % of joint 6's RMS torque: named first, as coupled_rotor acting on both joints, from the
+    motor-side log and the declared transmission alone."""
+    effect = Injected("coupled_rotor", 5, 0.15, with_joint=4, ratio=1.0)
+    transmission = arash.Transmission(TX40_RATIOS, coupling=TX40_COUPLING)
+    found, reports = 0, []
+    for seed in range(5):
+        condition = Condition(*TX40_SHORT, seed=7100 + seed)
+        t, q, qd, qdd = trajectory(arash.Robot.from_urdf(urdf_path("tx40")), condition,
+                                   np.random.default_rng(condition.seed))
+        robot, train, truth = make_log(condition, states=(t, q, qd, qdd), effect=effect)
+        d = arash.diagnose(robot, *motor_side(train), motor_side=transmission)
+        first = d.accepted[0] if d.accepted else None
+        reports.append(d.report())
+        if first is None or first.name != "coupled_rotor" or sorted(first.joints) != [4, 5]:
+            continue
+        found += 1
+        # The motor's inertia, viscous and dry friction, on joint 6's scale (each column of the
+        # injected torque was at unit RMS): within 4σ and 15 % of the truth.
+        a, v = qdd[:, 5] + qdd[:, 4], qd[:, 5] + qd[:, 4]
+        true = truth["effect"] * np.array([1 / np.sqrt(np.mean(a**2)), 1 / np.sqrt(np.mean(v**2)), 1.0])
+        assert np.all(np.abs(first.coefficients - true) < 4 * first.sigma), (first.coefficients, true, first.sigma)
+        np.testing.assert_allclose(first.coefficients, true, rtol=0.15)
+    assert found >= 4, "\n\n".join(reports)
+
+
+def test_nothing_is_accepted_on_a_motor_side_log_of_the_declared_model():
+    """The null for the search a declared transmission opens (the coupled rotor, and cogging at
+    each motor's ratio): declared-model TX40 logs, recorded motor-side."""
+    transmission = arash.Transmission(TX40_RATIOS, coupling=TX40_COUPLING)
+    for seed in range(3):
+        robot, train, _ = make_log(Condition(*TX40_SHORT, seed=7200 + seed))
+        d = arash.diagnose(robot, *motor_side(train), motor_side=transmission)
+        assert d.accepted == [], d.report()
+        searched = {r["name"] for r in d.rejected if r["code"] != "not_searched"}
+        assert {"coupled_rotor", "cogging"} <= searched, d.report()

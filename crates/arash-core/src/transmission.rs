@@ -101,6 +101,12 @@ impl Transmission {
         &self.r
     }
 
+    /// R row-major (`dof × dof`).
+    pub fn row_major(&self) -> Vec<f64> {
+        let dof = self.dof();
+        (0..dof * dof).map(|i| self.r[(i / dof, i % dof)]).collect()
+    }
+
     /// Joint angles and torques (row-major `samples × dof`) from motor angles and motor torques.
     pub fn to_joints(&self, theta: &[f64], tau_motor: &[f64]) -> Result<(Vec<f64>, Vec<f64>), TransmissionError> {
         let dof = self.dof();

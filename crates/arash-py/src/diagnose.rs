@@ -145,6 +145,10 @@ impl DiagnoseOptions {
             "max_delay_s" => o.max_delay_s = value.extract()?,
             "max_vif" => o.max_vif = value.extract()?,
             "transmission" => o.transmission = value.extract()?,
+            "motor_side" => {
+                let t: Option<PyRef<'_, crate::transmission::Transmission>> = value.extract()?;
+                o.motors = t.map(|t| t.core().clone());
+            }
             "effects" => {
                 let ids: Vec<String> = value.extract()?;
                 o.effects = EffectKind::parse_list(&ids).map_err(value_error)?;

@@ -173,7 +173,8 @@ impl Identification {
         to_numpy(py, out, q.single, count, &[n])
     }
 
-    /// FP%, relative error and RMS per joint on another log, preprocessed like the training data.
+    /// FP%, relative error and RMS per joint on another log, preprocessed like the training data,
+    /// of the declared part (`arash.heldout_errors` scores the effects a diagnosis added too).
     #[pyo3(signature = (t, q, tau, *, periods=None))]
     fn validate<'py>(
         &self,
@@ -194,6 +195,13 @@ impl Identification {
         dict.set_item("rel", to_numpy(py, m.relative_error, false, dof, &[])?)?;
         dict.set_item("rms", to_numpy(py, m.rms, false, dof, &[])?)?;
         Ok(dict)
+    }
+
+    /// The same model without the effects a diagnosis added: the declared part alone.
+    fn without_effects(&self) -> Identification {
+        let mut inner = self.inner.clone();
+        inner.effects.clear();
+        Identification::new(Arc::clone(&self.model), inner)
     }
 
     /// Text table in the shape of the paper's Table I.

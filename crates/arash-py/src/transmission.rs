@@ -19,6 +19,12 @@ pub struct Transmission {
     inner: Core,
 }
 
+impl Transmission {
+    pub(crate) fn core(&self) -> &Core {
+        &self.inner
+    }
+}
+
 #[pymethods]
 impl Transmission {
     #[new]

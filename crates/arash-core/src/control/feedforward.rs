@@ -9,7 +9,7 @@
 //! Two effects are properties of a log, not of the robot, and are left out: `delay` and `drift`
 //! (a function of the log's own clock).
 
-use crate::effects::{EffectKind, EffectTerm, Sample, TermState};
+use crate::effects::{EffectKind, EffectTerm, TermState};
 use crate::model::Model;
 
 /// The joint-wise effect terms of a model file, with their state, evaluated once per cycle
@@ -60,9 +60,14 @@ impl EffectFeedforward {
             match term.joint {
                 Some(k) => {
                     let width = term.width();
-                    let x = term.within_fitted(Sample { q: q[k], v: qd[k], qdd: qdd[k], t: 0.0, tau: tau[k] });
-                    term.features(x, state, &mut features[..width]);
-                    tau[k] += features[..width].iter().zip(&term.coefficients).map(|(a, c)| a * c).sum::<f64>();
+                    let x = term.sample_of(q, qd, qdd, 0.0, tau).expect("a term on a joint");
+                    term.features(term.within_fitted(x), state, &mut features[..width]);
+                    let torque = features[..width].iter().zip(&term.coefficients).map(|(a, c)| a * c).sum::<f64>();
+                    match term.coupling {
+                        None => tau[k] += torque,
+                        // A coupled rotor acts on every joint its motor turns with.
+                        Some(_) => tau.iter_mut().enumerate().for_each(|(j, t)| *t += term.weight_on(j) * torque),
+                    }
                 }
                 // Armature fitted on every joint at once: one coefficient per joint.
                 None if term.kind == EffectKind::Armature => {

@@ -5,13 +5,14 @@ use super::options::DiagnoseOptions;
 use super::prepare::Prepared;
 use super::regression::GroupTest;
 use crate::base_parameters::BaseParameters;
-use crate::effects::{EffectKind, EffectTerm, JointData};
+use crate::effects::{coupled_motors, EffectKind, EffectTerm, JointData, NotSearched};
 use crate::model::{CoulombShape, Model};
 use crate::model_file::ModelFile;
 
 /// The candidate templates for this robot and training data: each effect's own bank per joint
-/// (`crate::effects`), then rotor inertia on every joint at once and a payload on each body with
-/// mass; and the effects not searched, with the reason.
+/// (`crate::effects`), then rotor inertia on every joint at once, a payload on each body with
+/// mass and the rotor of each declared motor that turns with several joints; and the effects not
+/// searched, with the reason.
 pub(super) fn candidates(
     model: &Model,
     train: &Prepared,
@@ -20,19 +21,95 @@ pub(super) fn candidates(
     let dof = model.dof();
     let mut terms = Vec::new();
     let mut skipped = Vec::new();
-    let q = train.at_kept(&train.pre.q);
-    let qd = train.at_kept(&train.pre.qd);
-    let qdd = train.at_kept(&train.pre.qdd);
-    let t0 = train.pre.t[train.kept[0]];
-    let t1 = train.pre.t[*train.kept.last().expect("prepared logs have samples")];
+    let motion = Motion::of(train);
     let wanted: Vec<EffectKind> = EffectKind::ALL.into_iter().filter(|k| options.searches(*k)).collect();
+    let ratios = options.joint_per_motor_radian();
     for k in 0..dof {
-        let column = |x: &[f64]| x.iter().skip(k).step_by(dof).copied().collect::<Vec<f64>>();
-        let (qk, vk, ak) = (column(&q), column(&qd), column(&qdd));
+        let mut weights = vec![0.0; dof];
+        weights[k] = 1.0;
+        let joint = motion.joint_data(k, &weights, model, ratios.as_ref().map(|r| r[k]), options);
+        for &kind in wanted.iter().filter(|k| **k != EffectKind::CoupledRotor) {
+            match kind.law().joint_candidates(&joint) {
+                Ok(bank) => terms.extend(bank),
+                Err(why) => skipped.push(not_searched(kind, vec![k], &model.joints[k].name, why)),
+            }
+        }
+    }
+    if wanted.contains(&EffectKind::Armature) && dof > 1 {
+        terms.push(crate::effects::armature_on_every_joint(&model.joint_names()));
+    }
+    if wanted.contains(&EffectKind::Payload) {
+        terms.extend(train.bodies.iter().map(|(b, _)| crate::effects::payload_on(&model.bodies[*b].name)));
+    }
+    if wanted.contains(&EffectKind::CoupledRotor) {
+        let motors = options.motors.as_ref().map_or_else(Vec::new, |t| coupled_motors(&t.row_major(), dof));
+        if motors.is_empty() {
+            let all = (0..dof).collect();
+            skipped.push(not_searched(EffectKind::CoupledRotor, all, "any motor", NotSearched::NoCoupledMotor));
+        }
+        for (m, g) in motors {
+            let motor = motion.joint_data(m, &g, model, None, options);
+            let mut bank = EffectKind::CoupledRotor.law().joint_candidates(&motor).unwrap_or_default();
+            bank.iter_mut().for_each(|t| t.coupling = Some(g.clone()));
+            terms.extend(bank);
+        }
+    }
+    for t in &mut terms {
+        t.columns = t.column_names();
+    }
+    (terms, skipped)
+}
+
+fn not_searched(kind: EffectKind, joints: Vec<usize>, on: &str, why: NotSearched) -> Rejection {
+    Rejection {
+        name: kind.id().into(),
+        joints,
+        label: format!("{} on {on}", kind.id()),
+        reason: RejectionReason::NotSearched { why },
+        p_value: None,
+        heldout_gain: None,
+    }
+}
+
+/// The training data's motion at the kept samples (`samples × dof`, interleaved).
+struct Motion {
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    qdd: Vec<f64>,
+    time: (f64, f64),
+}
+
+impl Motion {
+    fn of(train: &Prepared) -> Self {
+        let t0 = train.pre.t[train.kept[0]];
+        let t1 = train.pre.t[*train.kept.last().expect("prepared logs have samples")];
+        Self {
+            q: train.at_kept(&train.pre.q),
+            qd: train.at_kept(&train.pre.qd),
+            qdd: train.at_kept(&train.pre.qdd),
+            time: (t0, t1),
+        }
+    }
+
+    /// What a candidate bank is built from: the motion `weights·q` (one joint's, or a coupled
+    /// motor's on its joint `k`'s scale), and joint `k`'s declared friction law.
+    fn joint_data<'a>(
+        &self,
+        k: usize,
+        weights: &[f64],
+        model: &Model,
+        transmission: Option<f64>,
+        options: &'a DiagnoseOptions,
+    ) -> JointData<'a> {
+        let dof = weights.len();
+        let combine = |x: &[f64]| -> Vec<f64> {
+            x.chunks_exact(dof).map(|row| row.iter().zip(weights).map(|(a, b)| a * b).sum()).collect()
+        };
+        let (qk, vk, ak) = (combine(&self.q), combine(&self.qd), combine(&self.qdd));
         let peak = |x: &[f64]| x.iter().fold(0.0, |m: f64, v| m.max(v.abs()));
         let lo = qk.iter().copied().fold(f64::INFINITY, f64::min);
         let hi = qk.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let joint = JointData {
+        JointData {
             joint: k,
             span: (lo, hi),
             speed_rms: (vk.iter().map(|v| v * v).sum::<f64>() / vk.len() as f64).sqrt(),
@@ -42,34 +119,11 @@ pub(super) fn candidates(
                 CoulombShape::Tanh { epsilon } => Some(epsilon),
                 CoulombShape::Sign => None,
             },
-            time: (t0, t1),
-            transmission: options.transmission.as_ref().and_then(|t| t.get(k)).copied(),
+            time: self.time,
+            transmission,
             cogging_periods: &options.cogging_periods,
-        };
-        for &kind in &wanted {
-            match kind.law().joint_candidates(&joint) {
-                Ok(bank) => terms.extend(bank),
-                Err(why) => skipped.push(Rejection {
-                    name: kind.id().into(),
-                    joints: vec![k],
-                    label: format!("{} on {}", kind.id(), model.joints[k].name),
-                    reason: RejectionReason::NotSearched { why },
-                    p_value: None,
-                    heldout_gain: None,
-                }),
-            }
         }
     }
-    for t in &mut terms {
-        t.columns = t.column_names();
-    }
-    if wanted.contains(&EffectKind::Armature) && dof > 1 {
-        terms.push(crate::effects::armature_on_every_joint(&model.joint_names()));
-    }
-    if wanted.contains(&EffectKind::Payload) {
-        terms.extend(train.bodies.iter().map(|(b, _)| crate::effects::payload_on(&model.bodies[*b].name)));
-    }
-    (terms, skipped)
 }
 
 /// Why a `compliance` candidate is not a cable, if it is not. With the encoder on the motor, all

@@ -276,10 +276,7 @@ pub struct Diagnosis {
 }
 
 pub(super) fn effect_joints(term: &EffectTerm, dof: usize) -> Vec<usize> {
-    match term.joint {
-        Some(k) => vec![k],
-        None => (0..dof).collect(),
-    }
+    term.joints(dof)
 }
 
 pub(super) fn rejection(
@@ -308,6 +305,7 @@ mod tests {
     fn a_reasons_code_is_its_json_tag() {
         let reasons = [
             RejectionReason::NotSearched { why: NotSearched::TransmissionUnknown },
+            RejectionReason::NotSearched { why: NotSearched::NoCoupledMotor },
             RejectionReason::NotIdentifiable { vif: 2e3, max_vif: 1e3 },
             RejectionReason::NotSignificant { p_value: 0.2, threshold: 0.01, round: 1 },
             RejectionReason::WrongSign { p_value: 1e-5, coefficient: -1.0 },

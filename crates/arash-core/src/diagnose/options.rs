@@ -3,6 +3,7 @@
 use crate::effects::EffectKind;
 use crate::identify::preprocess::{PreprocessError, PreprocessOptions};
 use crate::identify::IdentifyError;
+use crate::transmission::Transmission;
 
 /// The diagnosis's cut-off when the user sets none (Hz), at most [`DIAGNOSIS_CUTOFF_SHARE`] of
 /// the sample rate: far above identification's, so that ripple, friction transitions and delays
@@ -51,8 +52,12 @@ pub struct DiagnoseOptions {
     pub max_delay_s: f64,
     /// Stop after this many accepted effects.
     pub max_effects: usize,
-    /// Joint motion per motor radian, for the cogging search (`None`: cogging is not searched).
+    /// Joint motion per motor radian, for the cogging search (`None`: taken from `motors`, and
+    /// without them cogging is not searched).
     pub transmission: Option<Vec<f64>>,
+    /// The declared transmission of a motor-side log (the log is already in joint space): it
+    /// gives the cogging search its ratios and the `coupled_rotor` search its coupled motors.
+    pub motors: Option<Transmission>,
     /// Ripple periods per motor revolution tried by the cogging search.
     pub cogging_periods: Vec<f64>,
     /// The effects searched (default: [`EffectKind::searched_by_default`]).
@@ -81,6 +86,7 @@ impl Default for DiagnoseOptions {
             max_delay_s: 0.02,
             max_effects: 6,
             transmission: None,
+            motors: None,
             cogging_periods: (1..=8).map(f64::from).collect(),
             effects: EffectKind::searched_by_default(),
             torque_from_currents: false,
@@ -115,6 +121,9 @@ impl DiagnoseOptions {
                 return Err(OptionsError::Transmission { dof, got: t.clone() });
             }
         }
+        if let Some(m) = self.motors.as_ref().filter(|m| m.dof() != dof) {
+            return Err(OptionsError::Motors { dof, got: m.dof() });
+        }
         if let Some(&n) = self.cogging_periods.iter().find(|n| !(n.is_finite() && **n > 0.0)) {
             return Err(OptionsError::NotPositive { name: "cogging_periods", value: n });
         }
@@ -131,6 +140,8 @@ pub enum OptionsError {
     OutOfRange { name: &'static str, value: f64, range: &'static str },
     #[error("transmission needs {dof} positive values, one per joint; got {got:?}")]
     Transmission { dof: usize, got: Vec<f64> },
+    #[error("the declared transmission is for {got} joints, the robot has {dof}")]
+    Motors { dof: usize, got: usize },
     #[error(transparent)]
     Preprocess(PreprocessError),
 }
@@ -139,6 +150,15 @@ impl DiagnoseOptions {
     /// Whether `kind` is searched.
     pub fn searches(&self, kind: EffectKind) -> bool {
         self.effects.contains(&kind) || (kind == EffectKind::DriveGain && self.torque_from_currents)
+    }
+
+    /// Joint motion per motor radian of each joint's own motor, for cogging: `transmission`, or
+    /// `1 / |R[k][k]|` of the declared `motors`.
+    pub fn joint_per_motor_radian(&self) -> Option<Vec<f64>> {
+        self.transmission.clone().or_else(|| {
+            let r = self.motors.as_ref()?.matrix();
+            Some((0..r.nrows()).map(|k| 1.0 / r[(k, k)].abs()).collect())
+        })
     }
 
     /// The cut-off a log at `fs` Hz gets when the user sets none (Hz).

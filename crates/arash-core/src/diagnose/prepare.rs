@@ -6,7 +6,7 @@ use super::options::DiagnoseOptions;
 use super::regression::Column;
 use crate::base_parameters::BaseParameters;
 use crate::data::Data;
-use crate::effects::{EffectKind, EffectTerm, Sample, TermState};
+use crate::effects::{EffectKind, EffectTerm, TermState};
 use crate::identify::preprocess::{preprocess, PreprocessError, PreprocessOptions, Preprocessed};
 use crate::identify::Log;
 use crate::model::Model;
@@ -206,40 +206,49 @@ pub(super) fn term_columns(model: &Model, term: &EffectTerm, data: &Prepared) ->
         return vec![];
     };
     let width = term.width();
-    let pre = &data.pre;
-    let mut state = TermState::default();
-    let mut out = vec![0.0; width];
+    let filtered: Vec<bool> = (0..width).map(|c| term.column_filtered(c)).collect();
     let mut columns = vec![Vec::with_capacity(data.samples()); width];
-    if term.kind.filtered_like_torque() {
-        // Every sample, from the unfiltered position and the friction velocity; then filtered.
-        let n = pre.samples();
-        let mut full = vec![0.0; n * width];
-        for s in 0..n {
-            let x = Sample {
-                q: data.q_raw[s * dof + k],
-                v: pre.qd_friction[s * dof + k],
-                t: pre.t[s],
-                ..Sample::default()
-            };
-            term.features(x, &mut state, &mut out);
-            full[s * width..(s + 1) * width].copy_from_slice(&out);
+    if filtered.contains(&true) {
+        for (c, values) in filtered_term_columns(term, data).into_iter().enumerate().filter(|(c, _)| filtered[*c]) {
+            columns[c] = values;
         }
-        let filtered = pre.filter_like_torque(&full, width).expect("the torque was filtered with these settings");
-        for &i in &data.kept {
-            for (c, column) in columns.iter_mut().enumerate() {
-                column.push(filtered[i * width + c]);
-            }
-        }
-    } else {
+    }
+    if filtered.contains(&false) {
+        let pre = &data.pre;
+        let (mut state, mut out, zeros) = (TermState::default(), vec![0.0; width], vec![0.0; dof]);
         for (s, &i) in data.kept.iter().enumerate() {
-            let x = i * dof + k;
-            let tau = data.predicted.get(s * dof + k).copied().unwrap_or(0.0);
-            let x = Sample { q: pre.q[x], v: pre.qd[x], qdd: pre.qdd[x], t: pre.t[i], tau };
-            term.features(x, &mut state, &mut out);
-            for (c, column) in columns.iter_mut().enumerate() {
-                column.push(out[c]);
+            let row = i * dof..(i + 1) * dof;
+            let tau = data.predicted.get(s * dof..(s + 1) * dof).unwrap_or(&zeros);
+            let x = term.sample_of(&pre.q[row.clone()], &pre.qd[row.clone()], &pre.qdd[row], pre.t[i], tau);
+            term.features(x.expect("a term on a joint"), &mut state, &mut out);
+            for c in (0..width).filter(|c| !filtered[*c]) {
+                columns[c].push(out[c]);
             }
         }
     }
-    columns.into_iter().map(|v| Column::Joint(k, v)).collect()
+    match term.coupling {
+        None => columns.into_iter().map(|v| Column::Joint(k, v)).collect(),
+        // A coupled rotor's torque acts on every joint its motor turns with.
+        Some(_) => columns
+            .into_iter()
+            .map(|v| Column::dense((0..v.len() * dof).map(|r| term.weight_on(r % dof) * v[r / dof]).collect(), dof))
+            .collect(),
+    }
+}
+
+/// Every column of `term` computed at every sample from the unfiltered position and the
+/// friction velocity, then filtered like the torque, at the kept samples.
+fn filtered_term_columns(term: &EffectTerm, data: &Prepared) -> Vec<Vec<f64>> {
+    let (dof, width, pre) = (data.dof, term.width(), &data.pre);
+    let n = pre.samples();
+    let (mut state, mut out, zeros) = (TermState::default(), vec![0.0; width], vec![0.0; dof]);
+    let mut full = vec![0.0; n * width];
+    for s in 0..n {
+        let row = s * dof..(s + 1) * dof;
+        let x = term.sample_of(&data.q_raw[row.clone()], &pre.qd_friction[row], &zeros, pre.t[s], &zeros);
+        term.features(x.expect("a term on a joint"), &mut state, &mut out);
+        full[s * width..(s + 1) * width].copy_from_slice(&out);
+    }
+    let filtered = pre.filter_like_torque(&full, width).expect("the torque was filtered with these settings");
+    (0..width).map(|c| data.kept.iter().map(|&i| filtered[i * width + c]).collect()).collect()
 }

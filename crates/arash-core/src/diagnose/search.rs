@@ -425,14 +425,15 @@ fn most_useful(passing: &[Passed], width: impl Fn(usize) -> usize) -> Option<usi
 
 /// The first of `terms` (each with its number of columns, in the order of the fit `x`, whose
 /// first `offset` coefficients are the model's) whose first coefficient has the sign its effect
-/// cannot have, with that coefficient. Rotor inertia on every joint is left to its own test.
+/// cannot have, with that coefficient. Terms whose every coefficient is signed are left to their
+/// own test ([`wrong_sign`]).
 fn first_flipped<'t>(
     terms: impl IntoIterator<Item = (&'t EffectTerm, usize)>,
     x: &[f64],
     mut offset: usize,
 ) -> Option<(&'t EffectTerm, f64)> {
     for (term, width) in terms {
-        if !term.is_armature_on_every_joint() && term.wrong_sign_at(0, x[offset], 0.0) {
+        if !term.signs_every_coefficient() && term.wrong_sign_at(0, x[offset], 0.0) {
             return Some((term, x[offset]));
         }
         offset += width;
@@ -441,10 +442,10 @@ fn first_flipped<'t>(
 }
 
 /// The coefficient that gives `term` a sign its effect cannot have, if any: the first (a mass, a
-/// friction), or for rotor inertia on every joint any joint's that is negative beyond two σ (one
-/// joint's may be nil, none may be clearly negative).
+/// friction), or where every coefficient is signed (rotor inertia on every joint, a coupled
+/// rotor) any that is negative beyond two σ (one may be nil, none may be clearly negative).
 fn wrong_sign(term: &EffectTerm, t: &GroupTest) -> Option<f64> {
-    let slack = |i: usize| match term.is_armature_on_every_joint() {
+    let slack = |i: usize| match term.signs_every_coefficient() {
         true => t.sigma.get(i).map_or(f64::INFINITY, |s| 2.0 * s),
         false => 0.0,
     };

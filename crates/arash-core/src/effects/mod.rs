@@ -17,6 +17,7 @@ mod cogging;
 mod compliance;
 mod configuration;
 mod coulomb_asymmetry;
+mod coupled_rotor;
 mod delay;
 mod drift;
 mod drive_gain;
@@ -31,6 +32,7 @@ use serde::{Deserialize, Serialize};
 
 pub use armature::every_joint as armature_on_every_joint;
 pub use configuration::CONFIGURATION_HARMONICS;
+pub use coupled_rotor::coupled_motors;
 pub use payload::on_body as payload_on;
 
 /// The stable identifiers of the effects.
@@ -42,6 +44,7 @@ pub enum EffectKind {
     Stribeck,
     ViscousNonlinear,
     Armature,
+    CoupledRotor,
     DriveGain,
     ConfigurationDisturbance,
     PositionFriction,
@@ -55,12 +58,13 @@ pub enum EffectKind {
 
 impl EffectKind {
     /// Every effect, in the order the diagnosis tries a joint's candidates.
-    pub const ALL: [EffectKind; 14] = [
+    pub const ALL: [EffectKind; 15] = [
         Self::Offset,
         Self::CoulombAsymmetry,
         Self::Stribeck,
         Self::ViscousNonlinear,
         Self::Armature,
+        Self::CoupledRotor,
         Self::DriveGain,
         Self::ConfigurationDisturbance,
         Self::PositionFriction,
@@ -80,6 +84,7 @@ impl EffectKind {
             Self::Stribeck => &stribeck::Stribeck,
             Self::ViscousNonlinear => &viscous_nonlinear::ViscousNonlinear,
             Self::Armature => &armature::Armature,
+            Self::CoupledRotor => &coupled_rotor::CoupledRotor,
             Self::DriveGain => &drive_gain::DriveGain,
             Self::ConfigurationDisturbance => &configuration::ConfigurationDisturbance,
             Self::PositionFriction => &position_friction::PositionFriction,
@@ -215,6 +220,9 @@ impl JointData<'_> {
 pub enum NotSearched {
     /// Cogging needs the motor transmission, which was not given.
     TransmissionUnknown,
+    /// A coupled rotor needs a declared transmission in which a motor turns with more than one
+    /// joint.
+    NoCoupledMotor,
 }
 
 impl std::fmt::Display for NotSearched {
@@ -223,6 +231,9 @@ impl std::fmt::Display for NotSearched {
             Self::TransmissionUnknown => {
                 f.write_str("not searched: the motor transmission is unknown (give it with --transmission)")
             }
+            Self::NoCoupledMotor => f.write_str(
+                "not searched: no declared motor turns with more than one joint (declare one with --coupling)",
+            ),
         }
     }
 }
@@ -245,9 +256,19 @@ pub trait Effect: Sync {
         false
     }
 
+    /// Whether column `column` is filtered like the torque; by default all are or none is.
+    fn column_filtered(&self, _column: usize) -> bool {
+        self.filtered_like_torque()
+    }
+
     /// See [`EffectKind::physical_sign`].
     fn physical_sign(&self) -> Option<f64> {
         None
+    }
+
+    /// Whether every coefficient, not only the first, must have [`Self::physical_sign`].
+    fn every_coefficient_signed(&self) -> bool {
+        false
     }
 
     /// See [`EffectKind::plotted_against`].
@@ -292,6 +313,11 @@ pub struct EffectTerm {
     /// Joint motion per motor radian, for cogging.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub transmission: Option<f64>,
+    /// For a motor that turns with several joints, its motion per radian (or metre) of each
+    /// joint, on the scale of its own joint `joint` (whose entry is 1): the term's sample is
+    /// `g·q` and its torque acts on joint j times `g[j]`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coupling: Option<Vec<f64>>,
     /// ε of the `tanh(q̇/ε)` direction in friction terms; `None` is `sign(q̇)`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub epsilon: Option<f64>,
@@ -354,6 +380,7 @@ impl EffectTerm {
             scale: None,
             span: None,
             transmission: None,
+            coupling: None,
             epsilon: None,
             fitted_on: None,
             columns: vec![],
@@ -378,11 +405,52 @@ impl EffectTerm {
         self.kind == EffectKind::Armature && self.joint.is_none()
     }
 
+    /// Whether every coefficient is held to the effect's sign, each judged within its σ (one
+    /// may be nil, none clearly of the wrong sign): rotor inertia on every joint, a coupled
+    /// rotor's inertia and frictions.
+    pub fn signs_every_coefficient(&self) -> bool {
+        self.is_armature_on_every_joint() || self.kind.law().every_coefficient_signed()
+    }
+
     /// The sign coefficient `i` must have for the term to be its physical effect (`None`:
-    /// either): the first coefficient ([`EffectKind::physical_sign`]), or every joint's for rotor
-    /// inertia on every joint.
+    /// either): the first coefficient ([`EffectKind::physical_sign`]), or every one where
+    /// [`Self::signs_every_coefficient`].
     pub fn coefficient_sign(&self, i: usize) -> Option<f64> {
-        (i == 0 || self.is_armature_on_every_joint()).then(|| self.kind.physical_sign()).flatten()
+        (i == 0 || self.signs_every_coefficient()).then(|| self.kind.physical_sign()).flatten()
+    }
+
+    /// Whether column `column` is filtered like the torque ([`EffectKind::filtered_like_torque`]).
+    pub fn column_filtered(&self, column: usize) -> bool {
+        self.kind.law().column_filtered(column)
+    }
+
+    /// The term's sample from every joint's: its joint's, or for a coupled rotor the motor's
+    /// own motion `g·x` ([`Self::coupling`]). `None` for a term on no one joint.
+    pub fn sample_of(&self, q: &[f64], v: &[f64], qdd: &[f64], t: f64, tau: &[f64]) -> Option<Sample> {
+        let k = self.joint?;
+        Some(match &self.coupling {
+            None => Sample { q: q[k], v: v[k], qdd: qdd[k], t, tau: tau[k] },
+            Some(g) => {
+                let dot = |x: &[f64]| g.iter().zip(x).map(|(a, b)| a * b).sum::<f64>();
+                Sample { q: dot(q), v: dot(v), qdd: dot(qdd), t, tau: tau[k] }
+            }
+        })
+    }
+
+    /// How much of the term's torque acts on joint `j`: `g[j]` for a coupled rotor, 1 on its
+    /// own joint otherwise, 0 elsewhere.
+    pub fn weight_on(&self, j: usize) -> f64 {
+        match (&self.coupling, self.joint) {
+            (Some(g), _) => g.get(j).copied().unwrap_or(0.0),
+            (None, Some(k)) => f64::from(j == k),
+            (None, None) => 1.0,
+        }
+    }
+
+    /// The joints the term acts on (every joint for a payload, a delay or rotor inertia on
+    /// every joint).
+    pub fn joints(&self, dof: usize) -> Vec<usize> {
+        (0..dof).filter(|&j| self.weight_on(j) != 0.0).collect()
     }
 
     /// Whether `c`, as coefficient `i` of this term (from any fit), has the sign its effect cannot

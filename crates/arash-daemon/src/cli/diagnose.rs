@@ -33,8 +33,9 @@ pub struct Args {
     /// blocks of the training data.
     #[arg(long, num_args = 1..)]
     validate: Vec<PathBuf>,
-    /// Joint motion per motor radian, comma-separated, for the cogging search; default: the
-    /// bundled ARASH:ASiST drive's, or no cogging search for another robot.
+    /// Joint motion per motor radian, comma-separated, for the cogging search; default: from
+    /// `--gear-ratios` (1/|ratio|), else the bundled ARASH:ASiST drive's, or no cogging search
+    /// for another robot.
     #[arg(long, value_delimiter = ',')]
     transmission: Option<Vec<f64>>,
     /// Low-pass cut-off (Hz); default: 20 Hz, at most a fifth of the sample rate, narrower where the encoder's noise would bias q̈
@@ -159,6 +160,7 @@ fn options(args: &Args, model: &arash_core::Model) -> anyhow::Result<DiagnoseOpt
         None if model.name == arash_core::arash_asist().name => Some(DriveConfig::default().transmission),
         None => None,
     };
+    options.motors = args.runs.transmission(model.dof())?;
     options.refit = args.refit;
     options.hold_friction = args.hold_friction;
     options.validate(model.dof())?;

@@ -51,6 +51,7 @@ __all__ = [
     "design_excitation",
     "diagnose",
     "filtfilt",
+    "heldout_errors",
     "identify",
     "load_model",
     "paper_validation_trajectory",
@@ -254,7 +255,8 @@ def diagnose(
     batches (None: each test chooses from its own scores).
     The other options are the decision rule's (docs/diagnosis.md). None keeps arash's default for
     each; ``DiagnoseOptions()`` shows them. motor_side: a ``Transmission`` when q and tau (and the
-    validation's) are motor angles and motor torques.
+    validation's) are motor angles and motor torques; it also gives the cogging search its ratios
+    (unless ``transmission`` is given) and the ``coupled_rotor`` search its coupled motors.
     """
     if motor_side is not None:
         q, tau = motor_side.to_joints(q, tau)
@@ -265,5 +267,23 @@ def diagnose(
         friction_cutoff_hz=friction_cutoff_hz, order=order, block_s=block_s, batch_s=batch_s, alpha=alpha, min_gain=min_gain,
         effects=None if effects is None else list(effects), torque_from_currents=torque_from_currents,
         refit=refit, hold_friction=hold_friction, consistent=consistent,
-        consistent_cutoff_hz=consistent_cutoff_hz))
+        consistent_cutoff_hz=consistent_cutoff_hz, motor_side=motor_side))
     return _diagnose(robot, (t, q, tau), options, model, validation)
+
+
+def heldout_errors(
+    model: Identification,
+    t: Any,
+    q: Any,
+    tau: Any,
+    *,
+    motor_side: Optional[Transmission] = None,
+) -> dict[str, Any]:
+    """Per-joint errors of ``model`` on a log it was not fitted on, the effects a diagnosis added
+    included: ``rms``, ``fp_percent`` and ``rel`` (‖e‖/‖τ‖), numpy arrays. Nothing is refitted;
+    the log is filtered as the diagnosis filters. ``model.without_effects()`` scores the declared
+    part alone, so the two give an effect's gain on data that did not choose it.
+    (``Identification.validate`` scores the declared part, at the identification's cut-off.)
+    """
+    d = diagnose(model.robot, t, q, tau, model=model, hold_friction=True, effects=[], motor_side=motor_side)
+    return d.error_before_training
