@@ -100,6 +100,15 @@ fn the_demo_calibrates_diagnoses_and_controls_the_simulated_rig() {
     assert!(identified[0].to_degrees() < 0.35 && identified[1].to_degrees() < 0.35, "{identified:?}");
     assert!(identified[2] < 128e-6, "{identified:?}");
 
+    // The closed-loop estimate against the simulated rig's own base parameters. Not ≥ 90 %: the
+    // rig's undeclared wiring disturbance and Stribeck friction bias the parameters that absorb
+    // them (the diagnosis's job; docs/demo.md names them), but most must be covered.
+    let truth = &summary["within_3_sigma_of_truth"];
+    let of = truth["of"].as_u64().expect("the demo's rig is simulated: its truth is known");
+    let covered = truth["covered"]["idim-iv"].as_u64().unwrap();
+    eprintln!("IDIM-IV within 3σ of the truth: {covered} of {of} ({truth})");
+    assert!(covered * 3 >= of * 2, "IDIM-IV covers only {covered} of {of} base parameters within 3σ");
+
     // The scenario's wiring disturbance on pitch (joint 1) is named, and first.
     let accepted = summary["diagnosis"]["accepted"].as_array().unwrap();
     eprintln!("diagnosis: {accepted:?}");
@@ -118,7 +127,9 @@ fn the_demo_calibrates_diagnoses_and_controls_the_simulated_rig() {
     let mut figures = Vec::new();
     pngs(&dir.join("report"), &mut figures);
     let names: Vec<String> = figures.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
-    for expected in ["excitation.png", "torque.png", "tracking_error.png", "control_effort.png", "errors.png"] {
+    for expected in
+        ["excitation.png", "torque.png", "parameters.png", "tracking_error.png", "control_effort.png", "errors.png"]
+    {
         assert!(names.iter().any(|n| n == expected), "no {expected} in {names:?}");
     }
     assert!(names.iter().any(|n| n.starts_with("effect-1-configuration_disturbance")), "{names:?}");

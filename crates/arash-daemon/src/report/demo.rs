@@ -7,7 +7,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::report::figures::{panels, Panel};
+use crate::report::figures::{estimates_against_truth, panels, Panel};
 use arash_core::control::fourier::Excitation;
 use arash_core::diagnose::Diagnosis;
 use arash_core::flightlog::read_log;
@@ -19,6 +19,9 @@ use arash_core::Model;
 /// What the calibration step produced.
 pub struct Calibration {
     pub ols: ModelFile,
+    /// IDIM-IV, the closed-loop estimator.
+    pub closed_loop: ModelFile,
+    /// Its physically consistent form: the model the controller gets.
     pub consistent: ModelFile,
     /// Where the consistent model was written.
     pub consistent_file: std::path::PathBuf,
@@ -26,6 +29,67 @@ pub struct Calibration {
     pub table_ii: String,
     /// Measured against predicted torque on one validation run (its ω).
     pub torque: Option<(f64, ValidationSeries)>,
+    /// The simulated rig's own base parameters, in the models' order (`None` on a real rig).
+    pub truth: Option<Vec<f64>>,
+}
+
+/// The estimates of OLS and IDIM-IV set against the simulated rig's own base parameters.
+struct AgainstTruth {
+    names: Vec<String>,
+    truth: Vec<f64>,
+    /// Per estimator (OLS, IDIM-IV): its name, estimates and standard deviations.
+    estimators: Vec<(&'static str, Vec<f64>, Vec<f64>)>,
+}
+
+impl AgainstTruth {
+    fn of(calibration: &Calibration) -> Option<Self> {
+        let truth = calibration.truth.clone()?;
+        let estimators = [("OLS", &calibration.ols), ("IDIM-IV", &calibration.closed_loop)]
+            .into_iter()
+            .map(|(name, m)| {
+                let sigma = m.beta.iter().zip(&m.sigma_percent).map(|(b, p)| p / 100.0 * b.abs()).collect();
+                (name, m.beta.clone(), sigma)
+            })
+            .collect();
+        Some(Self { names: calibration.ols.base_names.clone(), truth, estimators })
+    }
+
+    /// `(estimate − truth) / σ` of each estimator.
+    fn z(&self) -> Vec<(&'static str, Vec<f64>)> {
+        self.estimators
+            .iter()
+            .map(|(name, beta, sigma)| {
+                (*name, beta.iter().zip(sigma).zip(&self.truth).map(|((b, s), t)| (b - t) / s).collect())
+            })
+            .collect()
+    }
+
+    /// How many of each estimator's parameters lie within 3σ of the truth.
+    fn covered(&self) -> Vec<(&'static str, usize)> {
+        self.z().into_iter().map(|(name, z)| (name, z.iter().filter(|v| v.abs() <= 3.0).count())).collect()
+    }
+
+    fn table(&self) -> String {
+        let mut s = String::from("| # | parameter | truth |");
+        for (name, _, _) in &self.estimators {
+            let _ = write!(s, " {name} ± σ | (est. − truth)/σ |");
+        }
+        s.push_str("\n|---|---|---|");
+        s.push_str(&"---|---|".repeat(self.estimators.len()));
+        s.push('\n');
+        let z = self.z();
+        for (i, name) in self.names.iter().enumerate() {
+            let _ = write!(s, "| {} | {name} | {:.4e} |", i + 1, self.truth[i]);
+            for ((_, beta, sigma), (_, z)) in self.estimators.iter().zip(&z) {
+                let _ = write!(s, " {:.4e} ± {:.1e} | {:+.1} |", beta[i], sigma[i], z[i]);
+            }
+            s.push('\n');
+        }
+        let covered: Vec<String> =
+            self.covered().iter().map(|(name, n)| format!("{name} {n} of {}", self.names.len())).collect();
+        let _ = writeln!(s, "\nWithin 3σ of the truth: {}.", covered.join(", "));
+        s
+    }
 }
 
 /// One tracking run: its errors, and the series the figures need.
@@ -245,6 +309,17 @@ pub fn write(
         )?;
         calibration_figures.push(("Measured (filtered) against predicted torque on a validation run", "torque.png"));
     }
+    if let Some(against) = AgainstTruth::of(calibration) {
+        estimates_against_truth(
+            &dir.join("parameters.png"),
+            "Base parameters against the simulated rig's truth, ±3σ",
+            &against.z(),
+        )?;
+        calibration_figures.push((
+            "Each base parameter's estimate minus the truth, in its own σ, with ±3σ bars (OLS and IDIM-IV)",
+            "parameters.png",
+        ));
+    }
 
     // Figs. 6–7: tracking error and control effort, one series per controller.
     for (file, title, caption, values) in [
@@ -323,7 +398,15 @@ fn markdown(
     );
     images(&mut s, &figures[0]);
     let _ = writeln!(s, "## Calibration\n\n```\nTable I (OLS)\n{}\n```\n", calibration.ols.table());
-    let _ = writeln!(s, "```\nPhysically consistent fit\n{}\n```\n", calibration.consistent.table());
+    let _ = writeln!(s, "```\nTable I (IDIM-IV, closed loop)\n{}\n```\n", calibration.closed_loop.table());
+    let _ = writeln!(
+        s,
+        "```\nPhysically consistent fit (IDIM-IV; the model the robust controller gets)\n{}\n```\n",
+        calibration.consistent.table()
+    );
+    if let Some(against) = AgainstTruth::of(calibration) {
+        let _ = writeln!(s, "Estimates against the simulated rig's own base parameters:\n\n{}", against.table());
+    }
     let _ = writeln!(s, "```\n{}\n```\n", calibration.table_ii);
     images(&mut s, &figures[1]);
     let _ = writeln!(s, "## Diagnosis\n\n```\n{}\n```\n", diagnosis.report());
@@ -355,7 +438,16 @@ fn summary(model: &Model, calibration: &Calibration, diagnosis: &Diagnosis, trac
     let value = serde_json::json!({
         "format": "arash-demo-summary/1",
         "joint_names": model.joint_names(),
-        "training_fp_percent": {"ols": calibration.ols.training.fp_percent, "consistent": calibration.consistent.training.fp_percent},
+        "training_fp_percent": {
+            "ols": calibration.ols.training.fp_percent,
+            "idim_iv": calibration.closed_loop.training.fp_percent,
+            "consistent": calibration.consistent.training.fp_percent,
+        },
+        "within_3_sigma_of_truth": AgainstTruth::of(calibration).map(|a| {
+            let covered: serde_json::Map<String, serde_json::Value> =
+                a.covered().into_iter().map(|(name, n)| (name.to_lowercase(), n.into())).collect();
+            serde_json::json!({"of": a.names.len(), "covered": covered})
+        }),
         "diagnosis": {
             "accepted": accepted,
             "error_before": diagnosis.before,

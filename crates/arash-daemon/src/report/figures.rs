@@ -145,6 +145,43 @@ pub fn bars_before_after(
     Ok(())
 }
 
+/// Estimates against the truth, one group per parameter: each series' `(estimate − truth) / σ`
+/// as a point with its ±3σ bar (so a bar that crosses zero covers the truth), the series side
+/// by side in the palette's colours. Parameters are numbered from 1 on the x-axis; the report's
+/// table names them.
+pub fn estimates_against_truth(path: &Path, title: &str, series: &[(&str, Vec<f64>)]) -> anyhow::Result<()> {
+    let root = canvas(path)?;
+    let n = series.iter().map(|(_, z)| z.len()).max().unwrap_or(0);
+    let ends: Vec<f64> = series.iter().flat_map(|(_, z)| z.iter().flat_map(|v| [v - 3.0, v + 3.0])).collect();
+    let (lo, hi) = range(ends.iter());
+    let mut chart = axes(&root, title, 0.0..n as f64 + 1.0, lo.min(-3.5)..hi.max(3.5))?;
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .x_labels(n.min(30))
+        .x_label_formatter(&|x| format!("{x:.0}"))
+        .x_desc("base parameter")
+        .y_desc("(estimate − truth) / σ")
+        .label_style(("sans-serif", 15))
+        .draw()?;
+    chart.draw_series(LineSeries::new([(0.0, 0.0), (n as f64 + 1.0, 0.0)], BLACK.stroke_width(1)))?;
+    let width = 0.6 / series.len().max(1) as f64;
+    for (s, (name, z)) in series.iter().enumerate() {
+        let color = Palette99::pick(s).to_rgba();
+        let offset = (s as f64 - (series.len() as f64 - 1.0) / 2.0) * width;
+        let x = |i: usize| i as f64 + 1.0 + offset;
+        let finite = || z.iter().enumerate().filter(|(_, v)| v.is_finite());
+        let bars =
+            finite().map(|(i, v)| PathElement::new(vec![(x(i), v - 3.0), (x(i), v + 3.0)], color.stroke_width(2)));
+        chart.draw_series(bars)?;
+        chart
+            .draw_series(finite().map(|(i, v)| Circle::new((x(i), *v), 4, color.filled())))?
+            .label(*name)
+            .legend(move |(px, py)| PathElement::new(vec![(px, py - 6), (px, py + 6)], color.stroke_width(2)));
+    }
+    finish(chart, &root, path)
+}
+
 /// Named lines `y(x)`, thinned, in the palette's colours by order, with legend entries.
 fn draw_lines<'s>(
     chart: &mut Chart<'_, '_>,

@@ -1,7 +1,7 @@
 //! `arash demo`: the paper end to end through the real daemon. Start the rig (the mock motor
 //! with a scenario holding effects the model lacks, or a real port), design the excitation and
-//! log it under inverse dynamics control with CAD, calibrate (OLS and the consistent fit, Tables
-//! I and II), diagnose the residual, track the ω = 0.5 validation trajectory three ways, and
+//! log it under inverse dynamics control with CAD, calibrate (OLS beside IDIM-IV, the closed-loop
+//! estimator, and its consistent form, which the controller gets; Tables I and II), diagnose the residual, track the ω = 0.5 validation trajectory three ways, and
 //! write a report with figures. Everything goes to `logs/<run>/`.
 
 use crate::report::demo as report;
@@ -14,10 +14,13 @@ use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::control::fourier::Excitation;
 use arash_core::control::Trajectory;
 use arash_core::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
+use arash_core::identify::closed_loop::ClosedLoop;
 use arash_core::identify::estimate::joint_metrics;
 use arash_core::identify::excitation::{design_excitation, ExcitationOptions};
 use arash_core::identify::preprocess::PreprocessOptions;
-use arash_core::identify::{identify, validate, validation_series, validation_table, Declared, IdentifyOptions, Log};
+use arash_core::identify::{
+    identify, identify_in_closed_loop, validate, validation_series, validation_table, Declared, IdentifyOptions, Log,
+};
 use arash_core::model_file::{IdentifyMethod, ModelFile};
 use arash_core::{BaseParameters, Model};
 use arash_daemon::drive_config::DriveConfig;
@@ -157,11 +160,18 @@ fn steps(args: &Args, plan: &Plan) -> anyhow::Result<()> {
     // is told so, as a lab declares its robot's law (`--coulomb-epsilon`). Calibration keeps the
     // URDF's sign(q̇), with which the demo's tracking figures were measured (issue 17 is to
     // choose the law the same way in both).
+    // The simulated rig's own base parameters are known: the report sets the estimates against
+    // them.
     let mut diagnosed = model.clone();
+    let mut truth = None;
     if args.port.is_none() {
         let text = std::fs::read_to_string(&scenario).with_context(|| format!("reading {}", scenario.display()))?;
-        let truth = arash_core::sim::Scenario::from_toml(&text)?.truth;
-        diagnosed.coulomb_shape = arash_core::model::CoulombShape::Tanh { epsilon: truth.coulomb_epsilon };
+        let mut rig_scenario = arash_core::sim::Scenario::from_toml(&text)?;
+        rig_scenario.seed = args.seed;
+        diagnosed.coulomb_shape = arash_core::model::CoulombShape::Tanh { epsilon: rig_scenario.truth.coulomb_epsilon };
+        let mut beta = vec![0.0; base.rank];
+        base.project(&arash_core::sim::true_parameters(&model, &rig_scenario), &mut beta);
+        truth = Some(beta);
     }
     let (motors, rt) = match &args.port {
         Some(port) => (Motors::Port(port), args.rt.unwrap_or(RtPolicy::Require)),
@@ -183,7 +193,7 @@ fn steps(args: &Args, plan: &Plan) -> anyhow::Result<()> {
             scenario_effects(&scenario)
         ),
     }
-    let outcome = experiment(args, plan, (&model, &diagnosed), &urdf, &base, &rig);
+    let outcome = experiment(args, plan, (&model, &diagnosed), &urdf, &base, &rig, truth);
     rig.stop()?;
     let (excitation, calibration, diagnosis, tracking) = outcome?;
 
@@ -203,6 +213,7 @@ fn experiment(
     urdf: &str,
     base: &BaseParameters,
     rig: &Rig,
+    truth: Option<Vec<f64>>,
 ) -> anyhow::Result<Outcome> {
     let dir = &plan.dir;
     println!(
@@ -232,7 +243,8 @@ fn experiment(
 
     println!("\n[4/7] calibration: {} periods averaged, Butterworth order 5 forward and backward", plan.periods);
     let training_log = runlog::read(&training, model)?;
-    let calibration = calibrate(model, urdf, base, plan, (&training, &training_log), &validation)?;
+    let mut calibration = calibrate(model, urdf, base, plan, (&training, &training_log), &validation)?;
+    calibration.truth = truth;
     rig::check_interrupt()?;
 
     println!("\n[5/7] diagnosis of the residual");
@@ -279,8 +291,15 @@ fn indent(text: &str) -> String {
     text.lines().map(|l| format!("    {l}")).collect::<Vec<_>>().join("\n")
 }
 
-/// OLS and the consistent fit on the excitation log (its path and contents), Table II on the
-/// validation logs, and the consistent model's torque on the ω = 0.5 run (or the first).
+/// OLS, IDIM-IV and its physically consistent form on the excitation log (its path and
+/// contents), Table II on the validation logs, and the consistent model's torque on the ω = 0.5
+/// run (or the first).
+///
+/// The log is recorded in closed loop, so the closed-loop estimator is the one the controller
+/// gets (issue 18): IDIM-IV, whose instruments come from the logged loop simulated with the
+/// estimate, which the daemon's flight log names (reference and controller). OLS is shown beside
+/// it. IDIM-IV rather than DIDIM: the rig's drive disturbs the loop, where DIDIM is biased
+/// (docs/identification.md, "Closed-loop logs").
 fn calibrate(
     model: &Model,
     urdf: &str,
@@ -292,19 +311,32 @@ fn calibrate(
     // Every preprocessing choice is left to the data, as for a user's first log; the table
     // printed below says what was chosen and why.
     let options = IdentifyOptions::default();
-    let fit = |method| -> anyhow::Result<(ModelFile, PathBuf)> {
-        let mut id =
-            identify(Declared { model, base, urdf }, Log { t: &log.t, q: &log.q, tau: &log.tau }, method, &options)
-                .with_context(|| format!("identification ({method:?}) failed"))?;
+    let channels = log.closed_loop.as_ref().with_context(|| {
+        format!("{} has no reference channels: the daemon's flight log should hold them", training.display())
+    })?;
+    let controller = channels.controller.clone().map_err(|why| anyhow::anyhow!("{}: {why}", training.display()))?;
+    let fit = |method: IdentifyMethod| -> anyhow::Result<(ModelFile, PathBuf)> {
+        let declared = Declared { model, base, urdf };
+        let data = Log { t: &log.t, q: &log.q, tau: &log.tau };
+        let mut id = match method.closed_loop() {
+            true => {
+                let closed_loop = ClosedLoop::new(&channels.reference, &controller);
+                identify_in_closed_loop(declared, data, closed_loop, method, &options)
+            }
+            false => identify(declared, data, method, &options),
+        }
+        .with_context(|| format!("identification ({method}) failed"))?;
         id.data.sources = vec![training.display().to_string()];
-        let path = plan.dir.join(format!("model_{}.json", format!("{method:?}").to_lowercase()));
+        let path = plan.dir.join(format!("model_{}.json", method.name()));
         crate::report::write_atomically(&path, &id.to_json())?;
         Ok((id, path))
     };
     let (ols, _) = fit(IdentifyMethod::Ols)?;
-    let (consistent, consistent_file) = fit(IdentifyMethod::Consistent)?;
+    let (closed_loop, _) = fit(IdentifyMethod::IdimIv)?;
+    let (consistent, consistent_file) = fit(IdentifyMethod::IdimIvConsistent)?;
     println!("{}", indent(&format!("Table I (OLS):\n{}", ols.table())));
-    println!("{}", indent(&format!("Physically consistent fit:\n{}", consistent.table())));
+    println!("{}", indent(&format!("Table I (IDIM-IV, closed loop):\n{}", closed_loop.table())));
+    println!("{}", indent(&format!("Physically consistent fit (IDIM-IV):\n{}", consistent.table())));
     let plotted = validation.iter().position(|(w, _)| (*w - 0.5).abs() < 1e-9).unwrap_or(0);
     let mut labels = Vec::new();
     let mut table_ii = (Vec::new(), Vec::new());
@@ -323,12 +355,12 @@ fn calibrate(
     }
     let joints = model.joint_names();
     let table_ii = format!(
-        "Table II (FP% per joint on the validation runs)\nOLS:\n{}consistent:\n{}",
+        "Table II (FP% per joint on the validation runs)\nOLS:\n{}consistent (IDIM-IV):\n{}",
         validation_table(&joints, &labels, &table_ii.0),
         validation_table(&joints, &labels, &table_ii.1)
     );
     println!("{}", indent(&table_ii));
-    Ok(report::Calibration { ols, consistent, consistent_file, table_ii, torque })
+    Ok(report::Calibration { ols, closed_loop, consistent, consistent_file, table_ii, torque, truth: None })
 }
 
 /// Diagnose the excitation log (the declared model refitted), write the report, figures and
