@@ -197,11 +197,19 @@ impl Identification {
         Ok(dict)
     }
 
-    /// The same model without the effects a diagnosis added: the declared part alone.
-    fn without_effects(&self) -> Identification {
+    /// The same model without the effects a diagnosis added (`which`: the indices of those to
+    /// drop, in the file's order; default all, which leaves the declared part alone).
+    #[pyo3(signature = (which=None))]
+    fn without_effects(&self, which: Option<Vec<usize>>) -> PyResult<Identification> {
         let mut inner = self.inner.clone();
-        inner.effects.clear();
-        Identification::new(Arc::clone(&self.model), inner)
+        let count = inner.effects.len();
+        let drop = which.unwrap_or_else(|| (0..count).collect());
+        if let Some(bad) = drop.iter().find(|&&i| i >= count) {
+            return Err(PyValueError::new_err(format!("which: effect {bad} does not exist (the model has {count})")));
+        }
+        inner.effects =
+            inner.effects.into_iter().enumerate().filter(|(i, _)| !drop.contains(i)).map(|(_, e)| e).collect();
+        Ok(Identification::new(Arc::clone(&self.model), inner))
     }
 
     /// Text table in the shape of the paper's Table I.

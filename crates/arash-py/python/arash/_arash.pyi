@@ -154,8 +154,9 @@ class Identification:
         """FP% ("fp_percent"), ‖e‖/‖τ‖ ("rel") and RMS ("rms") per joint on a validation log, with the
         cut-off it was filtered at ("cutoff_hz") and its preprocessing reasons ("reasons"), of the
         declared part (``arash.heldout_errors`` scores a diagnosis's effects too)."""
-    def without_effects(self) -> Identification:
-        """The same model without the effects a diagnosis added: the declared part alone."""
+    def without_effects(self, which: Optional[Sequence[int]] = None) -> Identification:
+        """The same model without the effects a diagnosis added (``which``: the indices of those to
+        drop, in the file's order; default all, which leaves the declared part alone)."""
     def table(self) -> str: ...
     def to_json(self) -> str: ...
     def save(self, path: Union[str, PathLike[str]]) -> None: ...
