@@ -101,10 +101,15 @@ impl Transmission {
         &self.r
     }
 
-    /// R row-major (`dof × dof`).
-    pub fn row_major(&self) -> Vec<f64> {
+    /// The motors that turn with more than one joint: `(m, g)`, motor m's motion per unit of
+    /// each joint on its own joint's scale, `g = R[m, :] / R[m, m]` (the `coupled_rotor` effect's
+    /// direction). A motor with no ratio to its own joint has no such scale and is left out.
+    pub fn coupled_motors(&self) -> Vec<(usize, Vec<f64>)> {
         let dof = self.dof();
-        (0..dof * dof).map(|i| self.r[(i / dof, i % dof)]).collect()
+        (0..dof)
+            .filter(|&m| self.r[(m, m)] != 0.0 && (0..dof).any(|j| j != m && self.r[(m, j)] != 0.0))
+            .map(|m| (m, (0..dof).map(|j| self.r[(m, j)] / self.r[(m, m)]).collect()))
+            .collect()
     }
 
     /// Joint angles and torques (row-major `samples × dof`) from motor angles and motor torques.
@@ -150,6 +155,12 @@ mod tests {
         assert!((joint_power - motor_power).abs() < 1e-12 * motor_power.abs().max(1.0));
         // θ = R q̇ maps back to q̇ exactly.
         assert!(q.iter().zip(&qd).all(|(a, b)| (a - b).abs() < 1e-14));
+    }
+
+    /// Only motor 6 turns with two joints, with g = (0, 0, 0, 0, 1, 1).
+    #[test]
+    fn the_tx40s_wrist_motor_is_the_one_coupled_motor() {
+        assert_eq!(tx40().coupled_motors(), vec![(5, vec![0.0, 0.0, 0.0, 0.0, 1.0, 1.0])]);
     }
 
     #[test]

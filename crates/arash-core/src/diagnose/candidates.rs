@@ -5,9 +5,10 @@ use super::options::DiagnoseOptions;
 use super::prepare::Prepared;
 use super::regression::GroupTest;
 use crate::base_parameters::BaseParameters;
-use crate::effects::{coupled_motors, EffectKind, EffectTerm, JointData, NotSearched};
+use crate::effects::{EffectKind, EffectTerm, JointData, NotSearched};
 use crate::model::{CoulombShape, Model};
 use crate::model_file::ModelFile;
+use crate::transmission::Transmission;
 
 /// The candidate templates for this robot and training data: each effect's own bank per joint
 /// (`crate::effects`), then rotor inertia on every joint at once, a payload on each body with
@@ -42,7 +43,7 @@ pub(super) fn candidates(
         terms.extend(train.bodies.iter().map(|(b, _)| crate::effects::payload_on(&model.bodies[*b].name)));
     }
     if wanted.contains(&EffectKind::CoupledRotor) {
-        let motors = options.motors.as_ref().map_or_else(Vec::new, |t| coupled_motors(&t.row_major(), dof));
+        let motors = options.motors.as_ref().map_or_else(Vec::new, Transmission::coupled_motors);
         if motors.is_empty() {
             let all = (0..dof).collect();
             skipped.push(not_searched(EffectKind::CoupledRotor, all, "any motor", NotSearched::NoCoupledMotor));

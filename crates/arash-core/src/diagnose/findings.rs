@@ -275,10 +275,6 @@ pub struct Diagnosis {
     pub series: Series,
 }
 
-pub(super) fn effect_joints(term: &EffectTerm, dof: usize) -> Vec<usize> {
-    term.joints(dof)
-}
-
 pub(super) fn rejection(
     model: &Model,
     term: &EffectTerm,
@@ -288,7 +284,7 @@ pub(super) fn rejection(
 ) -> Rejection {
     Rejection {
         name: term.kind.id().into(),
-        joints: effect_joints(term, model.dof()),
+        joints: term.joints(model.dof()),
         label: term.describe(&model.joint_names()),
         reason,
         p_value,

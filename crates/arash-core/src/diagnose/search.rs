@@ -6,9 +6,7 @@ use std::borrow::Cow;
 use super::candidates::{candidates, not_the_cable};
 use super::context::{parallel_map, Context};
 use super::delay::search_delay;
-use super::findings::{
-    effect_joints, rejection, DiagnoseSettings, Diagnosis, Finding, Rejection, RejectionReason, Series,
-};
+use super::findings::{rejection, DiagnoseSettings, Diagnosis, Finding, Rejection, RejectionReason, Series};
 use super::options::{DiagnoseError, DiagnoseOptions};
 use super::outcome::{declared_model, series};
 use super::problem::{error_summary, model_columns, Candidate, HeldOut, HeldOutBase, Problem};
@@ -139,7 +137,7 @@ impl Search<'_> {
         let model = self.ctx.model;
         state.accepted.push(Finding {
             name: term.kind.id().into(),
-            joints: effect_joints(&term, dof),
+            joints: term.joints(dof),
             label: term.describe(&model.joint_names()),
             term,
             statistic: test.f_statistic,
@@ -227,7 +225,7 @@ impl Search<'_> {
                 // Accepted on the joint it helps most, ranked by what it does for the whole
                 // robot, so that an effect acting on several joints competes fairly with
                 // one-joint terms.
-                let gain = effect_joints(term, dof).iter().map(|&k| gains[k]).fold(f64::NEG_INFINITY, f64::max);
+                let gain = term.joints(dof).iter().map(|&k| gains[k]).fold(f64::NEG_INFINITY, f64::max);
                 if gain < ctx.options.min_gain {
                     let reason = RejectionReason::SmallGain { p_value, gain, min_gain: ctx.options.min_gain };
                     return Err((reason, Some(gain)));

@@ -10,7 +10,8 @@
 //!
 //! A motor that only one joint turns is that joint's `armature` and friction; this term exists
 //! only where the transmission couples joints. Its columns are the motor's own sample
-//! ([`EffectTerm::sample_of`]) spread over the joints by `g` ([`EffectTerm::weight_on`]). The
+//! ([`EffectTerm::sample_of`]) spread over the joints by `g` ([`EffectTerm::weight_on`]); the transmission names the coupled
+//! motors (`Transmission::coupled_motors`). The
 //! dry-friction column switches with the motion and is filtered like the torque; the other two
 //! are not ([`Effect::column_filtered`]).
 
@@ -63,31 +64,10 @@ impl Effect for CoupledRotor {
     }
 }
 
-/// The motors of a transmission `r` (motor radians per joint radian, `dof × dof`, row-major)
-/// that turn with more than one joint: `(m, g)` with `g = R[m, :] / R[m, m]`.
-pub fn coupled_motors(r: &[f64], dof: usize) -> Vec<(usize, Vec<f64>)> {
-    (0..dof)
-        .filter_map(|m| {
-            let row = &r[m * dof..(m + 1) * dof];
-            let coupled = row.iter().enumerate().any(|(j, v)| j != m && *v != 0.0);
-            (coupled && row[m] != 0.0).then(|| (m, row.iter().map(|v| v / row[m]).collect()))
-        })
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::control::feedforward::EffectFeedforward;
-
-    /// The TX40's transmission: only motor 6 turns with two joints, with g = (0, 0, 0, 0, 1, 1).
-    #[test]
-    fn the_tx40s_wrist_motor_is_the_one_coupled_motor() {
-        let r =
-            crate::transmission::Transmission::new(6, &[32.0, 32.0, 45.0, -48.0, 45.0, 32.0], &[(6, 5, 32.0)], None)
-                .unwrap();
-        assert_eq!(coupled_motors(&r.row_major(), 6), vec![(5, vec![0.0, 0.0, 0.0, 0.0, 1.0, 1.0])]);
-    }
 
     /// The equation, against a motor's dynamics written out by hand: a rotor of inertia J_m and
     /// frictions b_m, c_m on a motor shaft turned at θ̇ = N (q̇₃ + c q̇₂) (R[2][2] = N,
@@ -97,8 +77,9 @@ mod tests {
     #[test]
     fn the_motor_acts_on_every_joint_it_turns_with_through_the_transmission() {
         let (n, c, jm, bm, cm) = (40.0, -0.6, 2.0e-5, 3.0e-4, 0.05);
-        let r = [1.0, 0.0, 0.0, 0.0, 25.0, 0.0, 0.0, n * c, n];
-        let (m, g) = coupled_motors(&r, 3).pop().expect("motor 3 is coupled");
+        let r = nalgebra::DMatrix::from_row_slice(3, 3, &[1.0, 0.0, 0.0, 0.0, 25.0, 0.0, 0.0, n * c, n]);
+        let r = crate::transmission::Transmission::from_matrix(r, vec![0.0; 3]).unwrap();
+        let (m, g) = r.coupled_motors().pop().expect("motor 3 is coupled");
         let mut term = EffectTerm::new(EffectKind::CoupledRotor, Some(m));
         term.coupling = Some(g);
         term.coefficients = vec![n * n * jm, n * n * bm, n * cm];

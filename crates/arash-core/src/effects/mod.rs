@@ -32,7 +32,6 @@ use serde::{Deserialize, Serialize};
 
 pub use armature::every_joint as armature_on_every_joint;
 pub use configuration::CONFIGURATION_HARMONICS;
-pub use coupled_rotor::coupled_motors;
 pub use payload::on_body as payload_on;
 
 /// The stable identifiers of the effects.
