@@ -78,9 +78,8 @@ def main():
             cwd=ROOT, check=True,
         )
 
-    base = robot.base_parameters()
     ident = arash.load_model(out / "model_ols.json")
-    beta_true = base.project(truth)
+    beta_true = ident.base.project(truth)  # the base parameters the model file fitted
     sigma = ident.sigma_percent / 100 * np.abs(ident.beta)
     inside = np.abs(ident.beta - beta_true) <= 3 * sigma
     print(f"\n== truth check: {inside.sum()}/{len(inside)} base parameters within 3σ of the truth")

@@ -47,7 +47,7 @@ def paper_validation_fp(robot, model, truth):
 
 
 def within_three_sigma(model, truth):
-    beta_true = model.robot.base_parameters().project(truth)
+    beta_true = model.base.project(truth)
     sigma = np.abs(model.sigma_percent / 100 * model.beta)
     return np.abs(model.beta - beta_true) <= 3 * sigma
 

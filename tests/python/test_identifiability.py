@@ -104,3 +104,31 @@ def test_measured_robots_have_no_weak_base_parameter(urdf):
     base = robot.base_parameters(regroup_weak=True)
     assert base.weak == [] and base.p == robot.base_parameters().p
     assert "none" in base.weak_report()
+
+
+@pytest.mark.parametrize("designed", [False, True], ids=["random sines", "arash's design"])
+def test_identify_fits_the_identifiable_base_parameters_unless_told_to_keep_the_weak_one(designed):
+    """On a log of Pinocchio's dynamics (not arash's simulator), the default fit regroups the weak
+    parameter, says so, and predicts as well as the fit that keeps it, while the parameters the
+    weak one leaned on are no longer lost in its noise."""
+    pytest.importorskip("pinocchio")
+    import independent
+
+    condition = independent.Condition("arash_asist", 1000, 16, 0.01, "sign", 4, 60.0, seed=4, designed=designed)
+    robot, log, _ = independent.make_log(condition)
+    regrouped = arash.identify(robot, *log)
+    kept = arash.identify(robot, *log, keep_weak=True)
+    assert regrouped.base.names == robot.base_parameters(regroup_weak=True).names
+    assert kept.base.names == robot.base_parameters().names
+    assert any("instrument_holder.my_R regrouped" in r for r in regrouped.settings["reasons"])
+    assert not any("regrouped" in r for r in kept.settings["reasons"])
+    # The weak direction is what set κ (10⁵–10⁶ when written; 350–1000 without it).
+    assert regrouped.condition_number < 0.01 * kept.condition_number
+    np.testing.assert_allclose(regrouped.fp_percent, kept.fp_percent, atol=0.2)
+    # rocker_a.my_R, the column the weak one nearly repeats: its σ shrinks tenfold or more.
+    assert absolute_sigma(regrouped, "rocker_a.my_R") < 0.1 * absolute_sigma(kept, "rocker_a.my_R")
+
+
+def absolute_sigma(ident, name):
+    k = ident.base.names.index(name)
+    return ident.sigma_percent[k] / 100 * abs(ident.beta[k])

@@ -85,6 +85,18 @@ impl BaseParameterOptions {
     pub fn identifiable(self) -> Self {
         Self { weak_tolerance: WEAK_TOLERANCE, ..self }
     }
+
+    /// The base parameters identification and diagnosis fit: the identifiable ones, or with
+    /// `keep_weak` every exact one. Regrouping is the default because a weak parameter's
+    /// estimate is its regrouping's noise: on ARASH:ASiST it sets κ and inflates the σ of every
+    /// parameter it leans on (docs/identification.md, "Identifiable in practice").
+    pub fn fitted(keep_weak: bool) -> Self {
+        if keep_weak {
+            Self::default().keep_weak()
+        } else {
+            Self::default().identifiable()
+        }
+    }
 }
 
 /// Default acceleration limit of a trajectory, per unit of the joint's speed limit (1/s).
@@ -310,7 +322,7 @@ impl BaseParameters {
             );
         }
         let mut s = format!(
-            "weak base parameters: {}, which no trajectory within the limits separates (residual ≤ {:.1e}, every other ≥ {:.1e}); the excitation design and --regroup-weak regroup them:\n",
+            "weak base parameters: {}, which no trajectory within the limits separates (residual ≤ {:.1e}, every other ≥ {:.1e}); the excitation design, identification and diagnosis regroup them unless --keep-weak:\n",
             self.weak.len(),
             weak,
             kept

@@ -183,6 +183,16 @@ fn simulate_writes_a_flight_log_that_identify_reads() {
     assert!(out.status.success(), "{err}");
     assert!(err.contains("from 7000 samples") && text.contains("Identified base parameters"), "{err}{text}");
     assert!(model.exists());
+    // By default the weak base parameter is regrouped, and the table says so; --keep-weak fits it.
+    assert!(
+        text.contains("instrument_holder.my_R regrouped") && text.contains("β22") && !text.contains("β23"),
+        "{text}"
+    );
+    let kept = dir.join("model-kept.json");
+    let out =
+        arash(&["identify", log.to_str().unwrap(), "--robot", &robot, "--keep-weak", "-o", kept.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && text.contains("β23") && !text.contains("regrouped"), "{text}");
 }
 
 /// A closed-loop run through `identify --method didim`: the flight log names its reference and

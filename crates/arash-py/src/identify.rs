@@ -253,10 +253,10 @@ fn _identify<'py>(
     let dof = robot.model.dof();
     let mut reference: Option<[crate::Batch; 3]> = None;
     let mut controller: Option<String> = None;
-    let mut regroup_weak = false;
+    let mut keep_weak = false;
     crate::each_option(options, |key, value| {
         match key {
-            "regroup_weak" => regroup_weak = value.extract()?,
+            "keep_weak" => keep_weak = value.extract()?,
             "reference" => {
                 let (a, b, c): (PyReadonlyArrayDyn<f64>, PyReadonlyArrayDyn<f64>, PyReadonlyArrayDyn<f64>) =
                     value.extract()?;
@@ -283,7 +283,7 @@ fn _identify<'py>(
     }
     let (t, q, tau) = log_arrays(&log.0, &log.1, &log.2, robot.model.dof())?;
     let model = Arc::clone(&robot.model);
-    let base = robot.default_base(regroup_weak)?;
+    let base = robot.fitted_base(keep_weak)?;
     let declared = Declared { model: &model, base, urdf: &robot.urdf };
     let log = Log { t: &t, q: &q, tau: &tau };
     let inner = match closed_loop_arrays(reference, controller.as_deref(), model.dof(), t.len())? {
@@ -484,7 +484,7 @@ fn _design_excitation(py: Python<'_>, robot: &Robot, options: &Bound<'_, PyDict>
         Ok(true)
     })?;
     let options = o;
-    let base = robot.default_base(!keep_weak)?;
+    let base = robot.fitted_base(keep_weak)?;
     let model = Arc::clone(&robot.model);
     let inner = py
         .detach(|| {

@@ -162,8 +162,9 @@ pub(crate) struct Robot {
     pub(crate) model: Arc<Model>,
     /// The URDF text the model was built from (identified models embed it).
     pub(crate) urdf: Arc<str>,
-    /// The exact base parameters, and the identifiable ones (weak regrouped), computed on first use.
-    pub(crate) default_base: [std::sync::OnceLock<CoreBase>; 2],
+    /// The base parameters fitted by default: the identifiable ones (weak regrouped), and the exact
+    /// ones (`keep_weak`), computed on first use.
+    pub(crate) fitted_base: [std::sync::OnceLock<CoreBase>; 2],
 }
 
 impl Robot {
@@ -446,28 +447,26 @@ impl Robot {
 }
 
 impl Robot {
-    /// Base parameters with the default sampling, cached: they depend only on the model.
-    /// `regroup_weak` regroups those no trajectory within the limits separates.
-    pub(crate) fn default_base(&self, regroup_weak: bool) -> PyResult<&CoreBase> {
-        let cell = &self.default_base[usize::from(regroup_weak)];
+    /// The base parameters fitted by default (`BaseParameterOptions::fitted`), cached: they
+    /// depend only on the model. `keep_weak` keeps those no trajectory within the limits separates.
+    pub(crate) fn fitted_base(&self, keep_weak: bool) -> PyResult<&CoreBase> {
+        let cell = &self.fitted_base[usize::from(keep_weak)];
         if let Some(base) = cell.get() {
             return Ok(base);
         }
-        let options =
-            if regroup_weak { BaseParameterOptions::default().identifiable() } else { BaseParameterOptions::default() };
-        let base = CoreBase::compute(&self.model, &options).map_err(value_error)?;
+        let base = CoreBase::compute(&self.model, &BaseParameterOptions::fitted(keep_weak)).map_err(value_error)?;
         Ok(cell.get_or_init(|| base))
     }
 
-    /// The default base parameters whose columns are `independent` (a model file's), weak kept or not.
+    /// The fitted base parameters whose columns are `independent` (a model file's), weak kept or not.
     pub(crate) fn base_of(&self, independent: &[usize]) -> PyResult<&CoreBase> {
-        for regroup_weak in [false, true] {
-            let base = self.default_base(regroup_weak)?;
+        for keep_weak in [false, true] {
+            let base = self.fitted_base(keep_weak)?;
             if base.independent == independent {
                 return Ok(base);
             }
         }
-        self.default_base(false)
+        self.fitted_base(false)
     }
 
     pub(crate) fn from_text(urdf: &str, coulomb_epsilon: Option<f64>) -> PyResult<Self> {
@@ -477,7 +476,7 @@ impl Robot {
                 PyValueError::new_err(format!("coulomb_epsilon must be positive and finite, got {epsilon}"))
             })?;
         }
-        Ok(Self { model: Arc::new(model), urdf: Arc::from(urdf), default_base: Default::default() })
+        Ok(Self { model: Arc::new(model), urdf: Arc::from(urdf), fitted_base: Default::default() })
     }
 }
 

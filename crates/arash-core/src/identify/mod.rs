@@ -104,7 +104,7 @@ fn weak_reason(base: &BaseParameters) -> String {
     let (kept, weak) = base.reach_gap.unwrap_or_default(); // the test ran: there are weak ones
     format!(
         "base parameters: {}; {} regrouped, since no trajectory within the limits separates {} from the others (residual \
-         ≤ {weak:.1e} against ≥ {kept:.1e} for every kept one), as regroup_weak=True / --regroup-weak asked",
+         ≤ {weak:.1e} against ≥ {kept:.1e} for every kept one); keep_weak=True / --keep-weak fits every exact one",
         base.rank,
         names.join(", "),
         if names.len() == 1 { "it" } else { "them" },

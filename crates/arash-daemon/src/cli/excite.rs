@@ -63,9 +63,7 @@ struct TrajectoryFile<'a> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let (model, _) = super::load_robot(args.robot.as_deref())?;
-    let base_options = BaseParameterOptions::default();
-    let base_options = if args.keep_weak { base_options } else { base_options.identifiable() };
-    let base = BaseParameters::compute(&model, &base_options)?;
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::fitted(args.keep_weak))?;
     let options = ExcitationOptions {
         harmonics: args.harmonics,
         period_s: args.period,

@@ -27,10 +27,10 @@ pub struct Args {
     /// didim methods; default: the one the flight log names.
     #[arg(long)]
     controller: Option<PathBuf>,
-    /// Regroup the base parameters no trajectory within the limits separates (`arash model` lists
-    /// them); by default every exact base parameter is fitted.
+    /// Fit every exact base parameter, the weak ones too; by default those no trajectory within
+    /// the limits separates (`arash model` lists them) are regrouped into the others.
     #[arg(long)]
-    regroup_weak: bool,
+    keep_weak: bool,
     /// Most iterations of idim-iv and didim (each one simulation of the loop).
     #[arg(long, default_value_t = IvOptions::default().max_iterations)]
     iv_iterations: usize,
@@ -86,9 +86,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         iv: IvOptions { max_iterations: args.iv_iterations, ..Default::default() },
     };
     eprintln!("identifying from {} samples ({} file(s)) with {:?} ...", log.t.len(), args.runs.logs.len(), args.method);
-    let base_options = BaseParameterOptions::default();
-    let base =
-        BaseParameters::compute(&model, &if args.regroup_weak { base_options.identifiable() } else { base_options })?;
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::fitted(args.keep_weak))?;
     let declared = Declared { model: &model, base: &base, urdf: &urdf };
     let data = Log { t: &log.t, q: &log.q, tau: &log.tau };
     let mut identification = match args.method.closed_loop() {

@@ -143,7 +143,7 @@ def identify(
     controller: Optional[Union[str, dict[str, Any]]] = None,
     iv_iterations: Optional[int] = None,
     iv_tolerance: Optional[float] = None,
-    regroup_weak: bool = False,
+    keep_weak: bool = False,
 ) -> Identification:
     """Identify the robot's parameters from a log: t (N,), q and tau (N, dof), SI units.
 
@@ -164,8 +164,9 @@ def identify(
     "params": π_c, "gains": {...}}`` (an arash controller; ``read_log`` and ``simulate`` give it as
     ``"logged_controller"``). Both are needed by the idim-iv and didim methods, which simulate
     the loop. iv_iterations, iv_tolerance: their most iterations, and the move of β̂ (in σ) they
-    stop at. regroup_weak: regroup the base parameters no trajectory within the limits separates
-    (``robot.base_parameters(regroup_weak=True).weak`` lists them; by default all are fitted).
+    stop at. keep_weak: fit every exact base parameter; by default those no trajectory within the
+    limits separates are regrouped into the others (``robot.base_parameters(regroup_weak=True).weak``
+    lists them, and ``Identification.base`` is the set fitted).
 
     ``Identification.settings`` says what was chosen and why; a choice the data support only
     weakly is also raised as a ``UserWarning``.
@@ -175,7 +176,7 @@ def identify(
     options = _given(periods=periods, period_s=period_s, cutoff_hz=cutoff_hz, order=order, decimate=decimate,
                      friction_cutoff_hz=friction_cutoff_hz, pull=pull, stiffness_bounds=stiffness_bounds,
                      reference=reference, controller=controller, iv_iterations=iv_iterations,
-                     iv_tolerance=iv_tolerance, regroup_weak=regroup_weak or None)
+                     iv_tolerance=iv_tolerance, keep_weak=keep_weak or None)
     if motor_side is not None:
         q, tau = motor_side.to_joints(q, tau)
     identification = _identify(robot, (t, q, tau), method, options)
@@ -234,6 +235,7 @@ def diagnose(
     consistent: Optional[bool] = None,
     consistent_cutoff_hz: Optional[float] = None,
     motor_side: Optional[Transmission] = None,
+    keep_weak: bool = False,
 ) -> Diagnosis:
     """Find what the declared model lacks in a log, and the error before and after.
 
@@ -257,6 +259,7 @@ def diagnose(
     each; ``DiagnoseOptions()`` shows them. motor_side: a ``Transmission`` when q and tau (and the
     validation's) are motor angles and motor torques; it also gives the cogging search its ratios
     (unless ``transmission`` is given) and the ``coupled_rotor`` search its coupled motors.
+    keep_weak: without a model, fit every exact base parameter (as ``identify`` takes it).
     """
     if motor_side is not None:
         q, tau = motor_side.to_joints(q, tau)
@@ -267,7 +270,7 @@ def diagnose(
         friction_cutoff_hz=friction_cutoff_hz, order=order, block_s=block_s, batch_s=batch_s, alpha=alpha, min_gain=min_gain,
         effects=None if effects is None else list(effects), torque_from_currents=torque_from_currents,
         refit=refit, hold_friction=hold_friction, consistent=consistent,
-        consistent_cutoff_hz=consistent_cutoff_hz, motor_side=motor_side))
+        consistent_cutoff_hz=consistent_cutoff_hz, motor_side=motor_side, keep_weak=keep_weak or None))
     return _diagnose(robot, (t, q, tau), options, model, validation)
 
 

@@ -86,7 +86,7 @@ class Robot:
     def base_parameters(self, samples: Optional[int] = None, seed: Optional[int] = None, regroup_weak: bool = False) -> BaseParameters:
         """The exact base parameters (Y π = Y_r β to round-off); regroup_weak=True regroups the
         weak combinations no trajectory within the limits separates (then Y π = Y_r β on such
-        trajectories, to their residual)."""
+        trajectories, to their residual), the set ``identify`` and ``diagnose`` fit by default."""
 
 @final
 class BaseParameters:
@@ -243,6 +243,8 @@ class DiagnoseOptions:
     def consistent(self) -> bool: ...
     @property
     def consistent_cutoff_hz(self) -> Optional[float]: ...
+    @property
+    def keep_weak(self) -> bool: ...
 
 @final
 class Effect:

@@ -145,7 +145,7 @@ fn utc_stamp() -> String {
 fn steps(args: &Args, plan: &Plan) -> anyhow::Result<()> {
     let dir = &plan.dir;
     let (model, urdf) = super::load_robot(None)?;
-    let base = BaseParameters::compute(&model, &BaseParameterOptions::default())?;
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::fitted(false))?;
 
     println!("\n[1/7] the rig");
     let scenario = match &args.scenario {
