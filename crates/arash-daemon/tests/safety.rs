@@ -222,6 +222,41 @@ fn a_non_finite_command_faults_with_zero_torque_at_once() {
     }
 }
 
+/// The rate limit is on what reaches the motor: a gap in telemetry, during which the last command
+/// is repeated, must not let the limiter run ahead on commands that were never sent.
+#[test]
+fn the_rate_limit_holds_at_the_motor_across_a_gap_in_telemetry() {
+    let mut rig = Rig::new([100.0, -100.0, 3.0], |c| c.link.hold_ms = 3.0);
+    rig.step();
+    rig.enable();
+    rig.step();
+    let first = rig.sent_torque();
+    rig.link.deliver = false;
+    for _ in 0..3 {
+        rig.step();
+        assert_eq!(rig.sent_torque(), first, "the last command is repeated during the hold");
+        let logged = &rig.cycle.record().tau_cmd[..3];
+        assert!(logged.iter().zip(first).all(|(l, f)| (l - f).abs() < 1e-6), "logged {logged:?}, sent {first:?}");
+    }
+    rig.link.deliver = true;
+    rig.steps(3);
+    // Default rate: 1 N·m per 1 ms cycle, between every two commands the motor gets.
+    let torques: Vec<[f64; 3]> = rig
+        .link
+        .sent
+        .iter()
+        .filter_map(|c| match c {
+            Command::Current { amps, .. } => Some([0, 1, 2].map(|k| f64::from(amps[k]) * rig.kt[k])),
+            _ => None,
+        })
+        .collect();
+    for pair in torques.windows(2) {
+        for k in 0..3 {
+            assert!((pair[1][k] - pair[0][k]).abs() <= 1.0 + 1e-6, "joint {k}: {:?} → {:?}", pair[0], pair[1]);
+        }
+    }
+}
+
 #[test]
 fn torque_is_rate_limited_then_clamped_exactly_at_the_limit() {
     let mut rig = Rig::new([100.0, -100.0, 3.0], |_| {});

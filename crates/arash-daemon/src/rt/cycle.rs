@@ -4,7 +4,8 @@
 //!
 //! Safety rules beyond [`SafetyGate`] (each has a test at its boundary in `tests/safety.rs`):
 //! - **stale telemetry:** a cycle without new valid telemetry repeats the last command for up to
-//!   `hold` cycles; later ones command the control law at the reference (q = q_d, q̇ = q̇_d): its
+//!   `hold` cycles (the law is not stepped; the log and the rate limit see the repeated command,
+//!   so the limit holds between the commands the motor gets); later ones command the control law at the reference (q = q_d, q̇ = q̇_d): its
 //!   feed-forward, without feedback. Feedback held on an ever older state is a sampled loop with
 //!   a long hold: telemetry every 10th cycle (seen on a loaded host behind a pseudo-terminal) made
 //!   the paper's insertion loop, near 150 rad/s, swing until the velocity limit latched. Without
@@ -321,7 +322,13 @@ impl ControlCycle {
             false => (&r.q, &r.qd),
             true => (&r.q_des, &r.qd_des),
         };
-        self.controller.step(self.cfg.dt, q, qd, &desired, &mut r.tau_cmd);
+        if self.missing > 0 && !blind {
+            // The hold repeats the last command: it is what the log records and what the gate
+            // sees, so that the rate limit does not run ahead on commands never sent.
+            r.tau_cmd[..self.dof].copy_from_slice(&self.last_sent[..self.dof]);
+        } else {
+            self.controller.step(self.cfg.dt, q, qd, &desired, &mut r.tau_cmd);
+        }
         if self.mode == Mode::Enabled {
             self.check_link();
             self.check_following();
