@@ -99,7 +99,7 @@ def scipy_pipeline(robot, base, t, q, tau, periods, cutoff, regressor=None, fric
 
 def main():
     robot = arash.Robot.arash_asist()
-    base = robot.base_parameters()
+    base = robot.base_parameters(regroup_weak=True)  # the base parameters arash.identify fits
     ref = Expanded(ROBOT_FILES["arash_asist"], robot)
     rng = np.random.default_rng(0)
     truth = true_parameters(robot, rng)
