@@ -132,3 +132,13 @@ def test_identify_fits_the_identifiable_base_parameters_unless_told_to_keep_the_
 def absolute_sigma(ident, name):
     k = ident.base.names.index(name)
     return ident.sigma_percent[k] / 100 * abs(ident.beta[k])
+
+
+def test_the_diagnosis_fits_the_same_base_parameters_as_identify():
+    pytest.importorskip("pinocchio")
+    import independent
+
+    robot, log, _ = independent.make_log(independent.Condition("arash_asist", 200, 16, 0.01, "sign", None, 10.0, seed=5))
+    assert arash.DiagnoseOptions().keep_weak is False
+    assert arash.diagnose(robot, *log).model.base.names == arash.identify(robot, *log).base.names
+    assert arash.diagnose(robot, *log, keep_weak=True).model.base.p == 23
