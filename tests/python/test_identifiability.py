@@ -134,11 +134,12 @@ def absolute_sigma(ident, name):
     return ident.sigma_percent[k] / 100 * abs(ident.beta[k])
 
 
-def test_the_diagnosis_fits_the_same_base_parameters_as_identify():
+def test_the_diagnosis_fits_the_exact_base_parameters():
+    """The regrouping's residual is a bias of arash's own that an effect could take up, so the
+    diagnosis keeps the weak parameter (its inertial parameters are nuisance)."""
     pytest.importorskip("pinocchio")
     import independent
 
     robot, log, _ = independent.make_log(independent.Condition("arash_asist", 200, 16, 0.01, "sign", None, 10.0, seed=5))
-    assert arash.DiagnoseOptions().keep_weak is False
-    assert arash.diagnose(robot, *log).model.base.names == arash.identify(robot, *log).base.names
-    assert arash.diagnose(robot, *log, keep_weak=True).model.base.p == 23
+    assert arash.diagnose(robot, *log).model.base.names == robot.base_parameters().names
+    assert arash.identify(robot, *log).base.p == 22

@@ -30,8 +30,6 @@ pub(crate) struct DiagnoseOptions {
     inner: CoreOptions,
     consistent: bool,
     consistent_cutoff_hz: Option<f64>,
-    /// Without a model, fit every exact base parameter (the weak ones too).
-    keep_weak: bool,
 }
 
 #[pymethods]
@@ -39,8 +37,7 @@ impl DiagnoseOptions {
     #[new]
     #[pyo3(signature = (**kwargs))]
     fn new(kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        let mut options =
-            Self { inner: CoreOptions::default(), consistent: false, consistent_cutoff_hz: None, keep_weak: false };
+        let mut options = Self { inner: CoreOptions::default(), consistent: false, consistent_cutoff_hz: None };
         for (key, value) in kwargs.into_iter().flatten() {
             let key: String = key.extract()?;
             options.set(&key, &value)?;
@@ -119,10 +116,6 @@ impl DiagnoseOptions {
     fn consistent_cutoff_hz(&self) -> Option<f64> {
         self.consistent_cutoff_hz
     }
-    #[getter]
-    fn keep_weak(&self) -> bool {
-        self.keep_weak
-    }
     fn __repr__(&self) -> String {
         format!(
             "DiagnoseOptions(cutoff_hz={:?}, block_s={}, alpha={}, min_gain={}, effects={:?})",
@@ -165,7 +158,6 @@ impl DiagnoseOptions {
             "hold_friction" => o.hold_friction = value.extract()?,
             "consistent" => self.consistent = value.extract()?,
             "consistent_cutoff_hz" => self.consistent_cutoff_hz = value.extract()?,
-            "keep_weak" => self.keep_weak = value.extract()?,
             other => return Err(PyTypeError::new_err(format!("DiagnoseOptions has no option `{other}`"))),
         }
         Ok(())
@@ -424,7 +416,7 @@ fn _diagnose<'py>(
     options.inner.validate(dof).map_err(value_error)?;
     let base = match model {
         Some(m) => robot.base_of(&m.inner().base_independent)?,
-        None => robot.fitted_base(options.keep_weak)?,
+        None => robot.diagnosed_base()?,
     };
     let robot_model = Arc::clone(&robot.model);
     let given = model.map(|m| m.inner().clone());

@@ -458,6 +458,12 @@ impl Robot {
         Ok(cell.get_or_init(|| base))
     }
 
+    /// The base parameters the diagnosis fits without a model (`BaseParameterOptions::diagnosed`):
+    /// the exact ones, as `keep_weak` fits.
+    pub(crate) fn diagnosed_base(&self) -> PyResult<&CoreBase> {
+        self.fitted_base(true)
+    }
+
     /// The fitted base parameters whose columns are `independent` (a model file's), weak kept or not.
     pub(crate) fn base_of(&self, independent: &[usize]) -> PyResult<&CoreBase> {
         for keep_weak in [false, true] {

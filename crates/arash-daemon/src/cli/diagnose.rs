@@ -29,10 +29,6 @@ pub struct Args {
     /// With --model: hold its friction too (trust the whole model file).
     #[arg(long)]
     hold_friction: bool,
-    /// Without --model: fit every exact base parameter, the weak ones too (as `arash identify
-    /// --keep-weak`); by default they are regrouped.
-    #[arg(long, conflicts_with = "model")]
-    keep_weak: bool,
     /// Held-out runs for ranking and the held-out errors (concatenated); default: the odd
     /// blocks of the training data.
     #[arg(long, num_args = 1..)]
@@ -117,8 +113,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(g) => BaseParameters::with_independent(&model, &g.base_independent)?,
         None => None,
     };
-    let base =
-        base.map_or_else(|| BaseParameters::compute(&model, &BaseParameterOptions::fitted(args.keep_weak)), Ok)?;
+    let base = base.map_or_else(|| BaseParameters::compute(&model, &BaseParameterOptions::diagnosed()), Ok)?;
     let diagnosis = diagnose(
         Declared { model: &model, base: &base, urdf: &urdf },
         Log { t: &train.t, q: &train.q, tau: &train.tau },

@@ -235,7 +235,6 @@ def diagnose(
     consistent: Optional[bool] = None,
     consistent_cutoff_hz: Optional[float] = None,
     motor_side: Optional[Transmission] = None,
-    keep_weak: bool = False,
 ) -> Diagnosis:
     """Find what the declared model lacks in a log, and the error before and after.
 
@@ -259,7 +258,6 @@ def diagnose(
     each; ``DiagnoseOptions()`` shows them. motor_side: a ``Transmission`` when q and tau (and the
     validation's) are motor angles and motor torques; it also gives the cogging search its ratios
     (unless ``transmission`` is given) and the ``coupled_rotor`` search its coupled motors.
-    keep_weak: without a model, fit every exact base parameter (as ``identify`` takes it).
     """
     if motor_side is not None:
         q, tau = motor_side.to_joints(q, tau)
@@ -270,7 +268,7 @@ def diagnose(
         friction_cutoff_hz=friction_cutoff_hz, order=order, block_s=block_s, batch_s=batch_s, alpha=alpha, min_gain=min_gain,
         effects=None if effects is None else list(effects), torque_from_currents=torque_from_currents,
         refit=refit, hold_friction=hold_friction, consistent=consistent,
-        consistent_cutoff_hz=consistent_cutoff_hz, motor_side=motor_side, keep_weak=keep_weak or None))
+        consistent_cutoff_hz=consistent_cutoff_hz, motor_side=motor_side))
     return _diagnose(robot, (t, q, tau), options, model, validation)
 
 

@@ -220,7 +220,7 @@ fn experiment(
         "\n[2/7] excitation design: L = {}, T = {} s, {} restart(s), seed {}",
         plan.excitation.harmonics, plan.excitation.period_s, plan.excitation.restarts, plan.excitation.seed
     );
-    let exact = BaseParameters::compute(model, &BaseParameterOptions::default().keep_weak())?;
+    let exact = BaseParameters::compute(model, &BaseParameterOptions::diagnosed())?;
     let excitation = design_excitation(model, &exact, &plan.excitation, &mut |p| {
         eprint!("\r    restart {}/{}, best normalised κ = {:.3}   ", p.restart, p.restarts, p.best_condition_number);
     })
@@ -251,7 +251,9 @@ fn experiment(
     let diagnosis_dir = dir.join("report").join("diagnosis");
     let settings = &calibration.consistent.settings;
     let cutoffs = (settings.cutoff_hz, settings.friction_cutoff_hz);
-    let (diagnosis, with_effects) = diagnose_run(diagnosed, urdf, base, &training_log, cutoffs, &diagnosis_dir)?;
+    // The diagnosis fits the exact base parameters (`BaseParameterOptions::diagnosed`), the
+    // design's: the calibration's regrouping would be a bias an effect could take up.
+    let (diagnosis, with_effects) = diagnose_run(diagnosed, urdf, &exact, &training_log, cutoffs, &diagnosis_dir)?;
     rig::check_interrupt()?;
 
     println!("\n[6/7] tracking the validation trajectory at ω = {} rad/s through the daemon", args.tracking_omega);
