@@ -82,19 +82,20 @@ def fits(robot, log, given, beta_true):
 def rig(seeds):
     root = Path(__file__).resolve().parents[1]
     robot = arash.Robot.arash_asist(coulomb_epsilon=1e-3)
+    fitted = robot.base_parameters(regroup_weak=True)  # the base parameters identify fits
     results, failures = {m: [] for m in METHODS}, {m: [] for m in METHODS}
     for seed in range(seeds):
         run = arash.simulate(root / "scenarios" / "nominal.toml", root / "trajectories" / "excitation_L5_T15.json",
                              controller="pd", duration=60.0, seed=seed)
         log = (run["t"], run["q"], run["tau_meas"])
         given = dict(reference=(run["q_des"], run["qd_des"], run["qdd_des"]), controller=run["logged_controller"])
-        beta_true = robot.base_parameters(regroup_weak=True).project(run["true_params"])
+        beta_true = fitted.project(run["true_params"])
         for method, (z, error, extra) in fits(robot, log, given, beta_true).items():
             (failures if z is None else results)[method].append(extra if z is None else (z, error, extra))
         print(f"  seed {seed} done", file=sys.stderr, flush=True)
     print("| log | method | within 3σ (all seeds) | worst seed | failed | mean error beyond 1σ | s per fit (median) |")
     print("|---|---|---|---|---|---|---|")
-    coverage_rows("rig, PD, 4 × 15 s", robot.base_parameters(regroup_weak=True).names, results, failures)
+    coverage_rows("rig, PD, 4 × 15 s", fitted.names, results, failures)
 
 
 def timing(repeats):

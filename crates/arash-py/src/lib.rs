@@ -162,8 +162,7 @@ pub(crate) struct Robot {
     pub(crate) model: Arc<Model>,
     /// The URDF text the model was built from (identified models embed it).
     pub(crate) urdf: Arc<str>,
-    /// The base parameters fitted by default: the identifiable ones (weak regrouped), and the exact
-    /// ones (`keep_weak`), computed on first use.
+    /// The identifiable base parameters (weak regrouped) and the exact ones, computed on first use.
     pub(crate) fitted_base: [std::sync::OnceLock<CoreBase>; 2],
 }
 
@@ -450,18 +449,23 @@ impl Robot {
     /// The base parameters fitted by default (`BaseParameterOptions::fitted`), cached: they
     /// depend only on the model. `keep_weak` keeps those no trajectory within the limits separates.
     pub(crate) fn fitted_base(&self, keep_weak: bool) -> PyResult<&CoreBase> {
-        let cell = &self.fitted_base[usize::from(keep_weak)];
+        self.cached_base(BaseParameterOptions::fitted(keep_weak))
+    }
+
+    /// The base parameters the diagnosis fits without a model (`BaseParameterOptions::diagnosed`).
+    pub(crate) fn diagnosed_base(&self) -> PyResult<&CoreBase> {
+        self.cached_base(BaseParameterOptions::diagnosed())
+    }
+
+    /// The base parameters of `options`, cached by the one setting the front ends vary: whether
+    /// the weak ones are regrouped.
+    fn cached_base(&self, options: BaseParameterOptions) -> PyResult<&CoreBase> {
+        let cell = &self.fitted_base[usize::from(options.weak_tolerance == 0.0)];
         if let Some(base) = cell.get() {
             return Ok(base);
         }
-        let base = CoreBase::compute(&self.model, &BaseParameterOptions::fitted(keep_weak)).map_err(value_error)?;
+        let base = CoreBase::compute(&self.model, &options).map_err(value_error)?;
         Ok(cell.get_or_init(|| base))
-    }
-
-    /// The base parameters the diagnosis fits without a model (`BaseParameterOptions::diagnosed`):
-    /// the exact ones, as `keep_weak` fits.
-    pub(crate) fn diagnosed_base(&self) -> PyResult<&CoreBase> {
-        self.fitted_base(true)
     }
 
     /// The fitted base parameters whose columns are `independent` (a model file's), weak kept or not.

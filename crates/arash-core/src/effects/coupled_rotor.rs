@@ -10,10 +10,10 @@
 //!
 //! A motor that only one joint turns is that joint's `armature` and friction; this term exists
 //! only where the transmission couples joints. Its columns are the motor's own sample
-//! ([`EffectTerm::sample_of`]) spread over the joints by `g` ([`EffectTerm::weight_on`]); the transmission names the coupled
-//! motors (`Transmission::coupled_motors`). The
-//! dry-friction column switches with the motion and is filtered like the torque; the other two
-//! are not ([`Effect::column_filtered`]).
+//! ([`EffectTerm::sample_of`]) spread over the joints by `g` ([`EffectTerm::weight_on`]); the
+//! transmission names the coupled motors (`Transmission::coupled_motors`). The dry-friction
+//! column switches with the motion and is filtered like the torque; the other two are not
+//! ([`Effect::column_filtered`]).
 
 use super::{Effect, EffectKind, EffectTerm, JointData, NotSearched, Sample, TermState};
 

@@ -5,11 +5,12 @@
 //! Safety rules beyond [`SafetyGate`] (each has a test at its boundary in `tests/safety.rs`):
 //! - **stale telemetry:** a cycle without new valid telemetry repeats the last command for up to
 //!   `hold` cycles (the law is not stepped; the log and the rate limit see the repeated command,
-//!   so the limit holds between the commands the motor gets); later ones command the control law at the reference (q = q_d, q̇ = q̇_d): its
-//!   feed-forward, without feedback. Feedback held on an ever older state is a sampled loop with
-//!   a long hold: telemetry every 10th cycle (seen on a loaded host behind a pseudo-terminal) made
-//!   the paper's insertion loop, near 150 rad/s, swing until the velocity limit latched. Without
-//!   any feedback the arm drifts, so a short gap keeps it (`tests/safety.rs` measures both);
+//!   so the limit holds between the commands the motor gets); later ones command the control
+//!   law at the reference (q = q_d, q̇ = q̇_d): its feed-forward, without feedback. Feedback held
+//!   on an ever older state is a sampled loop with a long hold: telemetry every 10th cycle (seen on
+//!   a loaded host behind a pseudo-terminal) made the paper's insertion loop, near 150 rad/s, swing
+//!   until the velocity limit latched. Without any feedback the arm drifts, so a short gap keeps it
+//!   (`tests/safety.rs` measures both);
 //! - **link timeout:** the `link_timeout`-th cycle without telemetry in a row latches
 //!   `LINK_TIMEOUT` and ramps the torque to zero over `ramp` cycles, then disables the drive;
 //! - **disabled means commanded off:** while the host is not enabled, every frame it sends is

@@ -86,7 +86,8 @@ class Robot:
     def base_parameters(self, samples: Optional[int] = None, seed: Optional[int] = None, regroup_weak: bool = False) -> BaseParameters:
         """The exact base parameters (Y π = Y_r β to round-off); regroup_weak=True regroups the
         weak combinations no trajectory within the limits separates (then Y π = Y_r β on such
-        trajectories, to their residual), the set ``identify`` and ``diagnose`` fit by default."""
+        trajectories, to their residual), the set ``identify`` fits by default (``diagnose`` fits
+        the exact ones)."""
 
 @final
 class BaseParameters:
