@@ -126,7 +126,15 @@ fn regrid(log: Log, dof: usize) -> (Log, usize) {
         }
         let (a, b) = (keep[j], keep[(j + 1).min(keep.len() - 1)]);
         let span = log.t[b] - log.t[a];
-        let w = if span > 0.0 { ((t - log.t[a]) / span).clamp(0.0, 1.0) } else { 0.0 };
+        // A grid point on a logged time takes that sample exactly: blended with a weight of
+        // round-off, an encoder's positions leave its grid by 1e-14 and its step no longer shows
+        // (`diagnose/band.rs` then reads the whole closed-loop motion as noise).
+        let w = match ((t - log.t[a]).abs() <= ON_A_SAMPLE * h, (t - log.t[b]).abs() <= ON_A_SAMPLE * h) {
+            (true, _) => 0.0,
+            (_, true) => 1.0,
+            _ if span > 0.0 => ((t - log.t[a]) / span).clamp(0.0, 1.0),
+            _ => 0.0,
+        };
         if (t - log.t[a]).abs() > 0.1 * h && (t - log.t[b]).abs() > 0.1 * h {
             repaired += 1;
         }
@@ -144,6 +152,10 @@ fn regrid(log: Log, dof: usize) -> (Log, usize) {
     }
     (out, repaired)
 }
+
+/// A grid point within this share of the step of a logged time is that sample: the drive's
+/// clock ticks in whole periods, and what is left is round-off of the sum.
+const ON_A_SAMPLE: f64 = 1e-6;
 
 fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
     let mut reader = csv::Reader::from_path(path).with_context(|| format!("opening log {}", path.display()))?;
@@ -266,6 +278,22 @@ mod tests {
         assert_eq!(two.t.len(), 8);
         assert!((two.t[4] - 4e-3).abs() < 1e-12, "{:?}", two.t);
         assert!(two.closed_loop.is_none());
+    }
+
+    /// Encoder counts stay whole counts where the grid meets a logged time, however the step
+    /// `h` (a median of differences) rounds; only the gap's sample is blended.
+    #[test]
+    fn resampled_positions_keep_the_logged_values_where_the_grid_meets_them() {
+        let step = 1.917_475_984_857_162e-6;
+        let mut t: Vec<f64> = (0..2000).map(|i| 12.345 + i as f64 * 1e-3).collect();
+        t[700] = t[699]; // a repeat, then the same cycles go on: one gap
+        let q: Vec<f64> = (0..2000).map(|i| ((i as f64 * 0.0123).sin() * 300.0).round() * step).collect();
+        let log = Log { t: t.clone(), q: q.clone(), tau: q.clone(), trajectory: None, closed_loop: None };
+        let (out, repaired) = regrid(log, 1);
+        assert_eq!(repaired, 2);
+        let off_grid = out.q.iter().filter(|x| ((*x / step) - (*x / step).round()).abs() > 1e-9).count();
+        assert!(off_grid <= 1, "{off_grid} positions left the encoder's grid");
+        assert!(out.q.iter().zip(&q).enumerate().all(|(i, (a, b))| i == 700 || a == b));
     }
 
     #[test]
