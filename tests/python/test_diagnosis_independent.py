@@ -127,6 +127,44 @@ def test_the_same_logs_at_20_hz_take_up_the_encoders_bias():
     assert accepted >= 3
 
 
+# Stribeck friction on the insertion at 15 % of its RMS torque, read through 12-bit encoders at
+# 200 Hz (49 µm steps; its Stribeck velocity, a tenth of the RMS speed, is crossed in one step
+# every 50 ms): the velocity filtered at the band moves in a staircase around each reversal.
+STRIBECK_COARSE = ("arash_asist", 200, 12, 0.01, "sign", None, 30.0)
+
+
+def stribeck_found(at_the_band=False):
+    """Of ten seeds of STRIBECK_COARSE, on how many Stribeck friction is named first on the
+    insertion, and the settings of each; `at_the_band`: with the friction velocity set to the
+    band's cut-off."""
+    effect, found, settings = Injected("stribeck", 2, 0.15), 0, []
+    for seed in range(8000, 8010):
+        robot, train, _ = make_log(Condition(*STRIBECK_COARSE, seed=seed), effect=effect)
+        d = arash.diagnose(robot, *train)
+        if at_the_band:
+            d = arash.diagnose(robot, *train, friction_cutoff_hz=d.settings["cutoff_hz"])
+        found += bool(d.accepted) and d.accepted[0].name == "stribeck" and 2 in d.accepted[0].joints
+        settings.append(d.settings)
+    return found, settings
+
+
+def test_a_coarse_encoder_slows_the_friction_velocity_and_stribeck_friction_is_found():
+    """Issue 19, item 5: the friction velocity is as fast as the band unless the encoder's steps
+    would blur the friction columns' finest speed scale; here it is slower, and the Stribeck term
+    is found on at least 9 of 10 seeds."""
+    found, settings = stribeck_found()
+    for s in settings:
+        assert s["friction_cutoff_hz"] < s["cutoff_hz"], s["reasons"]
+        assert any(r.startswith("Coulomb") and "quantisation" in r for r in s["reasons"]), s["reasons"]
+    assert found >= 9, [s["reasons"] for s in settings]
+
+
+def test_the_friction_velocity_at_the_band_misses_stribeck_friction():
+    """The control: the same logs with the friction velocity at the band, as it was."""
+    found, _ = stribeck_found(at_the_band=True)
+    assert found <= 8
+
+
 def test_a_fine_encoder_keeps_the_whole_band():
     """The same robot and motion with 16-bit encoders: nothing to narrow."""
     robot, train, _ = make_log(Condition("kuka", 200, 16, 0.05, "sign", None, 10.0, seed=1))

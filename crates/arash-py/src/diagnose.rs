@@ -50,7 +50,8 @@ impl DiagnoseOptions {
     fn cutoff_hz(&self) -> Option<f64> {
         self.inner.preprocess.cutoff_hz
     }
-    /// The friction velocity's cut-off set, or None: the diagnosis's cut-off.
+    /// The friction velocity's cut-off set, or None: the diagnosis's cut-off, slower where the
+    /// encoder's steps would make up more than 0.25 % of a joint's RMS speed.
     #[getter]
     fn friction_cutoff_hz(&self) -> Option<f64> {
         self.inner.preprocess.friction_cutoff_hz

@@ -16,7 +16,9 @@
 //! of an encoder step, the quantisation's own share is known (Δ²/12, white, through the filter
 //! and the differences), and the smaller of the two is taken as the noise.
 
-use super::options::{DiagnoseOptions, DIAGNOSIS_CUTOFF_HZ, DIAGNOSIS_CUTOFF_SHARE, MAX_ACCELERATION_NOISE};
+use super::options::{
+    DiagnoseOptions, DIAGNOSIS_CUTOFF_HZ, DIAGNOSIS_CUTOFF_SHARE, MAX_ACCELERATION_NOISE, MAX_VELOCITY_NOISE,
+};
 use crate::identify::decide::bandwidth;
 use crate::identify::filter::{Butterworth, FilterError};
 use crate::identify::preprocess::{lowest_cutoff_hz, CUTOFF_PER_BANDWIDTH, EDGE_CUTOFF_PERIODS};
@@ -49,11 +51,7 @@ pub(super) struct Chosen {
 /// has at c. Where the joint's encoder step shows, its quantisation noise is used if smaller.
 pub(super) fn noise_limited_cutoff(q: &[f64], (dof, fs): (usize, f64), order: usize) -> Result<Chosen, FilterError> {
     let top = DiagnoseOptions::default_cutoff_hz(fs);
-    let floor = bandwidth(q, dof, fs, false).map_or(0.0, |b| CUTOFF_PER_BANDWIDTH * b).max(lowest_cutoff_hz(
-        q.len() / dof,
-        fs,
-        false,
-    ));
+    let floor = motion_floor(q, (dof, fs));
     let limit = 100.0 * MAX_ACCELERATION_NOISE;
     let mut widest: Option<(f64, NoiseShare)> = None;
     for step in 0.. {
@@ -99,6 +97,97 @@ pub(super) fn noise_limited_cutoff(q: &[f64], (dof, fs): (usize, f64), order: us
     Ok(Chosen { cutoff_hz: cutoff, reason, warning: Some(warning) })
 }
 
+/// The lowest cut-off the motion allows: [`CUTOFF_PER_BANDWIDTH`] times its bandwidth, and what
+/// the log's length allows.
+fn motion_floor(q: &[f64], (dof, fs): (usize, f64)) -> f64 {
+    let length = lowest_cutoff_hz(q.len() / dof, fs, false);
+    bandwidth(q, dof, fs, false).map_or(0.0, |b| CUTOFF_PER_BANDWIDTH * b).max(length)
+}
+
+/// The friction velocity's cut-off: the widest, from the band's `cutoff` down in quarter
+/// octaves, at which every joint's encoder step reaches the filtered velocity with an RMS of at
+/// most [`MAX_VELOCITY_NOISE`] of the joint's RMS speed, never below what the motion needs.
+///
+/// The friction columns switch and decay with this velocity near zero speed, where a coarse
+/// encoder's position stays put for many samples and then steps: at the band's cut-off that
+/// staircase makes the velocity pulse around each reversal, and a Stribeck column built on it
+/// mostly fits the pulses (issue 19: Stribeck friction at 15 % of the insertion's torque, 12-bit
+/// encoders at 200 Hz, was missed on 2 of 10 logs, found on all ten with the velocity at 4 Hz).
+/// Joints whose positions show no step (filtered, or smooth real data) leave the band alone:
+/// what their velocity gains is motion.
+pub(super) fn velocity_resolved_cutoff(
+    q: &[f64],
+    (dof, fs): (usize, f64),
+    cutoff: f64,
+    order: usize,
+) -> Result<Chosen, FilterError> {
+    let steps: Vec<(usize, f64)> = (0..dof).filter_map(|j| encoder_step(q, dof, j).map(|s| (j, s))).collect();
+    if steps.is_empty() {
+        let reason = format!(
+            "Coulomb columns switch with the velocity filtered at {cutoff:.3} Hz: the band's cut-off; no joint's \
+             positions sit on an encoder's grid, so what the velocity holds there is motion"
+        );
+        return Ok(Chosen { cutoff_hz: cutoff, reason, warning: None });
+    }
+    let floor = motion_floor(q, (dof, fs)).min(cutoff);
+    let limit = 100.0 * MAX_VELOCITY_NOISE;
+    let mut at_band: Option<NoiseShare> = None;
+    let mut candidate = cutoff;
+    loop {
+        let share = velocity_noise(q, (dof, fs), (candidate, order), &steps)?;
+        let first = *at_band.get_or_insert(share);
+        let narrower = candidate * 0.5_f64.powf(1.0 / STEPS_PER_OCTAVE as f64);
+        if share.value <= MAX_VELOCITY_NOISE || narrower < floor {
+            let reason = match (candidate == cutoff, share.value <= MAX_VELOCITY_NOISE) {
+                (true, _) => format!(
+                    "Coulomb columns switch with the velocity filtered at {candidate:.3} Hz: the band's cut-off; the \
+                     encoders' quantisation makes up {} there (at most {limit:.3} %)",
+                    share.describe_speed()
+                ),
+                (false, true) => format!(
+                    "Coulomb columns switch with the velocity filtered at {candidate:.3} Hz: the encoders' \
+                     quantisation makes up {} at the band's {cutoff:.3} Hz and {} here (at most {limit:.3} %, a \
+                     tenth of the slowest Stribeck velocity searched); wider, the friction columns would switch with the \
+                     encoder's steps",
+                    first.describe_speed(),
+                    share.describe_speed()
+                ),
+                (false, false) => format!(
+                    "Coulomb columns switch with the velocity filtered at {candidate:.3} Hz, the lowest the motion \
+                     allows: the encoders' quantisation makes up {} there (at most {limit:.3} % asked)",
+                    share.describe_speed()
+                ),
+            };
+            return Ok(Chosen { cutoff_hz: candidate, reason, warning: None });
+        }
+        candidate = narrower;
+    }
+}
+
+/// The largest share of a joint's RMS speed that its encoder step's quantisation makes up in
+/// the velocity filtered at `cutoff` (the step's Δ²/12, white, through the filter and one central
+/// difference), over the joints with a step `steps`.
+fn velocity_noise(
+    q: &[f64],
+    (dof, fs): (usize, f64),
+    (cutoff, order): (f64, usize),
+    steps: &[(usize, f64)],
+) -> Result<NoiseShare, FilterError> {
+    let mut worst = NoiseShare { joint: 0, value: 0.0 };
+    let n = q.len() / dof;
+    let edge = ((EDGE_CUTOFF_PERIODS * fs / cutoff).ceil() as usize).min(n / 4);
+    let gain = white_noise_gain((fs, cutoff), order, 1)?;
+    let v = differenced(q, (dof, fs), cutoff, order, 1)?;
+    for &(j, step) in steps {
+        let speed = (edge..n - edge).map(|k| v[k * dof + j].powi(2)).sum::<f64>() / (n - 2 * edge).max(1) as f64;
+        let noise = step * step / 12.0 * gain;
+        if speed > 0.0 && (noise / speed).sqrt() > worst.value {
+            worst = NoiseShare { joint: j, value: (noise / speed).sqrt() };
+        }
+    }
+    Ok(worst)
+}
+
 /// The largest share of a joint's q̈ variance that position noise makes up at a cut-off.
 #[derive(Clone, Copy, Debug)]
 struct NoiseShare {
@@ -109,6 +198,10 @@ struct NoiseShare {
 impl NoiseShare {
     fn describe(&self) -> String {
         format!("{:.2} % of joint {}'s q̈ variance", 100.0 * self.value, self.joint)
+    }
+
+    fn describe_speed(&self) -> String {
+        format!("{:.2} % of joint {}'s RMS speed", 100.0 * self.value, self.joint)
     }
 }
 
@@ -124,8 +217,8 @@ fn noise_share(
 ) -> Result<NoiseShare, FilterError> {
     let n = q.len() / dof;
     let edge = ((EDGE_CUTOFF_PERIODS * fs / narrow).ceil() as usize).min(n / 4);
-    let gain = white_noise_gain((fs, wide), order)?;
-    let (wide, narrow) = (acceleration(q, (dof, fs), wide, order)?, acceleration(q, (dof, fs), narrow, order)?);
+    let gain = white_noise_gain((fs, wide), order, 2)?;
+    let (wide, narrow) = (differenced(q, (dof, fs), wide, order, 2)?, differenced(q, (dof, fs), narrow, order, 2)?);
     let mut worst = NoiseShare { joint: 0, value: 0.0 };
     for j in 0..dof {
         let rows = edge..n - edge;
@@ -139,21 +232,30 @@ fn noise_share(
     Ok(worst)
 }
 
-/// q̈ as the diagnosis computes it: the position filtered at `cutoff`, differenced twice.
-fn acceleration(q: &[f64], (dof, fs): (usize, f64), cutoff: f64, order: usize) -> Result<Vec<f64>, FilterError> {
-    let filtered = filter_columns(&Butterworth::lowpass(order, cutoff, fs)?, q, dof, false)?;
-    let h = 1.0 / fs;
-    Ok(central_difference(&central_difference(&filtered, dof, h, false), dof, h, false))
+/// q̇ (`times` = 1) or q̈ (2) as the diagnosis computes them: the position filtered at `cutoff`,
+/// central-differenced `times` times.
+fn differenced(
+    q: &[f64],
+    (dof, fs): (usize, f64),
+    cutoff: f64,
+    order: usize,
+    times: usize,
+) -> Result<Vec<f64>, FilterError> {
+    let mut x = filter_columns(&Butterworth::lowpass(order, cutoff, fs)?, q, dof, false)?;
+    for _ in 0..times {
+        x = central_difference(&x, dof, 1.0 / fs, false);
+    }
+    Ok(x)
 }
 
-/// The variance q̈ gets from unit white noise on the position: the sum of squares of the impulse
-/// response of the filter at `cutoff` and the two central differences.
-fn white_noise_gain((fs, cutoff): (f64, f64), order: usize) -> Result<f64, FilterError> {
+/// The variance q̇ (`times` = 1) or q̈ (2) gets from unit white noise on the position: the sum of
+/// squares of the impulse response of the filter at `cutoff` and the central differences.
+fn white_noise_gain((fs, cutoff): (f64, f64), order: usize, times: usize) -> Result<f64, FilterError> {
     let filter = Butterworth::lowpass(order, cutoff, fs)?;
     let n = 2 * filter.padlen() + (40.0 * fs / cutoff).ceil() as usize;
     let mut impulse = vec![0.0; n];
     impulse[n / 2] = 1.0;
-    let response = acceleration(&impulse, (1, fs), cutoff, order)?;
+    let response = differenced(&impulse, (1, fs), cutoff, order, times)?;
     Ok(response.iter().map(|r| r * r).sum())
 }
 
@@ -199,7 +301,7 @@ fn variance(x: impl Iterator<Item = f64> + Clone) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::f64::consts::{FRAC_PI_4, TAU};
+    use std::f64::consts::{FRAC_PI_4, PI, TAU};
 
     /// Positions on the grid of a `bits` encoder (a turn, or 0.1 m for the insertion).
     fn quantum(joint: usize, bits: u32) -> f64 {
@@ -268,6 +370,47 @@ mod tests {
         assert!(noise(wider) / signal > 0.5 * MAX_ACCELERATION_NOISE, "{wider} Hz: {}", noise(wider) / signal);
     }
 
+    /// The quantisation noise reaching the velocity at c is Δ²/12 · (2/fs) · (2π)² c³ · 0.07π /
+    /// sin(0.3π) (see the gain's test): the friction velocity keeps it under the limit of the
+    /// worst joint's RMS speed, and the next wider step does not; a fine encoder keeps the band.
+    #[test]
+    fn a_coarse_encoder_slows_the_friction_velocity_where_the_noise_formula_says() {
+        let (fs, bits) = (200.0, 14);
+        let q = rig_log(fs, 60.0, bits, 0.0);
+        let band = chosen(fs, &q).cutoff_hz;
+        let Chosen { cutoff_hz: friction, reason, .. } = velocity_resolved_cutoff(&q, (3, fs), band, 5).unwrap();
+        let amplitude = [0.3, 0.2, 0.02];
+        let share = |c: f64| {
+            (0..3)
+                .map(|j| {
+                    let d = quantum(j, bits);
+                    let noise = d * d / 12.0 * (2.0 / fs) * TAU.powi(2) * c.powi(3) * 0.07 * PI / (0.3 * PI).sin();
+                    let speed =
+                        0.5 * (amplitude[j] * TAU * 0.3).powi(2) + 0.5 * (0.2 * amplitude[j] * TAU * 0.9).powi(2);
+                    (noise / speed).sqrt()
+                })
+                .fold(0.0, f64::max)
+        };
+        let wider = friction * 2f64.powf(0.25);
+        assert!(friction < band, "{reason}");
+        assert!(share(friction) < 1.2 * MAX_VELOCITY_NOISE, "{friction} Hz: {}", share(friction));
+        assert!(share(wider) > 0.8 * MAX_VELOCITY_NOISE, "{wider} Hz: {}", share(wider));
+        // 12 bits would need a velocity slower than the motion allows: it stops there, and says so.
+        let coarse = velocity_resolved_cutoff(&rig_log(fs, 60.0, 12, 0.0), (3, fs), band, 5).unwrap();
+        assert!(
+            coarse.cutoff_hz < friction && coarse.reason.contains("the lowest the motion allows"),
+            "{}",
+            coarse.reason
+        );
+        let fine = rig_log(fs, 60.0, 20, 0.0);
+        let kept = velocity_resolved_cutoff(&fine, (3, fs), band, 5).unwrap();
+        assert_eq!(kept.cutoff_hz, band, "{}", kept.reason);
+        // Positions on no grid (filtered, or a smooth real log): no step to blame, the band stays.
+        let smooth: Vec<f64> = q.iter().enumerate().map(|(k, x)| x + 1e-7 * (0.1234 * k as f64).sin()).collect();
+        let unstepped = velocity_resolved_cutoff(&smooth, (3, fs), band, 5).unwrap();
+        assert!(unstepped.cutoff_hz == band && unstepped.reason.contains("no joint's"), "{}", unstepped.reason);
+    }
+
     /// A daemon log resampled where its time stamps jittered holds a few positions between the
     /// steps (`runlog::regrid`): the step is still read from all the others.
     #[test]
@@ -304,7 +447,17 @@ mod tests {
     fn the_white_noise_gain_is_close_to_the_ideal_low_pass() {
         let (fs, c) = (1000.0, 20.0_f64);
         let exact = 2.0 / fs * TAU.powi(4) * c.powi(5) / 5.0 * FRAC_PI_4;
-        let gain = white_noise_gain((fs, c), 5).unwrap();
+        let gain = white_noise_gain((fs, c), 5, 2).unwrap();
+        assert!((gain / exact - 1.0).abs() < 0.02, "{gain} against {exact}");
+    }
+
+    /// The same for the velocity: one difference multiplies the density by (2πf)², and the
+    /// integral of f² against the filter is c³ · Γ(0.3)Γ(1.7)/10 = c³ · 0.07π / sin(0.3π).
+    #[test]
+    fn the_velocitys_white_noise_gain_is_close_to_the_ideal_low_pass() {
+        let (fs, c) = (1000.0, 20.0_f64);
+        let exact = 2.0 / fs * TAU.powi(2) * c.powi(3) * 0.07 * PI / (0.3 * PI).sin();
+        let gain = white_noise_gain((fs, c), 5, 1).unwrap();
         assert!((gain / exact - 1.0).abs() < 0.02, "{gain} against {exact}");
     }
 }

@@ -22,13 +22,24 @@ pub const DIAGNOSIS_CUTOFF_SHARE: f64 = 0.2;
 /// "The band").
 pub const MAX_ACCELERATION_NOISE: f64 = 0.05;
 
+/// The largest RMS the encoder's quantisation may give the friction velocity, as a share of the
+/// joint's RMS speed: a tenth of the slowest Stribeck velocity searched. That column changes by
+/// its whole size over v_s, so noise of v_s/10 moves it by about a tenth where |q̇| ≈ v_s, and
+/// flips the sign of a Coulomb column only within v_s/10 of a reversal. A coarser encoder gets a
+/// slower friction velocity than the band (`diagnose/band.rs`, `velocity_resolved_cutoff`).
+/// Measured at the band (docs/diagnosis.md, "The friction velocity"): the simulated rig's
+/// closed-loop logs 0.17 %, the independent generator's 16- to 20-bit logs 0.02–0.39 %, its
+/// 12-bit ones 0.6–1.0 %.
+pub const MAX_VELOCITY_NOISE: f64 = 0.1 * crate::effects::SLOWEST_STRIBECK_FRACTION;
+
 /// Settings of [`super::diagnose`]; `Default` gives the documented defaults.
 #[derive(Clone, Debug)]
 pub struct DiagnoseOptions {
     /// Preprocessing, in the settings identification takes: `cutoff_hz` (`None`:
     /// [`DIAGNOSIS_CUTOFF_HZ`], at most [`DIAGNOSIS_CUTOFF_SHARE`] of the sample rate, narrower
     /// where the position noise would exceed [`MAX_ACCELERATION_NOISE`] of q̈),
-    /// `friction_cutoff_hz` (`None`: the cut-off; see `prepare` for why not the fit's choice)
+    /// `friction_cutoff_hz` (`None`: the cut-off, slower where the encoder's steps would exceed
+    /// [`MAX_VELOCITY_NOISE`] of the speed; see `prepare` for why not the fit's choice)
     /// and `order`.
     /// The diagnosis reads residuals in time, so it never averages periods, and it thins with
     /// `decimate` below.

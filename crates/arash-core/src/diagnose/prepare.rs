@@ -1,7 +1,7 @@
 //! A log made ready for the diagnosis: filtered, differentiated, trimmed and sampled, with the
 //! declared model's columns and each candidate's columns on it.
 
-use super::band::{noise_limited_cutoff, Band};
+use super::band::{noise_limited_cutoff, velocity_resolved_cutoff, Band};
 use super::options::DiagnoseOptions;
 use super::regression::Column;
 use crate::base_parameters::BaseParameters;
@@ -68,8 +68,9 @@ impl Prepared {
 }
 
 /// Prepare `log` for the diagnosis: filtered in `band` (a training log's), or at the user's
-/// cut-off, or at the diagnosis's; its Coulomb columns switching with the velocity filtered at the band's
-/// friction cut-off, the user's, or the cut-off; and trimmed by `margin_s` at each end.
+/// cut-off, or at the diagnosis's; its Coulomb columns switching with the velocity filtered at
+/// the band's friction cut-off, the user's, or the cut-off slowed where the encoder's steps would
+/// blur it ([`velocity_resolved_cutoff`]); and trimmed by `margin_s` at each end.
 ///
 /// The friction velocity is not chosen by the fit here, as identification chooses it: the
 /// diagnosis's decision rule was calibrated with it at the diagnosis's cut-off, and on the demo's
@@ -86,6 +87,7 @@ pub(super) fn prepare(
     let dt = crate::identify::preprocess::validate_log(log.t, log.q, log.tau, dof)?;
     let fs = 1.0 / dt;
     let default = DiagnoseOptions::default_cutoff_hz(fs);
+    let order = options.preprocess.order;
     let mut warning = None;
     let (cutoff, reason) = match (options.preprocess.cutoff_hz, band) {
         (Some(user), _) => (user, None),
@@ -94,18 +96,25 @@ pub(super) fn prepare(
             (cutoff, Some(format!("cut-off {cutoff:.3} Hz: the training log's, at most {default:.2} Hz")))
         }
         (None, None) => {
-            let chosen = noise_limited_cutoff(log.q, (dof, fs), options.preprocess.order)?;
+            let chosen = noise_limited_cutoff(log.q, (dof, fs), order)?;
             warning = chosen.warning;
             (chosen.cutoff_hz, Some(chosen.reason))
         }
     };
-    let pre_options = PreprocessOptions {
-        friction_cutoff_hz: band.map(|b| b.friction_hz).or(options.preprocess.friction_cutoff_hz),
-        ..options.preprocessing(cutoff)
+    let (friction, friction_reason) = match (band, options.preprocess.friction_cutoff_hz) {
+        (Some(band), _) => (Some(band.friction_hz), None),
+        (None, Some(user)) => (Some(user), None),
+        (None, None) => {
+            let chosen = velocity_resolved_cutoff(log.q, (dof, fs), cutoff, order)?;
+            (Some(chosen.cutoff_hz), Some(chosen.reason))
+        }
     };
+    let pre_options = PreprocessOptions { friction_cutoff_hz: friction, ..options.preprocessing(cutoff) };
     let mut pre = preprocess(log.t, log.q, log.tau, dof, &pre_options)?;
-    if let Some(reason) = reason {
-        pre.choices.reasons.iter_mut().filter(|r| r.starts_with("cut-off")).for_each(|r| *r = reason.clone());
+    for (prefix, line) in [("cut-off", reason), ("Coulomb", friction_reason)] {
+        if let Some(line) = line {
+            pre.choices.reasons.iter_mut().filter(|r| r.starts_with(prefix)).for_each(|r| *r = line.clone());
+        }
     }
     pre.choices.warnings.extend(warning);
     let stride = stride(options, fs, pre.cutoff_hz);

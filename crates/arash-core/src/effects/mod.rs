@@ -33,6 +33,7 @@ use serde::{Deserialize, Serialize};
 pub use armature::every_joint as armature_on_every_joint;
 pub use configuration::CONFIGURATION_HARMONICS;
 pub use payload::on_body as payload_on;
+pub use stribeck::SLOWEST_STRIBECK_FRACTION;
 
 /// The stable identifiers of the effects.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]

@@ -6,7 +6,12 @@ use super::{Effect, EffectKind, EffectTerm, JointData, NotSearched, Sample, Term
 pub struct Stribeck;
 
 /// The Stribeck velocities tried, as fractions of the joint's RMS speed.
-const VELOCITY_FRACTIONS: [f64; 4] = [0.025, 0.05, 0.1, 0.2];
+const VELOCITY_FRACTIONS: [f64; 4] = [SLOWEST_STRIBECK_FRACTION, 0.05, 0.1, 0.2];
+
+/// The slowest Stribeck velocity tried, as a fraction of the joint's RMS speed: the finest
+/// velocity scale any friction column has, which the friction velocity must resolve
+/// (`diagnose::options::MAX_VELOCITY_NOISE`).
+pub const SLOWEST_STRIBECK_FRACTION: f64 = 0.025;
 
 impl Effect for Stribeck {
     fn id(&self) -> &'static str {

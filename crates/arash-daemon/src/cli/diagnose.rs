@@ -42,7 +42,8 @@ pub struct Args {
     /// (docs/diagnosis.md).
     #[arg(long)]
     cutoff: Option<f64>,
-    /// Cut-off of the velocity that switches Coulomb friction (Hz); default: the cut-off
+    /// Cut-off of the velocity that switches Coulomb friction (Hz); default: the cut-off, slower
+    /// where the encoder's steps would make up more than 0.25 % of a joint's RMS speed
     /// (docs/diagnosis.md says why it is not chosen by the fit as in `arash identify`).
     #[arg(long)]
     friction_cutoff: Option<f64>,

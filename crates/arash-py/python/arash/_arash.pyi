@@ -211,7 +211,8 @@ class DiagnoseOptions:
         narrower where the encoder's noise would bias q̈; ``settings["reasons"]`` says why)."""
     @property
     def friction_cutoff_hz(self) -> Optional[float]:
-        """The friction velocity's cut-off set, or None: the diagnosis's cut-off."""
+        """The friction velocity's cut-off set, or None: the diagnosis's cut-off, slower where
+        the encoder's steps would make up more than 0.25 % of a joint's RMS speed."""
     @property
     def order(self) -> int: ...
     @property
