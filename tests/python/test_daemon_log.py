@@ -114,3 +114,27 @@ def test_a_log_cut_by_kill_9_is_recovered_into_a_file_the_official_seeking_reade
     assert cycles == len(ours["cycle"])
     # At most about one second lost of the 2.5 s the first daemon ran.
     assert cycles >= 1400, cycles
+
+
+def test_the_uniform_grid_keeps_every_logged_measurement(daemon_logs):
+    """`log["uniform"]` is what identify and diagnose take from a daemon log: a strictly uniform
+    time grid, at least one sample per logged cycle, and wherever the grid meets a logged time the
+    logged measurement itself (not a blend), so that encoder counts stay whole."""
+    log = arash.read_log(daemon_logs[0])
+    u = log["uniform"]
+    t = log["t"]
+    steps = np.diff(u["t"])
+    assert np.all(steps > 0) and np.ptp(steps) < 1e-9 * steps.mean(), steps
+    assert len(u["t"]) >= len(t) and u["q"].shape == (len(u["t"]), log["q"].shape[1])
+    repeats = int(np.sum(np.diff(t) <= 0))
+    assert u["repaired"] >= repeats
+    h = np.median(steps)
+    index = np.rint((t - u["t"][0]) / h).astype(int)
+    on_grid = np.abs(t - (u["t"][0] + index * h)) < 1e-9 * h
+    first = np.concatenate([[True], np.diff(t) > 0])  # a repeated time keeps its first sample
+    kept = on_grid & first & (index < len(u["t"]))
+    assert kept.sum() > 0.9 * len(t), (kept.sum(), len(t))
+    np.testing.assert_array_equal(u["q"][index[kept]], log["q"][kept])
+    np.testing.assert_array_equal(u["tau_meas"][index[kept]], log["tau_meas"][kept])
+    if repeats == 0 and np.ptp(np.diff(t)) < 1e-6:
+        np.testing.assert_array_equal(u["t"], t)

@@ -8,6 +8,7 @@ use std::path::Path;
 
 use anyhow::{bail, Context};
 use arash_core::control::Trajectory;
+use arash_core::flightlog::on_uniform_grid;
 use arash_core::identify::closed_loop::LoggedController;
 use arash_core::Model;
 
@@ -85,77 +86,26 @@ fn logged_trajectory(log: &arash_core::flightlog::FlightLog, dof: usize) -> Opti
     Trajectory::from_json(&run.get("trajectory")?.to_string(), dof).ok()
 }
 
-/// Measurements on a uniform time grid. The daemon logs each cycle with the drive's time of
-/// the measurement it used, so a cycle without new telemetry repeats a time, and telemetry
-/// superseded within one cycle leaves a gap. Repeats are dropped and gaps filled by linear
-/// interpolation at the median step, keeping one sample per logged cycle. Returns the log and
-/// how many samples were repaired.
+/// Measurements on a uniform time grid (`arash_core::flightlog::on_uniform_grid`: repeats
+/// dropped, gaps filled, one sample per logged cycle). Returns the log and how many samples were
+/// repaired.
 fn regrid(log: Log, dof: usize) -> (Log, usize) {
-    let keep: Vec<usize> = (0..log.t.len()).filter(|&i| i == 0 || log.t[i] > log.t[i - 1]).collect();
-    let mut steps: Vec<f64> = keep.windows(2).map(|w| log.t[w[1]] - log.t[w[0]]).collect();
-    if steps.is_empty() {
+    let mut channels: Vec<&[f64]> = vec![&log.q, &log.tau];
+    if let Some(c) = &log.closed_loop {
+        channels.extend(c.reference.iter().map(Vec::as_slice));
+    }
+    let uniform = on_uniform_grid(&log.t, &channels, dof);
+    if uniform.repaired == 0 {
         return (log, 0);
     }
-    steps.sort_by(f64::total_cmp);
-    let h = steps[steps.len() / 2];
-    let uniform = keep.len() == log.t.len() && steps.iter().all(|s| (s - h).abs() < 1e-3 * h);
-    if uniform {
-        return (log, 0);
-    }
-    let (t0, t_end) = (log.t[keep[0]], log.t[*keep.last().expect("not empty")]);
-    // As many samples as cycles: the daemon logs one cycle per drive period, so the run's
-    // length (and with it the period averaging) is that of the log even when its last
-    // measurements arrived late; the end holds the last measurement.
-    let n = (((t_end - t0) / h).round() as usize + 1).max(log.t.len());
-    let mut out = Log {
-        t: Vec::with_capacity(n),
-        q: Vec::with_capacity(n * dof),
-        tau: Vec::with_capacity(n * dof),
-        trajectory: log.trajectory,
-        closed_loop: log
-            .closed_loop
-            .as_ref()
-            .map(|c| ClosedLoopChannels { reference: Default::default(), controller: c.controller.clone() }),
-    };
-    let mut repaired = log.t.len() - keep.len();
-    let mut j = 0;
-    for i in 0..n {
-        let t = t0 + i as f64 * h;
-        while j + 2 < keep.len() && log.t[keep[j + 1]] <= t {
-            j += 1;
-        }
-        let (a, b) = (keep[j], keep[(j + 1).min(keep.len() - 1)]);
-        let span = log.t[b] - log.t[a];
-        // A grid point on a logged time takes that sample exactly: blended with a weight of
-        // round-off, an encoder's positions leave its grid by 1e-14 and its step no longer shows
-        // (`diagnose/band.rs` then reads the whole closed-loop motion as noise).
-        let w = match ((t - log.t[a]).abs() <= ON_A_SAMPLE * h, (t - log.t[b]).abs() <= ON_A_SAMPLE * h) {
-            (true, _) => 0.0,
-            (_, true) => 1.0,
-            _ if span > 0.0 => ((t - log.t[a]) / span).clamp(0.0, 1.0),
-            _ => 0.0,
-        };
-        if (t - log.t[a]).abs() > 0.1 * h && (t - log.t[b]).abs() > 0.1 * h {
-            repaired += 1;
-        }
-        out.t.push(t);
-        let between = |x: &[f64], k: usize| x[a * dof + k] * (1.0 - w) + x[b * dof + k] * w;
-        for k in 0..dof {
-            out.q.push(between(&log.q, k));
-            out.tau.push(between(&log.tau, k));
-        }
-        if let (Some(from), Some(to)) = (&log.closed_loop, &mut out.closed_loop) {
-            for (x, y) in from.reference.iter().zip(&mut to.reference) {
-                y.extend((0..dof).map(|k| between(x, k)));
-            }
-        }
-    }
-    (out, repaired)
+    let mut columns = uniform.channels.into_iter();
+    let (q, tau) = (columns.next().unwrap_or_default(), columns.next().unwrap_or_default());
+    let closed_loop = log.closed_loop.map(|c| ClosedLoopChannels {
+        reference: [columns.next(), columns.next(), columns.next()].map(Option::unwrap_or_default),
+        controller: c.controller,
+    });
+    (Log { t: uniform.t, q, tau, trajectory: log.trajectory, closed_loop }, uniform.repaired)
 }
-
-/// A grid point within this share of the step of a logged time is that sample: the drive's
-/// clock ticks in whole periods, and what is left is round-off of the sum.
-const ON_A_SAMPLE: f64 = 1e-6;
 
 fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
     let mut reader = csv::Reader::from_path(path).with_context(|| format!("opening log {}", path.display()))?;
@@ -242,19 +192,18 @@ pub fn concatenate(mut logs: Vec<Log>) -> Log {
 mod tests {
     use super::*;
 
+    /// A repeated time is dropped from every channel alike: the reference stays aligned with the
+    /// measurement, and the controller is kept.
     #[test]
-    fn repeats_are_dropped_and_gaps_interpolated() {
-        // A ramp sampled at 1 ms with one repeat (t = 2 ms twice) and one gap (no 5 ms).
-        let t = [0.0, 0.001, 0.002, 0.002, 0.003, 0.004, 0.006, 0.007];
+    fn regridding_moves_the_reference_with_the_measurement() {
+        let t = vec![0.0, 0.001, 0.002, 0.002, 0.003, 0.004, 0.006, 0.007];
         let q: Vec<f64> = t.iter().map(|t| 3.0 * t).collect();
-        let log = Log { t: t.to_vec(), q: q.clone(), tau: q, trajectory: None, closed_loop: None };
-        let (out, repaired) = regrid(log, 1);
+        let reference = [q.clone(), q.clone(), q.clone()];
+        let closed_loop = Some(ClosedLoopChannels { reference, controller: Err("none".into()) });
+        let (out, repaired) = regrid(Log { t, q: q.clone(), tau: q, trajectory: None, closed_loop }, 1);
         assert_eq!(repaired, 2);
-        assert_eq!(out.t.len(), 8, "one sample per logged cycle");
-        for (i, (&t, &q)) in out.t.iter().zip(&out.q).enumerate() {
-            assert!((t - i as f64 * 1e-3).abs() < 1e-12);
-            assert!((q - 3.0 * t).abs() < 1e-12, "a ramp interpolates exactly");
-        }
+        let c = out.closed_loop.expect("kept");
+        assert!(c.reference.iter().all(|r| *r == out.q) && c.controller.is_err());
     }
 
     /// A daemon run's log starts at the daemon's clock: one log is re-based to 0 like several, and
@@ -278,29 +227,5 @@ mod tests {
         assert_eq!(two.t.len(), 8);
         assert!((two.t[4] - 4e-3).abs() < 1e-12, "{:?}", two.t);
         assert!(two.closed_loop.is_none());
-    }
-
-    /// Encoder counts stay whole counts where the grid meets a logged time, however the step
-    /// `h` (a median of differences) rounds; only the gap's sample is blended.
-    #[test]
-    fn resampled_positions_keep_the_logged_values_where_the_grid_meets_them() {
-        let step = 1.917_475_984_857_162e-6;
-        let mut t: Vec<f64> = (0..2000).map(|i| 12.345 + i as f64 * 1e-3).collect();
-        t[700] = t[699]; // a repeat, then the same cycles go on: one gap
-        let q: Vec<f64> = (0..2000).map(|i| ((i as f64 * 0.0123).sin() * 300.0).round() * step).collect();
-        let log = Log { t: t.clone(), q: q.clone(), tau: q.clone(), trajectory: None, closed_loop: None };
-        let (out, repaired) = regrid(log, 1);
-        assert_eq!(repaired, 2);
-        let off_grid = out.q.iter().filter(|x| ((*x / step) - (*x / step).round()).abs() > 1e-9).count();
-        assert!(off_grid <= 1, "{off_grid} positions left the encoder's grid");
-        assert!(out.q.iter().zip(&q).enumerate().all(|(i, (a, b))| i == 700 || a == b));
-    }
-
-    #[test]
-    fn a_uniform_log_is_untouched() {
-        let t: Vec<f64> = (0..10).map(|i| i as f64 * 1e-3).collect();
-        let log = Log { t: t.clone(), q: t.clone(), tau: t.clone(), trajectory: None, closed_loop: None };
-        let (out, repaired) = regrid(log, 1);
-        assert_eq!((repaired, out.t), (0, t));
     }
 }

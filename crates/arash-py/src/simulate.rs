@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use arash_core::control::gains::PaperUnits;
 use arash_core::control::{RobustGains, Trajectory};
 use arash_core::diagnose::EffectTerm;
-use arash_core::flightlog::{read_log as core_read_log, FlightLog, LogWriter};
+use arash_core::flightlog::{on_uniform_grid, read_log as core_read_log, FlightLog, LogWriter};
 use arash_core::identify::closed_loop::LoggedController;
 use arash_core::record::{Columns, TruthColumns};
 use arash_core::sim::{named_parameters, true_parameters, ControllerChoice, RunSpec, Scenario};
@@ -60,8 +60,24 @@ fn truth_dict<'py>(py: Python<'py>, c: &TruthColumns, dof: usize) -> PyResult<Bo
     Ok(d)
 }
 
+/// The measured and reference channels on a uniform time grid (`flightlog::on_uniform_grid`):
+/// what `arash.identify` and `arash.diagnose` take from a daemon log, as the CLI reads it.
+fn uniform_dict<'py>(py: Python<'py>, c: &Columns, dof: usize) -> PyResult<Bound<'py, PyDict>> {
+    const NAMES: [&str; 5] = ["q", "tau_meas", "q_des", "qd_des", "qdd_des"];
+    let channels = [&c.q, &c.tau_meas, &c.q_des, &c.qd_des, &c.qdd_des].map(|v| v.as_slice());
+    let uniform = on_uniform_grid(&c.t, &channels, dof);
+    let d = PyDict::new(py);
+    d.set_item("t", vector(py, &uniform.t)?)?;
+    for (name, values) in NAMES.iter().zip(&uniform.channels) {
+        d.set_item(*name, matrix(py, values, dof)?)?;
+    }
+    d.set_item("repaired", uniform.repaired)?;
+    Ok(d)
+}
+
 fn log_dict<'py>(py: Python<'py>, log: &FlightLog) -> PyResult<Bound<'py, PyDict>> {
     let d = cycles_dict(py, &log.cycles, log.dof())?;
+    d.set_item("uniform", uniform_dict(py, &log.cycles, log.dof())?)?;
     match &log.truth {
         Some(truth) => d.set_item("truth", truth_dict(py, truth, log.dof())?)?,
         None => d.set_item("truth", py.None())?,

@@ -12,10 +12,12 @@
 mod reader;
 mod recover;
 pub mod schema;
+mod uniform;
 mod writer;
 
 pub use reader::{read_log, FlightLog};
 pub use recover::rewrite_complete;
+pub use uniform::{on_uniform_grid, Uniform};
 pub use writer::{LogHeader, LogWriter};
 
 /// The value of the `format` metadata key.

@@ -190,7 +190,11 @@ class Excitation:
 
 def _design_excitation(robot: Robot, options: dict[str, Any], quiet: bool) -> Excitation: ...
 
-def read_log(path: Union[str, PathLike[str]]) -> dict[str, Any]: ...
+def read_log(path: Union[str, PathLike[str]]) -> dict[str, Any]:
+    """A flight log as numpy arrays (docs/flightlog.md): ``t``, ``q``, ``tau_meas``… as logged,
+    and ``uniform``: ``t``, ``q``, ``tau_meas``, ``q_des``, ``qd_des``, ``qdd_des`` on a uniform time
+    grid (a daemon log repeats a time where telemetry was late) with ``repaired``, the samples
+    that took; what ``identify`` and ``diagnose`` take."""
 def _simulate(
     robot: Robot,
     scenario: tuple[str, str],
