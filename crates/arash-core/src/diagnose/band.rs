@@ -264,7 +264,7 @@ fn white_noise_gain((fs, cutoff): (f64, f64), order: usize, times: usize) -> Res
 const ON_THE_GRID: f64 = 1e-3;
 
 /// The share of a joint's moves that must lie on its step's grid. A log resampled onto a uniform
-/// grid where its time stamps jittered (the daemon's, `runlog::regrid`) holds a few interpolated
+/// grid where its time stamps jittered (the daemon's, `flightlog::on_uniform_grid`) holds a few interpolated
 /// positions between the steps; they must not hide the encoder of all the others.
 const ON_THE_GRID_SHARE: f64 = 0.99;
 
@@ -412,7 +412,7 @@ mod tests {
     }
 
     /// A daemon log resampled where its time stamps jittered holds a few positions between the
-    /// steps (`runlog::regrid`): the step is still read from all the others.
+    /// steps (`flightlog::on_uniform_grid`): the step is still read from all the others.
     #[test]
     fn a_few_interpolated_positions_do_not_hide_the_encoder_step() {
         let mut q = rig_log(1000.0, 20.0, 16, 0.0);
