@@ -69,7 +69,7 @@ const FOLDERS: &[(&str, &[&str])] = &[
             "report",
         ],
     ),
-    ("flightlog", &["schema", "reader", "writer", "recover"]),
+    ("flightlog", &["uniform", "schema", "reader", "writer", "recover"]),
     ("sim", &["scenario", "truth", "plant", "drive", "rig", "run"]),
 ];
 
