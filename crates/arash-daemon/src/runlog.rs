@@ -94,10 +94,9 @@ fn regrid(log: Log, dof: usize) -> (Log, usize) {
     if let Some(c) = &log.closed_loop {
         channels.extend(c.reference.iter().map(Vec::as_slice));
     }
-    let uniform = on_uniform_grid(&log.t, &channels, dof);
-    if uniform.repaired == 0 {
+    let Some(uniform) = on_uniform_grid(&log.t, &channels, dof) else {
         return (log, 0);
-    }
+    };
     let mut columns = uniform.channels.into_iter();
     let (q, tau) = (columns.next().unwrap_or_default(), columns.next().unwrap_or_default());
     let closed_loop = log.closed_loop.map(|c| ClosedLoopChannels {

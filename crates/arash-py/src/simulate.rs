@@ -67,11 +67,14 @@ fn uniform_dict<'py>(py: Python<'py>, c: &Columns, dof: usize) -> PyResult<Bound
     let channels = [&c.q, &c.tau_meas, &c.q_des, &c.qd_des, &c.qdd_des].map(|v| v.as_slice());
     let uniform = on_uniform_grid(&c.t, &channels, dof);
     let d = PyDict::new(py);
-    d.set_item("t", vector(py, &uniform.t)?)?;
-    for (name, values) in NAMES.iter().zip(&uniform.channels) {
+    // A log already uniform is its own grid.
+    let (t, repaired) = uniform.as_ref().map_or((&c.t, 0), |u| (&u.t, u.repaired));
+    d.set_item("t", vector(py, t)?)?;
+    for (k, name) in NAMES.iter().enumerate() {
+        let values = uniform.as_ref().map_or(channels[k], |u| &u.channels[k]);
         d.set_item(*name, matrix(py, values, dof)?)?;
     }
-    d.set_item("repaired", uniform.repaired)?;
+    d.set_item("repaired", repaired)?;
     Ok(d)
 }
 

@@ -22,19 +22,18 @@ pub struct Uniform {
 /// `channels` (row-major, `width` values per sample of `t`) on a uniform grid at the median
 /// step, with as many samples as cycles were logged: the daemon logs one cycle per drive period,
 /// so the run's length (and with it the period averaging) is that of the log even when its last
-/// measurements arrived late; the end holds the last measurement. A log already uniform, or too
-/// short to have a step, is returned as it is.
-pub fn on_uniform_grid(t: &[f64], channels: &[&[f64]], width: usize) -> Uniform {
-    let as_is = |repaired| Uniform { t: t.to_vec(), channels: channels.iter().map(|c| c.to_vec()).collect(), repaired };
+/// measurements arrived late; the end holds the last measurement. `None` for a log already
+/// uniform, or too short to have a step: it needs no grid of its own.
+pub fn on_uniform_grid(t: &[f64], channels: &[&[f64]], width: usize) -> Option<Uniform> {
     let keep: Vec<usize> = (0..t.len()).filter(|&i| i == 0 || t[i] > t[i - 1]).collect();
     let mut steps: Vec<f64> = keep.windows(2).map(|w| t[w[1]] - t[w[0]]).collect();
     if steps.is_empty() {
-        return as_is(0);
+        return None;
     }
     steps.sort_by(f64::total_cmp);
     let h = steps[steps.len() / 2];
     if keep.len() == t.len() && steps.iter().all(|s| (s - h).abs() < 1e-3 * h) {
-        return as_is(0);
+        return None;
     }
     let (t0, t_end) = (t[keep[0]], t[keep[keep.len() - 1]]);
     let n = (((t_end - t0) / h).round() as usize + 1).max(t.len());
@@ -68,7 +67,7 @@ pub fn on_uniform_grid(t: &[f64], channels: &[&[f64]], width: usize) -> Uniform 
             y.extend((0..width).map(|k| x[a * width + k] * (1.0 - w) + x[b * width + k] * w));
         }
     }
-    out
+    Some(out)
 }
 
 #[cfg(test)]
@@ -80,7 +79,7 @@ mod tests {
         // A ramp sampled at 1 ms with one repeat (t = 2 ms twice) and one gap (no 5 ms).
         let t = [0.0, 0.001, 0.002, 0.002, 0.003, 0.004, 0.006, 0.007];
         let q: Vec<f64> = t.iter().map(|t| 3.0 * t).collect();
-        let out = on_uniform_grid(&t, &[&q], 1);
+        let out = on_uniform_grid(&t, &[&q], 1).expect("not uniform");
         assert_eq!(out.repaired, 2);
         assert_eq!(out.t.len(), 8, "one sample per logged cycle");
         for (i, (&t, &q)) in out.t.iter().zip(&out.channels[0]).enumerate() {
@@ -97,7 +96,7 @@ mod tests {
         let mut t: Vec<f64> = (0..2000).map(|i| 12.345 + i as f64 * 1e-3).collect();
         t[700] = t[699]; // a repeat, then the same cycles go on: one gap
         let q: Vec<f64> = (0..2000).map(|i| ((i as f64 * 0.0123).sin() * 300.0).round() * step).collect();
-        let out = on_uniform_grid(&t, &[&q], 1);
+        let out = on_uniform_grid(&t, &[&q], 1).expect("not uniform");
         assert_eq!(out.repaired, 2);
         let q_out = &out.channels[0];
         let off_grid = q_out.iter().filter(|x| ((*x / step) - (*x / step).round()).abs() > 1e-9).count();
@@ -108,7 +107,6 @@ mod tests {
     #[test]
     fn a_uniform_log_is_untouched() {
         let t: Vec<f64> = (0..10).map(|i| i as f64 * 1e-3).collect();
-        let out = on_uniform_grid(&t, &[&t, &t], 1);
-        assert_eq!(out, Uniform { t: t.clone(), channels: vec![t.clone(), t], repaired: 0 });
+        assert_eq!(on_uniform_grid(&t, &[&t, &t], 1), None);
     }
 }
