@@ -41,6 +41,25 @@ pub(super) struct Chosen {
     pub(super) warning: Option<String>,
 }
 
+/// What both of the band's rules read from a log's positions, once: each joint's encoder step
+/// ([`encoder_step`]) and the lowest cut-off the motion allows ([`CUTOFF_PER_BANDWIDTH`] times its
+/// bandwidth, and what the log's length allows).
+pub(super) struct Positions<'a> {
+    q: &'a [f64],
+    dof: usize,
+    fs: f64,
+    steps: Vec<Option<f64>>,
+    floor: f64,
+}
+
+impl<'a> Positions<'a> {
+    pub(super) fn of(q: &'a [f64], (dof, fs): (usize, f64)) -> Self {
+        let length = lowest_cutoff_hz(q.len() / dof, fs, false);
+        let floor = bandwidth(q, dof, fs, false).map_or(0.0, |b| CUTOFF_PER_BANDWIDTH * b).max(length);
+        Self { q, dof, fs, steps: (0..dof).map(|j| encoder_step(q, dof, j)).collect(), floor }
+    }
+}
+
 /// The widest cut-off up to the diagnosis's default at which the position noise makes up at most
 /// [`MAX_ACCELERATION_NOISE`] of every joint's q̈ variance, never below what the motion needs
 /// ([`CUTOFF_PER_BANDWIDTH`] times its bandwidth).
@@ -49,9 +68,9 @@ pub(super) struct Chosen {
 /// and c: above the motion's bandwidth that is noise alone, and since white position noise
 /// reaches q̈ with a power that grows as f⁴, the octave below c holds 97 % of all the noise q̈
 /// has at c. Where the joint's encoder step shows, its quantisation noise is used if smaller.
-pub(super) fn noise_limited_cutoff(q: &[f64], (dof, fs): (usize, f64), order: usize) -> Result<Chosen, FilterError> {
+pub(super) fn noise_limited_cutoff(positions: &Positions, order: usize) -> Result<Chosen, FilterError> {
+    let (fs, floor) = (positions.fs, positions.floor);
     let top = DiagnoseOptions::default_cutoff_hz(fs);
-    let floor = motion_floor(q, (dof, fs));
     let limit = 100.0 * MAX_ACCELERATION_NOISE;
     let mut widest: Option<(f64, NoiseShare)> = None;
     for step in 0.. {
@@ -59,7 +78,7 @@ pub(super) fn noise_limited_cutoff(q: &[f64], (dof, fs): (usize, f64), order: us
         if cutoff <= floor {
             break;
         }
-        let share = noise_share(q, (dof, fs), (cutoff, (cutoff / 2.0).max(floor)), order)?;
+        let share = noise_share(positions, (cutoff, (cutoff / 2.0).max(floor)), order)?;
         if share.value <= MAX_ACCELERATION_NOISE {
             let here = share.describe();
             let reason = match widest {
@@ -97,13 +116,6 @@ pub(super) fn noise_limited_cutoff(q: &[f64], (dof, fs): (usize, f64), order: us
     Ok(Chosen { cutoff_hz: cutoff, reason, warning: Some(warning) })
 }
 
-/// The lowest cut-off the motion allows: [`CUTOFF_PER_BANDWIDTH`] times its bandwidth, and what
-/// the log's length allows.
-fn motion_floor(q: &[f64], (dof, fs): (usize, f64)) -> f64 {
-    let length = lowest_cutoff_hz(q.len() / dof, fs, false);
-    bandwidth(q, dof, fs, false).map_or(0.0, |b| CUTOFF_PER_BANDWIDTH * b).max(length)
-}
-
 /// The friction velocity's cut-off: the widest, from the band's `cutoff` down in quarter
 /// octaves, at which every joint's encoder step reaches the filtered velocity with an RMS of at
 /// most [`MAX_VELOCITY_NOISE`] of the joint's RMS speed, never below what the motion needs.
@@ -116,25 +128,23 @@ fn motion_floor(q: &[f64], (dof, fs): (usize, f64)) -> f64 {
 /// Joints whose positions show no step (filtered, or smooth real data) leave the band alone:
 /// what their velocity gains is motion.
 pub(super) fn velocity_resolved_cutoff(
-    q: &[f64],
-    (dof, fs): (usize, f64),
+    positions: &Positions,
     cutoff: f64,
     order: usize,
 ) -> Result<Chosen, FilterError> {
-    let steps: Vec<(usize, f64)> = (0..dof).filter_map(|j| encoder_step(q, dof, j).map(|s| (j, s))).collect();
-    if steps.is_empty() {
+    if positions.steps.iter().all(Option::is_none) {
         let reason = format!(
             "Coulomb columns switch with the velocity filtered at {cutoff:.3} Hz: the band's cut-off; no joint's \
              positions sit on an encoder's grid, so what the velocity holds there is motion"
         );
         return Ok(Chosen { cutoff_hz: cutoff, reason, warning: None });
     }
-    let floor = motion_floor(q, (dof, fs)).min(cutoff);
+    let floor = positions.floor.min(cutoff);
     let limit = 100.0 * MAX_VELOCITY_NOISE;
     let mut at_band: Option<NoiseShare> = None;
     let mut candidate = cutoff;
     loop {
-        let share = velocity_noise(q, (dof, fs), (candidate, order), &steps)?;
+        let share = velocity_noise(positions, (candidate, order))?;
         let first = *at_band.get_or_insert(share);
         let narrower = candidate * 0.5_f64.powf(1.0 / STEPS_PER_OCTAVE as f64);
         if share.value <= MAX_VELOCITY_NOISE || narrower < floor {
@@ -166,19 +176,15 @@ pub(super) fn velocity_resolved_cutoff(
 
 /// The largest share of a joint's RMS speed that its encoder step's quantisation makes up in
 /// the velocity filtered at `cutoff` (the step's Δ²/12, white, through the filter and one central
-/// difference), over the joints with a step `steps`.
-fn velocity_noise(
-    q: &[f64],
-    (dof, fs): (usize, f64),
-    (cutoff, order): (f64, usize),
-    steps: &[(usize, f64)],
-) -> Result<NoiseShare, FilterError> {
+/// difference), over the joints that show a step.
+fn velocity_noise(positions: &Positions, (cutoff, order): (f64, usize)) -> Result<NoiseShare, FilterError> {
+    let Positions { q, dof, fs, ref steps, .. } = *positions;
     let mut worst = NoiseShare { joint: 0, value: 0.0 };
     let n = q.len() / dof;
     let edge = ((EDGE_CUTOFF_PERIODS * fs / cutoff).ceil() as usize).min(n / 4);
     let gain = white_noise_gain((fs, cutoff), order, 1)?;
     let v = differenced(q, (dof, fs), cutoff, order, 1)?;
-    for &(j, step) in steps {
+    for (j, step) in steps.iter().enumerate().filter_map(|(j, s)| s.map(|s| (j, s))) {
         let speed = (edge..n - edge).map(|k| v[k * dof + j].powi(2)).sum::<f64>() / (n - 2 * edge).max(1) as f64;
         let noise = step * step / 12.0 * gain;
         if speed > 0.0 && (noise / speed).sqrt() > worst.value {
@@ -209,12 +215,8 @@ impl NoiseShare {
 /// away from the filter's end transients; the largest. The noise is what q̈ gains between the
 /// two, or, where the joint's encoder step shows, the step's quantisation noise if smaller. A
 /// joint whose q̈ does not vary is left out.
-fn noise_share(
-    q: &[f64],
-    (dof, fs): (usize, f64),
-    (wide, narrow): (f64, f64),
-    order: usize,
-) -> Result<NoiseShare, FilterError> {
+fn noise_share(positions: &Positions, (wide, narrow): (f64, f64), order: usize) -> Result<NoiseShare, FilterError> {
+    let Positions { q, dof, fs, ref steps, .. } = *positions;
     let n = q.len() / dof;
     let edge = ((EDGE_CUTOFF_PERIODS * fs / narrow).ceil() as usize).min(n / 4);
     let gain = white_noise_gain((fs, wide), order, 2)?;
@@ -223,7 +225,7 @@ fn noise_share(
     for j in 0..dof {
         let rows = edge..n - edge;
         let gained = variance(rows.clone().map(|k| wide[k * dof + j] - narrow[k * dof + j]));
-        let noise = encoder_step(q, dof, j).map_or(gained, |step| gained.min(step * step / 12.0 * gain));
+        let noise = steps[j].map_or(gained, |step| gained.min(step * step / 12.0 * gain));
         let signal = variance(rows.map(|k| narrow[k * dof + j]));
         if signal > 0.0 && noise / signal > worst.value {
             worst = NoiseShare { joint: j, value: noise / signal };
@@ -326,7 +328,7 @@ mod tests {
     }
 
     fn chosen(fs: f64, q: &[f64]) -> Chosen {
-        noise_limited_cutoff(q, (3, fs), 5).unwrap()
+        noise_limited_cutoff(&Positions::of(q, (3, fs)), 5).unwrap()
     }
 
     #[test]
@@ -378,7 +380,8 @@ mod tests {
         let (fs, bits) = (200.0, 14);
         let q = rig_log(fs, 60.0, bits, 0.0);
         let band = chosen(fs, &q).cutoff_hz;
-        let Chosen { cutoff_hz: friction, reason, .. } = velocity_resolved_cutoff(&q, (3, fs), band, 5).unwrap();
+        let Chosen { cutoff_hz: friction, reason, .. } =
+            velocity_resolved_cutoff(&Positions::of(&q, (3, fs)), band, 5).unwrap();
         let amplitude = [0.3, 0.2, 0.02];
         let share = |c: f64| {
             (0..3)
@@ -396,18 +399,18 @@ mod tests {
         assert!(share(friction) < 1.2 * MAX_VELOCITY_NOISE, "{friction} Hz: {}", share(friction));
         assert!(share(wider) > 0.8 * MAX_VELOCITY_NOISE, "{wider} Hz: {}", share(wider));
         // 12 bits would need a velocity slower than the motion allows: it stops there, and says so.
-        let coarse = velocity_resolved_cutoff(&rig_log(fs, 60.0, 12, 0.0), (3, fs), band, 5).unwrap();
+        let coarse = velocity_resolved_cutoff(&Positions::of(&rig_log(fs, 60.0, 12, 0.0), (3, fs)), band, 5).unwrap();
         assert!(
             coarse.cutoff_hz < friction && coarse.reason.contains("the lowest the motion allows"),
             "{}",
             coarse.reason
         );
         let fine = rig_log(fs, 60.0, 20, 0.0);
-        let kept = velocity_resolved_cutoff(&fine, (3, fs), band, 5).unwrap();
+        let kept = velocity_resolved_cutoff(&Positions::of(&fine, (3, fs)), band, 5).unwrap();
         assert_eq!(kept.cutoff_hz, band, "{}", kept.reason);
         // Positions on no grid (filtered, or a smooth real log): no step to blame, the band stays.
         let smooth: Vec<f64> = q.iter().enumerate().map(|(k, x)| x + 1e-7 * (0.1234 * k as f64).sin()).collect();
-        let unstepped = velocity_resolved_cutoff(&smooth, (3, fs), band, 5).unwrap();
+        let unstepped = velocity_resolved_cutoff(&Positions::of(&smooth, (3, fs)), band, 5).unwrap();
         assert!(unstepped.cutoff_hz == band && unstepped.reason.contains("no joint's"), "{}", unstepped.reason);
     }
 

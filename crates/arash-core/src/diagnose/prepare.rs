@@ -1,7 +1,7 @@
 //! A log made ready for the diagnosis: filtered, differentiated, trimmed and sampled, with the
 //! declared model's columns and each candidate's columns on it.
 
-use super::band::{noise_limited_cutoff, velocity_resolved_cutoff, Band};
+use super::band::{noise_limited_cutoff, velocity_resolved_cutoff, Band, Positions};
 use super::options::DiagnoseOptions;
 use super::regression::Column;
 use crate::base_parameters::BaseParameters;
@@ -88,6 +88,9 @@ pub(super) fn prepare(
     let fs = 1.0 / dt;
     let default = DiagnoseOptions::default_cutoff_hz(fs);
     let order = options.preprocess.order;
+    // Read from the positions once, by whichever of the band's rules runs first.
+    let positions = std::cell::OnceCell::new();
+    let positions = || positions.get_or_init(|| Positions::of(log.q, (dof, fs)));
     let mut warning = None;
     let (cutoff, reason) = match (options.preprocess.cutoff_hz, band) {
         (Some(user), _) => (user, None),
@@ -96,7 +99,7 @@ pub(super) fn prepare(
             (cutoff, Some(format!("cut-off {cutoff:.3} Hz: the training log's, at most {default:.2} Hz")))
         }
         (None, None) => {
-            let chosen = noise_limited_cutoff(log.q, (dof, fs), order)?;
+            let chosen = noise_limited_cutoff(positions(), order)?;
             warning = chosen.warning;
             (chosen.cutoff_hz, Some(chosen.reason))
         }
@@ -105,7 +108,7 @@ pub(super) fn prepare(
         (Some(band), _) => (Some(band.friction_hz), None),
         (None, Some(user)) => (Some(user), None),
         (None, None) => {
-            let chosen = velocity_resolved_cutoff(log.q, (dof, fs), cutoff, order)?;
+            let chosen = velocity_resolved_cutoff(positions(), cutoff, order)?;
             (Some(chosen.cutoff_hz), Some(chosen.reason))
         }
     };
