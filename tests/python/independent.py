@@ -70,6 +70,14 @@ class Expanded:
         for jid in range(1, self.model.njoints):
             self.model.inertias[jid] = pin.Inertia.FromDynamicParameters(pi_pin[10 * (jid - 1) : 10 * jid])
 
+    def add_point_mass(self, payload):
+        """A point mass fixed to a link, added to the inertia of the Pinocchio joint it rides on."""
+        if not self.model.existFrame(payload.link):
+            raise ValueError(f"no link {payload.link!r} to put a payload on")
+        frame = self.model.frames[self.model.getFrameId(payload.link)]
+        mass = pin.Inertia(payload.mass, np.asarray(payload.at, dtype=float), np.zeros((3, 3)))
+        self.model.inertias[frame.parentJoint] = self.model.inertias[frame.parentJoint] + frame.placement.act(mass)
+
     def tree(self, q, qd, qdd):
         """Tree configuration in Pinocchio's encoding: a continuous joint is (cos θ, sin θ)."""
         angles = self.G @ q + self.offset
@@ -235,6 +243,15 @@ class Injected:
     ratio: float = 1.0
 
 
+@dataclass(frozen=True)
+class Payload:
+    """A known mass added to a link: ``mass`` (kg) at ``at`` (m, in the link's frame)."""
+
+    link: str
+    mass: float
+    at: tuple = (0.0, 0.0, 0.0)
+
+
 def injected_shape(effect, robot, q, qd, qdd, tau):
     """The effect's torque per unit coefficient on every joint, (N, dof), at the true motion and
     torque ``tau``."""
@@ -273,13 +290,13 @@ def joint_shape(effect, robot, q, qd, qdd, tau):
     raise ValueError(f"unknown injected effect {effect.kind!r}")
 
 
-def make_log(condition, states=None, truth=None, effect=None):
+def make_log(condition, states=None, truth=None, effect=None, payload=None):
     """The log of ``condition``: t, quantised q, noisy τ, and the truth (params, joint terms).
 
     ``states`` (t, q, q̇, q̈) replaces the generated trajectory; ``truth`` reuses a previous log's
     parameters (and an injected effect's coefficient), so that a validation log comes from the
     same robot. ``effect`` (an ``Injected``, or a tuple of them) adds a torque the declared model
-    lacks.
+    lacks. ``payload`` (a ``Payload``) adds a point mass to a link, in Pinocchio's tree.
     """
     rng = np.random.default_rng(condition.seed)
     path = urdf_path(condition.robot)
@@ -288,6 +305,8 @@ def make_log(condition, states=None, truth=None, effect=None):
     t, q, qd, qdd = states if states is not None else trajectory(robot, condition, rng)
     params = robot.cad_parameters().copy() if truth is None else truth["params"]
     expanded.set_parameters(params)
+    if payload is not None:
+        expanded.add_point_mass(payload)
     rigid = rigid_torques(expanded, q, qd, qdd)
     if truth is None:
         # A joint whose rigid-body torque is nil (a link declared massless) still has friction

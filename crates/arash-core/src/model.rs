@@ -168,6 +168,35 @@ impl Model {
     }
 
     /// Length of the standard parameter vector.
+    /// How far from body `b`'s frame a mass on that body can sit (m). A body that carries
+    /// others reaches its children's joints (a prismatic child over its whole travel) and twice
+    /// its own declared centre of mass; the last body of a chain carries whatever a user
+    /// mounts, a tool, so it gets the whole robot's reach: every joint offset, every prismatic
+    /// travel, and twice the farthest declared centre of mass.
+    pub fn body_extent_m(&self, b: usize) -> f64 {
+        // A child's joint, over its travel when it slides.
+        let joint_reach = |i: usize| {
+            let travel: f64 = self
+                .joints
+                .iter()
+                .filter(|j| j.body == i && j.kind == JointKind::Prismatic)
+                .map(|j| (j.upper - j.lower).abs())
+                .filter(|t| t.is_finite())
+                .sum();
+            self.bodies[i].origin_pos.norm() + travel
+        };
+        let com = |body: &Body| match body.inertial[0] {
+            m if m > 0.0 => (body.inertial[1].powi(2) + body.inertial[2].powi(2) + body.inertial[3].powi(2)).sqrt() / m,
+            _ => 0.0,
+        };
+        let children: Vec<usize> = (0..self.bodies.len()).filter(|&c| self.bodies[c].parent == Some(b)).collect();
+        if children.is_empty() {
+            let offsets: f64 = (0..self.bodies.len()).map(joint_reach).sum();
+            return offsets + 2.0 * self.bodies.iter().map(com).fold(0.0, f64::max);
+        }
+        children.into_iter().map(joint_reach).fold(2.0 * com(&self.bodies[b]), f64::max)
+    }
+
     pub fn num_params(&self) -> usize {
         self.layout().len()
     }

@@ -487,6 +487,30 @@ mod tests {
         assert_eq!((c.index, c.multiplier, c.offset), (0, 2.0, 0.1));
     }
 
+    /// An inner body reaches its children's joints (a sliding one over its travel) or twice its
+    /// own centre of mass, whichever is farther; the last body of the chain, where tools go,
+    /// the whole robot's reach. Figures worked by hand from the text below.
+    #[test]
+    fn a_body_extends_to_its_childrens_joints_and_the_last_to_the_whole_reach() {
+        let com = |x: f64| {
+            format!(
+                r#"<inertial><origin xyz="{x} 0 0"/><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1"/></inertial>"#
+            )
+        };
+        let (l1, l2, tip) = (com(0.1), com(0.05), com(0.02));
+        let j = joint("a", "revolute", "base", "l1", r#"<origin xyz="0 0 0.5"/>"#)
+            + &joint("b", "revolute", "l1", "l2", r#"<origin xyz="0.3 0 0.4"/>"#)
+            + &joint("c", "prismatic", "l2", "tip", r#"<origin xyz="0 0 0.06"/>"#);
+        let model = parse_urdf(&robot(&[("base", ""), ("l1", &l1), ("l2", &l2), ("tip", &tip)], &j)).unwrap();
+        let extent = |name: &str| model.body_extent_m(model.bodies.iter().position(|b| b.name == name).unwrap());
+        // l1: its child's joint 0.5 m away, beyond twice its centre of mass (0.2 m).
+        assert!((extent("l1") - 0.5).abs() < 1e-12, "{}", extent("l1"));
+        // l2: its child slides 2 m (limits ±1) from 0.06 m.
+        assert!((extent("l2") - 2.06).abs() < 1e-12, "{}", extent("l2"));
+        // The tip: 0.5 + 0.5 + 0.06 + 2 of joints and travel, and twice the farthest centre of mass.
+        assert!((extent("tip") - (3.06 + 0.2)).abs() < 1e-12, "{}", extent("tip"));
+    }
+
     #[test]
     fn missing_inertial_names_the_link() {
         let e = error_of(&robot(&[("base", ""), ("l1", "")], &joint("a", "revolute", "base", "l1", "")));

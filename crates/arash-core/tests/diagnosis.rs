@@ -251,10 +251,10 @@ fn a_payload_on_an_inner_body_is_found_there() {
 }
 
 /// A model 50 g heavier than the rig: the data show less mass on the carriage than the model,
-/// which is never a payload. The mirror case, a model 50 g lighter, finds the 50 g on the
-/// carriage from the same log, so its absence is the sign rule's doing. (What the heavy model
-/// gets instead is an offset on the insertion, the carriage's weight along it, and terms on the
-/// pitch: the catalogue has no "model too heavy"; docs/diagnosis.md, Limits.)
+/// which is never a payload. The diagnosis says the model is too heavy, by how much and where,
+/// and accepts nothing that would only take up the missing weight (before `too_heavy`, an
+/// offset on the insertion, the carriage's weight along it, and terms on the pitch). The mirror
+/// case, a model 50 g lighter, finds the 50 g on the carriage from the same log.
 #[test]
 fn a_model_heavier_than_the_rig_is_not_a_negative_payload() {
     let model = rig_model();
@@ -277,10 +277,16 @@ fn a_model_heavier_than_the_rig_is_not_a_negative_payload() {
     eprintln!("{}", heavy.report());
     assert!(heavy.accepted.iter().all(|f| f.mass_kg.is_none_or(|m| m > 0.0)), "{}", heavy.report());
     assert!(heavy.accepted.iter().all(|f| f.body.as_deref() != Some("insertion_carriage")), "{}", heavy.report());
+    let too_heavy = heavy.too_heavy.as_ref().unwrap_or_else(|| panic!("{}", heavy.report()));
+    assert_eq!(too_heavy.body, "insertion_carriage");
+    assert!((too_heavy.mass_kg - 0.05).abs() < 0.01, "{} kg missing of a model 50 g heavy", too_heavy.mass_kg);
+    assert!(heavy.accepted.is_empty(), "{}", heavy.report());
+    assert!(heavy.report().contains("heavier than the data"), "{}", heavy.report());
     let light = against(-0.05);
     let found = light.accepted.iter().find(|f| f.body.as_deref() == Some("insertion_carriage"));
     let mass = found.and_then(|f| f.mass_kg).unwrap_or_else(|| panic!("{}", light.report()));
     assert!((mass - 0.05).abs() < 0.01, "{mass} kg against a model 50 g light");
+    assert!(light.too_heavy.is_none(), "{}", light.report());
 }
 
 #[test]

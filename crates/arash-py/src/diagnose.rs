@@ -271,6 +271,21 @@ impl Diagnosis {
     fn accepted(&self) -> Vec<Effect> {
         self.inner.accepted.iter().map(|f| Effect { finding: f.clone() }).collect()
     }
+    /// Set when the search stopped because the model is heavier than the data (a payload of
+    /// negative mass explained the residual best): `body`, `mass_kg` (the mass the data lack,
+    /// positive), `mass_sigma_kg`, `p_value`, `heldout_gain`, `round`. None otherwise.
+    #[getter]
+    fn too_heavy<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(h) = &self.inner.too_heavy else { return Ok(None) };
+        let d = PyDict::new(py);
+        d.set_item("body", &h.body)?;
+        d.set_item("mass_kg", h.mass_kg)?;
+        d.set_item("mass_sigma_kg", h.mass_sigma_kg)?;
+        d.set_item("p_value", h.p_value)?;
+        d.set_item("heldout_gain", h.heldout_gain)?;
+        d.set_item("round", h.round)?;
+        Ok(Some(d))
+    }
     /// One dict per candidate not accepted: `name`, `joints`, `label`, `reason` (text), `code`
     /// (the reason's identifier), `p_value` and `heldout_gain` (None where not reached).
     #[getter]

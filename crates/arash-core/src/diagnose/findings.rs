@@ -64,6 +64,24 @@ impl Finding {
     }
 }
 
+/// The data are lighter than the model: a payload with a clearly negative mass explained the
+/// residual better than any effect could. A negative mass is never a payload, and every effect
+/// accepted after it would only take up the missing weight (an offset along a joint that gravity
+/// pulls, terms that vary with the pose), so the search stops there and says so.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TooHeavy {
+    /// The body the missing mass was fitted on.
+    pub body: String,
+    /// The mass the data lack against the model (kg, positive), and its σ.
+    pub mass_kg: f64,
+    pub mass_sigma_kg: f64,
+    pub p_value: f64,
+    /// Held-out gain of the negative payload on the joint it helps most.
+    pub heldout_gain: f64,
+    /// The round of the search it stopped.
+    pub round: usize,
+}
+
 /// A candidate that was not accepted, and why.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Rejection {
@@ -90,6 +108,11 @@ pub enum RejectionReason {
     /// Significant, but fitted with the accepted effects it gives `label` (an accepted effect or
     /// itself) the sign that effect cannot have (`coefficient`).
     FlipsSign { p_value: f64, label: String, coefficient: f64 },
+    /// A payload whose mass is within [`super::options::PAYLOAD_MASS_SIGMAS`] σ of zero, or
+    /// whose centre of mass is farther from its body's frame than the body extends
+    /// ([`crate::model::Model::body_extent_m`]): not a mass on that body. `distance_m` is set for
+    /// the second.
+    NotAMass { p_value: f64, mass_kg: f64, mass_sigma_kg: f64, distance_m: Option<f64>, reach_m: f64 },
     /// A cable term where the joint's fitted Coulomb friction is not positive.
     NoFrictionForACable { p_value: f64, coulomb: f64 },
     /// A cable term that carries too little of the joint's Coulomb friction to be the cable.
@@ -126,6 +149,7 @@ impl RejectionReason {
             Self::NotSignificant { .. } => "not_significant",
             Self::WrongSign { .. } => "wrong_sign",
             Self::FlipsSign { .. } => "flips_sign",
+            Self::NotAMass { .. } => "not_a_mass",
             Self::NoFrictionForACable { .. } => "no_friction_for_a_cable",
             Self::TooLittleFrictionForACable { .. } => "too_little_friction_for_a_cable",
             Self::SmallGain { .. } => "small_gain",
@@ -160,6 +184,18 @@ impl std::fmt::Display for RejectionReason {
                 f,
                 "significant (p = {p_value:.2e}) but fitted with the effects already found it gives {label} the wrong sign for that effect (coefficient {coefficient:.3e}): the two share some other error"
             ),
+            Self::NotAMass { p_value, mass_kg, mass_sigma_kg, distance_m, reach_m } => match distance_m {
+                None => write!(
+                    f,
+                    "significant (p = {p_value:.2e}) but its mass, {:.2} ± {:.2} g, is not told from nothing: a change of first moments, not a mass",
+                    1e3 * mass_kg,
+                    1e3 * mass_sigma_kg
+                ),
+                Some(d) => write!(
+                    f,
+                    "significant (p = {p_value:.2e}) but its centre of mass is {d:.3} m from the body's frame, beyond the body's extent ({reach_m:.3} m): not a mass on that body"
+                ),
+            },
             Self::NoFrictionForACable { p_value, coulomb } => write!(
                 f,
                 "significant (p = {p_value:.2e}) but the joint's fitted Coulomb friction ({coulomb:.3e}) is not positive: no friction for a cable to carry"
@@ -266,6 +302,9 @@ pub struct Diagnosis {
     pub prismatic: Vec<bool>,
     pub accepted: Vec<Finding>,
     pub rejected: Vec<Rejection>,
+    /// Set when the search stopped because the model is heavier than the data.
+    #[serde(default)]
+    pub too_heavy: Option<TooHeavy>,
     pub before: ErrorSummary,
     pub after: ErrorSummary,
     pub settings: DiagnoseSettings,
@@ -305,6 +344,20 @@ mod tests {
             RejectionReason::NotIdentifiable { vif: 2e3, max_vif: 1e3 },
             RejectionReason::NotSignificant { p_value: 0.2, threshold: 0.01, round: 1 },
             RejectionReason::WrongSign { p_value: 1e-5, coefficient: -1.0 },
+            RejectionReason::NotAMass {
+                p_value: 1e-5,
+                mass_kg: 1e-5,
+                mass_sigma_kg: 1e-4,
+                distance_m: None,
+                reach_m: 1.0,
+            },
+            RejectionReason::NotAMass {
+                p_value: 1e-5,
+                mass_kg: 0.1,
+                mass_sigma_kg: 1e-3,
+                distance_m: Some(9.0),
+                reach_m: 1.0,
+            },
             RejectionReason::NoFrictionForACable { p_value: 1e-5, coulomb: -0.1 },
             RejectionReason::TooLittleFrictionForACable { p_value: 1e-5, share: 0.1, coefficient: 0.01, coulomb: 0.1 },
             RejectionReason::SmallGain { p_value: 1e-5, gain: 0.05, min_gain: 0.2 },

@@ -32,6 +32,12 @@ pub const MAX_ACCELERATION_NOISE: f64 = 0.05;
 /// 12-bit ones 0.6–1.0 %.
 pub const MAX_VELOCITY_NOISE: f64 = 0.1 * crate::effects::SLOWEST_STRIBECK_FRACTION;
 
+/// A payload's mass must be this many of its σ from zero: a fit whose mass the data cannot tell
+/// from nothing is a change of first moments (a centre of mass the model has wrong), and its
+/// centre of mass, m·c over a mass near zero, lies anywhere. Two σ: the sign test every other
+/// signed coefficient gets (`search.rs`, `wrong_sign`).
+pub const PAYLOAD_MASS_SIGMAS: f64 = 2.0;
+
 /// Settings of [`super::diagnose`]; `Default` gives the documented defaults.
 #[derive(Clone, Debug)]
 pub struct DiagnoseOptions {

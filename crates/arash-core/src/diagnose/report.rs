@@ -21,7 +21,9 @@ impl Diagnosis {
             self.settings.heldout,
             CoulombShape::of_epsilon(self.settings.coulomb_epsilon)
         );
-        if self.accepted.is_empty() {
+        if self.accepted.is_empty() && self.too_heavy.is_some() {
+            s += "No effect accepted: the model is heavier than the data (below).\n";
+        } else if self.accepted.is_empty() {
             s += "No effect found beyond the declared model.\n";
         } else {
             s += "Effects found (in the order they were added):\n";
@@ -59,6 +61,20 @@ impl Diagnosis {
                     s += &format!("       indistinguishable here from: {}\n", f.aliases.join(", "));
                 }
             }
+        }
+        if let Some(h) = &self.too_heavy {
+            s += &format!(
+                "\nThe model is heavier than the data: on {}, {:.1} ± {:.1} g less mass explains the rest best \
+                 (p = {:.1e}, held-out gain {:.1} %). A negative mass is no payload, and what an effect \
+                 took up after it would be that weight, so the search stopped at round {}. Refit the model on \
+                 this log (--refit), or take the mass out of the model.\n",
+                h.body,
+                1e3 * h.mass_kg,
+                1e3 * h.mass_sigma_kg,
+                h.p_value,
+                100.0 * h.heldout_gain,
+                h.round
+            );
         }
         s += "\nError per joint, before → after:\n";
         s += &self.error_table("training", &self.before, &self.after, |e| &e.training);

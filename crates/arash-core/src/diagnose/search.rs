@@ -6,14 +6,14 @@ use std::borrow::Cow;
 use super::candidates::{candidates, not_the_cable};
 use super::context::{parallel_map, Context};
 use super::delay::search_delay;
-use super::findings::{rejection, DiagnoseSettings, Diagnosis, Finding, Rejection, RejectionReason, Series};
-use super::options::{DiagnoseError, DiagnoseOptions};
+use super::findings::{rejection, DiagnoseSettings, Diagnosis, Finding, Rejection, RejectionReason, Series, TooHeavy};
+use super::options::{DiagnoseError, DiagnoseOptions, PAYLOAD_MASS_SIGMAS};
 use super::outcome::{declared_model, series};
 use super::problem::{error_summary, model_columns, Candidate, HeldOut, HeldOutBase, Problem};
 use super::regression::{self, gram, least_squares, residual, rhs, test_group, Column, GroupTest, Rows, Untested};
 use crate::effects::{EffectKind, EffectTerm};
 use crate::identify::{Declared, Log};
-use crate::model::JointKind;
+use crate::model::{JointKind, Model};
 use crate::model_file::ModelFile;
 
 /// Diagnose `train` against the declared dynamics (refitted, or `given`), holding out
@@ -63,6 +63,7 @@ struct State {
     accepted: Vec<Finding>,
     chosen: Vec<usize>,
     status: Vec<Option<Rejection>>,
+    too_heavy: Option<TooHeavy>,
 }
 
 /// A candidate that passed every check of a round.
@@ -110,7 +111,16 @@ impl Search<'_> {
         if tested.is_empty() {
             return Ok(false);
         }
-        let mut passing = self.judge(round, &tested, &coef, state);
+        let (mut passing, lighter) = self.judge(round, &tested, &coef, state);
+        // A mass taken off one body can look like a mass put on another (a parallelogram's links
+        // pull against each other): the positive explanation stands unless the missing mass
+        // explains clearly more, by the margin `most_useful` gives a simpler term.
+        if let Some((total, heavy)) = lighter {
+            if passing.iter().all(|p| p.total < COMPARABLE_GAIN * total) {
+                state.too_heavy = Some(heavy);
+                return Ok(false);
+            }
+        }
         // The most useful candidate that leaves every effect its physical sign in the joint fit.
         let best = loop {
             let Some(best) = most_useful(&passing, |o| self.pool[tested[o].0].columns.len()) else {
@@ -194,8 +204,15 @@ impl Search<'_> {
     }
 
     /// Holm's procedure over the round's tests, then the physical checks and the held-out gain;
-    /// what fails is marked with its reason, what passes is returned.
-    fn judge(&self, round: usize, tested: &[(usize, GroupTest)], coef: &[f64], state: &mut State) -> Vec<Passed> {
+    /// what fails is marked with its reason, what passes is returned, with the most useful
+    /// payload of negative mass that would have passed but for its sign (and its whole-robot gain).
+    fn judge(
+        &self,
+        round: usize,
+        tested: &[(usize, GroupTest)],
+        coef: &[f64],
+        state: &mut State,
+    ) -> (Vec<Passed>, Option<(f64, TooHeavy)>) {
         let (ctx, dof) = (self.ctx, self.problem.dof);
         let alpha = ctx.options.alpha;
         let p_values: Vec<f64> = tested.iter().map(|(_, t)| t.p_value).collect();
@@ -203,6 +220,7 @@ impl Search<'_> {
         let mut order: Vec<usize> = (0..tested.len()).collect();
         order.sort_by(|&a, &b| p_values[a].total_cmp(&p_values[b]));
         let mut passing = Vec::new();
+        let mut lighter: Option<(f64, TooHeavy)> = None;
         let mut scoring: Option<HeldOutBase> = None;
         for (rank, &o) in order.iter().enumerate() {
             let (i, t) = &tested[o];
@@ -213,8 +231,12 @@ impl Search<'_> {
                 if !pass[o] {
                     return Err((RejectionReason::NotSignificant { p_value, threshold, round }, None));
                 }
-                if let Some(coefficient) = wrong_sign(term, t) {
-                    return Err((RejectionReason::WrongSign { p_value, coefficient }, None));
+                if let Some(reason) = not_a_mass(term, t, ctx.model) {
+                    return Err((reason, None));
+                }
+                let flipped = wrong_sign(term, t);
+                if flipped.is_some() && term.kind != EffectKind::Payload {
+                    return Err((RejectionReason::WrongSign { p_value, coefficient: flipped.unwrap_or(0.0) }, None));
                 }
                 if let Some(reason) = not_the_cable(ctx.model, ctx.base, &ctx.free, coef, ctx.given, term, t) {
                     return Err((reason, None));
@@ -226,6 +248,21 @@ impl Search<'_> {
                 // robot, so that an effect acting on several joints competes fairly with
                 // one-joint terms.
                 let gain = term.joints(dof).iter().map(|&k| gains[k]).fold(f64::NEG_INFINITY, f64::max);
+                if let Some(coefficient) = flipped {
+                    // A payload of negative mass: the model is heavier than the data.
+                    let heavy = TooHeavy {
+                        body: term.body.clone().unwrap_or_default(),
+                        mass_kg: -coefficient,
+                        mass_sigma_kg: t.sigma.first().copied().unwrap_or(f64::NAN),
+                        p_value,
+                        heldout_gain: gain,
+                        round,
+                    };
+                    if gain >= ctx.options.min_gain && lighter.as_ref().is_none_or(|(best, _)| total > *best) {
+                        lighter = Some((total, heavy));
+                    }
+                    return Err((RejectionReason::WrongSign { p_value, coefficient }, Some(gain)));
+                }
                 if gain < ctx.options.min_gain {
                     let reason = RejectionReason::SmallGain { p_value, gain, min_gain: ctx.options.min_gain };
                     return Err((reason, Some(gain)));
@@ -242,7 +279,7 @@ impl Search<'_> {
                 }
             }
         }
-        passing
+        (passing, lighter)
     }
 
     /// The effect (accepted, or `candidate` itself) whose coefficient the joint fit of the model,
@@ -342,6 +379,7 @@ impl Search<'_> {
             prismatic: model.joints.iter().map(|j| j.kind == JointKind::Prismatic).collect(),
             accepted: state.accepted,
             rejected,
+            too_heavy: state.too_heavy,
             before,
             after,
             settings: DiagnoseSettings {
@@ -409,13 +447,16 @@ impl Search<'_> {
     }
 }
 
+/// Two terms whose whole-robot held-out gains are within this ratio explain the data comparably.
+const COMPARABLE_GAIN: f64 = 0.9;
+
 /// Of the candidates that passed, the one to add: the largest whole-robot gain, except that a
 /// candidate with fewer columns within 10 % of it is preferred. A payload's four columns can
 /// mimic an offset on one joint; the simpler explanation should win when the data cannot tell
 /// them apart.
 fn most_useful(passing: &[Passed], width: impl Fn(usize) -> usize) -> Option<usize> {
     let best = passing.iter().map(|p| p.total).fold(f64::NEG_INFINITY, f64::max);
-    (0..passing.len()).filter(|&i| passing[i].total >= 0.9 * best).min_by(|&a, &b| {
+    (0..passing.len()).filter(|&i| passing[i].total >= COMPARABLE_GAIN * best).min_by(|&a, &b| {
         let (a, b) = (&passing[a], &passing[b]);
         width(a.test).cmp(&width(b.test)).then(b.total.total_cmp(&a.total))
     })
@@ -437,6 +478,31 @@ fn first_flipped<'t>(
         offset += width;
     }
     None
+}
+
+/// Why a payload's fit is no mass on its body, if it is not: a mass not told from zero, or a
+/// centre of mass beyond the body's extent ([`Model::body_extent_m`]). Either sign: a mass taken
+/// off is judged alike.
+fn not_a_mass(term: &EffectTerm, t: &GroupTest, model: &Model) -> Option<RejectionReason> {
+    if term.kind != EffectKind::Payload {
+        return None;
+    }
+    let body = model.bodies.iter().position(|b| Some(&b.name) == term.body.as_ref())?;
+    let reach_m = model.body_extent_m(body);
+    let (mass, sigma) = (t.coefficients[0], t.sigma.first().copied().unwrap_or(f64::INFINITY));
+    let rejected = |distance_m| RejectionReason::NotAMass {
+        p_value: t.p_value,
+        mass_kg: mass,
+        mass_sigma_kg: sigma,
+        distance_m,
+        reach_m,
+    };
+    if mass.abs() <= PAYLOAD_MASS_SIGMAS * sigma {
+        return Some(rejected(None));
+    }
+    let moments = t.coefficients[1..].iter().map(|c| c * c).sum::<f64>().sqrt();
+    let distance = moments / mass.abs();
+    (distance > reach_m).then(|| rejected(Some(distance)))
 }
 
 /// The coefficient that gives `term` a sign its effect cannot have, if any: the first (a mass, a

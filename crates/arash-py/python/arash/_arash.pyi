@@ -299,6 +299,11 @@ class Diagnosis:
     @property
     def rejected(self) -> list[dict[str, Any]]: ...
     @property
+    def too_heavy(self) -> Optional[dict[str, Any]]:
+        """Set when the search stopped because the model is heavier than the data: ``body``,
+        ``mass_kg`` (the mass the data lack), ``mass_sigma_kg``, ``p_value``, ``heldout_gain``,
+        ``round``."""
+    @property
     def settings(self) -> dict[str, Any]:
         """The settings it ran with; ``reasons`` says what chose the cut-offs."""
     @property

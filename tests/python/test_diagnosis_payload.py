@@ -1,0 +1,86 @@
+"""A known mass put on a robot, or taken off it, after its calibration (issue 19).
+
+The model is identified on one run, the mass is added to Pinocchio's tree (not arash's), and the
+diagnosis of a later run against that model must name a payload on that link with the mass
+within its uncertainty, or, for a mass taken off, say that the model is too heavy there and
+accept nothing: a negative mass is never a payload. bench/diagnosis_payload.py gives the rates
+over seeds and encoders (docs/diagnosis.md, "A mass added or taken off").
+"""
+
+import warnings
+
+import pytest
+
+pytest.importorskip("pinocchio")
+import arash  # noqa: E402
+
+from independent import Condition, Payload, make_log  # noqa: E402
+
+LOG = (1000, 16, 0.01, "sign", None, 30.0)
+CASES = [
+    ("kuka", Payload("lwr_7_link", 1.0, (0.0, 0.0, 0.05))),
+    ("kuka", Payload("lwr_4_link", 1.0, (0.0, 0.05, 0.0))),
+    ("arash_asist", Payload("insertion_carriage", 0.04)),
+    ("arash_asist", Payload("instrument_holder", 0.04, (0.0, 0.02, 0.0))),
+]
+
+
+def diagnosis(robot_name, payload, removed, seed=3):
+    """The diagnosis of a run against the model of a calibration run: the mass on the later run
+    (added), or on the calibration run only (removed)."""
+    shape = (robot_name, *LOG)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        robot, calibration, truth = make_log(Condition(*shape, seed=seed), payload=payload if removed else None)
+        model = arash.identify(robot, *calibration)
+        later = None if removed else payload
+        _, run, _ = make_log(Condition(*shape, seed=seed + 100), truth=truth, payload=later)
+        _, held, _ = make_log(Condition(*shape, seed=seed + 200), truth=truth, payload=later)
+        return arash.diagnose(robot, *run, model=model, validation=held)
+
+
+def within(mass, sigma, truth):
+    """Within 3σ, or 5 % where σ is smaller than the calibrated model's own error can be."""
+    return abs(mass - truth) <= max(3.0 * sigma, 0.05 * truth)
+
+
+@pytest.mark.parametrize("robot_name,payload", CASES, ids=lambda c: getattr(c, "link", c))
+def test_a_mass_added_after_calibration_is_a_payload_on_its_link(robot_name, payload):
+    d = diagnosis(robot_name, payload, removed=False)
+    report = d.report()
+    first = d.accepted[0] if d.accepted else None
+    assert first is not None and first.name == "payload", report
+    assert first.body == payload.link, report
+    assert first.mass_kg > 0.0 and first.mass_sigma_kg > 0.0, report
+    assert within(first.mass_kg, first.mass_sigma_kg, payload.mass), report
+    assert d.too_heavy is None, report
+
+
+@pytest.mark.parametrize("robot_name,payload", CASES[::2], ids=lambda c: getattr(c, "link", c))
+def test_a_mass_taken_off_after_calibration_is_never_a_payload(robot_name, payload):
+    d = diagnosis(robot_name, payload, removed=True)
+    report = d.report()
+    assert all(f.mass_kg is None or f.mass_kg > 0.0 for f in d.accepted), report
+    heavy = d.too_heavy
+    assert heavy is not None and heavy["body"] == payload.link, report
+    assert within(heavy["mass_kg"], heavy["mass_sigma_kg"], payload.mass), report
+    # What an effect would take up after it is the missing weight: the search stopped.
+    assert d.accepted == [], report
+    assert "heavier than the data" in report
+
+
+def test_without_the_sign_rule_the_missing_weight_would_be_taken_up_by_other_effects():
+    """The control: the same run with payloads left out of the search. Nothing says the model is
+    too heavy, and other effects take up the weight the model has too much of."""
+    payload = CASES[2][1]
+    shape = ("arash_asist", *LOG)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        robot, calibration, truth = make_log(Condition(*shape, seed=3), payload=payload)
+        model = arash.identify(robot, *calibration)
+        _, run, _ = make_log(Condition(*shape, seed=103), truth=truth)
+        _, held, _ = make_log(Condition(*shape, seed=203), truth=truth)
+        others = [e for e in arash.DiagnoseOptions().effects if e != "payload"]
+        d = arash.diagnose(robot, *run, model=model, validation=held, effects=others)
+    assert d.too_heavy is None
+    assert d.accepted, d.report()
