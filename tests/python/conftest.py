@@ -25,6 +25,18 @@ def kuka_urdf():
     return path
 
 
+def kuka_run(i):
+    """KUKA LWR4+ run ``i`` (1–3) of ../shared/data: t on the controller's 200 Hz grid, q, τ."""
+    path = SHARED_DATA / "kuka_lwr4" / f"measurements_{i}.npz"
+    if not path.exists():
+        pytest.skip(f"measured data not found at {path}; ../shared/data is absent")
+    z = np.load(path)
+    # The time stamps are the logging computer's and jitter by ±1.5 ms around 5 ms; the samples
+    # are the controller's, at its fixed 200 Hz.
+    n = len(z["times"])
+    return np.arange(n) * 0.005, z["positions"], z["torques"]
+
+
 def tx40_urdf():
     """Upstream's Stäubli TX40 description: its link_6 has a mass and no rotational inertia."""
     path = SHARED_DATA / "staubli_tx40" / "tx40_mdh_modified.urdf"

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import arash
-from conftest import ROOT, SHARED_DATA
+from conftest import ROOT, kuka_run
 
 EXCITATION = ROOT / "trajectories" / "excitation_L5_T15.json"
 # The simulated drive's joint motion per motor radian (docs/simulator.md).
@@ -139,17 +139,6 @@ def test_a_log_or_model_that_does_not_fit_the_robot_is_named():
     # Shorter than one back-and-forth of any joint: no test could be run on it.
     with pytest.raises(ValueError, match="no cycle of any joint's motion"):
         arash.diagnose(robot, t[:1500], q[:1500], tau[:1500])
-
-
-def kuka_run(i):
-    path = SHARED_DATA / "kuka_lwr4" / f"measurements_{i}.npz"
-    if not path.exists():
-        pytest.skip(f"measured data not found at {path}; ../shared/data is absent")
-    z = np.load(path)
-    # The time stamps are the logging computer's and jitter by ±1.5 ms around 5 ms; the samples
-    # are the controller's, at its fixed 200 Hz.
-    n = len(z["times"])
-    return np.arange(n) * 0.005, z["positions"], z["torques"]
 
 
 def test_kuka_measured_data_identify_on_run_1_hold_out_run_2():

@@ -170,9 +170,14 @@ impl std::fmt::Display for RejectionReason {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Self::NotSearched { why } => write!(f, "{why}"),
-            Self::NotIdentifiable { vif, max_vif } => {
+            Self::NotIdentifiable { vif, max_vif } if vif > max_vif => {
                 write!(f, "not identifiable on this data: the model already explains it (VIF {vif:.1e} > {max_vif})")
             }
+            // The model leaves each column enough of its own, but together they are singular.
+            Self::NotIdentifiable { vif, .. } => write!(
+                f,
+                "not identifiable on this data: its columns depend on one another once the model is taken out (VIF against the model {vif:.1e})"
+            ),
             Self::NotSignificant { p_value, threshold, round } => {
                 write!(f, "not significant: p = {p_value:.2e} above Holm's threshold {threshold:.2e} in round {round}")
             }
@@ -342,6 +347,7 @@ mod tests {
             RejectionReason::NotSearched { why: NotSearched::TransmissionUnknown },
             RejectionReason::NotSearched { why: NotSearched::NoCoupledMotor },
             RejectionReason::NotIdentifiable { vif: 2e3, max_vif: 1e3 },
+            RejectionReason::NotIdentifiable { vif: 3e2, max_vif: 1e3 },
             RejectionReason::NotSignificant { p_value: 0.2, threshold: 0.01, round: 1 },
             RejectionReason::WrongSign { p_value: 1e-5, coefficient: -1.0 },
             RejectionReason::NotAMass {
