@@ -520,6 +520,43 @@ fn wrong_sign(term: &EffectTerm, t: &GroupTest) -> Option<f64> {
 mod tests {
     use super::*;
 
+    /// A payload is a mass on its body: its mass clear of zero by 2σ, either sign, and its centre
+    /// of mass within the body's extent (here the tip's, the whole reach: 0.5 + 0.3 m of joint
+    /// offsets and twice its 0.1 m centre of mass, 1.0 m). Other effects are not judged.
+    #[test]
+    fn a_payload_must_be_a_mass_on_its_body() {
+        let urdf = r#"<robot name="t"><link name="base"/>
+            <link name="l1"><inertial><origin xyz="0 0 0.1"/><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1"/></inertial></link>
+            <link name="tip"><inertial><mass value="1"/><inertia ixx="0.1" iyy="0.1" izz="0.1"/></inertial></link>
+            <joint name="a" type="revolute"><parent link="base"/><child link="l1"/><origin xyz="0 0 0.5"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="1" effort="1"/></joint>
+            <joint name="b" type="revolute"><parent link="l1"/><child link="tip"/><origin xyz="0.3 0 0"/><axis xyz="0 1 0"/><limit lower="-1" upper="1" velocity="1" effort="1"/></joint>
+            </robot>"#;
+        let model = crate::urdf::parse_urdf(urdf).unwrap();
+        let fit = |c: [f64; 4], sigma_m: f64| GroupTest {
+            coefficients: c.to_vec(),
+            sigma: vec![sigma_m, 1e-4, 1e-4, 1e-4],
+            f_statistic: 100.0,
+            p_value: 1e-9,
+            unexplained: 0.5,
+            batches: 50,
+            batch_samples: 10,
+        };
+        let tip = crate::effects::payload_on("tip");
+        let code = |t: &GroupTest| not_a_mass(&tip, t, &model).map(|r| r.code());
+        assert_eq!(code(&fit([0.5, 0.0, 0.0, 0.25], 0.01)), None, "0.5 kg, 0.5 m out");
+        assert_eq!(code(&fit([-0.5, 0.0, 0.0, -0.25], 0.01)), None, "taken off alike");
+        assert_eq!(code(&fit([0.015, 0.0, 0.0, 0.0], 0.01)), Some("not_a_mass"), "1.5σ");
+        assert_eq!(code(&fit([0.5, 0.0, 0.0, 0.55], 0.01)), Some("not_a_mass"), "1.1 m out");
+        let Some(RejectionReason::NotAMass { distance_m, reach_m, .. }) =
+            not_a_mass(&tip, &fit([0.5, 0.0, 0.0, 0.55], 0.01), &model)
+        else {
+            unreachable!()
+        };
+        assert!((distance_m.unwrap() - 1.1).abs() < 1e-12 && (reach_m - 1.0).abs() < 1e-12);
+        let offset = EffectTerm::new(EffectKind::Offset, Some(0));
+        assert!(not_a_mass(&offset, &fit([0.0; 4], 1.0), &model).is_none());
+    }
+
     /// The coefficients of a fit sit after the model's, each term's after the one before; the
     /// sign is judged on each term's first, and a payload's other columns (its first moments)
     /// may have either sign.
