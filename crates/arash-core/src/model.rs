@@ -167,7 +167,6 @@ impl Model {
         ParamLayout::new(self.bodies.len(), self.dof())
     }
 
-    /// Length of the standard parameter vector.
     /// How far from body `b`'s frame a mass on that body can sit (m). A body that carries
     /// others reaches its children's joints (a prismatic child over its whole travel) and twice
     /// its own declared centre of mass; the last body of a chain carries whatever a user
@@ -197,6 +196,7 @@ impl Model {
         children.into_iter().map(joint_reach).fold(2.0 * com(&self.bodies[b]), f64::max)
     }
 
+    /// Length of the standard parameter vector.
     pub fn num_params(&self) -> usize {
         self.layout().len()
     }

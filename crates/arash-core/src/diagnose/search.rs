@@ -234,9 +234,10 @@ impl Search<'_> {
                 if let Some(reason) = not_a_mass(term, t, ctx.model) {
                     return Err((reason, None));
                 }
+                // A payload of negative mass is judged on (below): it may say the model is too heavy.
                 let flipped = wrong_sign(term, t);
-                if flipped.is_some() && term.kind != EffectKind::Payload {
-                    return Err((RejectionReason::WrongSign { p_value, coefficient: flipped.unwrap_or(0.0) }, None));
+                if let Some(coefficient) = flipped.filter(|_| term.kind != EffectKind::Payload) {
+                    return Err((RejectionReason::WrongSign { p_value, coefficient }, None));
                 }
                 if let Some(reason) = not_the_cable(ctx.model, ctx.base, &ctx.free, coef, ctx.given, term, t) {
                     return Err((reason, None));
