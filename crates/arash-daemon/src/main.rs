@@ -18,7 +18,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// The paper end to end on the simulated rig, through the daemon: excitation, calibration,
-    /// diagnosis, tracking three ways, and a report under logs/<run>/report/.
+    /// diagnosis, tracking three or four ways, and a report under logs/<run>/report/.
     Demo(cli::demo::Args),
     /// Describe a robot: bodies, joints, parameter count and base parameters.
     Model(cli::model::Args),

