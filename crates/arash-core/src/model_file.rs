@@ -201,6 +201,9 @@ pub struct ModelFile {
     /// Effects beyond the declared model, added by `arash diagnose` (see `docs/diagnosis.md`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub effects: Vec<crate::effects::EffectTerm>,
+    /// Per base parameter, what sets its σ% (files written before it was kept have none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub determination: Vec<Determination>,
 }
 
 /// Write `text` to `path` through a temporary file and a rename, so that a crash never leaves half
@@ -210,6 +213,70 @@ pub fn write_atomically(path: &Path, text: &str) -> std::io::Result<()> {
     tmp.push(".partial");
     std::fs::write(&tmp, text)?;
     std::fs::rename(&tmp, path)
+}
+
+/// What sets a base parameter's σ% besides the torque's noise. Its σ is about the residual over
+/// `‖w‖ · apart` (`w` its column), so σ% = σ/|β| is large for a column the others nearly explain
+/// (small `apart`), or for a parameter that moves little torque (small |β|·‖w‖) against what the
+/// model leaves unexplained. The table names the cause of each σ% above
+/// [`WELL_DETERMINED_PERCENT`].
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Determination {
+    /// The part of the parameter's column, at unit norm, outside the span of all the others'
+    /// (1/√VIF): 1 for a column orthogonal to the rest, 0 for one they explain.
+    pub apart: f64,
+    /// The base parameter (index) whose column it leans on most, when there are others.
+    pub leans_on: Option<usize>,
+    /// Its column's norm over the torque's, on the joint where that is largest: times |β|, the
+    /// share of that joint's torque it moves.
+    pub column_over_torque: f64,
+    /// That share for the estimate whose σ% the file reports (for a consistent fit, the
+    /// unconstrained one its σ% come from, not the constrained β).
+    pub torque_share: f64,
+}
+
+/// σ% up to which a parameter counts as well determined (the paper's Table I reading; issue 18).
+pub const WELL_DETERMINED_PERCENT: f64 = 10.0;
+
+/// Whether a σ% is at most [`WELL_DETERMINED_PERCENT`] (a NaN σ% is not).
+pub fn well_determined(sigma_percent: f64) -> bool {
+    sigma_percent <= WELL_DETERMINED_PERCENT
+}
+
+/// A column this close to the others' span is collinear with them: VIF above 100.
+pub const COLLINEAR_APART: f64 = 0.1;
+
+/// A parameter that moves less than this share of its joint's torque is small in it.
+pub const SMALL_TORQUE_SHARE: f64 = 0.01;
+
+impl Determination {
+    /// The same with its torque share taken at the estimate `beta`.
+    pub fn at(&self, beta: f64) -> Self {
+        Self { torque_share: beta.abs() * self.column_over_torque, ..self.clone() }
+    }
+
+    /// Why a σ% is above [`WELL_DETERMINED_PERCENT`], `names` the base parameters' names:
+    /// collinear (with the one it leans on), small in its joint's torque, or, when neither,
+    /// noisy (what the model leaves unexplained is large against what it moves).
+    pub fn cause(&self, names: &[String]) -> String {
+        let share = self.torque_share;
+        let mut causes = Vec::new();
+        if self.apart < COLLINEAR_APART {
+            let on = self.leans_on.and_then(|j| names.get(j)).map_or(String::new(), |n| format!(", on {n}"));
+            causes.push(format!("collinear ({:.1} % apart{on})", 100.0 * self.apart));
+        }
+        if share < SMALL_TORQUE_SHARE {
+            causes.push(format!("small ({:.2} % of its joint's torque)", 100.0 * share));
+        }
+        if causes.is_empty() {
+            causes.push(format!(
+                "noisy ({:.0} % apart, {:.1} % of its joint's torque)",
+                100.0 * self.apart,
+                100.0 * share
+            ));
+        }
+        causes.join(", ")
+    }
 }
 
 /// The fitted part of a model file: what an estimator produced.
@@ -222,6 +289,8 @@ pub struct Fitted {
     pub training_ols: Metrics,
     pub min_pseudo_inertia_eigenvalue: Vec<f64>,
     pub condition_number: f64,
+    /// Per base parameter, what sets its σ% (empty where not computed).
+    pub determination: Vec<Determination>,
 }
 
 impl ModelFile {
@@ -249,6 +318,7 @@ impl ModelFile {
             training_ols: fitted.training_ols,
             min_pseudo_inertia_eigenvalue: fitted.min_pseudo_inertia_eigenvalue,
             condition_number: fitted.condition_number,
+            determination: fitted.determination,
             settings,
             data,
             effects: vec![],
@@ -426,9 +496,19 @@ impl ModelFile {
         s += &format!("  Coulomb friction as {}\n", CoulombShape::of_epsilon(self.settings.coulomb_epsilon));
         s += &self.settings.reasons.iter().map(|r| format!("  {r}\n")).collect::<String>();
         s += &self.settings.warnings.iter().map(|w| format!("  warning: {w}\n")).collect::<String>();
-        s += &format!("{:<4} {:<34} {:>14} {:>10}\n", "", "parameter", "value", sigma);
+        let why = match self.determination.len() == self.beta.len() {
+            true => format!("  why σ% > {WELL_DETERMINED_PERCENT}"),
+            false => String::new(),
+        };
+        s += &format!("{:<4} {:<34} {:>14} {:>10}{why}\n", "", "parameter", "value", sigma);
         for (i, name) in self.base_names.iter().enumerate() {
-            s += &format!("β{:<3} {:<34} {:>14.6e} {:>10.2}\n", i + 1, name, self.beta[i], self.sigma_percent[i]);
+            s += &format!("β{:<3} {:<34} {:>14.6e} {:>10.2}", i + 1, name, self.beta[i], self.sigma_percent[i]);
+            match self.determination.get(i) {
+                Some(d) if !why.is_empty() && !well_determined(self.sigma_percent[i]) => {
+                    s += &format!("  {}\n", d.cause(&self.base_names))
+                }
+                _ => s += "\n",
+            }
         }
         s += "\nTraining fit per joint:      ";
         s += &(0..self.training.fp_percent.len())

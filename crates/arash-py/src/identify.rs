@@ -144,6 +144,34 @@ impl Identification {
     fn condition_number(&self) -> f64 {
         self.inner.condition_number
     }
+    /// What sets each σ% besides the noise, per base parameter: "apart" (the part of its unit
+    /// column outside the others' span, 1/√VIF), "leans_on" (the index of the one it leans on
+    /// most, or None), "column_over_torque" (its column's norm over the torque's on its largest
+    /// joint), "torque_share" (that times the |β| whose σ% is reported) and "cause" (why a σ% is
+    /// above 10 %, else None). None for a model file written without them.
+    #[getter]
+    fn determination<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let m = &self.inner;
+        if m.determination.len() != m.beta.len() {
+            return Ok(None);
+        }
+        let d = PyDict::new(py);
+        let apart: Vec<f64> = m.determination.iter().map(|x| x.apart).collect();
+        let column: Vec<f64> = m.determination.iter().map(|x| x.column_over_torque).collect();
+        d.set_item("apart", vector_out(py, &apart)?)?;
+        d.set_item("leans_on", m.determination.iter().map(|x| x.leans_on).collect::<Vec<_>>())?;
+        d.set_item("column_over_torque", vector_out(py, &column)?)?;
+        let share: Vec<f64> = m.determination.iter().map(|x| x.torque_share).collect();
+        d.set_item("torque_share", vector_out(py, &share)?)?;
+        let causes: Vec<Option<String>> = m
+            .determination
+            .iter()
+            .zip(&m.sigma_percent)
+            .map(|(x, s)| (!arash_core::model_file::well_determined(*s)).then(|| x.cause(&m.base_names)))
+            .collect();
+        d.set_item("cause", causes)?;
+        Ok(Some(d))
+    }
     /// The base parameters the β refer to.
     #[getter]
     fn base(&self) -> PyResult<BaseParameters> {

@@ -46,6 +46,7 @@ pub(super) fn declared_model(
         training_ols: fit.metrics.clone().into(),
         min_pseudo_inertia_eigenvalue: crate::physical::min_pseudo_inertia_eigenvalues(model, &nearest),
         condition_number: fit.condition_number,
+        determination: fit.determination.clone(),
     };
     Ok(ModelFile::new(
         (model, base, urdf),

@@ -532,6 +532,7 @@ fn iv_fit(
         joint_weights: vec![1.0; dof],
         condition_number: start.condition_number,
         metrics: estimate::joint_metrics(tau, &predicted, dof),
+        determination: start.determination.iter().zip(beta).map(|(d, b)| d.at(*b)).collect(),
     }
 }
 

@@ -20,6 +20,7 @@ use super::signals::filter_columns;
 use crate::base_parameters::BaseParameters;
 use crate::data::Data;
 use crate::model::Model;
+use crate::model_file::Determination;
 use crate::regressor::{bodies_of_columns, regressor_of_bodies};
 
 /// Which least-squares problem to solve.
@@ -72,6 +73,8 @@ pub struct Fit {
     pub condition_number: f64,
     /// Fit quality on the training data.
     pub metrics: JointMetrics,
+    /// Per parameter, what sets its σ% besides the noise (of the weighted `W`).
+    pub determination: Vec<Determination>,
 }
 
 /// Scaled condition numbers above this are refused: such directions are set by round-off and
@@ -289,7 +292,7 @@ fn fit_stacked_with(
     let weighted_residual: Vec<f64> =
         tau.iter().zip(&predicted).enumerate().map(|(i, (t, p))| (t - p) * weights[i % dof]).collect();
     let sigma_p2 = weighted_residual.iter().map(|e| e * e).sum::<f64>() / (m - p) as f64;
-    let r_inv = r_factor.try_inverse().ok_or_else(|| EstimateError::IllConditioned {
+    let r_inv = r_factor.clone().try_inverse().ok_or_else(|| EstimateError::IllConditioned {
         condition: f64::INFINITY,
         limit: CONDITION_LIMIT,
         direction: "a combination the QR factor found exactly singular".into(),
@@ -303,7 +306,60 @@ fn fit_stacked_with(
     let sigma_beta = block_sandwich_sigma(w, &meat_residual, &weights, dof, block_samples.max(1), &r_inv);
     let sigma_percent = sigma_beta.iter().zip(&beta).map(|(s, b)| 100.0 * s / b.abs()).collect();
     let metrics = joint_metrics(tau, &predicted, dof);
-    Ok(Fit { method, beta, sigma_beta, sigma_percent, sigma_p2, joint_weights: weights, condition_number, metrics })
+    let determination = determination(&r_factor, &r_inv, column_over_torque(w, tau, dof))
+        .iter()
+        .zip(&beta)
+        .map(|(d, b)| d.at(*b))
+        .collect();
+    Ok(Fit {
+        method,
+        beta,
+        sigma_beta,
+        sigma_percent,
+        sigma_p2,
+        joint_weights: weights,
+        condition_number,
+        metrics,
+        determination,
+    })
+}
+
+/// Each column's [`Determination`] from the triangular factor `R` of the stacked `W` (`RᵀR =
+/// WᵀW`) and its inverse: the Gram matrix's diagonal is `‖wᵢ‖²`, its inverse `R⁻¹R⁻ᵀ`, and
+/// `1/(‖wᵢ‖²·(WᵀW)⁻¹ᵢᵢ)` is the squared part of column i outside the others' span. Regressing
+/// column i on the others gives column j the coefficient `−(WᵀW)⁻¹ᵢⱼ/(WᵀW)⁻¹ᵢᵢ`; scaled to
+/// unit columns, the largest names what it leans on.
+fn determination(r: &DMatrix<f64>, r_inv: &DMatrix<f64>, column_over_torque: Vec<f64>) -> Vec<Determination> {
+    let p = r.ncols();
+    let inverse = r_inv * r_inv.transpose();
+    let norms: Vec<f64> = (0..p).map(|i| r.column(i).norm()).collect();
+    (0..p)
+        .zip(column_over_torque)
+        .map(|(i, column_over_torque)| {
+            let on_unit = |j: usize| (inverse[(i, j)] * norms[j]).abs();
+            Determination {
+                apart: 1.0 / (norms[i] * inverse[(i, i)].sqrt()),
+                leans_on: (0..p).filter(|&j| j != i).max_by(|&a, &b| on_unit(a).total_cmp(&on_unit(b))),
+                column_over_torque,
+                torque_share: 0.0,
+            }
+        })
+        .collect()
+}
+
+/// Each column's norm over the torque's on one joint (rows `k`, `k + dof`, …), on the joint where
+/// that ratio is largest: a parameter's share of the torque is judged where it acts most, since
+/// a yaw term is small against the insertion's newtons but not against the yaw's own torque.
+fn column_over_torque(w: &Mat<f64>, tau: &[f64], dof: usize) -> Vec<f64> {
+    let mut torque = vec![0.0; dof];
+    tau.iter().enumerate().for_each(|(r, t)| torque[r % dof] += t * t);
+    (0..w.ncols())
+        .map(|i| {
+            let mut column = vec![0.0; dof];
+            w.col_as_slice(i).iter().enumerate().for_each(|(r, x)| column[r % dof] += x * x);
+            column.iter().zip(&torque).filter(|(_, t)| **t > 0.0).map(|(c, t)| (c / t).sqrt()).fold(0.0, f64::max)
+        })
+        .collect()
 }
 
 /// Solve the row-weighted problem; return β, the triangular factor `R` (p × p) of the weighted

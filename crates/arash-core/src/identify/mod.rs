@@ -187,6 +187,7 @@ fn identify_with(
         training_ols: ols_metrics,
         min_pseudo_inertia_eigenvalue: min_eig,
         condition_number: ls.condition_number,
+        determination: ls.determination.clone(),
     };
     Ok(ModelFile::new(
         (model, base, urdf),

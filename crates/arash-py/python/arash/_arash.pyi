@@ -147,6 +147,12 @@ class Identification:
     @property
     def condition_number(self) -> float: ...
     @property
+    def determination(self) -> Optional[dict[str, Any]]:
+        """What sets each σ% besides the noise: "apart" (1/√VIF of each base parameter's column),
+        "leans_on" (index of the column it leans on most, or None), "column_over_torque",
+        "torque_share" and "cause" (why a σ% is above 10 %, else None). None for a model file
+        written without them."""
+    @property
     def base(self) -> BaseParameters: ...
     @property
     def robot(self) -> Robot: ...
