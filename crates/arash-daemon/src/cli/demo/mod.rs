@@ -301,8 +301,8 @@ fn experiment(
 
 /// `model_truth.json`: the physically consistent model file with the simulated rig's own
 /// parameters in place of the estimate (no effects; its σ% are zero, as nothing was estimated),
-/// its training figures those of the rig's parameters on the excitation log: the share of the
-/// torque the declared model explains at best.
+/// its training figures those of the rig's parameters on the excitation log (the share of the
+/// torque the declared model explains at best), beside the calibration's least squares.
 fn truth_file(
     dir: &Path,
     model: &Model,
@@ -322,9 +322,8 @@ fn truth_file(
         vec!["the simulated rig's own parameters of the declared model (its scenario and seed): not estimated".into()];
     file.settings.warnings.clear();
     let options = PreprocessOptions::default();
-    let fit = validate(model, &file, &training.t, &training.q, &training.tau, &options)?.metrics;
-    file.training = fit.clone();
-    file.training_ols = fit;
+    // `training_ols` stays the calibration's: plain least squares on the same log, for comparison.
+    file.training = validate(model, &file, &training.t, &training.q, &training.tau, &options)?.metrics;
     let path = dir.join("model_truth.json");
     crate::report::write_atomically(&path, &file.to_json())?;
     println!(
