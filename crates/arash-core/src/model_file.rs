@@ -477,6 +477,16 @@ impl ModelFile {
     }
 
     /// Table I shape: each base parameter, its value and σ%, and the training fit.
+    /// Per base parameter, why its σ% is above [`WELL_DETERMINED_PERCENT`] (`None` where it is
+    /// not); `None` for a file without [`Determination`]s.
+    pub fn causes(&self) -> Option<Vec<Option<String>>> {
+        if self.determination.len() != self.beta.len() {
+            return None;
+        }
+        let causes = self.determination.iter().zip(&self.sigma_percent);
+        Some(causes.map(|(d, s)| (!well_determined(*s)).then(|| d.cause(&self.base_names))).collect())
+    }
+
     pub fn table(&self) -> String {
         let mut s = format!(
             "Identified base parameters ({:?}, {} samples used of {}, cut-off {:.2} Hz, κ = {:.1})\n",
@@ -496,18 +506,14 @@ impl ModelFile {
         s += &format!("  Coulomb friction as {}\n", CoulombShape::of_epsilon(self.settings.coulomb_epsilon));
         s += &self.settings.reasons.iter().map(|r| format!("  {r}\n")).collect::<String>();
         s += &self.settings.warnings.iter().map(|w| format!("  warning: {w}\n")).collect::<String>();
-        let why = match self.determination.len() == self.beta.len() {
-            true => format!("  why σ% > {WELL_DETERMINED_PERCENT}"),
-            false => String::new(),
-        };
+        let causes = self.causes();
+        let why = causes.as_ref().map_or(String::new(), |_| format!("  why σ% > {WELL_DETERMINED_PERCENT}"));
         s += &format!("{:<4} {:<34} {:>14} {:>10}{why}\n", "", "parameter", "value", sigma);
         for (i, name) in self.base_names.iter().enumerate() {
             s += &format!("β{:<3} {:<34} {:>14.6e} {:>10.2}", i + 1, name, self.beta[i], self.sigma_percent[i]);
-            match self.determination.get(i) {
-                Some(d) if !why.is_empty() && !well_determined(self.sigma_percent[i]) => {
-                    s += &format!("  {}\n", d.cause(&self.base_names))
-                }
-                _ => s += "\n",
+            match causes.as_ref().and_then(|c| c[i].as_ref()) {
+                Some(cause) => s += &format!("  {cause}\n"),
+                None => s += "\n",
             }
         }
         s += "\nTraining fit per joint:      ";

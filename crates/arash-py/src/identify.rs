@@ -152,9 +152,7 @@ impl Identification {
     #[getter]
     fn determination<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
         let m = &self.inner;
-        if m.determination.len() != m.beta.len() {
-            return Ok(None);
-        }
+        let Some(causes) = m.causes() else { return Ok(None) };
         let d = PyDict::new(py);
         let apart: Vec<f64> = m.determination.iter().map(|x| x.apart).collect();
         let column: Vec<f64> = m.determination.iter().map(|x| x.column_over_torque).collect();
@@ -163,12 +161,6 @@ impl Identification {
         d.set_item("column_over_torque", vector_out(py, &column)?)?;
         let share: Vec<f64> = m.determination.iter().map(|x| x.torque_share).collect();
         d.set_item("torque_share", vector_out(py, &share)?)?;
-        let causes: Vec<Option<String>> = m
-            .determination
-            .iter()
-            .zip(&m.sigma_percent)
-            .map(|(x, s)| (!arash_core::model_file::well_determined(*s)).then(|| x.cause(&m.base_names)))
-            .collect();
         d.set_item("cause", causes)?;
         Ok(Some(d))
     }

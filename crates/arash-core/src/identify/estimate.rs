@@ -306,11 +306,7 @@ fn fit_stacked_with(
     let sigma_beta = block_sandwich_sigma(w, &meat_residual, &weights, dof, block_samples.max(1), &r_inv);
     let sigma_percent = sigma_beta.iter().zip(&beta).map(|(s, b)| 100.0 * s / b.abs()).collect();
     let metrics = joint_metrics(tau, &predicted, dof);
-    let determination = determination(&r_factor, &r_inv, column_over_torque(w, tau, dof))
-        .iter()
-        .zip(&beta)
-        .map(|(d, b)| d.at(*b))
-        .collect();
+    let determination = determination((&r_factor, &r_inv), column_over_torque(w, tau, dof), &beta);
     Ok(Fit {
         method,
         beta,
@@ -328,8 +324,12 @@ fn fit_stacked_with(
 /// WᵀW`) and its inverse: the Gram matrix's diagonal is `‖wᵢ‖²`, its inverse `R⁻¹R⁻ᵀ`, and
 /// `1/(‖wᵢ‖²·(WᵀW)⁻¹ᵢᵢ)` is the squared part of column i outside the others' span. Regressing
 /// column i on the others gives column j the coefficient `−(WᵀW)⁻¹ᵢⱼ/(WᵀW)⁻¹ᵢᵢ`; scaled to
-/// unit columns, the largest names what it leans on.
-fn determination(r: &DMatrix<f64>, r_inv: &DMatrix<f64>, column_over_torque: Vec<f64>) -> Vec<Determination> {
+/// unit columns, the largest names what it leans on. The torque shares are `beta`'s.
+fn determination(
+    (r, r_inv): (&DMatrix<f64>, &DMatrix<f64>),
+    column_over_torque: Vec<f64>,
+    beta: &[f64],
+) -> Vec<Determination> {
     let p = r.ncols();
     let inverse = r_inv * r_inv.transpose();
     let norms: Vec<f64> = (0..p).map(|i| r.column(i).norm()).collect();
@@ -341,7 +341,7 @@ fn determination(r: &DMatrix<f64>, r_inv: &DMatrix<f64>, column_over_torque: Vec
                 apart: 1.0 / (norms[i] * inverse[(i, i)].sqrt()),
                 leans_on: (0..p).filter(|&j| j != i).max_by(|&a, &b| on_unit(a).total_cmp(&on_unit(b))),
                 column_over_torque,
-                torque_share: 0.0,
+                torque_share: beta[i].abs() * column_over_torque,
             }
         })
         .collect()

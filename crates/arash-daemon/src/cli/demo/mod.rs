@@ -4,6 +4,7 @@
 //! estimator, and its consistent form, which the controller gets; Tables I and II), diagnose the
 //! residual, track the ω = 0.5 validation trajectory three ways (four on the simulated rig: with
 //! its own parameters too), and write a report with figures. Everything goes to `logs/<run>/`.
+
 use crate::report::demo as report;
 mod rig;
 
@@ -249,16 +250,16 @@ fn experiment(
 
     println!("\n[4/7] calibration: {} periods averaged, Butterworth order 5 forward and backward", plan.periods);
     let training_log = runlog::read(&training, model)?;
+    let validation: Vec<(f64, runlog::Log)> = validation
+        .into_iter()
+        .map(|(omega, path)| Ok((omega, runlog::read(&path, model)?)))
+        .collect::<anyhow::Result<_>>()?;
     let mut calibration = calibrate(model, urdf, base, plan, (&training, &training_log), &validation)?;
     let truth_file = match &truth {
         Some(truth) => Some(truth_file(dir, model, base, &calibration.consistent, truth, &training_log)?),
         None => None,
     };
-    calibration.truth = truth.map(|t| {
-        let mut beta = vec![0.0; base.rank];
-        base.project(&t.params, &mut beta);
-        beta
-    });
+    calibration.truth = truth_file.as_ref().map(|(_, beta)| beta.clone());
     rig::check_interrupt()?;
 
     println!("\n[5/7] diagnosis of the residual");
@@ -267,7 +268,7 @@ fn experiment(
     let cutoffs = (settings.cutoff_hz, settings.friction_cutoff_hz);
     // The diagnosis fits the exact base parameters (`BaseParameterOptions::diagnosed`), the
     // design's: the calibration's regrouping would be a bias an effect could take up.
-    let held_out = validation.iter().map(|(_, path)| runlog::read(path, model)).collect::<anyhow::Result<Vec<_>>>()?;
+    let held_out = validation.into_iter().map(|(_, log)| log).collect::<Vec<_>>();
     let held_out = (!held_out.is_empty()).then(|| runlog::concatenate(held_out));
     let logs = (&training_log, held_out.as_ref());
     let (diagnosis, with_effects) = diagnose_run(diagnosed, urdf, &exact, logs, cutoffs, &diagnosis_dir)?;
@@ -282,7 +283,7 @@ fn experiment(
     ];
     // What the declared model can do at best on this rig: a model that cuts the error by more
     // has fitted the rig's undeclared effects along the excitation (docs/demo.md).
-    if let Some(file) = truth_file {
+    if let Some((file, _)) = truth_file {
         ways.push((report::TRUTH_RUN, "robust", Some(file)));
     }
     // Two periods, scored on the second: the first holds the start-up transient.
@@ -302,7 +303,8 @@ fn experiment(
 /// `model_truth.json`: the physically consistent model file with the simulated rig's own
 /// parameters in place of the estimate (no effects; its σ% are zero, as nothing was estimated),
 /// its training figures those of the rig's parameters on the excitation log (the share of the
-/// torque the declared model explains at best), beside the calibration's least squares.
+/// torque the declared model explains at best), beside the calibration's least squares. Returns
+/// its path and the rig's base parameters.
 fn truth_file(
     dir: &Path,
     model: &Model,
@@ -310,7 +312,7 @@ fn truth_file(
     consistent: &ModelFile,
     truth: &Truth,
     training: &runlog::Log,
-) -> anyhow::Result<PathBuf> {
+) -> anyhow::Result<(PathBuf, Vec<f64>)> {
     let mut file = consistent.clone();
     file.params = Some(truth.params.clone());
     base.project(&truth.params, &mut file.beta);
@@ -330,7 +332,7 @@ fn truth_file(
         "    the rig's own parameters explain FP% {} of the excitation's torque (model_truth.json)",
         file.training.fp_percent.iter().map(|f| format!("{f:.2}")).collect::<Vec<_>>().join(" / ")
     );
-    Ok(path)
+    Ok((path, file.beta))
 }
 
 /// The paper's validation trajectory at `omega`, as a file the daemon reads.
@@ -364,7 +366,7 @@ fn calibrate(
     base: &BaseParameters,
     plan: &Plan,
     (training, log): (&Path, &runlog::Log),
-    validation: &[(f64, PathBuf)],
+    validation: &[(f64, runlog::Log)],
 ) -> anyhow::Result<report::Calibration> {
     // Every preprocessing choice is left to the data, as for a user's first log; the table
     // printed below says what was chosen and why.
@@ -399,8 +401,7 @@ fn calibrate(
     let mut labels = Vec::new();
     let mut table_ii = (Vec::new(), Vec::new());
     let mut torque = None;
-    for (i, (omega, path)) in validation.iter().enumerate() {
-        let v = runlog::read(path, model)?;
+    for (i, (omega, v)) in validation.iter().enumerate() {
         let pre = PreprocessOptions::default();
         labels.push(format!("ω = {omega}"));
         table_ii.0.push(validate(model, &ols, &v.t, &v.q, &v.tau, &pre)?.metrics.fp_percent);
