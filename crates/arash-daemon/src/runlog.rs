@@ -22,6 +22,17 @@ pub struct Log {
     pub trajectory: Option<Trajectory>,
     /// What a closed-loop estimator needs beyond `t`, `q`, `τ`, when the log has it.
     pub closed_loop: Option<ClosedLoopChannels>,
+    /// Where each run after the first begins, when this is several runs concatenated: the robot
+    /// moved between them, so nothing is to be filtered across these samples.
+    pub starts: Vec<usize>,
+}
+
+impl Log {
+    /// The held-out runs as the diagnosis takes them.
+    pub fn runs(&self) -> arash_core::diagnose::Runs<'_> {
+        let log = arash_core::identify::Log { t: &self.t, q: &self.q, tau: &self.tau };
+        arash_core::diagnose::Runs { log, starts: &self.starts }
+    }
 }
 
 /// The reference `(q_des, q̇_des, q̈_des)` at every sample (row-major N × dof each), and the
@@ -63,8 +74,10 @@ fn read_flight_log(path: &Path, model: &Model) -> anyhow::Result<Log> {
     };
     let c = log.cycles;
     let closed_loop = ClosedLoopChannels { reference: [c.q_des, c.qd_des, c.qdd_des], controller };
-    let (mut log, repaired) =
-        regrid(Log { t: c.t, q: c.q, tau: c.tau_meas, trajectory: None, closed_loop: Some(closed_loop) }, dof);
+    let (mut log, repaired) = regrid(
+        Log { t: c.t, q: c.q, tau: c.tau_meas, trajectory: None, closed_loop: Some(closed_loop), starts: vec![] },
+        dof,
+    );
     log.trajectory = trajectory;
     if repaired > 0 {
         eprintln!(
@@ -103,7 +116,7 @@ fn regrid(log: Log, dof: usize) -> (Log, usize) {
         reference: [columns.next(), columns.next(), columns.next()].map(Option::unwrap_or_default),
         controller: c.controller,
     });
-    (Log { t: uniform.t, q, tau, trajectory: log.trajectory, closed_loop }, uniform.repaired)
+    (Log { t: uniform.t, q, tau, trajectory: log.trajectory, closed_loop, starts: log.starts }, uniform.repaired)
 }
 
 fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
@@ -128,7 +141,8 @@ fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
             model.joints.iter().map(|j| find(&format!("{channel}.{}", j.name)).ok()).collect::<Option<Vec<usize>>>()
         })
         .collect();
-    let mut log = Log { t: Vec::new(), q: Vec::new(), tau: Vec::new(), trajectory: None, closed_loop: None };
+    let mut log =
+        Log { t: Vec::new(), q: Vec::new(), tau: Vec::new(), trajectory: None, closed_loop: None, starts: vec![] };
     let mut reference: [Vec<f64>; 3] = Default::default();
     for (line, record) in reader.records().enumerate() {
         let record = record.with_context(|| format!("{}: record {}", path.display(), line + 1))?;
@@ -176,8 +190,11 @@ pub fn concatenate(mut logs: Vec<Log>) -> Log {
         [one] => one.closed_loop.take(),
         _ => None,
     };
-    let mut out = Log { t: Vec::new(), q: Vec::new(), tau: Vec::new(), trajectory, closed_loop };
+    let mut out = Log { t: Vec::new(), q: Vec::new(), tau: Vec::new(), trajectory, closed_loop, starts: vec![] };
     for log in logs {
+        if !out.t.is_empty() {
+            out.starts.push(out.t.len());
+        }
         let dt = if log.t.len() > 1 { log.t[1] - log.t[0] } else { 0.0 };
         let offset = out.t.last().map_or(0.0, |last| last + dt) - log.t[0];
         out.t.extend(log.t.iter().map(|t| t + offset));
@@ -199,14 +216,15 @@ mod tests {
         let q: Vec<f64> = t.iter().map(|t| 3.0 * t).collect();
         let reference = [q.clone(), q.clone(), q.clone()];
         let closed_loop = Some(ClosedLoopChannels { reference, controller: Err("none".into()) });
-        let (out, repaired) = regrid(Log { t, q: q.clone(), tau: q, trajectory: None, closed_loop }, 1);
+        let (out, repaired) = regrid(Log { t, q: q.clone(), tau: q, trajectory: None, closed_loop, starts: vec![] }, 1);
         assert_eq!(repaired, 2);
         let c = out.closed_loop.expect("kept");
         assert!(c.reference.iter().all(|r| *r == out.q) && c.controller.is_err());
     }
 
     /// A daemon run's log starts at the daemon's clock: one log is re-based to 0 like several, and
-    /// keeps its reference and controller; two runs have no single one.
+    /// keeps its reference and controller; two runs have no single one, and say where the second
+    /// begins.
     #[test]
     fn one_log_is_rebased_and_keeps_its_closed_loop_and_two_do_not() {
         let run = |t0: f64| Log {
@@ -218,6 +236,7 @@ mod tests {
                 reference: [vec![0.0; 4], vec![0.0; 4], vec![0.0; 4]],
                 controller: Err("none".into()),
             }),
+            starts: vec![],
         };
         let one = concatenate(vec![run(12.5)]);
         assert!((one.t[0] - 0.0).abs() < 1e-12 && (one.t[3] - 3e-3).abs() < 1e-12, "{:?}", one.t);
@@ -226,5 +245,6 @@ mod tests {
         assert_eq!(two.t.len(), 8);
         assert!((two.t[4] - 4e-3).abs() < 1e-12, "{:?}", two.t);
         assert!(two.closed_loop.is_none());
+        assert!(one.starts.is_empty() && two.starts == [4], "{:?}", two.starts);
     }
 }

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use arash_core::diagnose::{
     consistent_with_effects, diagnose as core_diagnose, DiagnoseOptions as CoreOptions, Diagnosis as CoreDiagnosis,
-    Finding,
+    Finding, Runs,
 };
 use arash_core::effects::EffectKind;
 use arash_core::identify::consistent::ConsistentOptions;
@@ -411,9 +411,10 @@ fn errors<'py>(py: Python<'py>, m: &Metrics) -> PyResult<Bound<'py, PyDict>> {
 
 type Arrays<'py> = (PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>);
 
-/// Diagnose the log `(t, q, tau)` against the robot's declared model (see `arash.diagnose`).
+/// Diagnose the log `(t, q, tau)` against the robot's declared model (see `arash.diagnose`);
+/// `validation_starts`: where each concatenated held-out run after the first begins.
 #[pyfunction]
-#[pyo3(signature = (robot, log, options, model=None, validation=None))]
+#[pyo3(signature = (robot, log, options, model=None, validation=None, validation_starts=Vec::new()))]
 fn _diagnose<'py>(
     py: Python<'py>,
     robot: &Robot,
@@ -421,6 +422,7 @@ fn _diagnose<'py>(
     options: &DiagnoseOptions,
     model: Option<&Identification>,
     validation: Option<Arrays<'py>>,
+    validation_starts: Vec<usize>,
 ) -> PyResult<Diagnosis> {
     let dof = robot.model.dof();
     let (t, q, tau) = log_arrays(&log.0, &log.1, &log.2, dof)?;
@@ -439,7 +441,7 @@ fn _diagnose<'py>(
     let (inner, consistent) = py
         .detach(|| {
             let train = Log { t: &t, q: &q, tau: &tau };
-            let held = held.as_ref().map(|(t, q, tau)| Log { t, q, tau });
+            let held = held.as_ref().map(|(t, q, tau)| Runs { log: Log { t, q, tau }, starts: &validation_starts });
             let declared = Declared { model: &robot_model, base, urdf: &robot.urdf };
             let inner = core_diagnose(declared, train, held, given.as_ref(), &options.inner)?;
             let consistent = options

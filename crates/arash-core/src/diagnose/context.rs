@@ -5,6 +5,7 @@ use super::options::{DiagnoseError, DiagnoseOptions};
 use super::prepare::{prepare, term_columns, Prepared};
 use super::problem::{block_split, blocks, heldout_block_s, Candidate, HeldOut, Problem};
 use super::regression::{self, least_squares, residual, Batching, Column, Rows};
+use super::Runs;
 use crate::base_parameters::BaseParameters;
 use crate::effects::{EffectKind, EffectTerm};
 use crate::identify::{IdentifyError, Log};
@@ -40,14 +41,23 @@ impl<'a> Context<'a> {
         model: &'a Model,
         base: &'a BaseParameters,
         train: Log,
-        validation: Option<Log>,
+        validation: Option<Runs>,
         given: Option<&'a ModelFile>,
         options: &'a DiagnoseOptions,
     ) -> Result<Self, DiagnoseError> {
         let margin = options.max_delay_s;
-        let train = prepare(model, base, train, (options, None), margin).map_err(DiagnoseError::Training)?;
+        let train = prepare(model, base, train.into(), (options, None), margin).map_err(DiagnoseError::Training)?;
         // The held-out log is filtered in the band chosen on the training log.
         let band = Some(train.band());
+        if let Some(v) = &validation {
+            let samples = v.log.t.len();
+            if v.starts.first() == Some(&0)
+                || v.starts.windows(2).any(|w| w[1] <= w[0])
+                || v.starts.last().is_some_and(|&s| s >= samples)
+            {
+                return Err(DiagnoseError::RunStarts { starts: v.starts.to_vec(), samples });
+            }
+        }
         let validation = validation
             .map(|v| prepare(model, base, v, (options, band), margin))
             .transpose()

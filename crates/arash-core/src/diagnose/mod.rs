@@ -37,3 +37,19 @@ pub use findings::{DiagnoseSettings, Diagnosis, ErrorSummary, Finding, Rejection
 pub use options::{DiagnoseError, DiagnoseOptions, OptionsError};
 pub use refit::consistent_with_effects;
 pub use search::diagnose;
+
+/// Held-out data: one log, or several runs recorded one after another and concatenated, with
+/// `starts` the sample at which each run after the first begins. The log is filtered whole, and
+/// the samples within the filter's start-up transient of each start are left out, as at its
+/// ends: across a start the position and torque jump (the robot moved between the runs).
+#[derive(Debug, Clone, Copy)]
+pub struct Runs<'a> {
+    pub log: Log<'a>,
+    pub starts: &'a [usize],
+}
+
+impl<'a> From<Log<'a>> for Runs<'a> {
+    fn from(log: Log<'a>) -> Self {
+        Self { log, starts: &[] }
+    }
+}

@@ -204,6 +204,10 @@ pub enum DiagnoseError {
     Training(PreprocessError),
     #[error("validation log: {0}")]
     Validation(PreprocessError),
+    #[error(
+        "validation log: the runs' starts must increase strictly and lie inside its {samples} samples, not {starts:?}"
+    )]
+    RunStarts { starts: Vec<usize>, samples: usize },
     #[error(transparent)]
     Identify(#[from] IdentifyError),
     #[error(transparent)]

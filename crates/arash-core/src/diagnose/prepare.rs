@@ -4,11 +4,11 @@
 use super::band::{noise_limited_cutoff, velocity_resolved_cutoff, Band, Positions};
 use super::options::DiagnoseOptions;
 use super::regression::Column;
+use super::Runs;
 use crate::base_parameters::BaseParameters;
 use crate::data::Data;
 use crate::effects::{EffectKind, EffectTerm, TermState};
 use crate::identify::preprocess::{preprocess, PreprocessError, PreprocessOptions, Preprocessed};
-use crate::identify::Log;
 use crate::model::Model;
 use crate::regressor::regressor;
 
@@ -70,7 +70,8 @@ impl Prepared {
 /// Prepare `log` for the diagnosis: filtered in `band` (a training log's), or at the user's
 /// cut-off, or at the diagnosis's; its Coulomb columns switching with the velocity filtered at
 /// the band's friction cut-off, the user's, or the cut-off slowed where the encoder's steps would
-/// blur it ([`velocity_resolved_cutoff`]); and trimmed by `margin_s` at each end.
+/// blur it ([`velocity_resolved_cutoff`]); and trimmed by `margin_s` at each end and on both
+/// sides of each run's start (held-out runs joined end to end).
 ///
 /// The friction velocity is not chosen by the fit here, as identification chooses it: the
 /// diagnosis's decision rule was calibrated with it at the diagnosis's cut-off, and on the demo's
@@ -79,7 +80,7 @@ impl Prepared {
 pub(super) fn prepare(
     model: &Model,
     base: &BaseParameters,
-    log: Log,
+    Runs { log, starts }: Runs,
     (options, band): (&DiagnoseOptions, Option<Band>),
     margin_s: f64,
 ) -> Result<Prepared, PreprocessError> {
@@ -127,7 +128,12 @@ pub(super) fn prepare(
     if n < needed {
         return Err(PreprocessError::TooFewSamples { needed, got: n });
     }
-    let kept: Vec<usize> = (margin..n - margin).step_by(stride).collect();
+    // Where one run ends and the next begins, the filter's transient spans both sides.
+    let clear = |i: usize| starts.iter().all(|&s| i + margin < s || i >= s + margin);
+    let kept: Vec<usize> = (margin..n - margin).step_by(stride).filter(|&i| clear(i)).collect();
+    if kept.len() < MIN_KEPT {
+        return Err(PreprocessError::TooFewSamples { needed: needed + 2 * margin * starts.len(), got: n });
+    }
     let (declared, bodies) = declared_columns(model, base, &pre, &kept);
     Ok(Prepared { dof, fs, pre, q_raw: log.q.to_vec(), kept, declared, bodies, predicted: vec![] })
 }

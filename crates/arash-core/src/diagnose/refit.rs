@@ -36,7 +36,7 @@ pub fn consistent_with_effects(
     let model = &*found.with_its_law(model);
     let (dof, standard) = (model.dof(), model.num_params());
     let mut data =
-        prepare(model, base, train, (options, None), options.max_delay_s).map_err(DiagnoseError::Training)?;
+        prepare(model, base, train.into(), (options, None), options.max_delay_s).map_err(DiagnoseError::Training)?;
     // What a drive gain scales: the found model's declared torque.
     let mut predicted = vec![0.0; data.samples() * dof];
     for (column, b) in data.declared.iter().zip(&found.beta) {

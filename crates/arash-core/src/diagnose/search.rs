@@ -11,17 +11,18 @@ use super::options::{DiagnoseError, DiagnoseOptions, PAYLOAD_MASS_SIGMAS};
 use super::outcome::{declared_model, series};
 use super::problem::{error_summary, model_columns, Candidate, HeldOut, HeldOutBase, Problem};
 use super::regression::{self, gram, least_squares, residual, rhs, test_group, Column, GroupTest, Rows, Untested};
+use super::Runs;
 use crate::effects::{EffectKind, EffectTerm};
 use crate::identify::{Declared, Log};
 use crate::model::{JointKind, Model};
 use crate::model_file::ModelFile;
 
 /// Diagnose `train` against the declared dynamics (refitted, or `given`), holding out
-/// `validation` when it is given.
+/// `validation` when it is given (a [`Log`] converts into one run).
 pub fn diagnose(
     declared: Declared,
     train: Log,
-    validation: Option<Log>,
+    validation: Option<Runs>,
     given: Option<&ModelFile>,
     options: &DiagnoseOptions,
 ) -> Result<Diagnosis, DiagnoseError> {

@@ -29,8 +29,8 @@ pub struct Args {
     /// With --model: hold its friction too (trust the whole model file).
     #[arg(long)]
     hold_friction: bool,
-    /// Held-out runs for ranking and the held-out errors (concatenated); default: the odd
-    /// blocks of the training data.
+    /// Held-out runs for ranking and the held-out errors (joined, each filtered on its own);
+    /// default: the odd blocks of the training data.
     #[arg(long, num_args = 1..)]
     validate: Vec<PathBuf>,
     /// Joint motion per motor radian, comma-separated, for the cogging search; default: from
@@ -118,7 +118,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let diagnosis = diagnose(
         Declared { model: &model, base: &base, urdf: &urdf },
         Log { t: &train.t, q: &train.q, tau: &train.tau },
-        validation.as_ref().map(|v| Log { t: &v.t, q: &v.q, tau: &v.tau }),
+        validation.as_ref().map(crate::runlog::Log::runs),
         given.as_ref(),
         &options,
     )

@@ -17,6 +17,8 @@ import warnings as _warnings
 from pathlib import Path as _Path
 from typing import Any, Optional, Sequence, Union
 
+import numpy as _np
+
 from ._arash import _design_excitation, _diagnose, _identify, _simulate
 from ._arash import (
     BaseParameters,
@@ -219,7 +221,7 @@ def diagnose(
     tau: Any,
     *,
     model: Optional[Identification] = None,
-    validation: Optional[tuple[Any, Any, Any]] = None,
+    validation: Optional[Union[tuple[Any, Any, Any], Sequence[tuple[Any, Any, Any]]]] = None,
     transmission: Optional[Sequence[float]] = None,
     cutoff_hz: Optional[float] = None,
     friction_cutoff_hz: Optional[float] = None,
@@ -241,8 +243,9 @@ def diagnose(
     robot: a ``Robot``. t (N,), q and tau (N, dof), SI units, uniformly sampled.
     model: an ``Identification`` to diagnose against (its inertial parameters held, friction
         refitted); default: refit the declared model.
-    validation: a tuple ``(t, q, tau)`` held out for ranking and the held-out errors; default:
-        the odd-numbered blocks of the training log.
+    validation: a tuple ``(t, q, tau)`` held out for ranking and the held-out errors, or a list of
+        such runs recorded one after another (each run is filtered on its own: nothing across the
+        jump from one to the next); default: the odd-numbered blocks of the training log.
     transmission: joint motion per motor radian, per joint (enables the cogging search).
     cutoff_hz, friction_cutoff_hz, order: the preprocessing, as ``identify`` takes it (None: the
     diagnosis's 20 Hz, at most a fifth of the sample rate, narrower for a coarse encoder; the
@@ -260,6 +263,7 @@ def diagnose(
     validation's) are motor angles and motor torques; it also gives the cogging search its ratios
     (unless ``transmission`` is given) and the ``coupled_rotor`` search its coupled motors.
     """
+    validation, starts = _runs(validation)
     if motor_side is not None:
         q, tau = motor_side.to_joints(q, tau)
         if validation is not None:
@@ -270,7 +274,30 @@ def diagnose(
         effects=None if effects is None else list(effects), torque_from_currents=torque_from_currents,
         refit=refit, hold_friction=hold_friction, consistent=consistent,
         consistent_cutoff_hz=consistent_cutoff_hz, motor_side=motor_side))
-    return _diagnose(robot, (t, q, tau), options, model, validation)
+    return _diagnose(robot, (t, q, tau), options, model, validation, starts)
+
+
+def _runs(validation: Any) -> tuple[Optional[tuple[Any, Any, Any]], list[int]]:
+    """One held-out log, and where each run after the first begins: a list of runs is joined
+    end to end, each run's times re-based to follow the last one's at its own step."""
+    if validation is None or not isinstance(validation, list):
+        return validation, []
+    if not validation:
+        raise ValueError("validation: an empty list of runs")
+    ts, qs, taus, starts, start, samples = [], [], [], [], 0.0, 0
+    for k, run in enumerate(validation):
+        if not isinstance(run, tuple) or len(run) != 3:
+            raise ValueError(f"validation[{k}]: expected a tuple (t, q, tau)")
+        t = _np.asarray(run[0], dtype=float)
+        if t.ndim != 1 or len(t) < 2:
+            raise ValueError(f"validation[{k}]: t must be 1-D with at least 2 samples, not shape {t.shape}")
+        if k:
+            starts.append(samples)
+        ts.append(t - t[0] + start)
+        start, samples = ts[-1][-1] + (t[1] - t[0]), samples + len(t)
+        qs.append(_np.asarray(run[1], dtype=float))
+        taus.append(_np.asarray(run[2], dtype=float))
+    return (_np.concatenate(ts), _np.concatenate(qs), _np.concatenate(taus)), starts
 
 
 def heldout_errors(

@@ -337,4 +337,5 @@ def _diagnose(
     options: DiagnoseOptions,
     model: Optional[Identification] = None,
     validation: Optional[tuple[_ArrayLike, _ArrayLike, _ArrayLike]] = None,
+    validation_starts: list[int] = ...,
 ) -> Diagnosis: ...

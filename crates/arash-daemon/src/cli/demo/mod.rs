@@ -451,7 +451,7 @@ fn diagnose_run(
     out: &Path,
 ) -> anyhow::Result<(Diagnosis, PathBuf)> {
     let log = Log { t: &log.t, q: &log.q, tau: &log.tau };
-    let held_out = held_out.map(|h| Log { t: &h.t, q: &h.q, tau: &h.tau });
+    let held_out = held_out.map(runlog::Log::runs);
     let options =
         DiagnoseOptions { transmission: Some(DriveConfig::default().transmission), ..DiagnoseOptions::default() };
     let diagnosis =
