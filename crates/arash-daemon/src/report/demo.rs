@@ -220,9 +220,10 @@ impl Tracking {
             .collect();
         Some(format!(
             "The simulated rig has effects the declared model lacks. With the rig's own parameters the declared model \
-             cuts the maximum error by {}: what a declared model can do at best on this rig. An identified model that \
-             cuts it by more has taken up part of those effects in its fit along the excitation (docs/demo.md, \
-             \"What the declared model can do on this rig\").",
+             cuts the maximum error by {}: those effects, not the estimate, keep it from halving. A fitted model of \
+             the declared form takes them up in its own way along the excitation, which can help or hurt on this \
+             trajectory; the model with the effects found is the one that removes them (docs/demo.md, \"What the \
+             declared model can do on this rig\").",
             ratios.join(", ")
         ))
     }

@@ -95,20 +95,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 fn plan(args: &Args) -> anyhow::Result<Plan> {
-    // The demo keeps the design it had before the least range and speed and the weak-parameter
-    // regrouping (issue 18): with the designs those give (κ 65–97 over the identifiable base
-    // parameters), the identified model cut the demo rig's tracking error by only 1.3–2.1×,
-    // against 2.3–2.8× with this one, and 1.8–2.1× with the rig's own parameters; docs/demo.md
-    // gives the figures. The rig's undeclared wiring disturbance and Stribeck friction are
-    // fitted differently over the wider motion.
-    let excitation = ExcitationOptions {
-        seed: args.seed,
-        restarts: args.restarts,
-        iterations: 4000,
-        min_range_fraction: 0.0,
-        min_speed_fraction: 0.0,
-        ..Default::default()
-    };
+    // `arash excite`'s design: over the base parameters a trajectory can identify, every joint
+    // over most of its range at speed. The demo's earlier design (no least range or speed, over
+    // the exact base) tracked better on its rig only because its narrow fit took up effects the
+    // model lacks; on a rig without them it cut the insertion's error 3× where the rig's own
+    // parameters cut it 14× (docs/demo.md, "The excitation").
+    let excitation = ExcitationOptions { seed: args.seed, restarts: args.restarts, ..Default::default() };
     let periods = (args.duration / excitation.period_s).round();
     anyhow::ensure!(
         args.duration.is_finite() && periods >= 2.0 && (periods * excitation.period_s - args.duration).abs() < 1e-6,
@@ -227,8 +219,7 @@ fn experiment(
         "\n[2/7] excitation design: L = {}, T = {} s, {} restart(s), seed {}",
         plan.excitation.harmonics, plan.excitation.period_s, plan.excitation.restarts, plan.excitation.seed
     );
-    let exact = BaseParameters::compute(model, &BaseParameterOptions::diagnosed())?;
-    let excitation = design_excitation(model, &exact, &plan.excitation, &mut |p| {
+    let excitation = design_excitation(model, base, &plan.excitation, &mut |p| {
         eprint!("\r    restart {}/{}, best normalised κ = {:.3}   ", p.restart, p.restarts, p.best_condition_number);
     })
     .context("designing the excitation")?;
@@ -266,8 +257,9 @@ fn experiment(
     let diagnosis_dir = dir.join("report").join("diagnosis");
     let settings = &calibration.consistent.settings;
     let cutoffs = (settings.cutoff_hz, settings.friction_cutoff_hz);
-    // The diagnosis fits the exact base parameters (`BaseParameterOptions::diagnosed`), the
-    // design's: the calibration's regrouping would be a bias an effect could take up.
+    // The diagnosis fits the exact base parameters (`BaseParameterOptions::diagnosed`): the
+    // calibration's regrouping would be a bias an effect could take up.
+    let exact = BaseParameters::compute(model, &BaseParameterOptions::diagnosed())?;
     let held_out = validation.into_iter().map(|(_, log)| log).collect::<Vec<_>>();
     let held_out = (!held_out.is_empty()).then(|| runlog::concatenate(held_out));
     let logs = (&training_log, held_out.as_ref());
@@ -281,8 +273,8 @@ fn experiment(
         ("robust, identified model", "robust", Some(calibration.consistent_file.clone())),
         ("robust, identified model + effects found", "robust", Some(with_effects)),
     ];
-    // What the declared model can do at best on this rig: a model that cuts the error by more
-    // has fitted the rig's undeclared effects along the excitation (docs/demo.md).
+    // What the declared model's true parameters do beside the rig's undeclared effects: the
+    // scale against which the identified model's cut is read (docs/demo.md).
     if let Some((file, _)) = truth_file {
         ways.push((report::TRUTH_RUN, "robust", Some(file)));
     }
