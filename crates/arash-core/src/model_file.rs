@@ -250,6 +250,16 @@ pub const COLLINEAR_APART: f64 = 0.1;
 pub const SMALL_TORQUE_SHARE: f64 = 0.01;
 
 impl Determination {
+    /// Its column within [`COLLINEAR_APART`] of the others' span.
+    pub fn collinear(&self) -> bool {
+        self.apart < COLLINEAR_APART
+    }
+
+    /// Under [`SMALL_TORQUE_SHARE`] of its joint's torque.
+    pub fn small(&self) -> bool {
+        self.torque_share < SMALL_TORQUE_SHARE
+    }
+
     /// The same with its torque share taken at the estimate `beta`.
     pub fn at(&self, beta: f64) -> Self {
         Self { torque_share: beta.abs() * self.column_over_torque, ..self.clone() }
@@ -261,11 +271,11 @@ impl Determination {
     pub fn cause(&self, names: &[String]) -> String {
         let share = self.torque_share;
         let mut causes = Vec::new();
-        if self.apart < COLLINEAR_APART {
+        if self.collinear() {
             let on = self.leans_on.and_then(|j| names.get(j)).map_or(String::new(), |n| format!(", on {n}"));
             causes.push(format!("collinear ({:.1} % apart{on})", 100.0 * self.apart));
         }
-        if share < SMALL_TORQUE_SHARE {
+        if self.small() {
             causes.push(format!("small ({:.2} % of its joint's torque)", 100.0 * share));
         }
         if causes.is_empty() {
@@ -277,6 +287,15 @@ impl Determination {
         }
         causes.join(", ")
     }
+}
+
+/// Table I's causes counted: see [`ModelFile::cause_counts`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct CauseCounts {
+    pub well_determined: usize,
+    pub collinear: usize,
+    pub small: usize,
+    pub noisy: usize,
 }
 
 /// The fitted part of a model file: what an estimator produced.
@@ -476,7 +495,6 @@ impl ModelFile {
         std::borrow::Cow::Owned(with_law)
     }
 
-    /// Table I shape: each base parameter, its value and σ%, and the training fit.
     /// Per base parameter, why its σ% is above [`WELL_DETERMINED_PERCENT`] (`None` where it is
     /// not); `None` for a file without [`Determination`]s.
     pub fn causes(&self) -> Option<Vec<Option<String>>> {
@@ -487,6 +505,27 @@ impl ModelFile {
         Some(causes.map(|(d, s)| (!well_determined(*s)).then(|| d.cause(&self.base_names))).collect())
     }
 
+    /// How many base parameters have σ% at or under [`WELL_DETERMINED_PERCENT`], and of the
+    /// others how many are collinear, small and noisy (one can be both collinear and small);
+    /// `None` for a file without [`Determination`]s.
+    pub fn cause_counts(&self) -> Option<CauseCounts> {
+        if self.determination.len() != self.beta.len() {
+            return None;
+        }
+        let mut counts = CauseCounts::default();
+        for (d, s) in self.determination.iter().zip(&self.sigma_percent) {
+            if well_determined(*s) {
+                counts.well_determined += 1;
+                continue;
+            }
+            counts.collinear += usize::from(d.collinear());
+            counts.small += usize::from(d.small());
+            counts.noisy += usize::from(!d.collinear() && !d.small());
+        }
+        Some(counts)
+    }
+
+    /// Table I shape: each base parameter, its value and σ%, and the training fit.
     pub fn table(&self) -> String {
         let mut s = format!(
             "Identified base parameters ({:?}, {} samples used of {}, cut-off {:.2} Hz, κ = {:.1})\n",

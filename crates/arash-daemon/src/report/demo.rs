@@ -432,6 +432,13 @@ fn markdown(
     let _ = writeln!(s, "```\n{}\n```\n", calibration.table_ii);
     images(&mut s, &figures[1]);
     let _ = writeln!(s, "## Diagnosis\n\n```\n{}\n```\n", diagnosis.report());
+    // What the undeclared effects did to Table I: fitted with them, the parameters they made
+    // noisy are determined (docs/demo.md, "Table I's σ%").
+    let _ = writeln!(
+        s,
+        "```\nTable I with the effects found (the diagnosis's least-squares fit, every exact base parameter)\n{}\n```\n",
+        diagnosis.model.table()
+    );
     for name in diagnosis_figures {
         let _ = writeln!(s, "![{name}](diagnosis/{name})\n");
     }
@@ -467,6 +474,10 @@ fn summary(model: &Model, calibration: &Calibration, diagnosis: &Diagnosis, trac
             "ols": calibration.ols.training.fp_percent,
             "idim_iv": calibration.closed_loop.training.fp_percent,
             "consistent": calibration.consistent.training.fp_percent,
+        },
+        "table_i_causes": {
+            "idim_iv": calibration.closed_loop.cause_counts(),
+            "with_effects": diagnosis.model.cause_counts(),
         },
         "within_3_sigma_of_truth": AgainstTruth::of(calibration).map(|a| {
             let covered: serde_json::Map<String, serde_json::Value> =
