@@ -28,6 +28,30 @@ pub struct Log {
 }
 
 impl Log {
+    /// Where this joined log jumps: each run start at which some joint moves by more than
+    /// [`JUMP_OVER_STEP`] times its largest step within [`JUMP_WINDOW`] samples either side, as
+    /// (sample, joint, jump). A fit filters its training log as one series, and rings across such
+    /// a jump; logs that continue one another do not jump.
+    pub fn jumps(&self) -> Vec<(usize, usize, f64)> {
+        let n = self.t.len();
+        if self.starts.is_empty() || n < 2 {
+            return Vec::new();
+        }
+        let dof = self.q.len() / n;
+        let step = |i: usize, k: usize| (self.q[i * dof + k] - self.q[(i - 1) * dof + k]).abs();
+        let mut jumps = Vec::new();
+        for &s in &self.starts {
+            let around = (s.saturating_sub(JUMP_WINDOW).max(1)..(s + JUMP_WINDOW + 1).min(n)).filter(|&i| i != s);
+            for k in 0..dof {
+                let largest = around.clone().map(|i| step(i, k)).fold(0.0, f64::max);
+                if step(s, k) > JUMP_OVER_STEP * largest {
+                    jumps.push((s, k, step(s, k)));
+                }
+            }
+        }
+        jumps
+    }
+
     /// The held-out runs as the diagnosis takes them.
     pub fn runs(&self) -> arash_core::diagnose::Runs<'_> {
         let log = arash_core::identify::Log { t: &self.t, q: &self.q, tau: &self.tau };
@@ -182,6 +206,12 @@ fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
     Ok(log)
 }
 
+/// How many times a joint's largest step nearby a move at a run's start must exceed to count as
+/// a jump between runs...
+pub const JUMP_OVER_STEP: f64 = 10.0;
+/// ... nearby meaning within this many samples either side.
+pub const JUMP_WINDOW: usize = 50;
+
 /// Concatenate logs recorded back to back at the same rate (their time stamps are re-based). One
 /// log keeps its closed-loop channels; several runs have no single reference and controller.
 pub fn concatenate(mut logs: Vec<Log>) -> Log {
@@ -246,5 +276,36 @@ mod tests {
         assert!((two.t[4] - 4e-3).abs() < 1e-12, "{:?}", two.t);
         assert!(two.closed_loop.is_none());
         assert!(one.starts.is_empty() && two.starts == [4], "{:?}", two.starts);
+    }
+
+    /// A joined log names where the robot moved between runs, and only there.
+    #[test]
+    fn a_jump_between_runs_is_found_and_a_continuous_junction_is_not() {
+        let run = |q0: f64| Log {
+            t: (0..5).map(|i| i as f64 * 1e-3).collect(),
+            q: (0..5).flat_map(|i| [q0 + 1e-4 * i as f64, 0.0]).collect(),
+            tau: vec![0.0; 10],
+            trajectory: None,
+            closed_loop: None,
+            starts: vec![],
+        };
+        // Continuous: the second run starts one step on from where the first ended.
+        assert!(concatenate(vec![run(0.0), run(5e-4)]).jumps().is_empty());
+        let jumped = concatenate(vec![run(0.0), run(5e-4), run(3e-3)]);
+        let jumps = jumped.jumps();
+        assert_eq!(jumps.len(), 1, "{jumps:?}");
+        assert_eq!((jumps[0].0, jumps[0].1), (10, 0));
+        assert!((jumps[0].2 - (3e-3 - 9e-4)).abs() < 1e-12, "{jumps:?}");
+        // A fast move far from the junction does not hide a jump where the robot was at rest.
+        let moving = |q0: f64| Log {
+            t: (0..200).map(|i| i as f64 * 1e-3).collect(),
+            q: (0..200).flat_map(|i: usize| [q0 + 1e-2 * i.clamp(90, 110).saturating_sub(90) as f64, 0.0]).collect(),
+            tau: vec![0.0; 400],
+            trajectory: None,
+            closed_loop: None,
+            starts: vec![],
+        };
+        let jumps = concatenate(vec![moving(0.0), moving(0.2 + 3e-3)]).jumps();
+        assert_eq!(jumps.iter().map(|j| (j.0, j.1)).collect::<Vec<_>>(), [(200, 0)], "{jumps:?}");
     }
 }

@@ -92,7 +92,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     let options = options(&args, &model)?;
     let read = |paths: &[PathBuf]| args.runs.read(paths, &model);
-    let train = read(&args.runs.logs)?;
+    let train = args.runs.read_training(&model)?;
     let validation = if args.validate.is_empty() { None } else { Some(read(&args.validate)?) };
     let given = args
         .model

@@ -71,7 +71,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let (model, urdf) = args.runs.robot()?;
-    let log = args.runs.read(&args.runs.logs, &model)?;
+    let log = args.runs.read_training(&model)?;
     let options = IdentifyOptions {
         preprocess: PreprocessOptions {
             periods: args.periods,

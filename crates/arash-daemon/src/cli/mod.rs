@@ -72,6 +72,22 @@ impl Runs {
         }
         Ok(crate::runlog::concatenate(logs))
     }
+
+    /// Read the training logs: as [`Self::read`], with a warning where the robot moved between
+    /// two of them (a fit filters them as one series, and the filter rings across the jump).
+    pub fn read_training(&self, model: &arash_core::Model) -> anyhow::Result<crate::runlog::Log> {
+        let log = self.read(&self.logs, model)?;
+        let names = model.joint_names();
+        for (sample, joint, jump) in log.jumps() {
+            eprintln!(
+                "warning: the training logs are joined end to end and {} jumps by {jump:.3e} at sample {sample}, where \
+                 a run starts: the filter rings across it and the samples around it fit badly. Fit one log (or \
+                 logs that continue one another) and hold out the others with --validate, which filters each alone.",
+                names[joint]
+            );
+        }
+        Ok(log)
+    }
 }
 
 fn parse_coupling(text: &str) -> Result<(usize, usize, f64), String> {
