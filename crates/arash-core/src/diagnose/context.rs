@@ -49,15 +49,7 @@ impl<'a> Context<'a> {
         let train = prepare(model, base, train.into(), (options, None), margin).map_err(DiagnoseError::Training)?;
         // The held-out log is filtered in the band chosen on the training log.
         let band = Some(train.band());
-        if let Some(v) = &validation {
-            let samples = v.log.t.len();
-            if v.starts.first() == Some(&0)
-                || v.starts.windows(2).any(|w| w[1] <= w[0])
-                || v.starts.last().is_some_and(|&s| s >= samples)
-            {
-                return Err(DiagnoseError::RunStarts { starts: v.starts.to_vec(), samples });
-            }
-        }
+        validation.as_ref().map(Runs::check).transpose()?;
         let validation = validation
             .map(|v| prepare(model, base, v, (options, band), margin))
             .transpose()

@@ -48,6 +48,18 @@ pub struct Runs<'a> {
     pub starts: &'a [usize],
 }
 
+impl Runs<'_> {
+    /// The starts increase strictly and lie inside the log, after its first sample.
+    pub fn check(&self) -> Result<(), DiagnoseError> {
+        let samples = self.log.t.len();
+        let starts = self.starts;
+        if starts.first() == Some(&0) || starts.windows(2).any(|w| w[1] <= w[0]) || starts.last() >= Some(&samples) {
+            return Err(DiagnoseError::RunStarts { starts: starts.to_vec(), samples });
+        }
+        Ok(())
+    }
+}
+
 impl<'a> From<Log<'a>> for Runs<'a> {
     fn from(log: Log<'a>) -> Self {
         Self { log, starts: &[] }
