@@ -61,21 +61,35 @@ def closed_loop_log(condition, loop_hz=LOOP_HZ, damping=LOOP_DAMPING):
 
 
 def pd_gravity_log(condition, truth_params, *, loop_hz=LOOP_HZ, damping=LOOP_DAMPING, actuator_noise=0.02,
-                   noise_hz=None):
+                   noise_hz=None, law=None, substeps=SUBSTEPS, declare=True):
     """PD with gravity compensation from the CAD model, τ = g(q; π_CAD) − K_p e − K_d ė, the law
     IDIM-IV can name, running ``condition``'s trajectory on the robot ``truth_params`` (a full
-    parameter vector: bodies, friction with the tanh law of ``TANH_EPSILON``, cable stiffness).
+    parameter vector: bodies, friction, cable stiffness).
 
     The drive adds white noise of ``actuator_noise`` times each joint's RMS torque to what the
     controller commands, and the log records the torque applied: that noise moves the robot, so
     the positions and the torque error are correlated, which is what biases least squares in
     closed loop. ``noise_hz`` gives that noise a first-order band (a drive's disturbance, slow
-    enough to pass the identification's filter); None keeps it white. The encoders quantise at ``condition.bits`` and the controller differences them.
-    Returns the robot (tanh law declared), the log (t, q, τ), the reference (q_d, q̇_d, q̈_d) and
-    the controller as IDIM-IV takes it."""
+    enough to pass the identification's filter); None keeps it white. The encoders quantise at
+    ``condition.bits`` and the controller differences them.
+
+    ``law`` is the plant's Coulomb law: None for tanh of ``TANH_EPSILON``, a width per joint for
+    tanh(q̇/v), or "sign". Under sign(q̇) a joint sticks wherever the other torques stay within its
+    dry friction, and the plant is stepped as a set-valued law must be (``coulomb_step``), which
+    holds a stuck joint exactly still; the smooth laws are stepped explicitly, ``substeps`` steps
+    per control cycle. ``declare``: the robot returned declares the plant's law (tanh laws only);
+    otherwise it declares none, as a new user loads it.
+
+    Returns the robot, the log (t, q, τ), the reference (q_d, q̇_d, q̈_d) and the controller as
+    IDIM-IV takes it."""
     rng = np.random.default_rng(condition.seed)
     path = urdf_path(condition.robot)
-    robot = arash.Robot.from_urdf(path, coulomb_epsilon=TANH_EPSILON)
+    dof = arash.Robot.from_urdf(path).dof
+    widths = None if law == "sign" else np.full(dof, TANH_EPSILON) if law is None else np.asarray(law, dtype=float)
+    if declare and widths is not None:
+        robot = arash.Robot.from_urdf(path, friction_velocities=list(widths))
+    else:
+        robot = arash.Robot.from_urdf(path)
     plant, cad = Expanded(path, robot), Expanded(path, robot)
     plant.set_parameters(truth_params)
     cad_params = robot.cad_parameters()
@@ -85,8 +99,9 @@ def pd_gravity_log(condition, truth_params, *, loop_hz=LOOP_HZ, damping=LOOP_DAM
     fc = truth_params[10 * nb + 1 : 10 * nb + 2 * n : 2]
     ke = truth_params[10 * nb + 2 * n :]
 
-    def joint_terms(q, qd):
-        return fv * qd + fc * np.tanh(qd / TANH_EPSILON) + ke * q
+    def smooth_terms(q, qd):
+        dry = 0.0 if widths is None else fc * np.tanh(qd / widths)
+        return fv * qd + dry + ke * q
 
     t, q_d, qd_d, qdd_d = trajectory(robot, condition, rng)
     inertia = np.diag(plant.mass_matrix(q_d[0]))
@@ -98,7 +113,7 @@ def pd_gravity_log(condition, truth_params, *, loop_hz=LOOP_HZ, damping=LOOP_DAM
     noise = actuator_noise * np.sqrt(np.mean(needed**2, axis=0))
     step = quantum(path, robot) / 2**condition.bits
     dt = 1.0 / condition.fs
-    h = dt / SUBSTEPS
+    h = dt / substeps
     q, qd = q_d[0].copy(), qd_d[0].copy()
     q_log, tau_log = np.empty_like(q_d), np.empty_like(q_d)
     disturbance = rng.normal(size=(len(t), n))
@@ -114,10 +129,31 @@ def pd_gravity_log(condition, truth_params, *, loop_hz=LOOP_HZ, damping=LOOP_DAM
         tau = cad.torque(measured, np.zeros(n), np.zeros(n)) - kp * (measured - q_d[i]) - kd * (velocity - qd_d[i])
         tau = tau + noise * disturbance[i]
         q_log[i], tau_log[i] = measured, tau
-        for _ in range(SUBSTEPS):
+        for _ in range(substeps):
             bias = plant.torque(q, qd, np.zeros(n))
-            qdd = np.linalg.solve(plant.mass_matrix(q), tau - bias - joint_terms(q, qd))
-            qd = qd + h * qdd
+            mass = plant.mass_matrix(q)
+            free = qd + h * np.linalg.solve(mass, tau - bias - smooth_terms(q, qd))
+            qd = free if widths is not None else coulomb_step(mass, free, h * fc)
             q = q + h * qd
     controller = {"law": "pd", "params": cad_params, "kp": kp, "kd": kd}
     return robot, (t, q_log, tau_log), (q_d, qd_d, qdd_d), controller
+
+
+def coulomb_step(mass, free, impulse):
+    """The velocity after one step of dry friction of the set-valued law sign(q̇) (Moreau's
+    time-stepping): v = argmin ½ (v − v_free)ᵀ M (v − v_free) + Σ_k impulse_k |v_k|, where v_free is
+    the velocity the other forces give and ``impulse`` = h·f_c. A joint sticks (v_k = 0 exactly)
+    wherever the rest cannot overcome its friction. Solved by projected Gauss–Seidel on the
+    friction impulses, each clamped to [−impulse_k, impulse_k]."""
+    n = len(free)
+    inverse = np.linalg.inv(mass)
+    lam = np.zeros(n)
+    for _ in range(100):
+        before = lam.copy()
+        for k in range(n):
+            # v = v_free − M⁻¹ λ; choose λ_k so that v_k = 0, clamped to the friction's reach.
+            v_k = free[k] - inverse[k] @ lam
+            lam[k] = np.clip(lam[k] + v_k / inverse[k, k], -impulse[k], impulse[k])
+        if np.max(np.abs(lam - before)) <= 1e-12 * max(1e-300, np.max(impulse)):
+            break
+    return free - inverse @ lam

@@ -117,6 +117,9 @@ FRICTION_SHARE = 0.05
 RMS_FLOOR_SHARE = 0.01
 # A tanh Coulomb law's velocity scale (rad/s or m/s).
 TANH_EPSILON = 0.01
+# A smooth Coulomb law's friction velocity on each joint, as a share of the joint's RMS speed:
+# friction that rises from zero over a speed of its own, as real joints' does (issue 44).
+SMOOTH_SHARE = 0.05
 # A linear encoder's stroke over its counts (m), for prismatic joints.
 LINEAR_STROKE_M = 0.2
 HARMONICS = 5
@@ -130,13 +133,16 @@ class Condition:
     fs: float  # Hz
     bits: int  # encoder counts per turn (or per stroke) = 2**bits
     noise: float  # torque noise, as a share of each joint's RMS torque
-    coulomb: str  # "sign" or "tanh"
+    coulomb: str  # "sign", "tanh" (TANH_EPSILON on every joint) or "smooth" (SMOOTH_SHARE of each joint's RMS speed)
     periods: Optional[int]  # whole periods in the log; None: not periodic
     duration: float  # s
     seed: int = 0
     # Follow arash's designed excitation (trajectories/excitation_L5_T15.json, evaluated here from
     # the paper's formula) instead of a random Fourier series; `duration / periods` must be its period.
     designed: bool = False
+    # A current sensor's noise: None is white; a frequency (Hz) gives the noise a first-order band
+    # there (a current loop's ripple and the sensor's own filter), at the same RMS.
+    noise_hz: Optional[float] = None
 
     @property
     def top_frequency(self) -> float:
@@ -152,7 +158,8 @@ class Condition:
     def label(self) -> str:
         shape = f"{self.periods}x{self.duration / self.periods:g}s" if self.periods else f"aperiodic {self.duration:g}s"
         source = " designed" if self.designed else ""
-        return f"{self.robot} {self.fs:g}Hz {self.bits}bit {100 * self.noise:g}% {self.coulomb} {shape}{source}"
+        band = f" noise<{self.noise_hz:g}Hz" if self.noise_hz else ""
+        return f"{self.robot} {self.fs:g}Hz {self.bits}bit {100 * self.noise:g}%{band} {self.coulomb} {shape}{source}"
 
 
 def urdf_path(name):
@@ -222,11 +229,34 @@ def quantum(path, robot):
     return np.array([LINEAR_STROKE_M if kinds[name][0] == "prismatic" else 2 * np.pi for name in robot.joint_names()])
 
 
+def coulomb_shape(truth, qd, coulomb):
+    """The Coulomb law ``coulomb`` at the velocities ``qd``: "sign", "tanh" of width
+    ``TANH_EPSILON``, or "smooth", tanh of each joint's own friction velocity (``truth["vc"]``)."""
+    if coulomb == "sign":
+        return np.sign(qd)
+    if coulomb == "smooth":
+        return np.tanh(qd / truth["vc"])
+    return np.tanh(qd / TANH_EPSILON)
+
+
 def friction(truth, qd, coulomb):
     """The truth's viscous and Coulomb friction at the velocities ``qd``, with the Coulomb law
-    ``coulomb`` ("sign", or "tanh" of width ``TANH_EPSILON``)."""
-    shape = np.sign(qd) if coulomb == "sign" else np.tanh(qd / TANH_EPSILON)
-    return truth["fv"] * qd + truth["fc"] * shape
+    ``coulomb`` (see ``coulomb_shape``)."""
+    return truth["fv"] * qd + truth["fc"] * coulomb_shape(truth, qd, coulomb)
+
+
+def current_noise(rng, shape, fs, noise_hz):
+    """Unit-variance noise of ``shape`` (samples, joints): white, or with a first-order band at
+    ``noise_hz`` (x ← a x + √(1 − a²) w)."""
+    w = rng.normal(size=shape)
+    if noise_hz is None:
+        return w
+    a = np.exp(-2 * np.pi * noise_hz / fs)
+    x = np.empty_like(w)
+    x[0] = w[0]
+    for i in range(1, len(w)):
+        x[i] = a * x[i - 1] + np.sqrt(1 - a * a) * w[i]
+    return x
 
 
 @dataclass(frozen=True)
@@ -314,7 +344,7 @@ def make_log(condition, states=None, truth=None, effect=None, payload=None):
         rms = np.maximum(np.sqrt(np.mean(rigid**2, axis=0)), RMS_FLOOR_SHARE * np.sqrt(np.mean(rigid**2, axis=0)).max())
         speed = np.sqrt(np.mean(qd**2, axis=0))
         truth = {"params": params, "fv": FRICTION_SHARE * rms / speed, "fc": FRICTION_SHARE * rms,
-                 "noise": condition.noise * rms}
+                 "noise": condition.noise * rms, "vc": SMOOTH_SHARE * speed}
     tau = rigid + friction(truth, qd, condition.coulomb)
     effects = () if effect is None else effect if isinstance(effect, tuple) else (effect,)
     declared = tau.copy()
@@ -326,7 +356,7 @@ def make_log(condition, states=None, truth=None, effect=None, payload=None):
             joint_rms = np.sqrt(np.mean(declared[:, e.joint] ** 2))
             truth[key] = e.size * joint_rms / np.sqrt(np.mean(shape[:, e.joint] ** 2))
         tau += truth[key] * shape
-    tau = tau + truth["noise"] * rng.normal(size=tau.shape)
+    tau = tau + truth["noise"] * current_noise(rng, tau.shape, condition.fs, condition.noise_hz)
     step = quantum(path, robot) / 2**condition.bits
     q_measured = np.round(q / step) * step
     return robot, (t, q_measured, tau), truth

@@ -119,39 +119,52 @@ def published_z(ident, ours, theirs, plus=0.0):
     return (ident.beta[j] - value - plus) / sigma
 
 
-def test_the_tx40_diagnosis_finds_the_wrist_motor_upstream_models():
+def upstream_z(effect, i, theirs):
+    """How many standard deviations (ours and upstream's combined) coefficient `i` of `effect`
+    lies from upstream's published value `theirs`."""
+    value, percent = tx40_published()[theirs]
+    return (effect.coefficients[i] - value) / np.hypot(effect.sigma[i], percent / 100 * value)
+
+
+def test_the_tx40_diagnosis_finds_the_wrist_motor_and_rotor_inertias_upstream_models():
     """The diagnosis with the defaults, given only the motor-side log and the declared
-    transmission, names motor 6's rotor on joints 5 and 6 first (upstream models it: Iam6, fvm6,
-    fsm6), its three coefficients agree with upstream's published ones within 3 combined
-    standard deviations, and it cuts joint 5's held-out error (FP% 46 before, docs/real-data.md)."""
+    transmission, names what upstream's model has and the declared one lacks: motor 6's rotor on
+    joints 5 and 6 (upstream's Iam6, fvm6, fsm6) within 3 combined standard deviations, and rotor
+    inertia on joints 3 and 4 within 2 (Ia3, Ia4; issue 44: at the former fixed 20 Hz band they
+    cut the held-out error by 15 %, below the bar, and were not added). It cuts joint 5's held-out
+    error (FP% 46 before, docs/real-data.md). Nothing beyond upstream's terms is added but an
+    alignment of the torque to the positions (a delay is the log's, not the robot's)."""
     t, theta, tau_m = tx40_motor_log()
     with pytest.warns(UserWarning):
         robot = arash.Robot.from_urdf(need(TX40 / "tx40_mdh_modified.urdf"))
     d = arash.diagnose(robot, t, theta, tau_m, motor_side=tx40_transmission())
     print("\n" + d.report())
-    first = d.accepted[0]
-    assert first.name == "coupled_rotor" and sorted(first.joints) == [4, 5], d.report()
+    by_label = {e.label.split(" (")[0]: e for e in d.accepted}
+    rotor = by_label["coupled_rotor on joint_6"]
+    assert sorted(rotor.joints) == [4, 5], d.report()
     for i, theirs in enumerate(("Iam6", "fvm6", "fsm6")):
-        value, percent = tx40_published()[theirs]
-        z = (first.coefficients[i] - value) / np.hypot(first.sigma[i], percent / 100 * value)
-        assert abs(z) < 3.0, f"{first.columns[i]}: {z:+.1f} standard deviations from upstream's {theirs}"
+        z = upstream_z(rotor, i, theirs)
+        assert abs(z) < 3.0, f"{rotor.columns[i]}: {z:+.1f} standard deviations from upstream's {theirs}"
+    for joint, theirs in (("joint_3", "Ia3"), ("joint_4", "Ia4")):
+        z = upstream_z(by_label[f"armature on {joint}"], 0, theirs)
+        assert abs(z) < 2.0, f"rotor inertia on {joint}: {z:+.1f} standard deviations from upstream's {theirs}"
     before, after = d.error_before["rms"], d.error_after["rms"]
     assert after[4] < 0.5 * before[4], (before, after)
     assert np.all(after <= before * 1.02), (before, after)
-    # No effect upstream's model lacks is added: nothing beyond what it has (rotor inertia,
-    # offsets, the wrist motor) is accepted.
-    assert {e.name for e in d.accepted} <= {"coupled_rotor", "armature", "offset", "coulomb_asymmetry"}, d.report()
+    names = {e.name for e in d.accepted}
+    assert names <= {"delay", "coupled_rotor", "armature", "offset", "coulomb_asymmetry"}, d.report()
 
 
 def test_the_wrist_motor_found_on_6_s_of_the_tx40_log_cuts_the_error_on_the_other_3_s():
     """The held-out gain on data that did not choose the effect: diagnose the first 6 s alone,
-    score the model with and without what it found on the last 3 s."""
+    score the model with and without what it found on the last 3 s. The wrist motor is found and
+    cuts joints 5 and 6's error by more than 30 %; no joint is predicted worse."""
     t, theta, tau_m = tx40_motor_log()
     with pytest.warns(UserWarning):
         robot = arash.Robot.from_urdf(need(TX40 / "tx40_mdh_modified.urdf"))
     n = int(6.0 * TX40_FS)
     d = arash.diagnose(robot, t[:n], theta[:n], tau_m[:n], motor_side=tx40_transmission())
-    assert [e.name for e in d.accepted] == ["coupled_rotor"], d.report()
+    assert "coupled_rotor" in [e.name for e in d.accepted], d.report()
     rest = (t[n:] - t[n], theta[n:], tau_m[n:])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the model's embedded URDF has link_6's warning too
@@ -159,29 +172,7 @@ def test_the_wrist_motor_found_on_6_s_of_the_tx40_log_cuts_the_error_on_the_othe
         after = arash.heldout_errors(d.model, *rest, motor_side=tx40_transmission())["rms"]
     print(f"\nTX40 last 3 s, RMS before {np.round(before, 2)}, after {np.round(after, 2)}")
     assert after[4] < 0.7 * before[4] and after[5] < 0.7 * before[5], (before, after)
-    np.testing.assert_allclose(after[:4], before[:4], rtol=1e-9)
-
-
-def test_the_tx40_rotor_inertias_match_upstreams_where_the_diagnosis_tests_them():
-    """Rotor inertia on joints 3 and 4 is significant on this 9 s log but cuts the held-out error
-    by less than the 20 % a term must earn, so the defaults do not add it (docs/real-data.md).
-    Fitted anyway (no gain asked), its values agree with upstream's Ia3 and Ia4."""
-    t, theta, tau_m = tx40_motor_log()
-    with pytest.warns(UserWarning):
-        robot = arash.Robot.from_urdf(need(TX40 / "tx40_mdh_modified.urdf"))
-    defaults = arash.diagnose(robot, t, theta, tau_m, motor_side=tx40_transmission())
-    small = {r["label"]: r for r in defaults.rejected if r["name"] == "armature"}
-    for joint in ("joint_3", "joint_4"):
-        r = small[f"armature on {joint}"]
-        assert r["code"] == "small_gain" and r["p_value"] < 1e-4, r
-    d = arash.diagnose(robot, t, theta, tau_m, motor_side=tx40_transmission(), effects=["armature"], min_gain=0.0)
-    fitted = {e.joints[0]: e for e in d.accepted if len(e.joints) == 1}
-    for k in (2, 3):
-        value, percent = tx40_published()[f"Ia{k + 1}"]
-        e = fitted[k]
-        z = (e.coefficients[0] - value) / np.hypot(e.sigma[0], percent / 100 * value)
-        print(f"joint {k + 1}: rotor inertia {e.coefficients[0]:.4f} ± {e.sigma[0]:.4f}, upstream {value} ({z:+.1f})")
-        assert abs(z) < 3.0
+    assert np.all(after <= before * (1 + 1e-9)), (before, after)
 
 
 def test_the_cli_reads_a_motor_side_log_like_python(tmp_path):
@@ -212,7 +203,9 @@ def test_the_cli_reads_a_motor_side_log_like_python(tmp_path):
                                 "--coupling", "6,5,32", "--joint-offsets-deg", offsets, "-o", tmp_path / "diagnosis"],
                                check=True, capture_output=True, text=True)
     found = arash.diagnose(robot, t, theta, tau_m, motor_side=tx40_transmission()).accepted
-    assert "1. coupled_rotor on joint_6" in diagnosis.stdout and found[0].name == "coupled_rotor", diagnosis.stdout
+    effects = diagnosis.stdout.split("Effects found")[1].split("Error per joint")[0]
+    assert "coupled_rotor on joint_6" in effects, diagnosis.stdout
+    assert all(f"{i + 1}. {e.label}" in effects for i, e in enumerate(found)), diagnosis.stdout
     singular = subprocess.run([binary, "identify", log, "--robot", urdf, "--gear-ratios", "1,1,1,1,1,1",
                                "--coupling", "1,2,1", "--coupling", "2,1,1", "-o", model], capture_output=True,
                               text=True)
@@ -235,7 +228,10 @@ def test_the_kuka_model_from_run_1_predicts_run_2_as_well_as_a_hand_set_cutoff()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # two periods only, said in settings["warnings"]
         default = arash.identify(robot, *kuka_run(1))
-        by_hand = [arash.identify(robot, *kuka_run(1), cutoff_hz=c) for c in (1.0, 2.0, 4.0, 8.0, 16.0, 32.0)]
+        # The hand-set cut-offs with the Coulomb laws the defaults chose, so that only the
+        # cut-off differs (each cut-off's own choice of laws moves the mean by about a point).
+        laws = arash.Robot.from_urdf(need(KUKA / "kuka_lwr4.urdf"), friction_velocities=default.robot.friction_velocities)
+        by_hand = [arash.identify(laws, *kuka_run(1), cutoff_hz=c) for c in (1.0, 2.0, 4.0, 8.0, 16.0, 32.0)]
     run2 = default.validate(*kuka_run(2))["fp_percent"]
     hand = np.array([i.validate(*kuka_run(2))["fp_percent"] for i in by_hand])
     print(f"\nKUKA run 2 FP%: defaults (cut-off {default.cutoff_hz:.2f} Hz) {np.round(run2, 1)}; "

@@ -50,7 +50,7 @@ fn add_joint_torques(model: &Model, params: &[f64], q: &[f64], qd: &[f64], tau: 
     let at = model.layout();
     for k in 0..model.dof() {
         tau[k] += params[at.viscous(k)] * qd[k]
-            + params[at.coulomb(k)] * model.coulomb_shape.eval(qd[k])
+            + params[at.coulomb(k)] * model.coulomb_laws.eval(k, qd[k])
             + params[at.stiffness(k)] * q[k];
     }
 }

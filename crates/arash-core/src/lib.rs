@@ -36,7 +36,7 @@ pub use dynamics::{
     DynamicsError,
 };
 pub use kinematics::forward_kinematics;
-pub use model::{ActuatedJoint, Body, CoulombShape, JointKind, Model, ModelWarning};
+pub use model::{ActuatedJoint, Body, CoulombLaws, CoulombShape, JointKind, Model, ModelWarning};
 pub use model_file::ModelFile;
 pub use params::ParamLayout;
 pub use regressor::{regressor, regressor_of_bodies, slotine_li_regressor};

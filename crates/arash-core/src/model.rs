@@ -119,6 +119,100 @@ impl std::fmt::Display for CoulombShape {
     }
 }
 
+/// Every joint's Coulomb law, and whether it is the robot's declared law or left to the data.
+///
+/// A robot loaded from a URDF says nothing about how its friction rises through zero speed: its
+/// laws are `sign(q̇)` and undeclared, and identification and the diagnosis choose each joint's
+/// friction velocity from the data (`identify/friction_law.rs`). A law the user sets, or one a
+/// model file was fitted with, is declared and used as it is: its Coulomb coefficients belong to
+/// it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CoulombLaws {
+    shapes: Vec<CoulombShape>,
+    declared: bool,
+}
+
+impl CoulombLaws {
+    /// `sign(q̇)` on each of `dof` joints, left to the data.
+    pub fn undeclared(dof: usize) -> Self {
+        Self { shapes: vec![CoulombShape::Sign; dof], declared: false }
+    }
+
+    /// These laws, one per joint, declared.
+    pub fn declared(shapes: Vec<CoulombShape>) -> Self {
+        Self { shapes, declared: true }
+    }
+
+    /// One law on every one of `dof` joints, declared.
+    pub fn uniform(shape: CoulombShape, dof: usize) -> Self {
+        Self::declared(vec![shape; dof])
+    }
+
+    /// The laws of friction velocities `velocities` (`None`: `sign(q̇)`), as model files store
+    /// them, declared; `None` for a velocity that is not positive and finite, with its joint.
+    pub fn of_velocities(velocities: &[Option<f64>]) -> Result<Self, (usize, f64)> {
+        let shapes = velocities
+            .iter()
+            .enumerate()
+            .map(|(k, v)| match *v {
+                None => Ok(CoulombShape::Sign),
+                Some(v) => CoulombShape::tanh(v).ok_or((k, v)),
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self::declared(shapes))
+    }
+
+    /// Joint `k`'s law.
+    #[inline]
+    pub fn shape(&self, k: usize) -> CoulombShape {
+        self.shapes[k]
+    }
+
+    /// Joint `k`'s Coulomb direction at velocity `qd`.
+    #[inline]
+    pub fn eval(&self, k: usize, qd: f64) -> f64 {
+        self.shapes[k].eval(qd)
+    }
+
+    pub fn shapes(&self) -> &[CoulombShape] {
+        &self.shapes
+    }
+
+    /// Whether the laws are set (by the user, or by the model file a fit was made with) rather
+    /// than left to the data.
+    pub fn is_declared(&self) -> bool {
+        self.declared
+    }
+
+    /// Each joint's friction velocity (`None`: `sign(q̇)`).
+    pub fn velocities(&self) -> Vec<Option<f64>> {
+        self.shapes.iter().map(|s| s.epsilon()).collect()
+    }
+
+    /// The one law every joint shares, if they share one.
+    pub fn common(&self) -> Option<CoulombShape> {
+        let first = *self.shapes.first()?;
+        self.shapes.iter().all(|s| *s == first).then_some(first)
+    }
+}
+
+impl std::fmt::Display for CoulombLaws {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.common() {
+            Some(shape) => write!(f, "{shape}")?,
+            None => {
+                let laws: Vec<String> =
+                    self.shapes.iter().enumerate().map(|(k, s)| format!("joint {k}: {s}")).collect();
+                f.write_str(&laws.join(", "))?;
+            }
+        }
+        if !self.declared {
+            f.write_str(" (undeclared)")?;
+        }
+        Ok(())
+    }
+}
+
 /// A robot model: bodies in topological order (parents first) and its actuated joints.
 ///
 /// Parameter vector layout, `P = 10·bodies + 3·dof` entries:
@@ -132,7 +226,8 @@ pub struct Model {
     pub joints: Vec<ActuatedJoint>,
     /// Gravity acceleration in the base frame (m/s²).
     pub gravity: Vec3,
-    pub coulomb_shape: CoulombShape,
+    /// Each joint's Coulomb law ([`CoulombLaws`]).
+    pub coulomb_laws: CoulombLaws,
     /// What the URDF declared that loads but deserves a look (empty for a clean description).
     pub warnings: Vec<ModelWarning>,
 }

@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::base_parameters::BaseParameters;
 use crate::data::Data;
-use crate::model::{CoulombShape, Model};
+use crate::model::{CoulombLaws, CoulombShape, Model};
 use crate::physical::{min_pseudo_inertia_eigenvalues, nearest_standard_parameters, CONSISTENCY_TOLERANCE};
 use crate::regressor::regressor;
 
@@ -136,11 +136,17 @@ pub struct Settings {
     /// Cut-off of the velocity that switches Coulomb friction (Hz).
     #[serde(default)]
     pub friction_cutoff_hz: Option<f64>,
-    /// The Coulomb law the friction was fitted with: `tanh(q̇/ε)` with this ε (rad/s or m/s),
-    /// or `sign(q̇)` when `None` (files before this field were fitted with the declared law,
-    /// `sign(q̇)` unless it was set). Its Coulomb coefficients belong to this law.
+    /// The Coulomb law every joint's friction was fitted with, where they share one:
+    /// `tanh(q̇/ε)` with this ε (rad/s or m/s), or `sign(q̇)` when `None` (files before this
+    /// field were fitted with the declared law, `sign(q̇)` unless it was set). Files that hold
+    /// [`Self::friction_velocities`] are read by it instead.
     #[serde(default)]
     pub coulomb_epsilon: Option<f64>,
+    /// Each joint's friction velocity: its Coulomb law is `tanh(q̇/v)` with this v (rad/s or
+    /// m/s), `sign(q̇)` where `None`; chosen from the data unless the robot declared its laws.
+    /// The Coulomb coefficients belong to these laws. Files before it have `coulomb_epsilon`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction_velocities: Option<Vec<Option<f64>>>,
     pub order: usize,
     pub decimate: usize,
     pub pull: f64,
@@ -153,6 +159,14 @@ pub struct Settings {
     /// Choices the data support only weakly.
     #[serde(default)]
     pub warnings: Vec<String>,
+}
+
+impl Settings {
+    /// `coulomb_epsilon` and `friction_velocities` as a file records `laws`: the width every joint
+    /// shares (if any), and each joint's.
+    pub fn law_fields(laws: &CoulombLaws) -> (Option<f64>, Option<Vec<Option<f64>>>) {
+        (laws.common().and_then(CoulombShape::epsilon), Some(laws.velocities()))
+    }
 }
 
 /// Where the data came from.
@@ -365,6 +379,21 @@ impl ModelFile {
                 "`settings.coulomb_epsilon` is {epsilon}; a tanh law's width must be positive and finite"
             )));
         }
+        if let Some(velocities) = &id.settings.friction_velocities {
+            let dof = id.dof();
+            if velocities.len() != dof {
+                return Err(ModelFileError::Shape(format!(
+                    "`settings.friction_velocities` has {} values for {dof} joints",
+                    velocities.len()
+                )));
+            }
+            if let Err((k, v)) = CoulombLaws::of_velocities(velocities) {
+                return Err(ModelFileError::Shape(format!(
+                    "`settings.friction_velocities[{k}]` is {v}; a friction velocity must be positive and finite \
+                     (null for sign(q̇))"
+                )));
+            }
+        }
         Ok(id)
     }
 
@@ -483,15 +512,29 @@ impl ModelFile {
         })
     }
 
-    /// `model` with the Coulomb law this file's friction was fitted with, which every use of
+    /// The joints of the robot the file describes (one stiffness each).
+    fn dof(&self) -> usize {
+        self.parameter_names.iter().filter(|n| n.ends_with(".ke")).count()
+    }
+
+    /// Each joint's Coulomb law the friction was fitted with, declared: its coefficients belong
+    /// to it.
+    pub fn coulomb_laws(&self) -> CoulombLaws {
+        match &self.settings.friction_velocities {
+            Some(velocities) => CoulombLaws::of_velocities(velocities).expect("checked when the file was read"),
+            None => CoulombLaws::uniform(CoulombShape::of_epsilon(self.settings.coulomb_epsilon), self.dof()),
+        }
+    }
+
+    /// `model` with the Coulomb laws this file's friction was fitted with, which every use of
     /// its coefficients must share.
     pub fn with_its_law<'a>(&self, model: &'a Model) -> std::borrow::Cow<'a, Model> {
-        let law = CoulombShape::of_epsilon(self.settings.coulomb_epsilon);
-        if law == model.coulomb_shape {
+        let laws = self.coulomb_laws();
+        if laws == model.coulomb_laws {
             return std::borrow::Cow::Borrowed(model);
         }
         let mut with_law = model.clone();
-        with_law.coulomb_shape = law;
+        with_law.coulomb_laws = laws;
         std::borrow::Cow::Owned(with_law)
     }
 
@@ -542,7 +585,7 @@ impl ModelFile {
             IdentifyMethod::DidimConsistent => "σ% (DIDIM)",
             _ => "σ%",
         };
-        s += &format!("  Coulomb friction as {}\n", CoulombShape::of_epsilon(self.settings.coulomb_epsilon));
+        s += &format!("  Coulomb friction as {}\n", self.coulomb_laws());
         s += &self.settings.reasons.iter().map(|r| format!("  {r}\n")).collect::<String>();
         s += &self.settings.warnings.iter().map(|w| format!("  warning: {w}\n")).collect::<String>();
         let causes = self.causes();

@@ -11,7 +11,7 @@ use crate::kinematics::{
 use crate::model::Model;
 use crate::spatial::{inertia_coefficients, Motion, BODY_PARAMS};
 
-/// `Y(q, q̇, q̈)`, row-major `dof × P`. Coulomb columns use `model.coulomb_shape` of `q̇`.
+/// `Y(q, q̇, q̈)`, row-major `dof × P`. Coulomb columns use each joint's law (`model.coulomb_laws`) of `q̇`.
 pub fn regressor(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], qdd: &[f64], out: &mut [f64]) {
     regressor_of_bodies(model, data, q, qd, qdd, None, out);
 }
@@ -53,7 +53,7 @@ pub fn regressor_of_bodies(
 /// The rigid-body part uses the Christoffel-consistent factorisation of Echeverri, Garofalo and
 /// Wensing: per body, `f = I a_r + ½[v ×* I v_r − I(v × v_r) + v_r ×* I v]`, which makes
 /// `Ṁ − 2C` skew-symmetric. Viscous friction acts on `q̇_r`, Coulomb friction on the measured
-/// `q̇` (through `model.coulomb_shape`), elasticity on `q`. With `q̇_r = q̇` and `q̈_r = q̈` this is
+/// `q̇` (through `model.coulomb_laws`), elasticity on `q`. With `q̇_r = q̇` and `q̈_r = q̈` this is
 /// exactly [`regressor`].
 pub fn slotine_li_regressor(
     model: &Model,
@@ -135,7 +135,7 @@ fn fill_joint_columns(model: &Model, q: &[f64], qd: &[f64], qd_r: &[f64], out: &
     for k in 0..model.dof() {
         let row = &mut out[k * p..(k + 1) * p];
         row[at.viscous(k)] = qd_r[k];
-        row[at.coulomb(k)] = model.coulomb_shape.eval(qd[k]);
+        row[at.coulomb(k)] = model.coulomb_laws.eval(k, qd[k]);
         row[at.stiffness(k)] = q[k];
     }
 }

@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 use std::path::Path;
 
-use crate::model::{ActuatedJoint, Body, CoulombShape, Coupling, JointKind, Model, ModelWarning};
+use crate::model::{ActuatedJoint, Body, CoulombLaws, Coupling, JointKind, Model, ModelWarning};
 use crate::spatial::{params_from_com, rpy_to_rotation, Mat3, Vec3};
 
 /// Why a URDF could not become a [`Model`]. Every variant names the offending element.
@@ -339,9 +339,9 @@ impl TreeBuilder {
         Ok(Model {
             name: self.name,
             bodies,
+            coulomb_laws: CoulombLaws::undeclared(actuated.len()),
             joints: actuated,
             gravity: Vec3::new(0.0, 0.0, -9.81),
-            coulomb_shape: CoulombShape::Sign,
             warnings,
         })
     }

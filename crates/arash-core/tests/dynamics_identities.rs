@@ -369,7 +369,7 @@ fn slotine_li_regressor_is_the_christoffel_reference_dynamics() {
 #[test]
 fn tanh_coulomb_shape_is_smooth_through_zero() {
     let mut model = arash_asist();
-    model.coulomb_shape = CoulombShape::Tanh { epsilon: 0.01 };
+    model.coulomb_laws = CoulombLaws::uniform(CoulombShape::Tanh { epsilon: 0.01 }, model.dof());
     let (mut data, p) = (Data::new(&model), model.num_params());
     let mut y = vec![0.0; 3 * p];
     regressor(&model, &mut data, &[0.0; 3], &[0.005, -0.02, 0.0], &[0.0; 3], &mut y);

@@ -604,7 +604,7 @@ fn closed_loop_log(
 
 fn closed_loop_truth(seed: u64) -> (Model, BaseParameters, Vec<f64>, Fourier, ChaCha8Rng) {
     let (mut model, base, pi, _, mut rng) = drawn_truth(seed);
-    model.coulomb_shape = CoulombShape::Tanh { epsilon: 0.01 };
+    model.coulomb_laws = CoulombLaws::uniform(CoulombShape::Tanh { epsilon: 0.01 }, model.dof());
     // Four 10 s periods.
     let traj = Fourier::random(&model, 10.0, &mut rng);
     (model, base, pi, traj, rng)

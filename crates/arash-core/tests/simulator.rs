@@ -138,7 +138,7 @@ fn with(effects: Effects) -> Scenario {
 #[test]
 fn nominal_torques_equal_the_regressor_times_the_true_parameters() {
     let run = run(&Scenario::default(), 3.0);
-    assert_eq!(run.truth_model.coulomb_shape, CoulombShape::Tanh { epsilon: 1e-3 });
+    assert_eq!(run.truth_model.coulomb_laws.common(), Some(CoulombShape::Tanh { epsilon: 1e-3 }));
     let scale = run.tau_scale();
     for i in 0..run.rows() {
         let r = run.residual(i);

@@ -314,6 +314,7 @@ impl Diagnosis {
         d.set_item("cutoff_hz", s.cutoff_hz)?;
         d.set_item("friction_cutoff_hz", s.friction_cutoff_hz)?;
         d.set_item("coulomb_epsilon", s.coulomb_epsilon)?;
+        d.set_item("friction_velocities", s.friction_velocities.clone())?;
         d.set_item("reasons", s.reasons.clone())?;
         d.set_item("decimate", s.decimate)?;
         d.set_item("block_s", s.block_s)?;
@@ -342,6 +343,21 @@ impl Diagnosis {
     #[getter]
     fn error_after<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         errors(py, &self.inner.after.heldout)
+    }
+    /// The held-out error no model of the motion removes, RMS per joint (numpy array): the
+    /// torque's noise in the band, or what the band holds above the narrowest that predicts as
+    /// well, if larger. Held-out gains are judged against the error above it.
+    #[getter]
+    fn noise_floor<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
+        let floor = &self.inner.noise_floor;
+        to_numpy(py, floor.clone(), false, floor.len(), &[])
+    }
+    /// The torque's white noise in the band, RMS per joint (numpy array), read above a quarter
+    /// of the sample rate.
+    #[getter]
+    fn sensor_noise<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
+        let noise = &self.inner.sensor_noise;
+        to_numpy(py, noise.clone(), false, noise.len(), &[])
     }
     /// `error_before` on the training data.
     #[getter]

@@ -175,7 +175,7 @@ impl Identification {
     /// The robot the model belongs to.
     #[getter]
     fn robot(&self) -> PyResult<Robot> {
-        Robot::from_text(&self.inner.urdf, None)
+        Robot::of_file(&self.inner)
     }
 
     /// Predicted torques for (N, dof) states.
@@ -357,7 +357,7 @@ fn load_model(path: std::path::PathBuf) -> PyResult<Identification> {
     let text = std::fs::read_to_string(&path)
         .map_err(|e| PyValueError::new_err(format!("cannot read model file {}: {e}", path.display())))?;
     let inner = CoreIdentification::from_json(&text).map_err(value_error)?;
-    let robot = Robot::from_text(&inner.urdf, None)?;
+    let robot = Robot::of_file(&inner)?;
     Ok(Identification { model: robot.model, inner })
 }
 

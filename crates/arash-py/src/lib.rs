@@ -186,17 +186,24 @@ impl Robot {
 
 #[pymethods]
 impl Robot {
-    /// Load a robot from a URDF file. `coulomb_epsilon` (rad/s or m/s) switches the Coulomb
-    /// friction columns from sign(q̇) to tanh(q̇/ε). What the file declares that loads but
+    /// Load a robot from a URDF file. Its Coulomb laws are left to the data (identification and
+    /// the diagnosis choose each joint's friction velocity) unless declared: `coulomb_epsilon`
+    /// (rad/s or m/s) declares tanh(q̇/ε) on every joint, `friction_velocities` one law per joint
+    /// (a velocity v of tanh(q̇/v), or None for sign(q̇)). What the file declares that loads but
     /// deserves a look (a link with only semidefinite inertia) is raised as a `UserWarning`
     /// and kept in `warnings`.
     #[staticmethod]
-    #[pyo3(signature = (path, coulomb_epsilon=None))]
-    fn from_urdf(py: Python<'_>, path: std::path::PathBuf, coulomb_epsilon: Option<f64>) -> PyResult<Self> {
+    #[pyo3(signature = (path, coulomb_epsilon=None, friction_velocities=None))]
+    fn from_urdf(
+        py: Python<'_>,
+        path: std::path::PathBuf,
+        coulomb_epsilon: Option<f64>,
+        friction_velocities: Option<Vec<Option<f64>>>,
+    ) -> PyResult<Self> {
         let text = std::fs::read_to_string(&path)
             .map_err(|source| core::UrdfError::Io { path: path.display().to_string(), source })
             .map_err(value_error)?;
-        let robot = Self::from_text(&text, coulomb_epsilon)?;
+        let robot = Self::from_text(&text, DeclaredLaws { coulomb_epsilon, friction_velocities })?;
         for warning in &robot.model.warnings {
             let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
             PyErr::warn(py, &category, &std::ffi::CString::new(format!("{}: {warning}", path.display()))?, 1)?;
@@ -212,9 +219,22 @@ impl Robot {
 
     /// The bundled ARASH:ASiST reconstruction.
     #[staticmethod]
-    #[pyo3(signature = (coulomb_epsilon=None))]
-    fn arash_asist(coulomb_epsilon: Option<f64>) -> PyResult<Self> {
-        Self::from_text(core::ARASH_ASIST_URDF, coulomb_epsilon)
+    #[pyo3(signature = (coulomb_epsilon=None, friction_velocities=None))]
+    fn arash_asist(coulomb_epsilon: Option<f64>, friction_velocities: Option<Vec<Option<f64>>>) -> PyResult<Self> {
+        Self::from_text(core::ARASH_ASIST_URDF, DeclaredLaws { coulomb_epsilon, friction_velocities })
+    }
+
+    /// Each joint's friction velocity v of its Coulomb law tanh(q̇/v) (None: sign(q̇)).
+    #[getter]
+    fn friction_velocities(&self) -> Vec<Option<f64>> {
+        self.model.coulomb_laws.velocities()
+    }
+
+    /// Whether the Coulomb laws are declared (`coulomb_epsilon`, `friction_velocities`, or a model
+    /// file's) rather than left to the data.
+    #[getter]
+    fn coulomb_laws_declared(&self) -> bool {
+        self.model.coulomb_laws.is_declared()
     }
 
     #[getter]
@@ -479,14 +499,61 @@ impl Robot {
         self.fitted_base(false)
     }
 
-    pub(crate) fn from_text(urdf: &str, coulomb_epsilon: Option<f64>) -> PyResult<Self> {
+    pub(crate) fn from_text(urdf: &str, declared: DeclaredLaws) -> PyResult<Self> {
         let mut model = core::parse_urdf(urdf).map_err(value_error)?;
-        if let Some(epsilon) = coulomb_epsilon {
-            model.coulomb_shape = CoulombShape::tanh(epsilon).ok_or_else(|| {
-                PyValueError::new_err(format!("coulomb_epsilon must be positive and finite, got {epsilon}"))
-            })?;
+        if let Some(laws) = declared.laws(model.dof())? {
+            model.coulomb_laws = laws;
         }
-        Ok(Self { model: Arc::new(model), urdf: Arc::from(urdf), fitted_base: Default::default() })
+        Ok(Self::of_model(model, urdf))
+    }
+
+    /// The robot of a model file: its URDF, with the Coulomb laws the file was fitted with.
+    pub(crate) fn of_file(file: &core::model_file::ModelFile) -> PyResult<Self> {
+        let mut model = core::parse_urdf(&file.urdf).map_err(value_error)?;
+        model.coulomb_laws = file.coulomb_laws();
+        Ok(Self::of_model(model, &file.urdf))
+    }
+
+    fn of_model(model: Model, urdf: &str) -> Self {
+        Self { model: Arc::new(model), urdf: Arc::from(urdf), fitted_base: Default::default() }
+    }
+}
+
+/// The Coulomb laws a user may declare when loading a robot: one width for all joints, or one law
+/// per joint; neither leaves them to the data.
+#[derive(Default)]
+pub(crate) struct DeclaredLaws {
+    pub(crate) coulomb_epsilon: Option<f64>,
+    pub(crate) friction_velocities: Option<Vec<Option<f64>>>,
+}
+
+impl DeclaredLaws {
+    fn laws(self, dof: usize) -> PyResult<Option<core::CoulombLaws>> {
+        match (self.coulomb_epsilon, self.friction_velocities) {
+            (Some(_), Some(_)) => Err(PyValueError::new_err(
+                "give coulomb_epsilon (one law for every joint) or friction_velocities, not both",
+            )),
+            (Some(epsilon), None) => {
+                let shape = CoulombShape::tanh(epsilon).ok_or_else(|| {
+                    PyValueError::new_err(format!("coulomb_epsilon must be positive and finite, got {epsilon}"))
+                })?;
+                Ok(Some(core::CoulombLaws::uniform(shape, dof)))
+            }
+            (None, Some(velocities)) => {
+                if velocities.len() != dof {
+                    return Err(PyValueError::new_err(format!(
+                        "friction_velocities needs {dof} values, one per joint (None for sign(q̇)); got {}",
+                        velocities.len()
+                    )));
+                }
+                core::CoulombLaws::of_velocities(&velocities).map(Some).map_err(|(k, v)| {
+                    PyValueError::new_err(format!(
+                        "friction_velocities[{k}] must be positive and finite (None for sign(q̇)), got {v}"
+                    ))
+                })
+            }
+            (None, None) => Ok(None),
+        }
     }
 }
 

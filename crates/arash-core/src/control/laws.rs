@@ -2,7 +2,7 @@
 //! buffers, so `step` never allocates.
 
 use super::feedforward::EffectFeedforward;
-use super::gains::{IdcGains, PdGains, RobustGains};
+use super::gains::{compensation_epsilon, IdcGains, PdGains, RobustGains};
 use super::{Controller, ControllerKind, Desired};
 use crate::data::Data;
 use crate::dynamics::{gravity_torque, inverse_dynamics};
@@ -59,8 +59,9 @@ pub struct InverseDynamicsControl {
 }
 
 impl InverseDynamicsControl {
-    pub fn new(model: &Model, params: &[f64], gains: IdcGains) -> Self {
+    pub fn new(model: &Model, params: &[f64], mut gains: IdcGains) -> Self {
         check_lengths(model, params, &[&gains.kp, &gains.kd, &gains.epsilon]);
+        gains.epsilon = compensation_epsilon(model, &gains.epsilon);
         let acc = vec![0.0; model.dof()];
         let effects = EffectFeedforward::default();
         Self { model: model.clone(), data: Data::new(model), params: params.to_vec(), gains, acc, effects }
@@ -91,7 +92,7 @@ impl Controller for InverseDynamicsControl {
         let layout = self.model.layout();
         for k in 0..self.model.dof() {
             let fc = self.params[layout.coulomb(k)];
-            tau[k] += fc * ((qd[k] / self.gains.epsilon[k]).tanh() - self.model.coulomb_shape.eval(qd[k]));
+            tau[k] += fc * ((qd[k] / self.gains.epsilon[k]).tanh() - self.model.coulomb_laws.eval(k, qd[k]));
         }
         self.effects.add(q, qd, &self.acc, tau);
     }
@@ -119,8 +120,9 @@ pub struct RobustController {
 }
 
 impl RobustController {
-    pub fn new(model: &Model, params: &[f64], gains: RobustGains) -> Self {
+    pub fn new(model: &Model, params: &[f64], mut gains: RobustGains) -> Self {
         check_lengths(model, params, &[&gains.kd, &gains.lambda, &gains.epsilon]);
+        gains.epsilon = compensation_epsilon(model, &gains.epsilon);
         let n = model.dof();
         Self {
             model: model.clone(),

@@ -1,24 +1,13 @@
-//! The diagnosis's band: how wide the filter is, chosen from the log's own position noise.
+//! What the band's choice reads from a log's positions, and the friction velocity's cut-off.
 //!
-//! The diagnosis filters wide (up to [`DIAGNOSIS_CUTOFF_HZ`]) so that ripple, friction
-//! transitions and delays survive. But the two differences that give q̈ amplify position noise as
-//! f²: a coarse encoder's quantisation, which is white over the band, reaches q̈ with a variance
-//! that grows as the cut-off's fifth power. Noise in a regressor biases least squares
-//! (errors-in-variables: each inertial coefficient shrinks by about the noise's share of its
-//! column's variance), the same bias on every log of the robot, so an extra q̈ column (rotor
-//! inertia) or any other column correlated with the inertial torque takes it up and passes every
-//! test, the held-out one included. On 12-bit logs at 200 Hz the noise at 20 Hz is as large as
-//! q̈ itself; at 10 Hz it is a few per cent (docs/diagnosis.md, "The band").
-//!
-//! What q̈ gains above the motion's bandwidth is not all noise: in closed loop the controller
-//! answers the encoder's steps with torque and the joint really moves (the torque, filtered alike,
-//! carries that motion's inertia, so it biases nothing). Where the positions are whole multiples
-//! of an encoder step, the quantisation's own share is known (Δ²/12, white, through the filter
-//! and the differences), and the smaller of the two is taken as the noise.
+//! The diagnosis's band itself is chosen by how well the declared model predicts held-out torque
+//! (`band_choice.rs`). The friction columns then switch with the velocity filtered at that band,
+//! or slower where a coarse encoder's steps would make it pulse around each reversal
+//! ([`velocity_resolved_cutoff`]): where the positions are whole multiples of an encoder step,
+//! the quantisation's share of the velocity is known (Δ²/12, white, through the filter and the
+//! difference).
 
-use super::options::{
-    DiagnoseOptions, DIAGNOSIS_CUTOFF_HZ, DIAGNOSIS_CUTOFF_SHARE, MAX_ACCELERATION_NOISE, MAX_VELOCITY_NOISE,
-};
+use super::options::MAX_VELOCITY_NOISE;
 use crate::identify::decide::bandwidth;
 use crate::identify::filter::{Butterworth, FilterError};
 use crate::identify::preprocess::{lowest_cutoff_hz, CUTOFF_PER_BANDWIDTH, EDGE_CUTOFF_PERIODS};
@@ -34,86 +23,32 @@ pub(super) struct Band {
 /// Cut-offs tried per halving, from the top down.
 const STEPS_PER_OCTAVE: i32 = 4;
 
-/// The diagnosis's cut-off for a log, why, and a warning when the noise could not be kept out.
+/// A friction velocity's cut-off and why.
 pub(super) struct Chosen {
     pub(super) cutoff_hz: f64,
     pub(super) reason: String,
-    pub(super) warning: Option<String>,
 }
 
-/// What both of the band's rules read from a log's positions, once: each joint's encoder step
-/// ([`encoder_step`]) and the lowest cut-off the motion allows ([`CUTOFF_PER_BANDWIDTH`] times its
-/// bandwidth, and what the log's length allows).
+/// What the band's choice reads from a log's positions, once: each joint's encoder step
+/// ([`encoder_step`]), the motion's bandwidth, and the lowest cut-off the friction velocity may
+/// have ([`CUTOFF_PER_BANDWIDTH`] times the bandwidth, and what the log's length allows).
 pub(super) struct Positions<'a> {
     q: &'a [f64],
     dof: usize,
     fs: f64,
     steps: Vec<Option<f64>>,
     floor: f64,
+    /// The motion's bandwidth read from the positions' spectrum (Hz), if any joint moves.
+    pub(super) bandwidth_hz: Option<f64>,
 }
 
 impl<'a> Positions<'a> {
     pub(super) fn of(q: &'a [f64], (dof, fs): (usize, f64)) -> Self {
         let length = lowest_cutoff_hz(q.len() / dof, fs, false);
-        let floor = bandwidth(q, dof, fs, false).map_or(0.0, |b| CUTOFF_PER_BANDWIDTH * b).max(length);
-        Self { q, dof, fs, steps: (0..dof).map(|j| encoder_step(q, dof, j)).collect(), floor }
+        let bandwidth_hz = bandwidth(q, dof, fs, false);
+        let floor = bandwidth_hz.map_or(0.0, |b| CUTOFF_PER_BANDWIDTH * b).max(length);
+        Self { q, dof, fs, steps: (0..dof).map(|j| encoder_step(q, dof, j)).collect(), floor, bandwidth_hz }
     }
-}
-
-/// The widest cut-off up to the diagnosis's default at which the position noise makes up at most
-/// [`MAX_ACCELERATION_NOISE`] of every joint's q̈ variance, never below what the motion needs
-/// ([`CUTOFF_PER_BANDWIDTH`] times its bandwidth).
-///
-/// The noise at a cut-off c is measured as what q̈ gains between c/2 (or that floor, if higher)
-/// and c: above the motion's bandwidth that is noise alone, and since white position noise
-/// reaches q̈ with a power that grows as f⁴, the octave below c holds 97 % of all the noise q̈
-/// has at c. Where the joint's encoder step shows, its quantisation noise is used if smaller.
-pub(super) fn noise_limited_cutoff(positions: &Positions, order: usize) -> Result<Chosen, FilterError> {
-    let (fs, floor) = (positions.fs, positions.floor);
-    let top = DiagnoseOptions::default_cutoff_hz(fs);
-    let limit = 100.0 * MAX_ACCELERATION_NOISE;
-    let mut widest: Option<(f64, NoiseShare)> = None;
-    for step in 0.. {
-        let cutoff = top * 0.5_f64.powf(step as f64 / STEPS_PER_OCTAVE as f64);
-        if cutoff <= floor {
-            break;
-        }
-        let share = noise_share(positions, (cutoff, (cutoff / 2.0).max(floor)), order)?;
-        if share.value <= MAX_ACCELERATION_NOISE {
-            let here = share.describe();
-            let reason = match widest {
-                None => format!(
-                    "cut-off {cutoff:.3} Hz: the diagnosis's band, {DIAGNOSIS_CUTOFF_HZ} Hz at most \
-                     {DIAGNOSIS_CUTOFF_SHARE} of the sample rate; the position noise makes up {here} there (at most \
-                     {limit:.0} %)"
-                ),
-                Some((wide, worst)) => format!(
-                    "cut-off {cutoff:.3} Hz: the position noise makes up {} at {wide:.1} Hz and {here} here (at most \
-                     {limit:.0} %); wider, a q̈ column would take up the bias the noise makes",
-                    worst.describe()
-                ),
-            };
-            return Ok(Chosen { cutoff_hz: cutoff, reason, warning: None });
-        }
-        widest = widest.or(Some((cutoff, share)));
-    }
-    let cutoff = floor.min(top);
-    let Some((wide, worst)) = widest else {
-        let reason = format!(
-            "cut-off {cutoff:.3} Hz: the diagnosis's band, {DIAGNOSIS_CUTOFF_HZ} Hz at most {DIAGNOSIS_CUTOFF_SHARE} of \
-             the sample rate; the motion's bandwidth leaves no room to narrow it"
-        );
-        return Ok(Chosen { cutoff_hz: cutoff, reason, warning: None });
-    };
-    let reason = format!(
-        "cut-off {cutoff:.3} Hz: {CUTOFF_PER_BANDWIDTH} × the motion's bandwidth, the lowest the motion allows"
-    );
-    let warning = format!(
-        "the position noise makes up more than {limit:.0} % of q̈'s variance at every cut-off the motion allows ({} \
-         at {wide:.1} Hz): rotor inertia or another q̈-like term may be found where only the encoder's noise is",
-        worst.describe()
-    );
-    Ok(Chosen { cutoff_hz: cutoff, reason, warning: Some(warning) })
 }
 
 /// The friction velocity's cut-off: the widest, from the band's `cutoff` down in quarter
@@ -137,7 +72,7 @@ pub(super) fn velocity_resolved_cutoff(
             "Coulomb columns switch with the velocity filtered at {cutoff:.3} Hz: the band's cut-off; no joint's \
              positions sit on an encoder's grid, so what the velocity holds there is motion"
         );
-        return Ok(Chosen { cutoff_hz: cutoff, reason, warning: None });
+        return Ok(Chosen { cutoff_hz: cutoff, reason });
     }
     let floor = positions.floor.min(cutoff);
     let limit = 100.0 * MAX_VELOCITY_NOISE;
@@ -168,7 +103,7 @@ pub(super) fn velocity_resolved_cutoff(
                     share.describe_speed()
                 ),
             };
-            return Ok(Chosen { cutoff_hz: candidate, reason, warning: None });
+            return Ok(Chosen { cutoff_hz: candidate, reason });
         }
         candidate = narrower;
     }
@@ -202,36 +137,9 @@ struct NoiseShare {
 }
 
 impl NoiseShare {
-    fn describe(&self) -> String {
-        format!("{:.2} % of joint {}'s q̈ variance", 100.0 * self.value, self.joint)
-    }
-
     fn describe_speed(&self) -> String {
         format!("{:.2} % of joint {}'s RMS speed", 100.0 * self.value, self.joint)
     }
-}
-
-/// Each joint's noise in q̈ at the `wide` cut-off over the variance of q̈ at the `narrow` one,
-/// away from the filter's end transients; the largest. The noise is what q̈ gains between the
-/// two, or, where the joint's encoder step shows, the step's quantisation noise if smaller. A
-/// joint whose q̈ does not vary is left out.
-fn noise_share(positions: &Positions, (wide, narrow): (f64, f64), order: usize) -> Result<NoiseShare, FilterError> {
-    let Positions { q, dof, fs, ref steps, .. } = *positions;
-    let n = q.len() / dof;
-    let edge = ((EDGE_CUTOFF_PERIODS * fs / narrow).ceil() as usize).min(n / 4);
-    let gain = white_noise_gain((fs, wide), order, 2)?;
-    let (wide, narrow) = (differenced(q, (dof, fs), wide, order, 2)?, differenced(q, (dof, fs), narrow, order, 2)?);
-    let mut worst = NoiseShare { joint: 0, value: 0.0 };
-    for j in 0..dof {
-        let rows = edge..n - edge;
-        let gained = variance(rows.clone().map(|k| wide[k * dof + j] - narrow[k * dof + j]));
-        let noise = steps[j].map_or(gained, |step| gained.min(step * step / 12.0 * gain));
-        let signal = variance(rows.map(|k| narrow[k * dof + j]));
-        if signal > 0.0 && noise / signal > worst.value {
-            worst = NoiseShare { joint: j, value: noise / signal };
-        }
-    }
-    Ok(worst)
 }
 
 /// q̇ (`times` = 1) or q̈ (2) as the diagnosis computes them: the position filtered at `cutoff`,
@@ -250,9 +158,10 @@ fn differenced(
     Ok(x)
 }
 
-/// The variance q̇ (`times` = 1) or q̈ (2) gets from unit white noise on the position: the sum of
+/// The variance the position filtered at `cutoff` (`times` = 0), q̇ (1) or q̈ (2) gets from unit
+/// white noise on the position: the sum of
 /// squares of the impulse response of the filter at `cutoff` and the central differences.
-fn white_noise_gain((fs, cutoff): (f64, f64), order: usize, times: usize) -> Result<f64, FilterError> {
+pub(super) fn white_noise_gain((fs, cutoff): (f64, f64), order: usize, times: usize) -> Result<f64, FilterError> {
     let filter = Butterworth::lowpass(order, cutoff, fs)?;
     let n = 2 * filter.padlen() + (40.0 * fs / cutoff).ceil() as usize;
     let mut impulse = vec![0.0; n];
@@ -291,15 +200,6 @@ fn encoder_step(q: &[f64], dof: usize, j: usize) -> Option<f64> {
     candidates.into_iter().take(STEP_CANDIDATES).filter(|&step| passes(step)).reduce(f64::max)
 }
 
-fn variance(x: impl Iterator<Item = f64> + Clone) -> f64 {
-    let (n, sum) = x.clone().fold((0usize, 0.0), |(n, s), v| (n + 1, s + v));
-    if n < 2 {
-        return 0.0;
-    }
-    let mean = sum / n as f64;
-    x.map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -327,51 +227,6 @@ mod tests {
         q
     }
 
-    fn chosen(fs: f64, q: &[f64]) -> Chosen {
-        noise_limited_cutoff(&Positions::of(q, (3, fs)), 5).unwrap()
-    }
-
-    #[test]
-    fn a_fine_encoder_keeps_the_whole_band() {
-        let c = chosen(1000.0, &rig_log(1000.0, 20.0, 24, 0.0));
-        assert_eq!(c.cutoff_hz, DIAGNOSIS_CUTOFF_HZ, "{}", c.reason);
-        assert!(c.warning.is_none());
-    }
-
-    /// A 12 Hz oscillation of the joints themselves, as a closed loop's dither is, adds more to q̈
-    /// than the limit; the positions sit on a fine encoder's grid, so the band stays. Off the grid the same motion is read as noise.
-    #[test]
-    fn a_real_fast_motion_on_a_fine_encoder_is_not_noise() {
-        let fs = 1000.0;
-        let mut q = rig_log(fs, 20.0, 22, 4e-4);
-        let c = chosen(fs, &q);
-        assert_eq!(c.cutoff_hz, DIAGNOSIS_CUTOFF_HZ, "{}", c.reason);
-        q.iter_mut().enumerate().for_each(|(k, x)| *x += 1e-9 * ((k * 7919) % 13) as f64);
-        let blind = chosen(fs, &q);
-        assert!(blind.cutoff_hz < 12.0, "{}", blind.reason);
-    }
-
-    /// The quantisation noise reaching q̈ at c is Δ²/12 · (2/fs) · (2π)⁴ c⁵/5 · π/4 (see the gain's
-    /// test): the chosen band keeps it under the limit of the slowest joint's q̈ variance, and the
-    /// next wider step does not.
-    #[test]
-    fn a_coarse_encoder_narrows_the_band_where_the_noise_formula_says() {
-        let (fs, bits) = (200.0, 12);
-        let Chosen { cutoff_hz: cutoff, reason, warning } = chosen(fs, &rig_log(fs, 60.0, bits, 0.0));
-        assert!(warning.is_none(), "{warning:?}");
-        let noise = |c: f64| {
-            let d = quantum(0, bits);
-            d * d / 12.0 * (2.0 / fs) * TAU.powi(4) * c.powi(5) / 5.0 * FRAC_PI_4
-        };
-        // Yaw's q̈ variance: two tones of amplitude 0.3 and 0.06 rad at 0.3 and 0.9 Hz.
-        let w = |f: f64| (TAU * f).powi(2);
-        let signal = 0.5 * (0.3 * w(0.3)).powi(2) + 0.5 * (0.06 * w(0.9)).powi(2);
-        let wider = cutoff * 2f64.powf(0.25);
-        assert!(cutoff < DIAGNOSIS_CUTOFF_HZ, "{reason}");
-        assert!(noise(cutoff) / signal < 1.5 * MAX_ACCELERATION_NOISE, "{cutoff} Hz: {}", noise(cutoff) / signal);
-        assert!(noise(wider) / signal > 0.5 * MAX_ACCELERATION_NOISE, "{wider} Hz: {}", noise(wider) / signal);
-    }
-
     /// The quantisation noise reaching the velocity at c is Δ²/12 · (2/fs) · (2π)² c³ · 0.07π /
     /// sin(0.3π) (see the gain's test): the friction velocity keeps it under the limit of the
     /// worst joint's RMS speed, and the next wider step does not; a fine encoder keeps the band.
@@ -379,7 +234,7 @@ mod tests {
     fn a_coarse_encoder_slows_the_friction_velocity_where_the_noise_formula_says() {
         let (fs, bits) = (200.0, 14);
         let q = rig_log(fs, 60.0, bits, 0.0);
-        let band = chosen(fs, &q).cutoff_hz;
+        let band = 20.0;
         let Chosen { cutoff_hz: friction, reason, .. } =
             velocity_resolved_cutoff(&Positions::of(&q, (3, fs)), band, 5).unwrap();
         let amplitude = [0.3, 0.2, 0.02];

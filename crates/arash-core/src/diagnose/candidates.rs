@@ -6,7 +6,7 @@ use super::prepare::Prepared;
 use super::regression::GroupTest;
 use crate::base_parameters::BaseParameters;
 use crate::effects::{EffectKind, EffectTerm, JointData, NotSearched};
-use crate::model::{CoulombShape, Model};
+use crate::model::Model;
 use crate::model_file::ModelFile;
 use crate::transmission::Transmission;
 
@@ -14,10 +14,12 @@ use crate::transmission::Transmission;
 /// (`crate::effects`), then rotor inertia on every joint at once, a payload on each body with
 /// mass and the rotor of each declared motor that turns with several joints; and the effects not
 /// searched, with the reason.
+/// `laws_chosen`: the Coulomb laws were chosen from this log, the best of every friction
+/// velocity, so `friction_velocity` has nothing left to find.
 pub(super) fn candidates(
     model: &Model,
     train: &Prepared,
-    options: &DiagnoseOptions,
+    (options, laws_chosen): (&DiagnoseOptions, bool),
 ) -> (Vec<EffectTerm>, Vec<Rejection>) {
     let dof = model.dof();
     let mut terms = Vec::new();
@@ -30,6 +32,10 @@ pub(super) fn candidates(
         weights[k] = 1.0;
         let joint = motion.joint_data(k, &weights, model, ratios.as_ref().map(|r| r[k]), options);
         for &kind in wanted.iter().filter(|k| **k != EffectKind::CoupledRotor) {
+            if kind == EffectKind::FrictionVelocity && laws_chosen {
+                skipped.push(not_searched(kind, vec![k], &model.joints[k].name, NotSearched::LawChosenFromData));
+                continue;
+            }
             match kind.law().joint_candidates(&joint) {
                 Ok(bank) => terms.extend(bank),
                 Err(why) => skipped.push(not_searched(kind, vec![k], &model.joints[k].name, why)),
@@ -116,10 +122,7 @@ impl Motion {
             speed_rms: (vk.iter().map(|v| v * v).sum::<f64>() / vk.len() as f64).sqrt(),
             peak_speed: peak(&vk),
             peak_acceleration: peak(&ak),
-            epsilon: match model.coulomb_shape {
-                CoulombShape::Tanh { epsilon } => Some(epsilon),
-                CoulombShape::Sign => None,
-            },
+            epsilon: model.coulomb_laws.shape(k).epsilon(),
             time: self.time,
             transmission,
             cogging_periods: &options.cogging_periods,

@@ -1,13 +1,17 @@
 //! What every step of a diagnosis shares: the prepared logs, which declared columns are fitted,
 //! the joint weights and the blocks of time.
 
+use super::band::Band;
+use super::band_choice::BandChoice;
+use super::noise::NoiseFloor;
 use super::options::{DiagnoseError, DiagnoseOptions};
 use super::prepare::{prepare, term_columns, Prepared};
-use super::problem::{block_split, blocks, heldout_block_s, Candidate, HeldOut, Problem};
+use super::problem::{heldout_split, heldout_sse, Candidate, HeldOut, Problem, Split};
 use super::regression::{self, least_squares, residual, Batching, Column, Rows};
 use super::Runs;
 use crate::base_parameters::BaseParameters;
 use crate::effects::{EffectKind, EffectTerm};
+use crate::identify::filter::Butterworth;
 use crate::identify::{IdentifyError, Log};
 use crate::model::Model;
 use crate::model_file::ModelFile;
@@ -27,13 +31,12 @@ pub(super) struct Context<'a> {
     pub(super) free: Vec<bool>,
     /// Per joint, 1 / RMS of the declared model's residual: N·m and N do not mix.
     pub(super) weights: Vec<f64>,
-    /// The held-out split: its blocks' length (s), the block index of each kept training sample,
-    /// and the number of blocks.
-    pub(super) block_s: f64,
-    pub(super) block: Vec<usize>,
-    pub(super) block_count: usize,
+    /// The held-out split of the training log's kept samples, guarded by the filter's memory.
+    pub(super) split: Split,
     /// How the Wald test cuts the training samples into batches.
     pub(super) batching: Batching,
+    /// The held-out torque's noise floor, which held-out gains are judged above.
+    pub(super) floor: NoiseFloor,
 }
 
 impl<'a> Context<'a> {
@@ -43,13 +46,17 @@ impl<'a> Context<'a> {
         train: Log,
         validation: Option<Runs>,
         given: Option<&'a ModelFile>,
-        options: &'a DiagnoseOptions,
+        (options, choice): (&'a DiagnoseOptions, &BandChoice),
     ) -> Result<Self, DiagnoseError> {
         let margin = options.max_delay_s;
-        let train = prepare(model, base, train.into(), (options, None), margin).map_err(DiagnoseError::Training)?;
+        let band = choice.band;
+        let (train_log, validation_runs) = (train, validation);
+        let mut train = prepare(model, base, train.into(), (options, band), margin).map_err(DiagnoseError::Training)?;
+        let choices = &mut train.pre.choices;
+        choices.reasons.retain(|r| !r.starts_with("cut-off") && !r.starts_with("Coulomb"));
+        choices.reasons.extend(choice.reasons.iter().cloned());
+        choices.warnings.extend(choice.warnings.iter().cloned());
         // The held-out log is filtered in the band chosen on the training log.
-        let band = Some(train.band());
-        validation.as_ref().map(Runs::check).transpose()?;
         let validation = validation
             .map(|v| prepare(model, base, v, (options, band), margin))
             .transpose()
@@ -65,8 +72,9 @@ impl<'a> Context<'a> {
         // and its coefficients depend on how the velocity that switches it was estimated.
         let friction = model.layout().friction();
         let free = base.independent.iter().map(|j| refit || (friction.contains(j) && !options.hold_friction)).collect();
-        let block_s = heldout_block_s(&train, options.block_s);
-        let (block, block_count) = blocks(&train, block_s);
+        let filter = Butterworth::lowpass(options.preprocess.order, band.cutoff_hz, train.fs)
+            .map_err(|e| DiagnoseError::Training(e.into()))?;
+        let split = heldout_split(&train.kept, train.fs, options.block_s, filter.memory_s(train.fs));
         let batching = options
             .batch_s
             .map_or(Batching::FromScores, |s| Batching::Fixed(((s * train.kept_rate()).round() as usize).max(1)));
@@ -80,19 +88,67 @@ impl<'a> Context<'a> {
             refit,
             free,
             weights: vec![1.0; model.dof()],
-            block_s,
-            block,
-            block_count,
+            split,
             batching,
+            floor: NoiseFloor::none(model.dof()),
         };
         let (x, weights) = ctx.declared_fit()?;
         ctx.weights = weights;
+        ctx.floor = ctx.noise_floor((train_log, validation_runs), choice.narrowest)?;
         ctx.train.predicted = ctx.declared_torque(&ctx.train, &x);
         let validation = ctx.validation.as_ref().map(|v| ctx.declared_torque(v, &x));
         if let (Some(v), Some(predicted)) = (ctx.validation.as_mut(), validation) {
             v.predicted = predicted;
         }
         Ok(ctx)
+    }
+
+    /// The floor of the held-out error: the torque's white noise in the band, and what the band
+    /// holds above `narrowest`, the narrowest that predicts as well ([`NoiseFloor::above`]), where
+    /// the band is wider. `logs` are the training log and the held-out runs, to filter there.
+    fn noise_floor(&self, logs: (Log, Option<Runs>), narrowest: Band) -> Result<NoiseFloor, DiagnoseError> {
+        let here = self.white_floor(&self.train, self.validation.as_ref(), &self.split)?;
+        if narrowest.cutoff_hz >= self.train.pre.cutoff_hz {
+            return Ok(here);
+        }
+        let (options, margin) = (self.options, self.options.max_delay_s);
+        let train = prepare(self.model, self.base, logs.0.into(), (options, narrowest), margin)
+            .map_err(DiagnoseError::Training)?;
+        let validation = logs
+            .1
+            .map(|v| prepare(self.model, self.base, v, (options, narrowest), margin))
+            .transpose()
+            .map_err(DiagnoseError::Validation)?;
+        let memory = Butterworth::lowpass(options.preprocess.order, narrowest.cutoff_hz, train.fs)
+            .map_err(|e| DiagnoseError::Training(e.into()))?
+            .memory_s(train.fs);
+        let split = heldout_split(&train.kept, train.fs, options.block_s, memory);
+        let heldout = match &validation {
+            Some(v) => HeldOut::Validation(self.problem(v, 0)),
+            None => HeldOut::Blocks { train: split.train.clone(), test: split.test.clone() },
+        };
+        let before_here = heldout_sse(&self.problem(&self.train, 0), &self.heldout(0), &[], &[]);
+        let at_narrowest = self.white_floor(&train, validation.as_ref(), &split)?;
+        let before_narrowest = heldout_sse(&self.problem(&train, 0), &heldout, &[], &[]);
+        Ok(here.above(&before_here, (&before_narrowest, &at_narrowest)))
+    }
+
+    /// The torque's white noise in `train`'s band on its held-out samples: the validation log's,
+    /// or the odd blocks of `split`.
+    fn white_floor(
+        &self,
+        train: &Prepared,
+        validation: Option<&Prepared>,
+        split: &Split,
+    ) -> Result<NoiseFloor, DiagnoseError> {
+        let (data, samples) = match validation {
+            Some(v) => (v, v.samples()),
+            None => (train, split.test.iter().filter(|t| **t).count()),
+        };
+        let duration_s = (samples * data.stride()) as f64 / data.fs;
+        let settings = (data.dof, data.fs, self.options.preprocess.order);
+        NoiseFloor::of(&data.pre.tau_unfiltered, settings, (data.pre.cutoff_hz, &self.weights), (samples, duration_s))
+            .map_err(|e| DiagnoseError::Training(e.into()))
     }
 
     /// The largest shift of the delay search (samples).
@@ -167,10 +223,7 @@ impl<'a> Context<'a> {
     pub(super) fn heldout(&self, delay: isize) -> HeldOut {
         match &self.validation {
             Some(v) => HeldOut::Validation(self.problem(v, delay)),
-            None => {
-                let (train, test) = block_split(&self.block);
-                HeldOut::Blocks { train, test }
-            }
+            None => HeldOut::Blocks { train: self.split.train.clone(), test: self.split.test.clone() },
         }
     }
 

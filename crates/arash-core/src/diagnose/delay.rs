@@ -5,7 +5,7 @@
 use super::context::Context;
 use super::findings::{rejection, Finding, Rejection, RejectionReason};
 use super::prepare::Prepared;
-use super::problem::{block_split, sse, Problem};
+use super::problem::{sse, Problem};
 use super::regression::{gram, least_squares, residual, rhs, solve_scaled, test_group, Column, Rows, Untested};
 use crate::effects::{EffectKind, EffectTerm};
 use crate::identify::signals::central_difference;
@@ -30,7 +30,7 @@ pub const ALIGNMENT_SAMPLES: isize = 1;
 #[allow(clippy::result_large_err)]
 fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
     let (model, train, validation, options) = (ctx.model, &ctx.train, ctx.validation.as_ref(), ctx.options);
-    let (weights, free, block) = (&ctx.weights[..], &ctx.free[..], &ctx.block[..]);
+    let (weights, free, split) = (&ctx.weights[..], &ctx.free[..], &ctx.split);
     let max_shift = ctx.max_shift();
     let fixed_prediction = |data: &Prepared| ctx.fixed_prediction(data);
     let dof = train.dof;
@@ -88,22 +88,22 @@ fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
                     .unwrap_or_else(|| vec![0.0; declared_refs.len()]);
                 sse(&vrefs, &x, &target(v, &vfixed, d), dof, Rows::All)
             };
-            let (b, a) = (at(0), at(shift));
-            b.iter().zip(&a).map(|(b, a)| 1.0 - a / b).collect()
+            ctx.floor.gains(&at(0), &at(shift))
         }
         None => {
-            let (train_rows, test_rows) = block_split(block);
+            let (train_rows, test_rows) = (&split.train, &split.test);
             let at = |d: isize| -> Vec<f64> {
                 let y = target(train, &fixed, d);
-                let x = least_squares(&declared_refs, &y, dof, Rows::Where(&train_rows))
+                let x = least_squares(&declared_refs, &y, dof, Rows::Where(train_rows))
                     .unwrap_or_else(|| vec![0.0; declared_refs.len()]);
-                sse(&declared_refs, &x, &y, dof, Rows::Where(&test_rows))
+                sse(&declared_refs, &x, &y, dof, Rows::Where(test_rows))
             };
-            let (b, a) = (at(0), at(shift));
-            b.iter().zip(&a).map(|(b, a)| 1.0 - a / b).collect()
+            ctx.floor.gains(&at(0), &at(shift))
         }
     };
-    let gain = gains.iter().sum::<f64>() / dof as f64;
+    // Judged, as every effect on several joints is, on the joint it helps most: a misalignment
+    // shows where the torque changes fastest and costs a slow joint nothing.
+    let gain = gains.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let p_value = Some(test.p_value);
     if test.p_value > options.alpha {
         let reason = RejectionReason::DelayNotSignificant { p_value: test.p_value, alpha: options.alpha };

@@ -258,12 +258,19 @@ pub struct DiagnoseSettings {
     /// The cut-off of the velocity the Coulomb columns switch with (Hz).
     #[serde(default)]
     pub friction_cutoff_hz: Option<f64>,
-    /// The Coulomb law of the declared model: `tanh(q̇/ε)` with this ε, or `sign(q̇)` (`None`).
+    /// The Coulomb law of the declared model where every joint shares one: `tanh(q̇/ε)` with
+    /// this ε, or `sign(q̇)` (`None`); `friction_velocities` gives each joint's.
     #[serde(default)]
     pub coulomb_epsilon: Option<f64>,
+    /// Each joint's friction velocity in the declared model (`None`: `sign(q̇)`).
+    #[serde(default)]
+    pub friction_velocities: Vec<Option<f64>>,
     /// The preprocessing's choices and why (as in a model file).
     #[serde(default)]
     pub reasons: Vec<String>,
+    /// Choices the data support only weakly, or a setting the data disagree with.
+    #[serde(default)]
+    pub warnings: Vec<String>,
     pub decimate: usize,
     /// The held-out split's blocks (s) and how many there were.
     pub block_s: f64,
@@ -312,6 +319,15 @@ pub struct Diagnosis {
     pub too_heavy: Option<TooHeavy>,
     pub before: ErrorSummary,
     pub after: ErrorSummary,
+    /// The held-out error no model of the motion removes, RMS per joint (N·m or N): the torque's
+    /// noise in the band, or what the band holds above the narrowest that predicts as well, if
+    /// larger. Held-out gains are judged against the error above it (`diagnose/noise.rs`).
+    #[serde(default)]
+    pub noise_floor: Vec<f64>,
+    /// The torque's white noise in the band, RMS per joint (N·m or N): read from the torque above a
+    /// quarter of the sample rate.
+    #[serde(default)]
+    pub sensor_noise: Vec<f64>,
     pub settings: DiagnoseSettings,
     /// The updated model: the declared parameters (refitted or as given) plus the effects.
     pub model: ModelFile,

@@ -17,10 +17,12 @@
 //! 6. the best is added, the model refitted, and the search repeated until nothing passes.
 
 mod band;
+mod band_choice;
 mod candidates;
 mod context;
 mod delay;
 mod findings;
+mod noise;
 mod options;
 mod outcome;
 mod prepare;

@@ -5,22 +5,15 @@ use crate::identify::preprocess::{PreprocessError, PreprocessOptions};
 use crate::identify::IdentifyError;
 use crate::transmission::Transmission;
 
-/// The diagnosis's cut-off when the user sets none (Hz), at most [`DIAGNOSIS_CUTOFF_SHARE`] of
-/// the sample rate: far above identification's, so that ripple, friction transitions and delays
-/// survive the filter; where the diagnosis's false-positive rate was measured (docs/diagnosis.md).
+/// The band search reaches at least this cut-off (Hz), the diagnosis's former fixed band, so
+/// that ripple, friction transitions and delays are in it to be chosen where the data carry them
+/// (`diagnose/band_choice.rs`; the search otherwise stops a few times above the motion's
+/// spectrum, as identification's does) ...
 pub const DIAGNOSIS_CUTOFF_HZ: f64 = 20.0;
 
 /// ... and at most this share of the sample rate, so that the residual keeps five samples per
 /// cut-off period after thinning.
 pub const DIAGNOSIS_CUTOFF_SHARE: f64 = 0.2;
-
-/// The largest share of a joint's q̈ variance that position noise may make up at the diagnosis's
-/// cut-off, however loud the torque; a log whose encoder is coarser gets a narrower band
-/// (`diagnose/band.rs`, which also holds the bias this noise makes under the torque's noise). On
-/// the independent generator's declared-model logs the clean conditions measure at most 3 % at
-/// 20 Hz, and the 12-bit ones, which accepted rotor inertia there, 60–460 % (docs/diagnosis.md,
-/// "The band").
-pub const MAX_ACCELERATION_NOISE: f64 = 0.05;
 
 /// The largest RMS the encoder's quantisation may give the friction velocity, as a share of the
 /// joint's RMS speed: a tenth of the slowest Stribeck velocity searched. That column changes by
@@ -41,12 +34,10 @@ pub const PAYLOAD_MASS_SIGMAS: f64 = 2.0;
 /// Settings of [`super::diagnose`]; `Default` gives the documented defaults.
 #[derive(Clone, Debug)]
 pub struct DiagnoseOptions {
-    /// Preprocessing, in the settings identification takes: `cutoff_hz` (`None`:
-    /// [`DIAGNOSIS_CUTOFF_HZ`], at most [`DIAGNOSIS_CUTOFF_SHARE`] of the sample rate, narrower
-    /// where the position noise would exceed [`MAX_ACCELERATION_NOISE`] of q̈),
-    /// `friction_cutoff_hz` (`None`: the cut-off, slower where the encoder's steps would exceed
-    /// [`MAX_VELOCITY_NOISE`] of the speed; see `prepare` for why not the fit's choice)
-    /// and `order`.
+    /// Preprocessing, in the settings identification takes: `cutoff_hz` (`None`: the band in
+    /// which the declared model predicts held-out torque best, `diagnose/band_choice.rs`; set, it
+    /// must lie below half the sample rate), `friction_cutoff_hz` (`None`: the cut-off, slower
+    /// where the encoder's steps would exceed [`MAX_VELOCITY_NOISE`] of the speed) and `order`.
     /// The diagnosis reads residuals in time, so it never averages periods, and it thins with
     /// `decimate` below.
     pub preprocess: PreprocessOptions,
@@ -214,6 +205,14 @@ pub enum DiagnoseError {
     Options(#[from] OptionsError),
     #[error("the given model's base parameters were chosen differently from this robot's; identify it again with this version")]
     BaseMismatch,
+    #[error("cutoff_hz = {cutoff_hz} Hz is not below the log's Nyquist frequency ({nyquist_hz} Hz): the band must lie in (0, fs/2)")]
+    BandAboveNyquist { cutoff_hz: f64, nyquist_hz: f64 },
+    #[error(
+        "the log is {duration_s:.2} s long, too short to choose the diagnosis's band: the lowest band its motion and \
+         its held-out blocks allow is {lowest_hz:.3} Hz, above the widest searched ({top_hz:.3} Hz); a log of at least \
+         {needed_s:.1} s (or a validation log) is needed"
+    )]
+    TooShortForBand { duration_s: f64, needed_s: f64, top_hz: f64, lowest_hz: f64 },
     #[error(
         "the declared model cannot be fitted to this log: its columns are linearly dependent here (too little motion?)"
     )]

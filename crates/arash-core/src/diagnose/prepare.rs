@@ -1,14 +1,15 @@
 //! A log made ready for the diagnosis: filtered, differentiated, trimmed and sampled, with the
 //! declared model's columns and each candidate's columns on it.
 
-use super::band::{noise_limited_cutoff, velocity_resolved_cutoff, Band, Positions};
+use super::band::Band;
 use super::options::DiagnoseOptions;
 use super::regression::Column;
 use super::Runs;
 use crate::base_parameters::BaseParameters;
 use crate::data::Data;
 use crate::effects::{EffectKind, EffectTerm, TermState};
-use crate::identify::preprocess::{preprocess, PreprocessError, PreprocessOptions, Preprocessed};
+use crate::identify::preprocess::{preprocess, PreprocessError, PreprocessOptions, Preprocessed, EDGE_CUTOFF_PERIODS};
+use crate::identify::Log;
 use crate::model::Model;
 use crate::regressor::regressor;
 
@@ -62,68 +63,43 @@ impl Prepared {
 }
 
 impl Prepared {
-    pub(super) fn band(&self) -> Band {
-        Band { cutoff_hz: self.pre.cutoff_hz, friction_hz: self.pre.friction_cutoff_hz }
+    /// The declared model's columns of `pre` (a log filtered for the diagnosis, its raw positions
+    /// `q_raw`) at the samples `kept`.
+    pub(super) fn new(
+        model: &Model,
+        base: &BaseParameters,
+        (pre, q_raw): (Preprocessed, &[f64]),
+        kept: Vec<usize>,
+    ) -> Self {
+        let fs = pre.sample_rate_hz;
+        let (declared, bodies) = declared_columns(model, base, &pre, &kept);
+        Prepared { dof: model.dof(), fs, pre, q_raw: q_raw.to_vec(), kept, declared, bodies, predicted: vec![] }
     }
 }
 
-/// Prepare `log` for the diagnosis: filtered in `band` (a training log's), or at the user's
-/// cut-off, or at the diagnosis's; its Coulomb columns switching with the velocity filtered at
-/// the band's friction cut-off, the user's, or the cut-off slowed where the encoder's steps would
-/// blur it ([`velocity_resolved_cutoff`]); and trimmed by `margin_s` at each end and on both
-/// sides of each run's start (held-out runs joined end to end).
-///
-/// The friction velocity is not chosen by the fit here, as identification chooses it: the
-/// diagnosis's decision rule was calibrated with it at the diagnosis's cut-off, and on the demo's
-/// closed-loop log the fit's choice (16 Hz against 20) moves the insertion's residual enough for
-/// two spurious terms to pass the held-out gain threshold (docs/diagnosis.md).
-pub(super) fn prepare(
-    model: &Model,
-    base: &BaseParameters,
-    Runs { log, starts }: Runs,
-    (options, band): (&DiagnoseOptions, Option<Band>),
-    margin_s: f64,
-) -> Result<Prepared, PreprocessError> {
-    let dof = model.dof();
-    let dt = crate::identify::preprocess::validate_log(log.t, log.q, log.tau, dof)?;
-    let fs = 1.0 / dt;
-    let default = DiagnoseOptions::default_cutoff_hz(fs);
-    let order = options.preprocess.order;
-    // Read from the positions once, by whichever of the band's rules runs first.
-    let positions = std::cell::OnceCell::new();
-    let positions = || positions.get_or_init(|| Positions::of(log.q, (dof, fs)));
-    let mut warning = None;
-    let (cutoff, reason) = match (options.preprocess.cutoff_hz, band) {
-        (Some(user), _) => (user, None),
-        (None, Some(band)) => {
-            let cutoff = band.cutoff_hz.min(default);
-            (cutoff, Some(format!("cut-off {cutoff:.3} Hz: the training log's, at most {default:.2} Hz")))
-        }
-        (None, None) => {
-            let chosen = noise_limited_cutoff(positions(), order)?;
-            warning = chosen.warning;
-            (chosen.cutoff_hz, Some(chosen.reason))
-        }
-    };
-    let (friction, friction_reason) = match (band, options.preprocess.friction_cutoff_hz) {
-        (Some(band), _) => (Some(band.friction_hz), None),
-        (None, Some(user)) => (Some(user), None),
-        (None, None) => {
-            let chosen = velocity_resolved_cutoff(positions(), cutoff, order)?;
-            (Some(chosen.cutoff_hz), Some(chosen.reason))
-        }
-    };
-    let pre_options = PreprocessOptions { friction_cutoff_hz: friction, ..options.preprocessing(cutoff) };
-    let mut pre = preprocess(log.t, log.q, log.tau, dof, &pre_options)?;
-    for (prefix, line) in [("cut-off", reason), ("Coulomb", friction_reason)] {
-        if let Some(line) = line {
-            pre.choices.reasons.iter_mut().filter(|r| r.starts_with(prefix)).for_each(|r| *r = line.clone());
-        }
-    }
-    pre.choices.warnings.extend(warning);
-    let stride = stride(options, fs, pre.cutoff_hz);
+/// `log` filtered in `band` for the diagnosis: the user's other settings, no averaging, and the
+/// Coulomb columns switching with the velocity filtered at the band's friction cut-off.
+pub(super) fn filtered(
+    log: Log,
+    dof: usize,
+    options: &DiagnoseOptions,
+    band: Band,
+) -> Result<Preprocessed, PreprocessError> {
+    let pre_options =
+        PreprocessOptions { friction_cutoff_hz: Some(band.friction_hz), ..options.preprocessing(band.cutoff_hz) };
+    preprocess(log.t, log.q, log.tau, dof, &pre_options)
+}
+
+/// The samples a diagnosis keeps of `pre`: every `stride`-th, clear of the filter's start-up
+/// transient (and of `margin_s`) at the ends and on both sides of each run's start in `starts`
+/// (held-out runs joined end to end).
+pub(super) fn kept_samples(
+    pre: &Preprocessed,
+    (margin_s, starts): (f64, &[usize]),
+    stride: usize,
+) -> Result<Vec<usize>, PreprocessError> {
     let n = pre.samples();
-    let margin = ((margin_s * fs).ceil() as usize).max(pre.settled.start);
+    let margin = ((margin_s * pre.sample_rate_hz).ceil() as usize).max(pre.settled.start);
     let needed = 2 * margin + MIN_KEPT * stride;
     if n < needed {
         return Err(PreprocessError::TooFewSamples { needed, got: n });
@@ -134,17 +110,44 @@ pub(super) fn prepare(
     if kept.len() < MIN_KEPT {
         return Err(PreprocessError::TooFewSamples { needed: needed + 2 * margin * starts.len(), got: n });
     }
-    let (declared, bodies) = declared_columns(model, base, &pre, &kept);
-    Ok(Prepared { dof, fs, pre, q_raw: log.q.to_vec(), kept, declared, bodies, predicted: vec![] })
+    Ok(kept)
+}
+
+/// Prepare `log` for the diagnosis: filtered in `band` ([`filtered`]), and kept every
+/// [`stride`]-th sample clear of the ends and of each run's start ([`kept_samples`]), with the
+/// declared model's columns there.
+pub(super) fn prepare(
+    model: &Model,
+    base: &BaseParameters,
+    Runs { log, starts }: Runs,
+    (options, band): (&DiagnoseOptions, Band),
+    margin_s: f64,
+) -> Result<Prepared, PreprocessError> {
+    let dof = model.dof();
+    crate::identify::preprocess::validate_log(log.t, log.q, log.tau, dof)?;
+    let pre = filtered(log, dof, options, band)?;
+    let stride = stride(options, pre.sample_rate_hz, pre.cutoff_hz);
+    let kept = kept_samples(&pre, (margin_s, starts), stride)?;
+    Ok(Prepared::new(model, base, (pre, log.q), kept))
 }
 
 /// The fewest samples a diagnosis keeps.
 const MIN_KEPT: usize = 64;
 
+/// Kept samples per cut-off period, where the user sets no thinning.
+const KEPT_PER_PERIOD: f64 = 5.0;
+
+/// The lowest cut-off at which a log of `samples` at `fs` keeps [`MIN_KEPT`] samples between the
+/// filter's start-up transients (and `margin_s`) at its ends.
+pub(super) fn lowest_kept_cutoff_hz(samples: usize, fs: f64, margin_s: f64) -> f64 {
+    let periods = 2.0 * EDGE_CUTOFF_PERIODS + MIN_KEPT as f64 / KEPT_PER_PERIOD;
+    periods * fs / (samples as f64 - 2.0 * margin_s * fs).max(1.0)
+}
+
 /// Full-rate samples between kept ones at `cutoff_hz`: the user's, or about five per cut-off
 /// period.
-fn stride(options: &DiagnoseOptions, fs: f64, cutoff_hz: f64) -> usize {
-    options.decimate.unwrap_or(((fs / (5.0 * cutoff_hz)).floor() as usize).max(1)).max(1)
+pub(super) fn stride(options: &DiagnoseOptions, fs: f64, cutoff_hz: f64) -> usize {
+    options.decimate.unwrap_or(((fs / (KEPT_PER_PERIOD * cutoff_hz)).floor() as usize).max(1)).max(1)
 }
 
 /// Column `c` of a body's mass and first-moment columns, or exact zeros where it is round-off
@@ -198,7 +201,7 @@ pub(super) fn full_columns(model: &Model, pre: &Preprocessed, kept: &[usize]) ->
             }
         }
     }
-    let coulomb = pre.coulomb_columns(model.coulomb_shape);
+    let coulomb = pre.coulomb_columns(&model.coulomb_laws);
     for k in 0..dof {
         let j = model.layout().coulomb(k);
         for (s, &i) in kept.iter().enumerate() {

@@ -2,18 +2,12 @@
 //! reports.
 
 use super::findings::ErrorSummary;
+use super::noise::NoiseFloor;
 use super::prepare::Prepared;
 use super::regression::{self, gram, least_squares, residual, rhs, Column, Rows};
 use crate::effects::EffectTerm;
 use crate::identify::estimate::joint_metrics;
 use crate::model_file::Metrics;
-
-/// The held-out split of the training log: fit on the even blocks, judge on the odd ones.
-pub(super) fn block_split(block: &[usize]) -> (Vec<bool>, Vec<bool>) {
-    let train: Vec<bool> = block.iter().map(|b| b % 2 == 0).collect();
-    let test = train.iter().map(|t| !t).collect();
-    (train, test)
-}
 
 /// The fewest blocks of the held-out split. A log shorter than this many `block_s` gets this many
 /// shorter blocks, so that the even blocks and the odd ones both cover the motion: fitted on
@@ -21,23 +15,50 @@ pub(super) fn block_split(block: &[usize]) -> (Vec<bool>, Vec<bool>) {
 /// ones reach, and a true effect cut their error by −60 % to −8000 %.
 pub(super) const MIN_HELDOUT_BLOCKS: usize = 10;
 
-/// The held-out blocks' length (s): `longest`, or a tenth of a log shorter than ten of them.
-pub(super) fn heldout_block_s(data: &Prepared, longest: f64) -> f64 {
-    let span = (data.kept.last().unwrap_or(&0) - data.kept.first().unwrap_or(&0) + data.stride()) as f64 / data.fs;
-    longest.min(span / MIN_HELDOUT_BLOCKS as f64)
+/// A held-out block spans at least this many of the filter's memories, so that the guards at its
+/// two ends (one memory each) leave at least half of it to fit or judge.
+pub(super) const BLOCK_MEMORIES: f64 = 4.0;
+
+/// The held-out split of a log's kept samples (full-rate indices `kept` at `fs`): blocks of time,
+/// fit on the even ones and judge on the odd ones.
+///
+/// Filtering spreads each sample's noise over the filter's memory (`memory_s`), so a fitted
+/// sample and a judged one closer than twice that share noise, and the fit would be rewarded on
+/// the held-out block for fitting it. Each side therefore leaves out the samples within one memory
+/// of every boundary between an even and an odd block.
+#[derive(Clone, Debug)]
+pub(super) struct Split {
+    /// The number of blocks.
+    pub(super) count: usize,
+    /// The blocks' length (s).
+    pub(super) block_s: f64,
+    /// The samples fitted (even blocks) and judged (odd blocks), guards left out of both.
+    pub(super) train: Vec<bool>,
+    pub(super) test: Vec<bool>,
 }
 
-/// Block index of each kept sample; the last partial block joins the one before it.
-pub(super) fn blocks(data: &Prepared, block_s: f64) -> (Vec<usize>, usize) {
-    let per = (block_s * data.fs).max(1.0);
-    let first = data.kept[0];
-    let raw: Vec<usize> = data.kept.iter().map(|&i| ((i - first) as f64 / per) as usize).collect();
+/// The held-out split of `kept`: blocks of `longest_s`, or of a tenth of a log shorter than
+/// [`MIN_HELDOUT_BLOCKS`] of them, never shorter than [`BLOCK_MEMORIES`] filter memories; the last
+/// partial block joins the one before it.
+pub(super) fn heldout_split(kept: &[usize], fs: f64, longest_s: f64, memory_s: f64) -> Split {
+    let stride = kept.get(1).map_or(1, |k| k - kept[0]);
+    let span = (kept.last().unwrap_or(&0) - kept.first().unwrap_or(&0) + stride) as f64 / fs;
+    let block_s = longest_s.min(span / MIN_HELDOUT_BLOCKS as f64).max(BLOCK_MEMORIES * memory_s);
+    let per = (block_s * fs).max(1.0);
+    let first = kept.first().copied().unwrap_or(0);
+    let raw: Vec<usize> = kept.iter().map(|&i| ((i - first) as f64 / per) as usize).collect();
     let last = *raw.last().unwrap_or(&0);
     let count_last = raw.iter().filter(|&&b| b == last).count();
-    let merge = last > 0 && (count_last as f64) < 0.5 * per / data.stride() as f64;
+    let merge = last > 0 && (count_last as f64) < 0.5 * per / stride as f64;
     let block: Vec<usize> = raw.iter().map(|&b| if merge && b == last { last - 1 } else { b }).collect();
     let count = block.last().map_or(0, |b| b + 1);
-    (block, count)
+    // Distance (samples) to the nearest boundary between two blocks.
+    let guard = memory_s * fs;
+    let boundaries: Vec<f64> = (1..count).map(|b| b as f64 * per).collect();
+    let clear = |i: usize| boundaries.iter().all(|b| ((i - first) as f64 - b).abs() >= guard);
+    let train = block.iter().zip(kept).map(|(b, &i)| b % 2 == 0 && clear(i)).collect();
+    let test = block.iter().zip(kept).map(|(b, &i)| b % 2 == 1 && clear(i)).collect();
+    Split { count, block_s, train, test }
 }
 
 /// The weighted problem on one log: the target `y = w·(τ − τ_given)` and every column scaled by
@@ -187,12 +208,12 @@ impl<'a> HeldOutBase<'a> {
         Self { cols, gram, rhs, sse }
     }
 
-    /// Relative cut of the held-out squared error from adding candidate `i`: per joint, and over
-    /// all joints together (in the weighted units, where every joint counts by its noise).
+    /// Relative cut of the held-out squared error from adding candidate `i`: per joint, of the
+    /// error above the noise `floor` ([`NoiseFloor::gains`]), and over all joints together (in
+    /// the weighted units, where every joint counts by its noise).
     pub(super) fn gain(
         &self,
-        problem: &Problem,
-        heldout: &HeldOut,
+        (problem, heldout, floor): (&Problem, &HeldOut, &NoiseFloor),
         pool: &[Candidate],
         chosen: &[usize],
         i: usize,
@@ -218,7 +239,7 @@ impl<'a> HeldOutBase<'a> {
             },
         };
         let before = &self.sse;
-        let per_joint = before.iter().zip(&after).map(|(b, a)| if *b > 0.0 { 1.0 - a / b } else { 0.0 }).collect();
+        let per_joint = floor.gains(before, &after);
         let total = 1.0 - after.iter().sum::<f64>() / before.iter().sum::<f64>().max(f64::MIN_POSITIVE);
         (per_joint, total)
     }

@@ -9,6 +9,7 @@
 
 use faer::Mat;
 
+use super::band::Band;
 use super::options::{DiagnoseError, DiagnoseOptions};
 use super::prepare::{full_columns, prepare, term_columns};
 use crate::base_parameters::BaseParameters;
@@ -35,8 +36,16 @@ pub fn consistent_with_effects(
 ) -> Result<ModelFile, DiagnoseError> {
     let model = &*found.with_its_law(model);
     let (dof, standard) = (model.dof(), model.num_params());
+    // The found model's band, or the one asked for (a calibration's, whose friction velocity it
+    // then shares unless one is set too).
+    let cutoff_hz = options.preprocess.cutoff_hz.unwrap_or(found.settings.cutoff_hz);
+    let friction_hz = match options.preprocess.cutoff_hz {
+        None => options.preprocess.friction_cutoff_hz.or(found.settings.friction_cutoff_hz).unwrap_or(cutoff_hz),
+        Some(_) => options.preprocess.friction_cutoff_hz.unwrap_or(cutoff_hz),
+    };
+    let band = Band { cutoff_hz, friction_hz };
     let mut data =
-        prepare(model, base, train.into(), (options, None), options.max_delay_s).map_err(DiagnoseError::Training)?;
+        prepare(model, base, train.into(), (options, band), options.max_delay_s).map_err(DiagnoseError::Training)?;
     // What a drive gain scales: the found model's declared torque.
     let mut predicted = vec![0.0; data.samples() * dof];
     for (column, b) in data.declared.iter().zip(&found.beta) {

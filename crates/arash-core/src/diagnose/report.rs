@@ -1,10 +1,22 @@
 //! The diagnosis as text and JSON.
 
 use super::findings::{Diagnosis, ErrorSummary};
-use crate::model::CoulombShape;
+use crate::model::{CoulombLaws, CoulombShape};
 use crate::model_file::Metrics;
 
 impl Diagnosis {
+    /// The declared model's Coulomb laws, from the settings (files before per-joint laws hold one
+    /// width for every joint).
+    fn friction_laws(&self) -> CoulombLaws {
+        match self.settings.friction_velocities.is_empty() {
+            true => {
+                CoulombLaws::uniform(CoulombShape::of_epsilon(self.settings.coulomb_epsilon), self.joint_names.len())
+            }
+            false => CoulombLaws::of_velocities(&self.settings.friction_velocities)
+                .unwrap_or_else(|_| CoulombLaws::undeclared(self.joint_names.len())),
+        }
+    }
+
     pub fn to_json(&self) -> String {
         serde_json::to_string_pretty(self).expect("a diagnosis always serialises")
     }
@@ -19,8 +31,12 @@ impl Diagnosis {
             self.settings.batch_s.map_or("chosen from each test's scores".into(), |s| format!("of {s} s")),
             self.settings.alpha,
             self.settings.heldout,
-            CoulombShape::of_epsilon(self.settings.coulomb_epsilon)
+            self.friction_laws()
         );
+        s += "Choices made from the data, and why:\n";
+        s += &self.settings.reasons.iter().map(|r| format!("  - {r}\n")).collect::<String>();
+        s += &self.settings.warnings.iter().map(|w| format!("  warning: {w}\n")).collect::<String>();
+        s += "\n";
         if self.accepted.is_empty() && self.too_heavy.is_some() {
             s += "No effect accepted: the model is heavier than the data (below).\n";
         } else if self.accepted.is_empty() {
@@ -79,6 +95,15 @@ impl Diagnosis {
         s += "\nError per joint, before → after:\n";
         s += &self.error_table("training", &self.before, &self.after, |e| &e.training);
         s += &self.error_table("held-out", &self.before, &self.after, |e| &e.heldout);
+        if !self.noise_floor.is_empty() {
+            s += "  held-out floor, what no model of the motion removes (held-out gains are judged against the \
+                  error above it): the torque's noise in the band (read above a quarter of the sample rate), or \
+                  what the band holds above the narrowest that predicts as well, if larger\n";
+            for (k, name) in self.joint_names.iter().enumerate() {
+                let noise = self.sensor_noise.get(k).copied().unwrap_or(f64::NAN);
+                s += &format!("    {name:<22} RMS {:>10.3e}   (sensor noise {noise:.3e})\n", self.noise_floor[k]);
+            }
+        }
         s += &self.rejected_summary();
         s
     }

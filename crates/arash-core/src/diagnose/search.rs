@@ -3,6 +3,7 @@
 
 use std::borrow::Cow;
 
+use super::band_choice::choose_band;
 use super::candidates::{candidates, not_the_cable};
 use super::context::{parallel_map, Context};
 use super::delay::search_delay;
@@ -27,10 +28,18 @@ pub fn diagnose(
     options: &DiagnoseOptions,
 ) -> Result<Diagnosis, DiagnoseError> {
     options.validate(declared.model.dof())?;
-    // A given model's Coulomb coefficients belong to the law it was fitted with; without one
-    // the robot's declared law is used (docs/diagnosis.md, "The Coulomb law").
-    let model = given.map_or(Cow::Borrowed(declared.model), |file| file.with_its_law(declared.model));
-    let ctx = Context::new(&model, declared.base, train, validation, given, options)?;
+    validation.as_ref().map(Runs::check).transpose()?;
+    // A given model's Coulomb coefficients belong to the laws it was fitted with; without one
+    // the robot's declared laws are used, or, where it declares none, each joint's is chosen
+    // from the data with the band (docs/diagnosis.md, "The Coulomb law").
+    let mut model = given.map_or(Cow::Borrowed(declared.model), |file| file.with_its_law(declared.model));
+    let refit = given.is_none() || options.refit;
+    let choose_laws = refit && !model.coulomb_laws.is_declared();
+    let choice = choose_band(&model, declared.base, (train, validation.as_ref()), options, choose_laws)?;
+    if let Some(chosen) = &choice.laws {
+        model.to_mut().coulomb_laws = chosen.laws.clone();
+    }
+    let ctx = Context::new(&model, declared.base, train, validation, given, (options, &choice))?;
     // 1. Delay.
     let (delay, delay_outcome) = if options.effects.contains(&EffectKind::Delay) && ctx.max_shift() > 0 {
         let (delay, outcome) = search_delay(&ctx);
@@ -48,7 +57,7 @@ pub fn diagnose(
     // 2. Forward selection.
     let problem = ctx.problem(&ctx.train, delay);
     let heldout = ctx.heldout(delay);
-    let (templates, not_searched) = candidates(&model, &ctx.train, options);
+    let (templates, not_searched) = candidates(&model, &ctx.train, (options, choice.laws.is_some()));
     skipped.extend(not_searched);
     let pool = ctx.pool(templates, &problem, &heldout);
     let search = Search { ctx: &ctx, problem: &problem, heldout: &heldout, pool: &pool };
@@ -245,7 +254,8 @@ impl Search<'_> {
                 }
                 let scoring = scoring
                     .get_or_insert_with(|| HeldOutBase::new(self.problem, self.heldout, self.pool, &state.chosen));
-                let (gains, total) = scoring.gain(self.problem, self.heldout, self.pool, &state.chosen, *i);
+                let on = (self.problem, self.heldout, &ctx.floor);
+                let (gains, total) = scoring.gain(on, self.pool, &state.chosen, *i);
                 // Accepted on the joint it helps most, ranked by what it does for the whole
                 // robot, so that an effect acting on several joints competes fairly with
                 // one-joint terms.
@@ -384,14 +394,18 @@ impl Search<'_> {
             too_heavy: state.too_heavy,
             before,
             after,
+            noise_floor: ctx.floor.rms.clone(),
+            sensor_noise: ctx.floor.noise_rms.clone(),
             settings: DiagnoseSettings {
                 cutoff_hz: ctx.train.pre.cutoff_hz,
                 friction_cutoff_hz: Some(ctx.train.pre.friction_cutoff_hz),
-                coulomb_epsilon: model.coulomb_shape.epsilon(),
+                coulomb_epsilon: model.coulomb_laws.common().and_then(|s| s.epsilon()),
+                friction_velocities: model.coulomb_laws.velocities(),
                 reasons: ctx.train.pre.choices.reasons.clone(),
+                warnings: ctx.train.pre.choices.warnings.clone(),
                 decimate: ctx.train.stride(),
-                block_s: ctx.block_s,
-                blocks: ctx.block_count,
+                block_s: ctx.split.block_s,
+                blocks: ctx.split.count,
                 batch_s: options.batch_s,
                 alpha: options.alpha,
                 min_gain: options.min_gain,
@@ -403,7 +417,7 @@ impl Search<'_> {
                 } else {
                     format!(
                         "the odd-numbered of {} blocks of {:.3} s, fitting on the even ones",
-                        ctx.block_count, ctx.block_s
+                        ctx.split.count, ctx.split.block_s
                     )
                 },
                 candidates: pool.len() + 1,
@@ -426,7 +440,7 @@ impl Search<'_> {
         let ctx = self.ctx;
         let mut updated = match ctx.given {
             Some(g) => g.clone(),
-            None => declared_model(ctx.model, ctx.base, urdf, &ctx.train, series, ctx.block_s, samples_in)?,
+            None => declared_model(ctx.model, ctx.base, urdf, &ctx.train, series, ctx.split.block_s, samples_in)?,
         };
         if ctx.refit {
             // A refitted model keeps the OLS of `declared_model`, made with the effects taken out.

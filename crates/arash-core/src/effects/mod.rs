@@ -21,6 +21,7 @@ mod coupled_rotor;
 mod delay;
 mod drift;
 mod drive_gain;
+mod friction_velocity;
 mod hysteresis;
 mod offset;
 mod payload;
@@ -32,6 +33,7 @@ use serde::{Deserialize, Serialize};
 
 pub use armature::every_joint as armature_on_every_joint;
 pub use configuration::CONFIGURATION_HARMONICS;
+pub use friction_velocity::FRICTION_VELOCITY_SHARES;
 pub use payload::on_body as payload_on;
 pub use stribeck::SLOWEST_STRIBECK_FRACTION;
 
@@ -42,6 +44,7 @@ pub enum EffectKind {
     Offset,
     CoulombAsymmetry,
     Stribeck,
+    FrictionVelocity,
     ViscousNonlinear,
     Armature,
     CoupledRotor,
@@ -58,10 +61,11 @@ pub enum EffectKind {
 
 impl EffectKind {
     /// Every effect, in the order the diagnosis tries a joint's candidates.
-    pub const ALL: [EffectKind; 15] = [
+    pub const ALL: [EffectKind; 16] = [
         Self::Offset,
         Self::CoulombAsymmetry,
         Self::Stribeck,
+        Self::FrictionVelocity,
         Self::ViscousNonlinear,
         Self::Armature,
         Self::CoupledRotor,
@@ -82,6 +86,7 @@ impl EffectKind {
             Self::Offset => &offset::Offset,
             Self::CoulombAsymmetry => &coulomb_asymmetry::CoulombAsymmetry,
             Self::Stribeck => &stribeck::Stribeck,
+            Self::FrictionVelocity => &friction_velocity::FrictionVelocity,
             Self::ViscousNonlinear => &viscous_nonlinear::ViscousNonlinear,
             Self::Armature => &armature::Armature,
             Self::CoupledRotor => &coupled_rotor::CoupledRotor,
@@ -223,6 +228,8 @@ pub enum NotSearched {
     /// A coupled rotor needs a declared transmission in which a motor turns with more than one
     /// joint.
     NoCoupledMotor,
+    /// The joint's Coulomb law was chosen from these data, the best of every friction velocity.
+    LawChosenFromData,
 }
 
 impl std::fmt::Display for NotSearched {
@@ -233,6 +240,9 @@ impl std::fmt::Display for NotSearched {
             }
             Self::NoCoupledMotor => f.write_str(
                 "not searched: no declared motor turns with more than one joint (declare one with --coupling)",
+            ),
+            Self::LawChosenFromData => f.write_str(
+                "not searched: the joint's Coulomb law was chosen from these data, the best fit of every friction velocity",
             ),
         }
     }

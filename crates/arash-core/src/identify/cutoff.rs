@@ -19,6 +19,10 @@
 //! The candidates run from the lowest cut-off the log allows to [`SEARCH_ABOVE_SPECTRAL`] times
 //! the one the motion's spectrum suggests ([`super::decide`]), within a quarter of the sample rate.
 
+use super::decide::{
+    best_predicting, geometric_grid, most_accurate_prediction, Equal, Prediction, Prefer, EQUAL_PREDICTION_POINTS,
+    EQUAL_PREDICTION_SIGMAS,
+};
 use super::estimate::{
     apply, coulomb_positions, filter_each_column, fit_stacked, joint_metrics, put_coulomb, regressor_rows, Method,
 };
@@ -31,9 +35,6 @@ use super::preprocess::{
 use super::signals::{filter_columns, mean_of, periods_of};
 use super::{Declared, Log};
 use std::borrow::Cow;
-
-/// Cut-offs tried per doubling: a step of 19 %, which changes the fit by far less than a point.
-pub const CUTOFFS_PER_OCTAVE: usize = 4;
 
 /// The search goes this far above the cut-off the motion's spectrum suggests: the torque holds
 /// products and harmonics of the motion (Coriolis terms, gravity's sine of the angle) above the
@@ -58,17 +59,6 @@ fn spread(range: std::ops::Range<usize>, least: usize, most: usize) -> Vec<usize
     range.step_by(step).collect()
 }
 
-/// A cut-off predicts as well as the best when its prediction's extra squared error is within
-/// this many standard errors of nothing (a one-sided test at about 2 %). Among those, the one
-/// whose model explains its own filtered torque best is kept: usually the lowest, which takes the
-/// most noise out of the signals without losing what the model explains.
-pub const EQUAL_PREDICTION_SIGMAS: f64 = 2.0;
-
-/// ... and no more than this many points of mean FP% below it: a difference the test cannot
-/// resolve on a short or badly explained log is still not ignored when it is this large (the
-/// issue's own notion of fitting "as well").
-pub const EQUAL_PREDICTION_POINTS: f64 = 1.0;
-
 /// Blocks of the paired comparison span this many periods of the lowest cut-off: the
 /// difference between two filtered models' errors is correlated over the filters' memory...
 const COMPARISON_BLOCK_PERIODS: f64 = 2.0;
@@ -84,7 +74,7 @@ const COMPARISON_BLOCKS: usize = 10;
 pub const SEARCH_FROM_BANDWIDTH: f64 = 2.0;
 
 /// The friction velocity's candidates are one octave apart: the fit changes little within one.
-const FRICTION_STEP: usize = CUTOFFS_PER_OCTAVE;
+const FRICTION_STEP: usize = super::decide::CUTOFFS_PER_OCTAVE;
 
 /// One candidate cut-off, with the friction velocity that fitted best at it.
 #[derive(Clone, Debug)]
@@ -220,7 +210,7 @@ impl<'a> Search<'a> {
             return Ok(d);
         }
         let velocity = self.raw_velocity.filtered((self.reference.order, self.grid[i]), 1)?;
-        Ok(self.directions[i].get_or_init(|| velocity.directions(self.declared.model.coulomb_shape)))
+        Ok(self.directions[i].get_or_init(|| velocity.directions(&self.declared.model.coulomb_laws)))
     }
 
     /// The friction velocities tried at `cutoff`: the user's, or grid points an octave apart
@@ -269,7 +259,7 @@ impl<'a> Search<'a> {
         for (friction_hz, at) in self.frictions(cutoff, user_friction) {
             let directions: Cow<[f64]> = match at {
                 Some(i) => self.directions(i)?.into(),
-                None => self.raw_velocity.filtered((pre.order, friction_hz), 1)?.directions(model.coulomb_shape).into(),
+                None => self.raw_velocity.filtered((pre.order, friction_hz), 1)?.directions(&model.coulomb_laws).into(),
             };
             let filtered = filter_columns(&filter, &directions, dof, pre.periodic)?;
             put_coulomb(&mut w, dof, &positions, (&filtered, &rows));
@@ -377,45 +367,27 @@ fn rows_of(x: &[f64], dof: usize, rows: &[usize]) -> Vec<f64> {
     rows.iter().flat_map(|&s| x[s * dof..(s + 1) * dof].iter().copied()).collect()
 }
 
-/// Among the trials whose prediction is not worse than the best one's by more than
-/// [`EQUAL_PREDICTION_SIGMAS`] standard errors of the paired difference (blocks of
-/// `block_rows` scored samples) nor by more than [`EQUAL_PREDICTION_POINTS`], the one whose
-/// model fits its filtered torque best; `None` when there are no trials.
+/// The trials as the decision rule reads them.
+fn predictions(trials: &[Trial]) -> Vec<Prediction<'_>> {
+    trials
+        .iter()
+        .map(|t| Prediction {
+            cutoff_hz: t.cutoff_hz,
+            errors: &t.errors,
+            fp: t.predicted_fp,
+            training_fp: t.training_fp,
+        })
+        .collect()
+}
+
+/// The trial [`best_predicting`] chooses.
 fn chosen(trials: &[Trial], block_rows: usize) -> Option<&Trial> {
-    let best = most_accurate(trials)?;
-    let as_good = |t: &&Trial| {
-        let differences: Vec<f64> = t.errors.iter().zip(&best.errors).map(|(a, b)| a - b).collect();
-        let (mean, error) = mean_and_block_error(&differences, block_rows);
-        mean <= EQUAL_PREDICTION_SIGMAS * error && t.predicted_fp >= best.predicted_fp - EQUAL_PREDICTION_POINTS
-    };
-    trials.iter().filter(as_good).max_by(|a, b| a.training_fp.total_cmp(&b.training_fp))
+    best_predicting(&predictions(trials), Equal::Paired { block_rows }, Prefer::BestInBandFit).map(|i| &trials[i])
 }
 
 /// The trial whose prediction of the unfiltered torque has the highest mean FP%.
 fn most_accurate(trials: &[Trial]) -> Option<&Trial> {
-    trials.iter().max_by(|a, b| a.predicted_fp.total_cmp(&b.predicted_fp))
-}
-
-/// The mean of `x` and its standard error from the scatter of the means of consecutive blocks
-/// of `block` values (the values are correlated within a block, not between blocks).
-fn mean_and_block_error(x: &[f64], block: usize) -> (f64, f64) {
-    let n = x.len().max(1);
-    let mean = x.iter().sum::<f64>() / n as f64;
-    let blocks: Vec<f64> = x.chunks(block.max(1)).map(|b| b.iter().sum::<f64>() / b.len() as f64).collect();
-    if blocks.len() < 2 {
-        return (mean, f64::INFINITY);
-    }
-    let m = blocks.len() as f64;
-    let scatter = blocks.iter().map(|b| (b - mean).powi(2)).sum::<f64>() / (m - 1.0);
-    (mean, (scatter / m).sqrt())
-}
-
-/// Geometric steps, [`CUTOFFS_PER_OCTAVE`] per octave, from `floor` to the last one at or below
-/// `top` (at least `floor`).
-fn geometric_grid(floor: f64, top: f64) -> Vec<f64> {
-    let step = 2f64.powf(1.0 / CUTOFFS_PER_OCTAVE as f64);
-    let count = ((top / floor).log2() * CUTOFFS_PER_OCTAVE as f64 + 1e-9).floor().max(0.0) as usize;
-    (0..=count).map(|i| floor * step.powi(i as i32)).collect()
+    most_accurate_prediction(&predictions(trials)).map(|i| &trials[i])
 }
 
 /// The reference's choices (period, spectral rule) with the cut-off line replaced by the search's,
@@ -493,18 +465,4 @@ fn explain(
         ),
     });
     Choices { reasons, warnings }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_grid_steps_geometrically_from_the_floor_to_the_top() {
-        let c = geometric_grid(1.0, 8.0);
-        assert_eq!(c.len(), 13, "{c:?}");
-        assert!((c[0] - 1.0).abs() < 1e-12 && (c[12] - 8.0).abs() < 1e-9);
-        assert!(c.windows(2).all(|w| (w[1] / w[0] - 2f64.powf(0.25)).abs() < 1e-12));
-        assert_eq!(geometric_grid(1.0, 0.5), vec![1.0]);
-    }
 }

@@ -340,9 +340,164 @@ pub fn harmonic_bandwidth(periods: &[Vec<f64>], dof: usize, fs: f64) -> Option<f
     (!signal_hz.is_nan()).then_some(signal_hz)
 }
 
+/// Cut-offs tried per doubling: a step of 19 %, which changes the fit by far less than a point.
+pub const CUTOFFS_PER_OCTAVE: usize = 4;
+
+/// Geometric steps, [`CUTOFFS_PER_OCTAVE`] per octave, from `floor` to the last one at or below
+/// `top` (at least `floor`).
+pub fn geometric_grid(floor: f64, top: f64) -> Vec<f64> {
+    let step = 2f64.powf(1.0 / CUTOFFS_PER_OCTAVE as f64);
+    let count = ((top / floor).log2() * CUTOFFS_PER_OCTAVE as f64 + 1e-9).floor().max(0.0) as usize;
+    (0..=count).map(|i| floor * step.powi(i as i32)).collect()
+}
+
+/// A cut-off predicts as well as the best when its prediction's extra squared error is within
+/// this many standard errors of nothing (a one-sided test at about 2 %). Among those, the one
+/// whose model explains its own filtered torque best is kept: usually the lowest, which takes the
+/// most noise out of the signals without losing what the model explains.
+pub const EQUAL_PREDICTION_SIGMAS: f64 = 2.0;
+
+/// ... and no more than this many points of mean FP% below it: a difference the test cannot
+/// resolve on a short or badly explained log is still not ignored when it is this large (the
+/// issue's own notion of fitting "as well").
+pub const EQUAL_PREDICTION_POINTS: f64 = 1.0;
+
+/// A candidate cut-off, judged by how well the model fitted at it predicts torque it was not
+/// filtered toward: identification's cut-off (`identify/cutoff.rs`) and the diagnosis's band
+/// (`diagnose/band.rs`) are both chosen by [`best_predicting`] over these.
+#[derive(Clone, Copy, Debug)]
+pub struct Prediction<'a> {
+    pub cutoff_hz: f64,
+    /// The prediction's squared error at each scored sample, each joint's over its torque's
+    /// variance, summed over the joints; every candidate is scored at the same samples.
+    pub errors: &'a [f64],
+    /// Mean FP% of that prediction.
+    pub fp: f64,
+    /// Mean FP% of the model on its own filtered torque: what breaks ties.
+    pub training_fp: f64,
+}
+
+/// The candidate whose prediction has the highest mean FP%.
+pub fn most_accurate_prediction(candidates: &[Prediction]) -> Option<usize> {
+    (0..candidates.len()).max_by(|&a, &b| candidates[a].fp.total_cmp(&candidates[b].fp))
+}
+
+/// How close a candidate's prediction must come to the best's to count as equal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Equal {
+    /// Its extra squared error over the best's within [`EQUAL_PREDICTION_SIGMAS`] standard errors
+    /// of the paired difference (blocks of `block_rows` scored samples, over which the errors are
+    /// correlated), and its mean FP% within [`EQUAL_PREDICTION_POINTS`] of it (identification:
+    /// the finest distinction the data allow, for the parameters' sake).
+    Paired { block_rows: usize },
+    /// Its mean squared error within [`EQUAL_PREDICTION_SIGMAS`] of the best's own sampling
+    /// errors, a relative √(2/n) over `independent` = n held-out samples (the diagnosis): another
+    /// log of the robot would score the bands with that scatter, so bands closer than that are
+    /// no choice the data make. The paired test resolves far finer differences where the declared
+    /// model is nearly right (0.01 points of FP% between two bands of a clean log), which move
+    /// no diagnosis.
+    Sampling { independent: f64 },
+}
+
+/// Which candidates predict as well as the best, by `equal`.
+pub fn as_good_as_best(candidates: &[Prediction], equal: Equal) -> Vec<bool> {
+    let Some(best) = most_accurate_prediction(candidates).map(|i| candidates[i]) else { return vec![] };
+    let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len().max(1) as f64;
+    candidates
+        .iter()
+        .map(|c| match equal {
+            Equal::Paired { block_rows } => {
+                let differences: Vec<f64> = c.errors.iter().zip(best.errors).map(|(a, b)| a - b).collect();
+                let (mean, error) = mean_and_block_error(&differences, block_rows);
+                mean <= EQUAL_PREDICTION_SIGMAS * error && c.fp >= best.fp - EQUAL_PREDICTION_POINTS
+            }
+            Equal::Sampling { independent } => {
+                let relative = (2.0 / independent.max(1.0)).sqrt();
+                mean(c.errors) <= mean(best.errors) * (1.0 + EQUAL_PREDICTION_SIGMAS * relative)
+            }
+        })
+        .collect()
+}
+
+/// Which of the cut-offs that predict alike a search keeps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Prefer {
+    /// The one whose model fits its own filtered torque best (identification): equal predictions
+    /// hold the same predictable content, and the best in-band fit holds the least of what no
+    /// model predicts (noise, and what the model lacks above the motion), so the parameters
+    /// come out with the least spread.
+    BestInBandFit,
+    /// The widest (the diagnosis): equal predictions hold the same predictable content, and a
+    /// wider band holds more of the motion's information in more independent samples, for the
+    /// Wald test's batches and for telling effects apart (a drive's gain from a mass on the link
+    /// it lifts, which differ only in the faster dynamics).
+    Widest,
+}
+
+/// The cut-off to use: of those that predict as well as the best ([`as_good_as_best`]), the one
+/// `prefer` names. `None` when there are no candidates.
+pub fn best_predicting(candidates: &[Prediction], equal: Equal, prefer: Prefer) -> Option<usize> {
+    let good = as_good_as_best(candidates, equal);
+    let equal = (0..candidates.len()).filter(|&i| good[i]);
+    match prefer {
+        Prefer::BestInBandFit => equal.max_by(|&a, &b| candidates[a].training_fp.total_cmp(&candidates[b].training_fp)),
+        Prefer::Widest => equal.max_by(|&a, &b| candidates[a].cutoff_hz.total_cmp(&candidates[b].cutoff_hz)),
+    }
+}
+
+/// The mean of `x` and its standard error from the scatter of the means of consecutive blocks
+/// of `block` values (the values are correlated within a block, not between blocks).
+pub fn mean_and_block_error(x: &[f64], block: usize) -> (f64, f64) {
+    let n = x.len().max(1);
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let blocks: Vec<f64> = x.chunks(block.max(1)).map(|b| b.iter().sum::<f64>() / b.len() as f64).collect();
+    if blocks.len() < 2 {
+        return (mean, f64::INFINITY);
+    }
+    let m = blocks.len() as f64;
+    let scatter = blocks.iter().map(|b| (b - mean).powi(2)).sum::<f64>() / (m - 1.0);
+    (mean, (scatter / m).sqrt())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_grid_steps_geometrically_from_the_floor_to_the_top() {
+        let c = geometric_grid(1.0, 8.0);
+        assert_eq!(c.len(), 13, "{c:?}");
+        assert!((c[0] - 1.0).abs() < 1e-12 && (c[12] - 8.0).abs() < 1e-9);
+        assert!(c.windows(2).all(|w| (w[1] / w[0] - 2f64.powf(0.25)).abs() < 1e-12));
+        assert_eq!(geometric_grid(1.0, 0.5), vec![1.0]);
+    }
+
+    /// Three cut-offs scored on 400 samples: the best, one whose extra error is a fraction of a
+    /// standard error (equal), and one clearly worse. Of the two equal ones identification keeps
+    /// the one that fits its own torque best, whichever predicts a little better; the diagnosis
+    /// the wider; the clearly worse one is neither's, wide as it is and well as it fits.
+    #[test]
+    fn of_the_equal_predictions_the_best_in_band_fit_is_chosen() {
+        let noise = |i: usize, seed: usize| ((i * 7919 + seed * 104_729) % 1000) as f64 / 1000.0;
+        let base: Vec<f64> = (0..400).map(|i| 0.1 + 0.05 * noise(i, 1)).collect();
+        // Scattered about the best's with no mean difference.
+        let mean = (0..400).map(|i| noise(i, 2)).sum::<f64>() / 400.0;
+        let equal: Vec<f64> = (0..400).map(|i| base[i] + 0.002 * (noise(i, 2) - mean)).collect();
+        let worse: Vec<f64> = base.iter().map(|b| b + 0.05).collect();
+        let candidates = [
+            Prediction { cutoff_hz: 2.0, errors: &equal, fp: 90.0, training_fp: 95.0 },
+            Prediction { cutoff_hz: 4.0, errors: &base, fp: 90.1, training_fp: 94.0 },
+            Prediction { cutoff_hz: 8.0, errors: &worse, fp: 85.0, training_fp: 99.0 },
+        ];
+        let paired = Equal::Paired { block_rows: 20 };
+        assert_eq!(as_good_as_best(&candidates, paired), vec![true, true, false]);
+        assert_eq!(best_predicting(&candidates, paired, Prefer::BestInBandFit), Some(0));
+        assert_eq!(best_predicting(&candidates, paired, Prefer::Widest), Some(1));
+        // The worse one's mean squared error is 40 % above the best's: equal only where the best's
+        // own sampling error is that large (a handful of independent samples).
+        assert_eq!(as_good_as_best(&candidates, Equal::Sampling { independent: 400.0 }), vec![true, true, false]);
+        assert_eq!(as_good_as_best(&candidates, Equal::Sampling { independent: 8.0 }), vec![true, true, true]);
+    }
 
     /// `dof` joints of a Fourier series with period `period_s` (harmonics 1..=5 of it), sampled
     /// at `fs` for `duration_s`, quantised to `bits` over one turn.

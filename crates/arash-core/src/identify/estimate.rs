@@ -108,7 +108,7 @@ fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f
     let every: Vec<usize> = (0..data.samples()).collect();
     let mut w = regressor_rows(model, data, columns, &every);
     let positions = coulomb_positions(model, columns);
-    put_coulomb(&mut w, data.dof, &positions, (&data.friction.directions(model.coulomb_shape), &every));
+    put_coulomb(&mut w, data.dof, &positions, (&data.friction.directions(&model.coulomb_laws), &every));
     let filter = Butterworth::lowpass(data.order, data.cutoff_hz, data.rate_hz()).expect("the torque was filtered so");
     filter_each_column(&mut w, data.dof, &filter, data.periodic);
     let n = data.dof;
@@ -220,7 +220,7 @@ pub fn fit(model: &Model, base: &BaseParameters, data: &Preprocessed, method: Me
 pub fn unfiltered_prediction(model: &Model, data: &Preprocessed, columns: &[usize], beta: &[f64]) -> Vec<f64> {
     let rows: Vec<usize> = data.settled.clone().collect();
     let positions = coulomb_positions(model, columns);
-    let directions = data.friction.directions(model.coulomb_shape);
+    let directions = data.friction.directions(&model.coulomb_laws);
     // In bands of samples, so that the regressor of a long log is never held whole.
     let mut predicted = Vec::with_capacity(rows.len() * data.dof);
     for band in rows.chunks(8192) {

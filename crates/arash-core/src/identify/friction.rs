@@ -13,7 +13,7 @@
 
 use super::filter::{Butterworth, FilterError};
 use super::signals::{central_difference, every_nth_row, filter_columns, mean_of, whole_periods, Averaging};
-use crate::model::CoulombShape;
+use crate::model::{CoulombLaws, CoulombShape};
 
 /// The friction velocity of a log: one series per averaged period (a single one for a log that
 /// is not periodic), each `samples × dof`, row-major.
@@ -48,9 +48,30 @@ impl FrictionVelocity {
     }
 
     /// The Coulomb direction of every joint and sample (`samples × dof`), unfiltered: the mean
-    /// over the periods of `shape(q̇ₚ)`.
-    pub fn directions(&self, shape: CoulombShape) -> Vec<f64> {
-        mean_of(&self.periods, |v| shape.eval(v))
+    /// over the periods of each joint's law of `q̇ₚ`.
+    pub fn directions(&self, laws: &CoulombLaws) -> Vec<f64> {
+        let dof = laws.shapes().len();
+        let mut mean = vec![0.0; self.periods.first().map_or(0, Vec::len)];
+        let share = 1.0 / self.periods.len() as f64;
+        for period in &self.periods {
+            for (i, (m, v)) in mean.iter_mut().zip(period).enumerate() {
+                *m += laws.eval(i % dof, *v) * share;
+            }
+        }
+        mean
+    }
+
+    /// Joint `k`'s Coulomb direction under `shape` at every sample, unfiltered, as
+    /// [`Self::directions`] gives it: what one joint's friction-law candidates are built from.
+    pub fn joint_directions(&self, k: usize, dof: usize, shape: CoulombShape) -> Vec<f64> {
+        let mut mean = vec![0.0; self.periods.first().map_or(0, |p| p.len() / dof)];
+        let share = 1.0 / self.periods.len() as f64;
+        for period in &self.periods {
+            for (m, v) in mean.iter_mut().zip(period.iter().skip(k).step_by(dof)) {
+                *m += shape.eval(*v) * share;
+            }
+        }
+        mean
     }
 }
 
@@ -108,7 +129,7 @@ mod tests {
         }
         let averaging = Some(Averaging { count: 2, samples: per as f64 });
         let v = FrictionVelocity::of_log(&q, 1, averaging, (dt, 5), 100.0, 1).unwrap();
-        let directions = v.directions(CoulombShape::Sign);
+        let directions = v.directions(&CoulombLaws::undeclared(1));
         let of_mean: Vec<f64> = v.mean().iter().map(|x| CoulombShape::Sign.eval(*x)).collect();
         // Every direction is a mean of two signs; somewhere near the zero crossings (t = 0.5 s,
         // 1.5 s) the dithered period's sign flips against the clean one's.

@@ -10,7 +10,7 @@ use super::decide::{bandwidth, find_period, harmonic_bandwidth, PERIODIC_MISMATC
 use super::filter::{Butterworth, FilterError};
 use super::friction::{FrictionVelocity, RawVelocity};
 use super::signals::{averaged, central_difference, every_nth_row, filter_columns, periods_of, Averaging};
-use crate::model::CoulombShape;
+use crate::model::CoulombLaws;
 
 /// Settings for [`preprocess`]: the one home of the preprocessing defaults, which every front end
 /// (CLI, Python, diagnosis, demo) starts from, overriding only what its user set. `Default` leaves
@@ -219,11 +219,11 @@ impl Preprocessed {
     }
 
     /// The Coulomb columns (`samples × dof`, joint k's direction in column k), filtered exactly
-    /// like the torque: `shape` of each period's friction velocity, averaged over the periods
+    /// like the torque: each joint's law of each period's friction velocity, averaged over the periods
     /// ([`FrictionVelocity::directions`]). Identification and the diagnosis both build their
     /// Coulomb columns here.
-    pub fn coulomb_columns(&self, shape: CoulombShape) -> Vec<f64> {
-        self.filter_like_torque(&self.friction.directions(shape), self.dof)
+    pub fn coulomb_columns(&self, laws: &CoulombLaws) -> Vec<f64> {
+        self.filter_like_torque(&self.friction.directions(laws), self.dof)
             .expect("the torque was filtered with these settings")
     }
 

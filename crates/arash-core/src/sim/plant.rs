@@ -14,7 +14,7 @@ use super::scenario::{Integrator, Scenario};
 use super::truth::{add_payload, true_parameters};
 use crate::data::Data;
 use crate::dynamics::{forward_dynamics_with_armature, kinetic_energy, potential_energy, DynamicsError};
-use crate::model::{CoulombShape, Model};
+use crate::model::{CoulombLaws, CoulombShape, Model};
 
 /// The simulated robot: true parameters, undeclared effects and the integrator state.
 pub struct Plant {
@@ -65,7 +65,8 @@ impl Plant {
         scenario.validate(model.dof())?;
         let n = model.dof();
         let mut truth_model = model.clone();
-        truth_model.coulomb_shape = CoulombShape::Tanh { epsilon: scenario.truth.coulomb_epsilon };
+        truth_model.coulomb_laws =
+            CoulombLaws::uniform(CoulombShape::Tanh { epsilon: scenario.truth.coulomb_epsilon }, n);
         let params = true_parameters(model, scenario);
         let payload_body = match &scenario.effects.payload {
             Some(p) => Some(model.bodies.iter().position(|b| b.name == p.body).ok_or_else(|| {

@@ -22,11 +22,16 @@ pub struct Runs {
     /// The robot's URDF; default: the bundled ARASH:ASiST.
     #[arg(long)]
     pub robot: Option<std::path::PathBuf>,
-    /// The robot's Coulomb friction switches as tanh(q̇/ε) with this ε (rad/s or m/s) instead of
-    /// sign(q̇); the simulated rig's law is tanh with ε = 0.001. A model file records the law it
-    /// was fitted with, and `arash diagnose --model` uses the file's.
-    #[arg(long)]
+    /// Declare every joint's Coulomb law as tanh(q̇/ε) with this ε (rad/s or m/s); the simulated
+    /// rig's law is tanh with ε = 0.001. Without it (or --friction-velocity) each joint's law is
+    /// chosen from the data. A model file records the laws it was fitted with, and `arash
+    /// diagnose --model` uses the file's.
+    #[arg(long, conflicts_with = "friction_velocity")]
     pub coulomb_epsilon: Option<f64>,
+    /// Declare each joint's Coulomb law: its friction velocity v of tanh(q̇/v) (rad/s or m/s), or
+    /// `sign`, one per joint (e.g. sign,0.01,0.002).
+    #[arg(long, value_delimiter = ',')]
+    pub friction_velocity: Option<Vec<String>>,
     /// The logs are motor-side: motor radians per joint radian, one per joint (the TX40's
     /// 32,32,45,-48,45,32). Angles map to q = R⁻¹θ + q₀, torques to τ = Rᵀτ_m (docs/real-data.md).
     #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
@@ -44,9 +49,34 @@ impl Runs {
     /// The robot these runs come from (`--robot`), with its declared Coulomb law, and its URDF.
     pub fn robot(&self) -> anyhow::Result<(arash_core::Model, String)> {
         let (mut model, urdf) = load_robot(self.robot.as_deref())?;
+        let dof = model.dof();
         if let Some(epsilon) = self.coulomb_epsilon {
-            model.coulomb_shape = arash_core::model::CoulombShape::tanh(epsilon)
+            let shape = arash_core::model::CoulombShape::tanh(epsilon)
                 .with_context(|| format!("--coulomb-epsilon must be positive, not {epsilon}"))?;
+            model.coulomb_laws = arash_core::CoulombLaws::uniform(shape, dof);
+        }
+        if let Some(given) = &self.friction_velocity {
+            anyhow::ensure!(
+                given.len() == dof,
+                "--friction-velocity needs {dof} values, one per joint; got {}",
+                given.len()
+            );
+            let velocities = given
+                .iter()
+                .map(|v| match v.trim() {
+                    "sign" => Ok(None),
+                    v => v
+                        .parse::<f64>()
+                        .map(Some)
+                        .with_context(|| format!("--friction-velocity: `{v}` is not a number or `sign`")),
+                })
+                .collect::<anyhow::Result<Vec<_>>>()?;
+            model.coulomb_laws = arash_core::CoulombLaws::of_velocities(&velocities).map_err(|(k, v)| {
+                anyhow::anyhow!(
+                    "--friction-velocity of joint {} must be positive and finite (or `sign`), not {v}",
+                    k + 1
+                )
+            })?;
         }
         Ok((model, urdf))
     }

@@ -56,9 +56,23 @@ class Robot:
     """
 
     @staticmethod
-    def from_urdf(path: Union[str, PathLike[str]], coulomb_epsilon: Optional[float] = None) -> Robot: ...
+    def from_urdf(
+        path: Union[str, PathLike[str]],
+        coulomb_epsilon: Optional[float] = None,
+        friction_velocities: Optional[Sequence[Optional[float]]] = None,
+    ) -> Robot:
+        """Its Coulomb laws are chosen from the data by ``identify`` and ``diagnose`` unless
+        declared: ``coulomb_epsilon`` declares tanh(q̇/ε) on every joint, ``friction_velocities``
+        one law per joint (v of tanh(q̇/v), None for sign(q̇))."""
     @staticmethod
-    def arash_asist(coulomb_epsilon: Optional[float] = None) -> Robot: ...
+    def arash_asist(
+        coulomb_epsilon: Optional[float] = None, friction_velocities: Optional[Sequence[Optional[float]]] = None
+    ) -> Robot: ...
+    @property
+    def friction_velocities(self) -> list[Optional[float]]:
+        """Each joint's v of its Coulomb law tanh(q̇/v); None for sign(q̇)."""
+    @property
+    def coulomb_laws_declared(self) -> bool: ...
     @property
     def warnings(self) -> list[str]: ...
     @property
@@ -318,6 +332,12 @@ class Diagnosis:
     def error_before(self) -> dict[str, _Array]: ...
     @property
     def error_after(self) -> dict[str, _Array]: ...
+    @property
+    def noise_floor(self) -> _Array:
+        """The held-out error no model of the motion removes, RMS per joint; gains are judged above it."""
+    @property
+    def sensor_noise(self) -> _Array:
+        """The torque's white noise in the band, RMS per joint."""
     @property
     def error_before_training(self) -> dict[str, _Array]: ...
     @property

@@ -163,7 +163,8 @@ fn steps(args: &Args, plan: &Plan) -> anyhow::Result<()> {
         let mut rig_scenario = arash_core::sim::Scenario::from_toml(&text)?;
         rig_scenario.seed = args.seed;
         let epsilon = rig_scenario.truth.coulomb_epsilon;
-        diagnosed.coulomb_shape = arash_core::model::CoulombShape::Tanh { epsilon };
+        diagnosed.coulomb_laws =
+            arash_core::CoulombLaws::uniform(arash_core::model::CoulombShape::Tanh { epsilon }, model.dof());
         truth = Some(Truth { params: arash_core::sim::true_parameters(&model, &rig_scenario), epsilon });
     }
     let (motors, rt) = match &args.port {
@@ -311,7 +312,10 @@ fn truth_file(
     file.sigma_percent = vec![0.0; file.beta.len()];
     file.min_pseudo_inertia_eigenvalue = arash_core::physical::min_pseudo_inertia_eigenvalues(model, &truth.params);
     file.effects.clear();
-    file.settings.coulomb_epsilon = Some(truth.epsilon);
+    let laws =
+        arash_core::CoulombLaws::uniform(arash_core::model::CoulombShape::Tanh { epsilon: truth.epsilon }, model.dof());
+    (file.settings.coulomb_epsilon, file.settings.friction_velocities) =
+        arash_core::model_file::Settings::law_fields(&laws);
     file.settings.reasons =
         vec!["the simulated rig's own parameters of the declared model (its scenario and seed): not estimated".into()];
     file.settings.warnings.clear();
