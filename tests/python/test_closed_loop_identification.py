@@ -133,3 +133,80 @@ def test_idim_iv_names_what_its_closed_loop_lacks():
                        controller={**controller, "params": np.zeros(5)})
     with pytest.raises(ValueError, match="not a controller"):
         arash.identify(robot, *log, method="idim-iv", reference=reference, controller={"law": "lqr"})
+
+
+def test_the_stick_step_holds_a_joint_still_until_the_other_torques_overcome_its_friction():
+    """``coulomb_step``, the generator's set-valued dry friction, against its own definition:
+    one joint under a force below its friction stays exactly still and above it moves as
+    (F − f_c)/m; two coupled joints give the minimiser of ½ (v − v_f)ᵀ M (v − v_f) + Σ h f_c |v_k|,
+    checked against scipy's minimiser of that convex function."""
+    from scipy.optimize import minimize
+
+    from closed_loop import coulomb_step
+
+    h, m, fc = 1e-3, 2.0, 3.0
+    for force, expected in ((2.5, 0.0), (-2.9, 0.0), (5.0, h * (5.0 - fc) / m), (-4.0, h * (-4.0 + fc) / m)):
+        v = coulomb_step(np.array([[m]]), np.array([h * force / m]), np.array([h * fc]))
+        assert abs(v[0] - expected) < 1e-15, (force, v, expected)
+    mass = np.array([[2.0, 0.6], [0.6, 1.0]])
+    impulse = h * np.array([0.5, 2.0])
+    for free in (np.array([1e-3, 2e-3]), np.array([4e-3, -1e-4]), np.array([-2e-4, 3e-4])):
+        v = coulomb_step(mass, free, impulse)
+        cost = lambda x: 0.5 * (x - free) @ mass @ (x - free) + impulse @ np.abs(x)  # noqa: E731
+        reference = minimize(cost, free, method="Nelder-Mead", options={"xatol": 1e-12, "fatol": 1e-18}).x
+        assert cost(v) <= cost(reference) + 1e-15, (v, reference)
+
+
+def paper_validation_fp_of_law(robot, model, truth, law):
+    """FP% per joint on the paper's four validation trajectories against the noise-free torque of
+    the true robot whose Coulomb law is `law` ("sign", or a friction velocity per joint)."""
+    expanded = Expanded(ROBOT_FILES["arash_asist"], robot)
+    expanded.set_parameters(truth)
+    n, nb = robot.dof, len(robot.body_names())
+    fv, fc, ke = truth[10 * nb : 10 * nb + 2 * n : 2], truth[10 * nb + 1 : 10 * nb + 2 * n : 2], truth[10 * nb + 2 * n :]
+    rows = []
+    for omega in (0.3, 0.5, 0.7, 0.9):
+        t = np.arange(int(round(2 * np.pi / omega * 1000))) / 1000
+        q, qd, qdd = arash.paper_validation_trajectory(omega, t)
+        shape = np.sign(qd) if law == "sign" else np.tanh(qd / np.asarray(law))
+        exact = rigid_torques(expanded, q, qd, qdd) + fv * qd + fc * shape + ke * q
+        error = np.linalg.norm(exact - model.predict(q, qd, qdd), axis=0)
+        rows.append(100 * (1 - error / np.linalg.norm(exact - exact.mean(axis=0), axis=0)))
+    return np.array(rows)
+
+
+@pytest.fixture(scope="module")
+def smooth_law_closed_loop():
+    """Issue 44's closed loop: PD with CAD gravity, no disturbance, the plant stepped at 10 kHz,
+    its dry friction tanh(q̇/2·10⁻³) on every joint, arash's designed excitation (four periods),
+    16-bit encoders. The robot returned declares no law, as a new user loads it."""
+    robot = arash.Robot.from_urdf(ROBOT_FILES["arash_asist"])
+    truth = true_parameters(robot, np.random.default_rng(0))
+    condition = Condition("arash_asist", 1000, 16, 0.0, "tanh", 4, 60.0, seed=0, designed=True)
+    law = [2e-3] * 3
+    robot, log, _, _ = pd_gravity_log(condition, truth, actuator_noise=0.0, law=law, substeps=10, declare=False)
+    return robot, truth, law, log
+
+
+@pytest.mark.parametrize("declared", [True, False], ids=["law declared", "law chosen from the data"])
+def test_a_closed_loop_whose_friction_rises_over_2_mm_s_validates_with_its_law(smooth_law_closed_loop, declared):
+    """Calibrated with the plant's law declared, or with each joint's law chosen from the data,
+    the model predicts the true robot on the paper's four trajectories at FP% ≥ 95 on every
+    joint. (With the law grid capped at half the RMS speed the insertion's law came out at
+    1.2 mm/s and the insertion validated at 46 %: it moves at 2.4 mm/s RMS; docs/identification.md.)"""
+    robot, truth, law, log = smooth_law_closed_loop
+    assert not robot.coulomb_laws_declared
+    if declared:
+        robot = arash.Robot.from_urdf(ROBOT_FILES["arash_asist"], friction_velocities=law)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        model = arash.identify(robot, *log)
+    validation = paper_validation_fp_of_law(robot, model, truth, law)
+    print(f"laws {model.robot.friction_velocities}; FP% on the paper's trajectories (rows ω = 0.3 … 0.9):\n"
+          f"{np.round(validation, 2)}")
+    if not declared:
+        # Each joint's law is found near the plant's (within the grid's refinement and what the
+        # 16-bit encoders let the velocity show).
+        chosen = np.array(model.robot.friction_velocities, dtype=float)
+        assert np.all((chosen > 0.25 * 2e-3) & (chosen < 4 * 2e-3)), chosen
+    assert np.all(validation >= 95.0), validation

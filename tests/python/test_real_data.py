@@ -87,17 +87,23 @@ def test_the_tx40_identifies_from_its_motor_side_log_with_the_defaults():
     # The arm's big joints are explained by the declared model with friction; upstream's model
     # has rotor inertia, offsets and the wrist's coupling besides, which the declared one lacks.
     assert np.all(ident.fp_percent[:3] > 85.0), ident.fp_percent
-    # Friction is identified independently of upstream's estimate and agrees with it: within 3
+    # Friction is identified independently of upstream's estimate and agrees with it where it is
+    # the same quantity, under upstream's law sign(q̇) (the defaults choose smoother laws on most
+    # joints, whose fv and fc trade against the law's velocity; docs/real-data.md): within 3
     # standard deviations of the difference (upstream's σ and ours) on joints 1 to 5. On joint 6
     # upstream puts most of the dry friction on motor 6 (fsm6 = 1.95 N·m in T40X_config.yaml),
     # which turns with joints 5 and 6 together; the declared model has no such term, so joint 6's
     # Coulomb column takes it: ours must lie near fs6 + fsm6, not fs6 (docs/real-data.md).
+    print(f"friction velocities chosen: {ident.robot.friction_velocities}")
+    with pytest.warns(UserWarning):
+        signed = arash.Robot.from_urdf(TX40 / "tx40_mdh_modified.urdf", friction_velocities=[None] * 6)
+    as_upstream = arash.identify(signed, t, theta, tau_m, motor_side=tx40_transmission())
     for k in range(1, 6):
         for ours, theirs in ((f"joint_{k}.fv", f"fv{k}"), (f"joint_{k}.fc", f"fs{k}")):
-            z = published_z(ident, ours, theirs)
+            z = published_z(as_upstream, ours, theirs)
             assert abs(z) < 3.0, f"{ours}: {z:+.1f} standard deviations from upstream's {theirs}"
-    assert abs(published_z(ident, "joint_6.fc", "fs6")) > 3.0
-    assert abs(published_z(ident, "joint_6.fc", "fs6", plus=MOTOR_6_DRY_FRICTION)) < 3.0
+    assert abs(published_z(as_upstream, "joint_6.fc", "fs6")) > 3.0
+    assert abs(published_z(as_upstream, "joint_6.fc", "fs6", plus=MOTOR_6_DRY_FRICTION)) < 3.0
 
 
 # Upstream's dry friction of motor 6 as joints 5 and 6 see it (T40X_config.yaml, fsm6).
@@ -216,6 +222,31 @@ def kuka_run(i):
     data = np.load(need(KUKA / f"measurements_{i}.npz"))
     t = data["times"] - data["times"][0]
     return t, data["positions"], data["torques"]
+
+
+def test_a_model_whose_laws_the_data_chose_predicts_with_them():
+    """A robot that declares no Coulomb law is identified with each joint's law chosen from the
+    data; the model's predictions, validation and base use those laws, exactly as a model of the
+    same robot declared with them, fitted with the same cut-offs, does. (Until 2026-11-27 the
+    Python model predicted with sign(q̇): a closed loop's insertion validated at 77 % where its
+    fit was 97 %.)"""
+    robot = arash.Robot.from_urdf(need(KUKA / "kuka_lwr4.urdf"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # two periods only, said in settings["warnings"]
+        chosen = arash.identify(robot, *kuka_run(1))
+        laws = chosen.robot.friction_velocities
+        assert any(v is not None for v in laws), laws  # the test needs a law that is not sign(q̇)
+        declared = arash.Robot.from_urdf(need(KUKA / "kuka_lwr4.urdf"), friction_velocities=laws)
+        settings = chosen.settings
+        same = arash.identify(declared, *kuka_run(1), cutoff_hz=settings["cutoff_hz"],
+                              friction_cutoff_hz=settings["friction_cutoff_hz"])
+    np.testing.assert_allclose(chosen.beta, same.beta, rtol=1e-9, atol=1e-12)
+    t, q, _ = kuka_run(2)
+    qd = np.gradient(q, t, axis=0)
+    qdd = np.gradient(qd, t, axis=0)
+    np.testing.assert_allclose(chosen.predict(q, qd, qdd), same.predict(q, qd, qdd), rtol=1e-9, atol=1e-9)
+    for key in ("fp_percent", "rms"):
+        np.testing.assert_allclose(chosen.validate(*kuka_run(2))[key], same.validate(*kuka_run(2))[key], rtol=1e-9)
 
 
 def test_the_kuka_model_from_run_1_predicts_run_2_as_well_as_a_hand_set_cutoff():

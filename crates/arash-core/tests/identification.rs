@@ -239,9 +239,10 @@ fn drawn_truth(seed: u64) -> (Model, BaseParameters, Vec<f64>, Fourier, ChaCha8R
 
 /// The torque base parameters `beta` predict, and the true parameters `pi` give, at every 7th
 /// millisecond of the first 15 s of `states` (q, q̇, q̈ at time t): the noise-free truth an
-/// identified model is judged against.
+/// identified model is judged against. `fitted` is `model` with the Coulomb laws `beta` was fitted with (the file's, where they were
+/// chosen from the data).
 fn predicted_and_true(
-    model: &Model,
+    (model, fitted): (&Model, &Model),
     base: &BaseParameters,
     (pi, beta): (&[f64], &[f64]),
     states: impl Fn(f64) -> (Vec<f64>, Vec<f64>, Vec<f64>),
@@ -252,7 +253,7 @@ fn predicted_and_true(
         .step_by(7)
         .map(|i| {
             let (q, qd, qdd) = states(i as f64 / 1000.0);
-            regressor(model, &mut data, &q, &qd, &qdd, &mut y);
+            regressor(fitted, &mut data, &q, &qd, &qdd, &mut y);
             base.reduce(&y, &mut y_r);
             let (mut predicted, mut exact) = ([0.0; 3], [0.0; 3]);
             inverse_dynamics(model, &mut data, &q, &qd, &qdd, pi, &mut exact);
@@ -273,7 +274,7 @@ fn the_preprocessing_pipeline_and_ols_recover_the_model() {
     let fit = fit(&model, &base, &pre, Method::Ols).unwrap();
     // Predict the noise-free torque on the true (unfiltered) states of one period.
     let (mut worst, mut scale) = ([0.0f64; 3], [0.0f64; 3]);
-    for (predicted, exact) in predicted_and_true(&model, &base, (&pi, &fit.beta), |t| traj.at(t)) {
+    for (predicted, exact) in predicted_and_true((&model, &model), &base, (&pi, &fit.beta), |t| traj.at(t)) {
         for k in 0..3 {
             worst[k] = worst[k].max((predicted[k] - exact[k]).abs());
             scale[k] = scale[k].max(exact[k].abs());
@@ -491,7 +492,8 @@ fn a_closed_loop_log_does_not_lead_the_cutoff_into_the_encoders_noise() {
     let reasons = file.settings.reasons.join("\n");
     // Predict the noise-free torque on the true states of one period.
     let (mut error, mut power) = ([0.0f64; 3], [0.0f64; 3]);
-    for (predicted, exact) in predicted_and_true(&model, &base, (&pi, &file.beta), states) {
+    for (predicted, exact) in predicted_and_true((&model, &file.with_its_law(&model)), &base, (&pi, &file.beta), states)
+    {
         for k in 0..3 {
             error[k] += (predicted[k] - exact[k]).powi(2);
             power[k] += exact[k].powi(2);

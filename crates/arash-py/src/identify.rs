@@ -69,7 +69,13 @@ pub(crate) struct Identification {
 }
 
 impl Identification {
+    /// `model` carries the Coulomb laws `inner` was fitted with (chosen from the data where the
+    /// robot declared none), which its predictions and base must share.
     pub(crate) fn new(model: Arc<Model>, inner: CoreIdentification) -> Self {
+        let model = match inner.with_its_law(&model) {
+            std::borrow::Cow::Borrowed(_) => model,
+            std::borrow::Cow::Owned(with_law) => Arc::new(with_law),
+        };
         Self { model, inner }
     }
 
@@ -314,7 +320,7 @@ fn _identify<'py>(
         None => py.detach(|| core_identify(declared, log, method, &o)),
     }
     .map_err(value_error)?;
-    Ok(Identification { model, inner })
+    Ok(Identification::new(model, inner))
 }
 
 /// The closed loop's reference `(q_des, qd_des, qdd_des)`, each `(N, dof)`, and its controller (JSON),
@@ -358,7 +364,7 @@ fn load_model(path: std::path::PathBuf) -> PyResult<Identification> {
         .map_err(|e| PyValueError::new_err(format!("cannot read model file {}: {e}", path.display())))?;
     let inner = CoreIdentification::from_json(&text).map_err(value_error)?;
     let robot = Robot::of_file(&inner)?;
-    Ok(Identification { model: robot.model, inner })
+    Ok(Identification::new(robot.model, inner))
 }
 
 /// The physically consistent least-squares problem on a given stacked full regressor W (m, P)

@@ -16,13 +16,16 @@ use super::{Effect, EffectKind, EffectTerm, JointData, NotSearched, Sample, Term
 pub struct FrictionVelocity;
 
 /// The friction velocities tried, as shares of the joint's RMS speed: from a thousandth (a law
-/// the encoders' resolution cannot tell from the sign) to half the RMS speed, a factor of about
-/// 2.2 apart. A law slower still never saturates within the motion: it is viscous friction, which
-/// the declared model has, and its column and the viscous one are so nearly parallel that their
-/// coefficients grow large and opposite (on the TX40's joint 5 a law at twice the RMS speed
-/// predicted held-out torque with FP% −47 %). Identification chooses a robot's laws from the
-/// same grid (`identify/friction_law.rs`).
-pub const FRICTION_VELOCITY_SHARES: [f64; 9] = [0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5];
+/// the encoders' resolution cannot tell from the sign) to the RMS speed itself, a factor of 2 to
+/// 2.5 apart. A law slower still saturates on few of the samples: over most of the motion it is
+/// viscous friction, which the declared model has, and the two columns trade against each other
+/// and against whatever the model lacks (on the TX40's joint 5 a law at twice the RMS speed took
+/// up the friction of the wrist motor the declared model has no term for, and the diagnosis then
+/// named two Stribeck terms and a rotor inertia on that joint). A joint that barely moves can need
+/// the top of the range: a closed loop whose insertion's friction rises over 2 mm/s moved it at
+/// 2.4 mm/s RMS (0.8 × its RMS speed; docs/identification.md). Identification chooses a robot's
+/// laws from the same grid (`identify/friction_law.rs`).
+pub const FRICTION_VELOCITY_SHARES: [f64; 10] = [0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0];
 
 impl Effect for FrictionVelocity {
     fn id(&self) -> &'static str {

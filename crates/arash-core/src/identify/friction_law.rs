@@ -6,29 +6,39 @@
 //! that shortfall near zero speed is left in the residual, where it reads as a Stribeck term of
 //! the wrong sign (less friction near zero, not more), as hysteresis or as a cable's compliance
 //! (issue 44: most joints of three real robots). So each joint's law is `tanh(q̇/v)` with its
-//! *friction velocity* v, or `sign(q̇)` (v → 0), chosen by the fit: the law whose Coulomb column
-//! leaves the least weighted squared error, the other columns refitted. One nonlinear parameter
-//! per joint, searched over a grid of [`FRICTION_VELOCITY_SHARES`] of the joint's RMS speed,
-//! one joint at a time ([`LAW_SWEEPS`] passes over the joints).
+//! *friction velocity* v, or `sign(q̇)` (v → 0), chosen by prediction: the law whose fit, the
+//! other columns refitted, best predicts stretches of the log it was not fitted on
+//! ([`LAW_FOLDS`]-fold cross-validation). One nonlinear parameter per joint, searched over a grid
+//! of [`FRICTION_VELOCITY_SHARES`] of the joint's RMS speed, one joint at a time ([`LAW_SWEEPS`]
+//! passes over the joints).
+//!
+//! Prediction, not the fit's own error, because a law slow enough to stay unsaturated over most of
+//! the motion trades against viscous friction: in-sample it also soaks up what the model lacks,
+//! and its coefficients then fail on motion they were not fitted to. Held-out stretches keep the
+//! law that the motion itself pins down (a closed loop whose insertion rarely moves faster than
+//! twice its friction velocity, docs/identification.md) and refuse the one that only fits.
 //!
 //! Identification and the diagnosis both call [`choose_laws`] when the robot declares no law
 //! ([`crate::model::CoulombLaws::is_declared`]); the model file keeps the result, and the
 //! controllers' friction compensation and the diagnosis against that file use it.
 
 use super::estimate::{coulomb_positions, regressor_rows};
+use super::filter::Butterworth;
 use super::preprocess::{PreprocessError, Preprocessed};
 use crate::base_parameters::BaseParameters;
 use crate::effects::FRICTION_VELOCITY_SHARES;
 use crate::model::{CoulombLaws, CoulombShape, Model};
 use nalgebra::{DMatrix, DVector};
-use statrs::distribution::{ContinuousCDF, FisherSnedecor};
+use std::ops::Range;
 
-/// A smooth law replaces `sign(q̇)` only where its fit is better beyond chance: an F-test of the
-/// cut in the joint's squared error at this level, shared over the grid's velocities
-/// (Bonferroni), as the diagnosis tests its effects (`DiagnoseOptions::alpha`'s default). At a
-/// cut-off far below the friction's transition every law filters to nearly the same column, and
-/// the best of eleven would otherwise be chosen by the noise.
-pub const LAW_ALPHA: f64 = 0.01;
+/// Contiguous stretches of the log, each predicted by the fit on the others: the law kept is the
+/// one whose summed held-out error is least, `sign(q̇)` included. A law chosen by the noise of the
+/// stretches it was fitted on predicts the others worse, so the grid's many candidates do not
+/// make a smooth law out of noise. (Asking a smooth law to beat `sign(q̇)` by two standard errors
+/// of the folds' differences, as the cut-offs' rule does, kept `sign(q̇)` on every joint of the
+/// TX40, whose folds differ by what the declared model lacks; the diagnosis then found Stribeck
+/// terms of the wrong sign on four joints, the symptom of issue 44.)
+pub const LAW_FOLDS: usize = 10;
 
 /// Passes over the joints: each joint's law is chosen with the others' as they stand, and a
 /// second pass lets each see the others' choices. The Coulomb columns of different joints share
@@ -46,16 +56,16 @@ pub struct LawProblem {
     pub coulomb: Vec<(usize, usize)>,
     /// Each joint's row weight, applied to its candidate columns.
     pub weights: Vec<f64>,
-    /// The independent samples each joint's residual holds (a residual filtered at c over T
-    /// seconds holds about 2cT): the F-test's degrees of freedom.
-    pub independent: f64,
+    /// Samples at each end of a fold that are not scored: filtering spreads a sample's noise over
+    /// its neighbours, and a scored sample that close to the fitted ones would share their noise.
+    pub guard: usize,
 }
 
 /// The laws chosen, and what chose them.
 #[derive(Clone, Debug)]
 pub struct ChosenLaws {
     pub laws: CoulombLaws,
-    /// Per joint with a Coulomb column: each candidate's law and the fit's weighted squared
+    /// Per joint with a Coulomb column: each candidate's law and its held-out weighted squared
     /// error over the error with `sign(q̇)`, at the last pass.
     pub scores: Vec<(usize, Vec<(CoulombShape, f64)>)>,
     pub reason: String,
@@ -68,10 +78,11 @@ pub fn candidate_laws(rms_speed: f64) -> Vec<CoulombShape> {
     std::iter::once(CoulombShape::Sign).chain(smooth).collect()
 }
 
-/// Each joint's law: the candidate ([`candidate_laws`] of `rms_speed[k]`) whose Coulomb column
-/// fits best with every other column refitted. `column(k, law)` gives joint `k`'s Coulomb
-/// column under `law` at the problem's samples, unweighted, as the fit filters it; `start` are
-/// the laws the problem's columns hold. Joints without a Coulomb column keep theirs.
+/// Each joint's law: the candidate ([`candidate_laws`] of `rms_speed[k]`) whose fit, every other
+/// column refitted, predicts the held-out folds best.
+/// `column(k, law)` gives joint `k`'s Coulomb column under `law` at the problem's samples,
+/// unweighted, as the fit filters it; `start` are the laws the problem's columns hold. Joints
+/// without a Coulomb column keep theirs.
 pub fn choose_laws(
     mut problem: LawProblem,
     rms_speed: &[f64],
@@ -88,44 +99,37 @@ pub fn choose_laws(
             laws.into_iter().map(|law| (law, weighted(column(k, law), problem.weights[k]))).collect()
         })
         .collect();
-    let mut gram = Gram::of(&problem);
+    let mut folds = Folds::of(&problem);
     let mut scores = Vec::new();
     for sweep in 0..LAW_SWEEPS {
         let coulomb = problem.coulomb.clone();
         for (&(k, c), laws) in coulomb.iter().zip(&candidates) {
-            let Some(others) = gram.without(c) else { continue };
-            let errors: Vec<f64> = laws.iter().map(|(_, v)| others.error_with(&problem, (k, v))).collect();
+            let predicted: Vec<Option<Vec<f64>>> =
+                laws.iter().map(|(_, v)| folds.heldout_errors(&problem, c, (k, v))).collect();
+            let total = |e: &Option<Vec<f64>>| e.as_ref().map_or(f64::INFINITY, |e| e.iter().sum::<f64>());
+            let errors: Vec<f64> = predicted.iter().map(total).collect();
             let on_grid =
                 (0..laws.len()).min_by(|&a, &b| errors[a].total_cmp(&errors[b])).expect("sign is a candidate");
             // Between the grid's neighbours of the best smooth law, to a fraction of a per cent.
-            let (fittest_law, fittest_column, fittest_error) = match on_grid {
-                0 => (laws[0].0, laws[0].1.clone(), errors[0]),
+            let (fittest_law, fittest_column, fittest_folds) = match on_grid {
+                0 => (laws[0].0, laws[0].1.clone(), predicted[0].clone()),
                 i => {
                     let around = (laws[(i - 1).max(1)].0, laws[(i + 1).min(laws.len() - 1)].0);
                     let error_at = |law: CoulombShape| {
                         let values = weighted(column(k, law), problem.weights[k]);
-                        (others.error_with(&problem, (k, &values)), values)
+                        (folds.heldout_errors(&problem, c, (k, &values)), values)
                     };
-                    refine(around, (laws[i].0, errors[i]), error_at)
+                    refine(around, (laws[i].0, predicted[i].clone()), error_at)
                 }
             };
-            put(&mut problem, (c, k), &fittest_column);
-            gram.replace(&problem, c);
-            // F = (sign − fittest) / (e_k / n), e_k the joint's residual with the fittest law and n
-            // its independent samples, against F(1, n) at LAW_ALPHA over the smooth candidates.
-            let n = problem.independent.max(2.0);
-            let residual = gram.joint_error(&problem, k);
-            let threshold = FisherSnedecor::new(1.0, n)
-                .map_or(f64::INFINITY, |f| f.inverse_cdf(1.0 - LAW_ALPHA / (laws.len() - 1).max(1) as f64));
-            let beyond_chance = residual.is_some_and(|e| e > 0.0 && (errors[0] - fittest_error) / (e / n) > threshold);
-            shapes[k] = match beyond_chance {
-                true => fittest_law,
-                false => {
-                    put(&mut problem, (c, k), &laws[0].1);
-                    gram.replace(&problem, c);
-                    laws[0].0
-                }
+            let fittest_error = total(&fittest_folds);
+            let (law, values) = match fittest_error < errors[0] {
+                true => (fittest_law, &fittest_column),
+                false => (laws[0].0, &laws[0].1),
             };
+            shapes[k] = law;
+            put(&mut problem, (c, k), values);
+            folds.replace(&problem, c);
             if sweep + 1 == LAW_SWEEPS {
                 let sign = errors[0].max(f64::MIN_POSITIVE);
                 let mut score: Vec<(CoulombShape, f64)> =
@@ -206,9 +210,11 @@ pub fn laws_for_fit(
         .flat_map(|&s| (0..dof).map(move |k| (s, k)))
         .map(|(s, k)| data.tau[s * dof + k] * weights[k])
         .collect();
-    // A residual filtered at the cut-off holds about two independent samples per cut-off period.
-    let independent = (2.0 * data.cutoff_hz * data.settled.len() as f64 / data.rate_hz()).min(rows.len() as f64);
-    let problem = LawProblem { columns: stacked, y, dof, coulomb: positions, weights, independent };
+    // The torque's filter spreads each sample over its memory, in rows of the thinned samples.
+    let memory_s =
+        Butterworth::lowpass(data.order, data.cutoff_hz, data.rate_hz()).map_or(0.0, |f| f.memory_s(data.rate_hz()));
+    let guard = (memory_s * data.rate_hz() / step as f64).ceil() as usize;
+    let problem = LawProblem { columns: stacked, y, dof, coulomb: positions, weights, guard };
     let chosen = choose_laws(problem, &rms_speed, &model.coulomb_laws, |k, law| {
         match cache.get(&(k, law.epsilon().map(f64::to_bits))) {
             Some(values) => values.clone(),
@@ -225,14 +231,18 @@ type Candidate = (CoulombShape, Vec<f64>);
 /// a factor of about 4.8, shrinks to within 0.3 % of the best.
 const REFINE_STEPS: usize = 14;
 
-/// The law of least error between the two laws of `around` (both smooth), starting from `best`
-/// (its law and error): a golden-section search in log v, `error_at(law)` giving a law's error
-/// and its column. Returns the law, its column and its error.
+/// Each fold's held-out error of a candidate, `None` where its fit could not be solved.
+type FoldErrors = Option<Vec<f64>>;
+
+/// The law of least held-out error between the two laws of `around` (both smooth), starting
+/// from `best` (its law and errors): a golden-section search in log v, `error_at(law)` giving a
+/// law's errors and its column. Returns the law, its column and its errors.
 fn refine(
     around: (CoulombShape, CoulombShape),
-    best: (CoulombShape, f64),
-    error_at: impl Fn(CoulombShape) -> (f64, Vec<f64>),
-) -> (CoulombShape, Vec<f64>, f64) {
+    best: (CoulombShape, FoldErrors),
+    error_at: impl Fn(CoulombShape) -> (FoldErrors, Vec<f64>),
+) -> (CoulombShape, Vec<f64>, FoldErrors) {
+    let total = |e: &FoldErrors| e.as_ref().map_or(f64::INFINITY, |e| e.iter().sum::<f64>());
     let log_v = |law: CoulombShape| law.epsilon().map_or(f64::NEG_INFINITY, f64::ln);
     let law_at = |x: f64| CoulombShape::Tanh { epsilon: x.exp() };
     let (mut a, mut b) = (log_v(around.0), log_v(around.1));
@@ -240,7 +250,7 @@ fn refine(
     let (mut x1, mut x2) = (b - ratio * (b - a), a + ratio * (b - a));
     let (mut f1, mut f2) = (error_at(law_at(x1)), error_at(law_at(x2)));
     for _ in 0..REFINE_STEPS {
-        if f1.0 <= f2.0 {
+        if total(&f1.0) <= total(&f2.0) {
             (b, x2, f2) = (x2, x1, f1);
             x1 = b - ratio * (b - a);
             f1 = error_at(law_at(x1));
@@ -250,9 +260,9 @@ fn refine(
             f2 = error_at(law_at(x2));
         }
     }
-    let (x, (error, column)) = if f1.0 <= f2.0 { (x1, f1) } else { (x2, f2) };
-    match error <= best.1 {
-        true => (law_at(x), column, error),
+    let (x, (errors, column)) = if total(&f1.0) <= total(&f2.0) { (x1, f1) } else { (x2, f2) };
+    match total(&errors) <= total(&best.1) {
+        true => (law_at(x), column, errors),
         false => (best.0, error_at(best.0).1, best.1),
     }
 }
@@ -281,7 +291,7 @@ fn explain(laws: &CoulombLaws, scores: &[(usize, Vec<(CoulombShape, f64)>)], rms
             match law.epsilon() {
                 None => format!("joint {k} sign(q̇)"),
                 Some(v) => format!(
-                    "joint {k} tanh(q̇/{v:.3e}) ({:.3} × its RMS speed; squared error {:.1} % of sign(q̇)'s)",
+                    "joint {k} tanh(q̇/{v:.3e}) ({:.3} × its RMS speed; held-out squared error {:.1} % of sign(q̇)'s)",
                     v / rms_speed[*k],
                     100.0 * error
                 ),
@@ -289,8 +299,8 @@ fn explain(laws: &CoulombLaws, scores: &[(usize, Vec<(CoulombShape, f64)>)], rms
         })
         .collect();
     format!(
-        "Coulomb laws chosen from the data, each joint's the best fit of tanh(q̇/v) for v from {} to {} × its RMS \
-         speed where it fits better than sign(q̇) beyond chance (F-test at {LAW_ALPHA} over the velocities), else \
+        "Coulomb laws chosen from the data, each joint's the tanh(q̇/v) for v from {} to {} × its RMS speed that \
+         best predicts {LAW_FOLDS} stretches of the log each fitted without, where it predicts them better than \
          sign(q̇): {}",
         FRICTION_VELOCITY_SHARES[0],
         FRICTION_VELOCITY_SHARES[FRICTION_VELOCITY_SHARES.len() - 1],
@@ -298,94 +308,152 @@ fn explain(laws: &CoulombLaws, scores: &[(usize, Vec<(CoulombShape, f64)>)], rms
     )
 }
 
-/// The Gram matrix `XᵀX` of the problem's columns and `Xᵀy`, kept up to date as columns change.
+/// `XᵀX` and `Xᵀy` of the problem's columns and `yᵀy` over a stretch of its samples.
+#[derive(Clone)]
 struct Gram {
     g: DMatrix<f64>,
     b: DVector<f64>,
     yy: f64,
 }
 
-/// The fit of every column but one: what a candidate column is judged against.
-struct Others {
-    /// The indices of the other columns, in order.
-    kept: Vec<usize>,
-    /// Cholesky factor of their Gram matrix (scaled to unit diagonal by `scale`).
-    chol: nalgebra::Cholesky<f64, nalgebra::Dyn>,
-    scale: Vec<f64>,
-    /// Their coefficients fitted to y, and the residual's squared norm.
-    beta: DVector<f64>,
-    error: f64,
-}
-
 impl Gram {
-    fn of(problem: &LawProblem) -> Self {
+    fn over(problem: &LawProblem, samples: &Range<usize>) -> Self {
         let p = problem.columns.len();
-        let mut g = DMatrix::zeros(p, p);
-        let mut b = DVector::zeros(p);
-        for i in 0..p {
-            for j in i..p {
-                let v = dot(&problem.columns[i], &problem.columns[j]);
-                g[(i, j)] = v;
-                g[(j, i)] = v;
-            }
-            b[i] = dot(&problem.columns[i], &problem.y);
+        let rows = samples.start * problem.dof..samples.end * problem.dof;
+        let mut gram =
+            Self { g: DMatrix::zeros(p, p), b: DVector::zeros(p), yy: dot(&problem.y[rows.clone()], &problem.y[rows]) };
+        for c in 0..p {
+            gram.replace(problem, samples, c);
         }
-        Self { g, b, yy: dot(&problem.y, &problem.y) }
+        gram
     }
 
-    /// Column `c` changed: its row and column of the Gram matrix, and its entry of `Xᵀy`.
-    fn replace(&mut self, problem: &LawProblem, c: usize) {
+    /// Column `c` changed: its row and column of `XᵀX`, and its entry of `Xᵀy`.
+    fn replace(&mut self, problem: &LawProblem, samples: &Range<usize>, c: usize) {
+        let rows = samples.start * problem.dof..samples.end * problem.dof;
+        let changed = &problem.columns[c][rows.clone()];
         for i in 0..problem.columns.len() {
-            let v = dot(&problem.columns[i], &problem.columns[c]);
+            let v = dot(&problem.columns[i][rows.clone()], changed);
             self.g[(i, c)] = v;
             self.g[(c, i)] = v;
         }
-        self.b[c] = dot(&problem.columns[c], &problem.y);
-    }
-
-    /// Joint `k`'s residual sum of squares of the fit on every column; `None` when they are
-    /// dependent.
-    fn joint_error(&self, problem: &LawProblem, k: usize) -> Option<f64> {
-        let all = self.without(usize::MAX)?;
-        let dof = problem.dof;
-        let samples = problem.y.len() / dof;
-        let fitted = |r: usize| -> f64 {
-            all.kept.iter().enumerate().map(|(i, &c)| problem.columns[c][r] * all.beta[i] / all.scale[i]).sum()
-        };
-        Some((0..samples).map(|s| s * dof + k).map(|r| (problem.y[r] - fitted(r)).powi(2)).sum())
-    }
-
-    /// The fit without column `c` (every column for an index beyond them); `None` when the
-    /// others are dependent.
-    fn without(&self, c: usize) -> Option<Others> {
-        let kept: Vec<usize> = (0..self.g.nrows()).filter(|&i| i != c && self.g[(i, i)] > 0.0).collect();
-        let scale: Vec<f64> = kept.iter().map(|&i| self.g[(i, i)].sqrt()).collect();
-        let p = kept.len();
-        let g = DMatrix::from_fn(p, p, |i, j| self.g[(kept[i], kept[j])] / (scale[i] * scale[j]));
-        let chol = g.cholesky()?;
-        let b = DVector::from_fn(p, |i, _| self.b[kept[i]] / scale[i]);
-        let beta = chol.solve(&b);
-        let error = (self.yy - b.dot(&beta)).max(0.0);
-        Some(Others { kept, chol, scale, beta, error })
+        self.b[c] = dot(changed, &problem.y[rows]);
     }
 }
 
-impl Others {
-    /// The weighted squared error of the fit with joint `k`'s column `values` added.
-    fn error_with(&self, problem: &LawProblem, (k, values): (usize, &[f64])) -> f64 {
+/// A candidate column's products with the problem over a stretch of samples: with every column
+/// (`xv`), with itself and with the target.
+struct Products {
+    xv: DVector<f64>,
+    vv: f64,
+    vy: f64,
+}
+
+impl Products {
+    /// Joint `k`'s candidate `values` (one per sample) over `samples`.
+    fn over(problem: &LawProblem, (k, values): (usize, &[f64]), samples: &Range<usize>) -> Self {
         let dof = problem.dof;
-        let on_joint = |x: &[f64]| values.iter().enumerate().map(|(s, v)| v * x[s * dof + k]).sum::<f64>();
-        let xc = DVector::from_fn(self.kept.len(), |i, _| on_joint(&problem.columns[self.kept[i]]) / self.scale[i]);
-        let cc = dot(values, values);
-        let cy = on_joint(&problem.y);
-        // The column's part outside the others' span, and its product with their residual.
-        let outside = cc - xc.dot(&self.chol.solve(&xc));
-        let along = cy - xc.dot(&self.beta);
-        if outside <= 1e-12 * cc {
-            return self.error;
-        }
-        (self.error - along * along / outside).max(0.0)
+        let on_joint = |x: &[f64]| samples.clone().map(|s| values[s] * x[s * dof + k]).sum::<f64>();
+        let xv = DVector::from_fn(problem.columns.len(), |i, _| on_joint(&problem.columns[i]));
+        let vv = samples.clone().map(|s| values[s] * values[s]).sum();
+        Self { xv, vv, vy: on_joint(&problem.y) }
     }
+}
+
+/// The cross-validation's folds: [`LAW_FOLDS`] contiguous stretches of the samples, each with its
+/// scored interior (the guard left off both ends), and the Gram matrices of the whole, of every
+/// fold and of every interior, kept up to date as columns change.
+struct Folds {
+    whole: (Range<usize>, Gram),
+    folds: Vec<(Range<usize>, Gram)>,
+    interiors: Vec<(Range<usize>, Gram)>,
+}
+
+impl Folds {
+    fn of(problem: &LawProblem) -> Self {
+        let samples = problem.y.len() / problem.dof.max(1);
+        let count = LAW_FOLDS.min(samples).max(1);
+        let bounds: Vec<usize> = (0..=count).map(|f| f * samples / count).collect();
+        let folds: Vec<Range<usize>> = bounds.windows(2).map(|w| w[0]..w[1]).collect();
+        // A guard longer than a quarter of a fold would leave too little of it to score.
+        let interiors = folds.iter().map(|f| {
+            let guard = problem.guard.min(f.len() / 4);
+            f.start + guard..f.end - guard
+        });
+        let with_gram = |r: Range<usize>| {
+            let gram = Gram::over(problem, &r);
+            (r, gram)
+        };
+        Self {
+            whole: with_gram(0..samples),
+            folds: folds.iter().cloned().map(with_gram).collect(),
+            interiors: interiors.map(with_gram).collect(),
+        }
+    }
+
+    fn replace(&mut self, problem: &LawProblem, c: usize) {
+        let every = std::iter::once(&mut self.whole).chain(&mut self.folds).chain(&mut self.interiors);
+        every.for_each(|(r, gram)| gram.replace(problem, r, c));
+    }
+
+    /// Each fold's weighted squared error on its interior, predicted by the fit on the other folds
+    /// of every column but `c` and joint `k`'s candidate column `values`; `None` where a fit's
+    /// columns are dependent.
+    fn heldout_errors(&self, problem: &LawProblem, c: usize, candidate: (usize, &[f64])) -> Option<Vec<f64>> {
+        let whole = &self.whole.1;
+        let kept: Vec<usize> = (0..whole.g.nrows()).filter(|&i| i != c && whole.g[(i, i)] > 0.0).collect();
+        let all = Products::over(problem, candidate, &self.whole.0);
+        self.folds
+            .iter()
+            .zip(&self.interiors)
+            .map(|((fold, fold_gram), (interior, interior_gram))| {
+                let left_out = Products::over(problem, candidate, fold);
+                let scored = Products::over(problem, candidate, interior);
+                // The fit on the other folds: the whole less this one.
+                let (matrix, rhs) = system(&kept, (whole, &all), Some((fold_gram, &left_out)));
+                let theta = solve_scaled(matrix, rhs)?;
+                let (h, r) = system(&kept, (interior_gram, &scored), None);
+                Some((interior_gram.yy - 2.0 * theta.dot(&r) + theta.dot(&(h * &theta))).max(0.0))
+            })
+            .collect()
+    }
+}
+
+/// The normal equations over the `kept` columns and the candidate (last): of `gram` and the
+/// candidate's `products`, less those of `minus` where given.
+fn system(
+    kept: &[usize],
+    (gram, products): (&Gram, &Products),
+    minus: Option<(&Gram, &Products)>,
+) -> (DMatrix<f64>, DVector<f64>) {
+    let p = kept.len();
+    let less = |f: &dyn Fn(&Gram, &Products) -> f64| f(gram, products) - minus.map_or(0.0, |(g, x)| f(g, x));
+    let mut matrix = DMatrix::zeros(p + 1, p + 1);
+    let mut rhs = DVector::zeros(p + 1);
+    for (i, &a) in kept.iter().enumerate() {
+        for (j, &b) in kept.iter().enumerate() {
+            matrix[(i, j)] = less(&|g, _| g.g[(a, b)]);
+        }
+        let cross = less(&|_, x| x.xv[a]);
+        matrix[(i, p)] = cross;
+        matrix[(p, i)] = cross;
+        rhs[i] = less(&|g, _| g.b[a]);
+    }
+    matrix[(p, p)] = less(&|_, x| x.vv);
+    rhs[p] = less(&|_, x| x.vy);
+    (matrix, rhs)
+}
+
+/// `matrix⁻¹ rhs` by Cholesky on the matrix scaled to a unit diagonal; `None` where it is singular.
+fn solve_scaled(matrix: DMatrix<f64>, rhs: DVector<f64>) -> Option<DVector<f64>> {
+    let n = matrix.nrows();
+    let scale: Vec<f64> = (0..n).map(|i| matrix[(i, i)].max(0.0).sqrt()).collect();
+    if scale.contains(&0.0) {
+        return None;
+    }
+    let scaled = DMatrix::from_fn(n, n, |i, j| matrix[(i, j)] / (scale[i] * scale[j]));
+    let z = scaled.cholesky()?.solve(&DVector::from_fn(n, |i, _| rhs[i] / scale[i]));
+    Some(DVector::from_fn(n, |i, _| z[i] / scale[i]))
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
@@ -418,7 +486,7 @@ mod tests {
                 dof: 1,
                 coulomb: vec![(0, 1)],
                 weights: vec![1.0],
-                independent: n as f64,
+                guard: 20,
             };
             let chosen = choose_laws(problem, &[rms], &CoulombLaws::undeclared(1), column);
             match (truth.epsilon(), chosen.laws.shape(0).epsilon()) {
@@ -432,32 +500,40 @@ mod tests {
         }
     }
 
-    /// The error the Gram update gives a candidate is the error of fitting it directly.
+    /// The held-out error the Gram updates give a candidate is that of fitting the columns
+    /// directly on the other folds and predicting the fold's interior.
     #[test]
-    fn the_error_with_a_candidate_is_the_direct_fit_error() {
+    fn the_heldout_error_of_a_candidate_is_the_direct_fit_on_the_other_folds() {
         let n = 300;
         let a: Vec<f64> = (0..2 * n).map(|i| (i as f64 * 0.1).sin()).collect();
         let b: Vec<f64> = (0..2 * n).map(|i| (i as f64 * 0.023).cos()).collect();
         let y: Vec<f64> = (0..2 * n).map(|i| (i as f64 * 0.05).sin() + 0.1 * (i % 7) as f64).collect();
         let candidate: Vec<f64> = (0..n).map(|s| ((s as f64) * 0.031).tanh()).collect();
+        // Column 1 is the one the candidate replaces.
         let problem = LawProblem {
             columns: vec![a.clone(), b.clone()],
             y: y.clone(),
             dof: 2,
-            coulomb: vec![],
+            coulomb: vec![(1, 1)],
             weights: vec![1.0; 2],
-            independent: 0.0,
+            guard: 5,
         };
-        let others = Gram::of(&problem).without(usize::MAX).unwrap();
-        let got = others.error_with(&problem, (1, &candidate));
-        // Direct: least squares on [a, b, c] with c on joint 1's rows.
+        let got = Folds::of(&problem).heldout_errors(&problem, 1, (1, &candidate)).unwrap();
+        assert_eq!(got.len(), LAW_FOLDS);
         let mut c = vec![0.0; 2 * n];
         for s in 0..n {
             c[2 * s + 1] = candidate[s];
         }
-        let x = DMatrix::from_fn(2 * n, 3, |r, j| [&a, &b, &c][j][r]);
-        let beta = (x.transpose() * &x).cholesky().unwrap().solve(&(x.transpose() * DVector::from_vec(y.clone())));
-        let e = DVector::from_vec(y) - x * beta;
-        assert!((got / e.norm_squared() - 1.0).abs() < 1e-9, "{got} against {}", e.norm_squared());
+        let fold = n / LAW_FOLDS;
+        for (f, got) in got.iter().enumerate() {
+            let (start, end) = (f * fold, (f + 1) * fold);
+            let train: Vec<usize> = (0..2 * n).filter(|r| !(2 * start..2 * end).contains(r)).collect();
+            let x = DMatrix::from_fn(train.len(), 2, |r, j| [&a, &c][j][train[r]]);
+            let target = DVector::from_fn(train.len(), |r, _| y[train[r]]);
+            let beta = (x.transpose() * &x).cholesky().unwrap().solve(&(x.transpose() * target));
+            let expected: f64 =
+                (2 * (start + 5)..2 * (end - 5)).map(|r| (y[r] - a[r] * beta[0] - c[r] * beta[1]).powi(2)).sum();
+            assert!((got / expected - 1.0).abs() < 1e-9, "fold {f}: {got} against {expected}");
+        }
     }
 }

@@ -120,32 +120,34 @@ fn weak_reason(base: &BaseParameters) -> String {
 /// cut-offs chosen under sign(q̇) gave a law of 1.2 mm/s and a model that predicted the paper's
 /// trajectories at 46 % on the insertion (docs/identification.md).
 fn preprocess_with_laws(
-    declared: Declared,
-    log: Log,
+    (declared, log): (Declared, Log),
     options: &preprocess::PreprocessOptions,
+    against: cutoff::Against,
 ) -> Result<(preprocess::Preprocessed, Option<crate::model::CoulombLaws>), IdentifyError> {
-    let mut pre = cutoff::preprocess_for_fit(declared, log, options)?;
+    let mut pre = cutoff::preprocess_for_fit(declared, log, options, against)?;
     let (model, base) = (declared.model, declared.base);
     if model.coulomb_laws.is_declared() {
         return Ok((pre, None));
     }
+    // The laws `pre` was preprocessed with.
     let mut laws = model.coulomb_laws.clone();
     for round in 1..=LAW_ROUNDS {
         let Some(chosen) = friction_law::laws_for_fit(model, base, &pre)? else { return Ok((pre, None)) };
-        let settled = friction_law::settled(&laws, &chosen.laws);
-        laws = chosen.laws;
-        if settled || round == LAW_ROUNDS {
+        if friction_law::settled(&laws, &chosen.laws) {
             pre.choices.reasons.push(chosen.reason);
-            if !settled {
-                pre.choices.warnings.push(format!(
-                    "the Coulomb laws and the cut-offs had not settled after {LAW_ROUNDS} rounds of choosing each \
-                     with the other: the laws may be a step from their best"
-                ));
-            }
-            break;
+            return Ok((pre, Some(chosen.laws)));
         }
+        laws = chosen.laws;
         let with_laws = Model { coulomb_laws: laws.clone(), ..model.clone() };
-        pre = cutoff::preprocess_for_fit(Declared { model: &with_laws, ..declared }, log, options)?;
+        pre = cutoff::preprocess_for_fit(Declared { model: &with_laws, ..declared }, log, options, against)?;
+        if round == LAW_ROUNDS {
+            // The cut-offs are those of the laws kept, so that the fit is the one they were chosen for.
+            pre.choices.reasons.push(chosen.reason);
+            pre.choices.warnings.push(format!(
+                "the Coulomb laws and the cut-offs had not settled after {LAW_ROUNDS} rounds of choosing each with \
+                 the other: the laws kept are the last chosen, at the cut-offs chosen for them"
+            ));
+        }
     }
     Ok((pre, Some(laws)))
 }
@@ -164,7 +166,11 @@ fn identify_with(
         return Err(IdentifyError::NeedsClosedLoop(method));
     }
     options.iv.validate()?;
-    let (mut pre, laws) = preprocess_with_laws(declared, log, &options.preprocess)?;
+    let against = match Estimator::of(method) {
+        Some(Estimator::OutputError) => cutoff::Against::SimulatedTorque,
+        _ => cutoff::Against::Regressor,
+    };
+    let (mut pre, laws) = preprocess_with_laws((declared, log), &options.preprocess, against)?;
     let Declared { model, base, urdf } = declared;
     // A robot that declares no Coulomb law gets each joint's from the data, which the fit, the
     // closed-loop simulation and the model file all use.
