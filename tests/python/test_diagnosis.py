@@ -1,6 +1,7 @@
 """arash.diagnose: the Python contract on the simulated rig, and the measured KUKA LWR4+ data."""
 
 import json
+import re
 import warnings
 
 import numpy as np
@@ -116,6 +117,67 @@ def test_bad_inputs_are_named():
         arash.diagnose(robot, t, np.zeros((1000, 3)), np.zeros((1000, 3)), effects=["gremlins"])
     with pytest.raises(ValueError, match="transmission"):
         arash.diagnose(robot, t, np.zeros((1000, 3)), np.zeros((1000, 3)), transmission=[1.0])
+
+
+def sine_log(robot, seconds, fs, hz=1.0, seed=0):
+    """Each joint on two sines of its own (hz × 1, 1.3, 1.7 and a third as large at hz × 2.9,
+    3.7, 4.3), the torque of the CAD model with 1 % noise: a short log of any rate, made in a
+    moment."""
+    t = np.arange(int(round(seconds * fs))) / fs
+    q, qd, qdd = (np.zeros((len(t), 3)) for _ in range(3))
+    for share, harmonics in ((1.0, [1.0, 1.3, 1.7]), (0.3, [2.9, 3.7, 4.3])):
+        w = 2 * np.pi * hz * np.array(harmonics)
+        amplitude = share * np.array([0.3, 0.2, 0.01])
+        phase = np.outer(t, w)
+        q += amplitude * np.sin(phase)
+        qd += amplitude * w * np.cos(phase)
+        qdd -= amplitude * w**2 * np.sin(phase)
+    tau = robot.regressor(q, qd, qdd) @ robot.cad_parameters()
+    tau += 0.01 * tau.std(axis=0) * np.random.default_rng(seed).standard_normal(tau.shape)
+    return t, q, tau
+
+
+def test_a_band_outside_the_logs_range_or_a_friction_velocity_not_above_zero_is_refused_by_name():
+    """Issue 44's bad input: the band must lie in (0, fs/2) of the log, and a friction velocity
+    must be positive; each refusal names the option and the bound."""
+    robot = arash.Robot.arash_asist()
+    t, q, tau = sine_log(robot, 8.0, 1000.0)
+    for cutoff in (500.0, 1000.0):
+        with pytest.raises(ValueError, match=r"cutoff_hz = .* not below the log's Nyquist frequency \(500.000 Hz\)"):
+            arash.diagnose(robot, t, q, tau, cutoff_hz=cutoff)
+    for cutoff in (0.0, -5.0, float("nan")):
+        with pytest.raises(ValueError, match="cutoff_hz"):
+            arash.diagnose(robot, t, q, tau, cutoff_hz=cutoff)
+    for v in (0.0, -1e-3, float("inf"), float("nan")):
+        with pytest.raises(ValueError, match=r"friction_velocities\[1\] must be positive and finite"):
+            arash.Robot.arash_asist(friction_velocities=[None, v, 1e-3])
+
+
+def test_a_log_too_short_to_choose_the_band_names_the_length_it_needs():
+    """A log whose held-out blocks cannot hold the filter's memory at any band its motion allows
+    is refused, naming the length that would do; a log of that length is diagnosed. (At 100 Hz
+    the band can reach only 20 Hz, and ten blocks of four filter memories need more than 1 s.)"""
+    robot = arash.Robot.arash_asist()
+    fs = 100.0
+    with pytest.raises(ValueError, match=r"1.00 s long, too short to choose the diagnosis's band.*at least ([0-9.]+) s") as refused:
+        arash.diagnose(robot, *sine_log(robot, 1.0, fs))
+    needed = float(re.search(r"at least ([0-9.]+) s", str(refused.value)).group(1))
+    assert 1.0 < needed < 10.0, str(refused.value)
+    d = arash.diagnose(robot, *sine_log(robot, needed + 0.05, fs))
+    assert 0.0 < d.settings["cutoff_hz"] < 0.5 * fs
+
+
+def test_a_joint_moving_fast_for_its_sample_rate_is_not_taken_for_still():
+    """A pitch swinging ±0.2 rad at 2 Hz and more, logged at 100 Hz, spans fewer than 20 of its
+    median sample-to-sample changes; it moves, and a still joint is judged by what the encoder or
+    the noise shows, not by the motion's own speed."""
+    robot = arash.Robot.arash_asist()
+    d = arash.diagnose(robot, *sine_log(robot, 3.0, 100.0, hz=1.5))
+    assert d.settings["cutoff_hz"] > 0.0
+    t, q, tau = sine_log(robot, 3.0, 100.0, hz=1.5)
+    q[:, 2] = 1e-4 * np.random.default_rng(1).standard_normal(len(t))  # the insertion only jitters
+    with pytest.raises(ValueError, match="joint 3 never moves"):
+        arash.diagnose(robot, t, q, tau)
 
 
 def test_a_log_or_model_that_does_not_fit_the_robot_is_named():

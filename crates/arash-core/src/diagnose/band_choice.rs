@@ -79,7 +79,7 @@ pub(super) fn choose_band(
 ) -> Result<BandChoice, DiagnoseError> {
     let dof = model.dof();
     let fs = 1.0 / validate_log(train.t, train.q, train.tau, dof).map_err(DiagnoseError::Training)?;
-    if let Some(c) = options.preprocess.cutoff_hz.filter(|c| *c >= 0.5 * fs) {
+    if let Some(c) = options.preprocess.cutoff_hz.filter(|c| !crate::identify::filter::below_nyquist(*c, fs)) {
         return Err(DiagnoseError::BandAboveNyquist { cutoff_hz: c, nyquist_hz: 0.5 * fs });
     }
     let positions = Positions::of(train.q, (dof, fs));

@@ -205,7 +205,7 @@ pub enum DiagnoseError {
     Options(#[from] OptionsError),
     #[error("the given model's base parameters were chosen differently from this robot's; identify it again with this version")]
     BaseMismatch,
-    #[error("cutoff_hz = {cutoff_hz} Hz is not below the log's Nyquist frequency ({nyquist_hz} Hz): the band must lie in (0, fs/2)")]
+    #[error("cutoff_hz = {cutoff_hz} Hz is not below the log's Nyquist frequency ({nyquist_hz:.3} Hz): the band must lie in (0, fs/2)")]
     BandAboveNyquist { cutoff_hz: f64, nyquist_hz: f64 },
     #[error(
         "the log is {duration_s:.2} s long, too short to choose the diagnosis's band: the lowest band its motion and \

@@ -39,6 +39,14 @@ pub struct Butterworth {
     a: Vec<f64>,
 }
 
+/// Whether `cutoff_hz` lies below the Nyquist frequency of `sample_rate_hz` by more than the
+/// rounding of a rate read from time stamps: a log's rate is a mean of its steps, and "500 Hz" on
+/// a 1 kHz log whose rate reads 1000.0000000000005 Hz is the Nyquist frequency, where the
+/// bilinear design's prewarping diverges (sci-rs then panics).
+pub fn below_nyquist(cutoff_hz: f64, sample_rate_hz: f64) -> bool {
+    cutoff_hz < 0.5 * sample_rate_hz * (1.0 - 1e-9)
+}
+
 impl Butterworth {
     /// Design an `order`-th order low-pass with −3 dB at `cutoff_hz` for data sampled at
     /// `sample_rate_hz`.
@@ -47,7 +55,7 @@ impl Butterworth {
             return Err(FilterError::BadOrder(order));
         }
         let nyquist_hz = 0.5 * sample_rate_hz;
-        if !(cutoff_hz > 0.0 && cutoff_hz < nyquist_hz) {
+        if !(cutoff_hz > 0.0 && below_nyquist(cutoff_hz, sample_rate_hz)) {
             return Err(FilterError::CutoffOutOfRange { cutoff_hz, nyquist_hz });
         }
         let design = |output| {
