@@ -275,13 +275,123 @@ fn joint_column(x: &[f64], k: usize, dof: usize, prismatic: bool, prismatic_scal
 }
 
 /// Write the report into `dir`; returns how many figures it holds (the diagnosis's included).
+/// The report's directory of the real robot's diagnosis (outputs and figures).
+pub const REAL_ROBOT_DIR: &str = "real_robot";
+
+/// The demo's real robot: a measured log run through identification and the diagnosis with the
+/// defaults, and each coefficient found that the robot's own authors also estimated.
+pub struct RealRobot {
+    pub name: String,
+    /// Where the log and the published values come from, and their licence.
+    pub source: String,
+    pub samples: usize,
+    pub sample_rate_hz: f64,
+    pub identification: ModelFile,
+    pub diagnosis: Diagnosis,
+    pub against_upstream: Vec<Comparison>,
+}
+
+/// One coefficient found, beside the published estimate of the same quantity.
+pub struct Comparison {
+    pub effect: String,
+    pub column: String,
+    /// Ours and its σ.
+    pub ours: (f64, f64),
+    /// The published name, value and σ.
+    pub upstream: (String, f64, f64),
+}
+
+impl Comparison {
+    /// Standard deviations (ours and the published σ combined) between the two.
+    pub fn z(&self) -> f64 {
+        (self.ours.0 - self.upstream.1) / self.ours.1.hypot(self.upstream.2)
+    }
+
+    pub fn line(&self) -> String {
+        let (name, value, sigma) = &self.upstream;
+        format!(
+            "{} {}: {:.4} ± {:.4}, published {name} {value:.4} ± {sigma:.4} ({:+.1} σ)",
+            self.effect,
+            self.column,
+            self.ours.0,
+            self.ours.1,
+            self.z()
+        )
+    }
+}
+
+impl RealRobot {
+    /// The report's chapter; its figures are in `figures_dir` (relative to the report).
+    fn chapter(&self, figures_dir: &str, figures: &[String]) -> String {
+        let d = &self.diagnosis;
+        let mut s = format!(
+            "## A real robot: the {}'s measured log\n\nSource: {}. {} samples at {} Hz, motor-side, mapped to the joints \
+             through the declared transmission; identification and the diagnosis ran with the defaults, every choice \
+             made from the data (the reasons are in the report below).\n\n",
+            self.name, self.source, self.samples, self.sample_rate_hz
+        );
+        let _ = writeln!(
+            s,
+            "Identification (OLS): cut-off {:.2} Hz, training FP% {}.\n",
+            self.identification.settings.cutoff_hz,
+            self.identification.training.fp_percent.iter().map(|f| format!("{f:.1}")).collect::<Vec<_>>().join(" / ")
+        );
+        let _ = writeln!(s, "Held-out error per joint before and after the effects found:\n");
+        let _ = writeln!(s, "| joint | RMS before | RMS after | FP% before | FP% after |\n|---|---|---|---|---|");
+        let (before, after) = (&d.before.heldout, &d.after.heldout);
+        for (k, name) in d.joint_names.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                "| {name} | {:.3} | {:.3} | {:.1} | {:.1} |",
+                before.rms[k], after.rms[k], before.fp_percent[k], after.fp_percent[k]
+            );
+        }
+        if !self.against_upstream.is_empty() {
+            let _ = writeln!(s, "\nThe coefficients found that the robot's authors also estimated:\n");
+            for c in &self.against_upstream {
+                let _ = writeln!(s, "- {}", c.line());
+            }
+        }
+        let _ = writeln!(s, "\n```\n{}\n```\n", d.report());
+        for name in figures {
+            let _ = writeln!(s, "![{name}]({figures_dir}/{name})\n");
+        }
+        s
+    }
+
+    fn summary(&self) -> serde_json::Value {
+        let accepted: Vec<serde_json::Value> = self
+            .diagnosis
+            .accepted
+            .iter()
+            .map(|f| serde_json::json!({"name": f.name, "joints": f.joints, "heldout_gain": f.heldout_gain}))
+            .collect();
+        let against: Vec<serde_json::Value> = self
+            .against_upstream
+            .iter()
+            .map(|c| serde_json::json!({"effect": c.effect, "column": c.column, "ours": c.ours.0, "sigma": c.ours.1,
+                "published": c.upstream.0, "published_value": c.upstream.1, "published_sigma": c.upstream.2, "z": c.z()}))
+            .collect();
+        serde_json::json!({
+            "robot": self.name,
+            "samples": self.samples,
+            "identification_cutoff_hz": self.identification.settings.cutoff_hz,
+            "identification_fp_percent": self.identification.training.fp_percent,
+            "accepted": accepted,
+            "error_before": self.diagnosis.before,
+            "error_after": self.diagnosis.after,
+            "against_published": against,
+        })
+    }
+}
+
 pub fn write(
     dir: &Path,
     model: &Model,
     excitation: &Excitation,
     calibration: &Calibration,
     diagnosis: &Diagnosis,
-    tracking: &Tracking,
+    (tracking, real): (&Tracking, Option<&RealRobot>),
 ) -> anyhow::Result<usize> {
     let names = model.joint_names();
     let dof = names.len();
@@ -381,10 +491,18 @@ pub fn write(
 
     let diagnosis_figures = list_pngs(&dir.join("diagnosis"))?;
     let figures = [excitation_figure, calibration_figures, tracking_figures];
-    let markdown = markdown(model, excitation, calibration, diagnosis, tracking, &figures, &diagnosis_figures);
+    let mut markdown = markdown(model, excitation, calibration, diagnosis, tracking, &figures, &diagnosis_figures);
+    let mut summary = summary(model, calibration, diagnosis, tracking);
+    let mut real_figures = Vec::new();
+    if let Some(real) = real {
+        real_figures = list_pngs(&dir.join(REAL_ROBOT_DIR))?;
+        markdown.push_str(&real.chapter(REAL_ROBOT_DIR, &real_figures));
+        summary["real_robot"] = real.summary();
+    }
     super::write_atomically(&dir.join("report.md"), &markdown)?;
-    super::write_atomically(&dir.join("summary.json"), &summary(model, calibration, diagnosis, tracking))?;
-    Ok(figures.iter().map(Vec::len).sum::<usize>() + diagnosis_figures.len())
+    let summary = serde_json::to_string_pretty(&summary).expect("JSON values serialise");
+    super::write_atomically(&dir.join("summary.json"), &summary)?;
+    Ok(figures.iter().map(Vec::len).sum::<usize>() + diagnosis_figures.len() + real_figures.len())
 }
 
 fn list_pngs(dir: &Path) -> anyhow::Result<Vec<String>> {
@@ -451,7 +569,7 @@ fn markdown(
 }
 
 /// The headline numbers, for scripts and tests.
-fn summary(model: &Model, calibration: &Calibration, diagnosis: &Diagnosis, tracking: &Tracking) -> String {
+fn summary(model: &Model, calibration: &Calibration, diagnosis: &Diagnosis, tracking: &Tracking) -> serde_json::Value {
     let runs: Vec<serde_json::Value> = tracking
         .runs
         .iter()
@@ -467,7 +585,7 @@ fn summary(model: &Model, calibration: &Calibration, diagnosis: &Diagnosis, trac
         .iter()
         .map(|f| serde_json::json!({"name": f.name, "joints": f.joints, "heldout_gain": f.heldout_gain}))
         .collect();
-    let value = serde_json::json!({
+    serde_json::json!({
         "format": "arash-demo-summary/1",
         "joint_names": model.joint_names(),
         "training_fp_percent": {
@@ -490,8 +608,7 @@ fn summary(model: &Model, calibration: &Calibration, diagnosis: &Diagnosis, trac
             "error_after": diagnosis.after,
         },
         "tracking": {"omega": tracking.omega, "runs": runs},
-    });
-    serde_json::to_string_pretty(&value).expect("JSON values serialise")
+    })
 }
 
 #[cfg(test)]

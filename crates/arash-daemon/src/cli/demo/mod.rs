@@ -3,10 +3,13 @@
 //! log it under inverse dynamics control with CAD, calibrate (OLS beside IDIM-IV, the closed-loop
 //! estimator, and its consistent form, which the controller gets; Tables I and II), diagnose the
 //! residual, track the ω = 0.5 validation trajectory three ways (four on the simulated rig: with
-//! its own parameters too), and write a report with figures. Everything goes to `logs/<run>/`.
+//! its own parameters too), run a real robot's measured log (the Stäubli TX40's, [`tx40`])
+//! through identification and the diagnosis, and write a report with figures. Everything goes
+//! to `logs/<run>/`.
 
 use crate::report::demo as report;
 mod rig;
+mod tx40;
 
 use std::path::{Path, PathBuf};
 
@@ -141,7 +144,7 @@ fn steps(args: &Args, plan: &Plan) -> anyhow::Result<()> {
     let (model, urdf) = super::load_robot(None)?;
     let base = BaseParameters::compute(&model, &BaseParameterOptions::fitted(false))?;
 
-    println!("\n[1/7] the rig");
+    println!("\n[1/8] the rig");
     let scenario = match &args.scenario {
         Some(path) => path.clone(),
         None => {
@@ -191,8 +194,12 @@ fn steps(args: &Args, plan: &Plan) -> anyhow::Result<()> {
     rig.stop()?;
     let (excitation, calibration, diagnosis, tracking) = outcome?;
 
-    println!("\n[7/7] report");
-    let written = report::write(&dir.join("report"), &model, &excitation, &calibration, &diagnosis, &tracking)?;
+    println!("\n[7/8] a real robot: the Stäubli TX40's measured log, identified and diagnosed with the defaults");
+    let real = tx40::run(&dir.join("report").join(report::REAL_ROBOT_DIR))?;
+
+    println!("\n[8/8] report");
+    let written =
+        report::write(&dir.join("report"), &model, &excitation, &calibration, &diagnosis, (&tracking, Some(&real)))?;
     println!("    {} figures and report.md in {}", written, dir.join("report").display());
     Ok(())
 }
@@ -217,7 +224,7 @@ fn experiment(
 ) -> anyhow::Result<Outcome> {
     let dir = &plan.dir;
     println!(
-        "\n[2/7] excitation design: L = {}, T = {} s, {} restart(s), seed {}",
+        "\n[2/8] excitation design: L = {}, T = {} s, {} restart(s), seed {}",
         plan.excitation.harmonics, plan.excitation.period_s, plan.excitation.restarts, plan.excitation.seed
     );
     let excitation = design_excitation(model, base, &plan.excitation, &mut |p| {
@@ -229,7 +236,7 @@ fn experiment(
     println!("\r    normalised condition number κ = {:.3}; {}", excitation.condition_number, excitation_path.display());
     rig::check_interrupt()?;
 
-    println!("\n[3/7] logging through the daemon, inverse dynamics control with the CAD parameters");
+    println!("\n[3/8] logging through the daemon, inverse dynamics control with the CAD parameters");
     rig.controller("idc", None)?;
     rig.enable()?;
     let duration = plan.periods as f64 * excitation.period_s;
@@ -240,7 +247,7 @@ fn experiment(
         validation.push((omega, rig.run(&path, None, &format!("validation-{omega}"))?));
     }
 
-    println!("\n[4/7] calibration: {} periods averaged, Butterworth order 5 forward and backward", plan.periods);
+    println!("\n[4/8] calibration: {} periods averaged, Butterworth order 5 forward and backward", plan.periods);
     let training_log = runlog::read(&training, model)?;
     let validation: Vec<(f64, runlog::Log)> = validation
         .into_iter()
@@ -254,7 +261,7 @@ fn experiment(
     calibration.truth = truth_file.as_ref().map(|(_, beta)| beta.clone());
     rig::check_interrupt()?;
 
-    println!("\n[5/7] diagnosis of the residual");
+    println!("\n[5/8] diagnosis of the residual");
     let diagnosis_dir = dir.join("report").join("diagnosis");
     let settings = &calibration.consistent.settings;
     let cutoffs = (settings.cutoff_hz, settings.friction_cutoff_hz);
@@ -267,7 +274,7 @@ fn experiment(
     let (diagnosis, with_effects) = diagnose_run(diagnosed, urdf, &exact, logs, cutoffs, &diagnosis_dir)?;
     rig::check_interrupt()?;
 
-    println!("\n[6/7] tracking the validation trajectory at ω = {} rad/s through the daemon", args.tracking_omega);
+    println!("\n[6/8] tracking the validation trajectory at ω = {} rad/s through the daemon", args.tracking_omega);
     let trajectory = trajectory_file(dir, args.tracking_omega)?;
     let mut ways = vec![
         ("inverse dynamics, CAD parameters", "idc", None),
