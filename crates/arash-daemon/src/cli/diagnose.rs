@@ -38,13 +38,14 @@ pub struct Args {
     /// for another robot.
     #[arg(long, value_delimiter = ',')]
     transmission: Option<Vec<f64>>,
-    /// Low-pass cut-off (Hz); default: 20 Hz, at most a fifth of the sample rate, narrower where the encoder's noise would bias q̈
-    /// (docs/diagnosis.md).
+    /// Low-pass cut-off, the diagnosis's band (Hz), in (0, fs/2); default: chosen from the data,
+    /// the widest in which the declared model predicts held-out torque as well as in the best
+    /// (docs/diagnosis.md, "The band"). Set, the report says when it predicts worse than that.
     #[arg(long)]
     cutoff: Option<f64>,
-    /// Cut-off of the velocity that switches Coulomb friction (Hz); default: the cut-off, slower
+    /// Cut-off of the velocity that switches Coulomb friction (Hz); default: the band, slower
     /// where the encoder's steps would make up more than 0.25 % of a joint's RMS speed
-    /// (docs/diagnosis.md says why it is not chosen by the fit as in `arash identify`).
+    /// (docs/diagnosis.md, "The friction velocity").
     #[arg(long)]
     friction_cutoff: Option<f64>,
     /// Butterworth order (applied forward and backward).

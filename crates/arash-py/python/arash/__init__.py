@@ -248,9 +248,10 @@ def diagnose(
         jump from one to the next); default: the odd-numbered blocks of the training log.
     transmission: joint motion per motor radian, per joint (enables the cogging search).
     cutoff_hz, friction_cutoff_hz, order: the preprocessing, as ``identify`` takes it (None: the
-    diagnosis's 20 Hz, at most a fifth of the sample rate, narrower for a coarse encoder; the
-    friction velocity at that cut-off, slower where the encoder's steps would blur the friction
-    columns' finest speed scale; order 5). effects: identifiers to search (docs/diagnosis.md; default: all but drive_gain).
+    band chosen from the data, the widest in which the declared model predicts held-out torque as
+    well as in the best, reported in ``settings["reasons"]``; the friction velocity at that
+    cut-off, slower where the encoder's steps would blur the friction columns' finest speed
+    scale; order 5). A robot that declares no Coulomb law gets each joint's from the data. effects: identifiers to search (docs/diagnosis.md; default: all but drive_gain).
     torque_from_currents: the torque was computed from motor currents; search drive_gain too. refit: with a model, refit all its base
     parameters too. hold_friction: with a model, hold its friction too. consistent: also fit the
     physically consistent model with the effects found (``Diagnosis.model_consistent``), at
