@@ -29,9 +29,11 @@ def closed_loop_case(seed, disturbance=0.1):
     return robot, log, reference, controller, truth
 
 
-def paper_validation_fp(robot, model, truth):
+def paper_validation_fp(robot, model, truth, law=None):
     """FP% per joint of ``model`` on the paper's four validation trajectories (ω = 0.3, 0.5, 0.7,
-    0.9, one period at 1 kHz), against the noise-free torque of the true robot from Pinocchio."""
+    0.9, one period at 1 kHz), against the noise-free torque of the true robot from Pinocchio,
+    whose Coulomb law is ``law``: None for tanh of ``TANH_EPSILON``, "sign", or a friction
+    velocity per joint."""
     expanded = Expanded(ROBOT_FILES["arash_asist"], robot)
     expanded.set_parameters(truth)
     n, nb = robot.dof, len(robot.body_names())
@@ -40,7 +42,8 @@ def paper_validation_fp(robot, model, truth):
     for omega in (0.3, 0.5, 0.7, 0.9):
         t = np.arange(int(round(2 * np.pi / omega * 1000))) / 1000
         q, qd, qdd = arash.paper_validation_trajectory(omega, t)
-        exact = rigid_torques(expanded, q, qd, qdd) + fv * qd + fc * np.tanh(qd / TANH_EPSILON) + ke * q
+        shape = np.sign(qd) if law == "sign" else np.tanh(qd / np.asarray(TANH_EPSILON if law is None else law))
+        exact = rigid_torques(expanded, q, qd, qdd) + fv * qd + fc * shape + ke * q
         error = np.linalg.norm(exact - model.predict(q, qd, qdd), axis=0)
         rows.append(100 * (1 - error / np.linalg.norm(exact - exact.mean(axis=0), axis=0)))
     return np.array(rows)
@@ -157,24 +160,6 @@ def test_the_stick_step_holds_a_joint_still_until_the_other_torques_overcome_its
         assert cost(v) <= cost(reference) + 1e-15, (v, reference)
 
 
-def paper_validation_fp_of_law(robot, model, truth, law):
-    """FP% per joint on the paper's four validation trajectories against the noise-free torque of
-    the true robot whose Coulomb law is `law` ("sign", or a friction velocity per joint)."""
-    expanded = Expanded(ROBOT_FILES["arash_asist"], robot)
-    expanded.set_parameters(truth)
-    n, nb = robot.dof, len(robot.body_names())
-    fv, fc, ke = truth[10 * nb : 10 * nb + 2 * n : 2], truth[10 * nb + 1 : 10 * nb + 2 * n : 2], truth[10 * nb + 2 * n :]
-    rows = []
-    for omega in (0.3, 0.5, 0.7, 0.9):
-        t = np.arange(int(round(2 * np.pi / omega * 1000))) / 1000
-        q, qd, qdd = arash.paper_validation_trajectory(omega, t)
-        shape = np.sign(qd) if law == "sign" else np.tanh(qd / np.asarray(law))
-        exact = rigid_torques(expanded, q, qd, qdd) + fv * qd + fc * shape + ke * q
-        error = np.linalg.norm(exact - model.predict(q, qd, qdd), axis=0)
-        rows.append(100 * (1 - error / np.linalg.norm(exact - exact.mean(axis=0), axis=0)))
-    return np.array(rows)
-
-
 @pytest.fixture(scope="module")
 def smooth_law_closed_loop():
     """Issue 44's closed loop: PD with CAD gravity, no disturbance, the plant stepped at 10 kHz,
@@ -201,7 +186,7 @@ def test_a_closed_loop_whose_friction_rises_over_2_mm_s_validates_with_its_law(s
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         model = arash.identify(robot, *log)
-    validation = paper_validation_fp_of_law(robot, model, truth, law)
+    validation = paper_validation_fp(robot, model, truth, law)
     print(f"laws {model.robot.friction_velocities}; FP% on the paper's trajectories (rows ω = 0.3 … 0.9):\n"
           f"{np.round(validation, 2)}")
     if not declared:
