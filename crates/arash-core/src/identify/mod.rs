@@ -166,8 +166,8 @@ fn identify_with(
         return Err(IdentifyError::NeedsClosedLoop(method));
     }
     options.iv.validate()?;
-    let against = match Estimator::of(method) {
-        Some(Estimator::OutputError) => cutoff::Against::SimulatedTorque,
+    let against = match (method.closed_loop(), &closed_loop) {
+        (true, Some(_)) => cutoff::Against::SimulatedLoop,
         _ => cutoff::Against::Regressor,
     };
     let (mut pre, laws) = preprocess_with_laws((declared, log), &options.preprocess, against)?;
