@@ -109,7 +109,13 @@ def main():
     y = signed.regressor(q, qd, qdd)
     p = signed.num_params
     print(f"\nstuck share per joint: {np.round(np.mean(qd == 0, axis=0), 3)}")
-    for label, rows in (("every sample", np.ones(len(q), bool)), ("samples where every joint moves", np.all(qd != 0, axis=1))):
+    after = np.vstack([qd[1:], qd[-1:]])  # the velocity at the end of each control period
+    steady = np.all((qd != 0) & (after != 0) & (np.sign(qd) == np.sign(after)), axis=1)
+    for label, rows in (("every sample", np.ones(len(q), bool)),
+                        (f"the {100 * steady.mean():.0f} % of periods in which no joint sticks or reverses", steady)):
+        residual = np.sqrt(np.mean((y[rows] @ truth - tau[rows]) ** 2, axis=0))
+        print(f"the true parameters' residual there (RMS per joint): {np.round(residual, 3)} against the torque's "
+              f"{np.round(np.sqrt(np.mean(tau[rows] ** 2, axis=0)), 3)}")
         a, b = y[rows].reshape(-1, p), tau[rows].reshape(-1)
         scale = np.linalg.norm(a, axis=0)
         scale[scale == 0] = 1.0
