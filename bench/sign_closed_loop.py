@@ -12,6 +12,7 @@ filtering, no quantisation. About 5 minutes.
 import sys
 import warnings
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -19,8 +20,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python")
 import arash  # noqa: E402
 import closed_loop as cl  # noqa: E402
 from conftest import ROBOT_FILES  # noqa: E402
-from independent import Condition, Expanded, rigid_torques, urdf_path  # noqa: E402
+from independent import Condition, Expanded, urdf_path  # noqa: E402
 from simulated import true_parameters  # noqa: E402
+from test_closed_loop_identification import paper_validation_fp  # noqa: E402
 
 CONDITION = Condition("arash_asist", 1000, 16, 0.0, "sign", 4, 60.0, seed=0, designed=True)
 SUBSTEPS = 10
@@ -28,18 +30,7 @@ SUBSTEPS = 10
 
 def validation_fp(robot, truth, predict):
     """Minimum FP% per joint over the paper's four trajectories against the true sign-law robot."""
-    expanded = Expanded(ROBOT_FILES["arash_asist"], robot)
-    expanded.set_parameters(truth)
-    n, nb = robot.dof, len(robot.body_names())
-    fv, fc, ke = truth[10 * nb : 10 * nb + 2 * n : 2], truth[10 * nb + 1 : 10 * nb + 2 * n : 2], truth[10 * nb + 2 * n :]
-    rows = []
-    for omega in (0.3, 0.5, 0.7, 0.9):
-        t = np.arange(int(round(2 * np.pi / omega * 1000))) / 1000
-        q, qd, qdd = arash.paper_validation_trajectory(omega, t)
-        exact = rigid_torques(expanded, q, qd, qdd) + fv * qd + fc * np.sign(qd) + ke * q
-        error = np.linalg.norm(exact - predict(q, qd, qdd), axis=0)
-        rows.append(100 * (1 - error / np.linalg.norm(exact - exact.mean(axis=0), axis=0)))
-    return np.array(rows).min(axis=0)
+    return paper_validation_fp(robot, SimpleNamespace(predict=predict), truth, "sign").min(axis=0)
 
 
 def exact_states(truth):
