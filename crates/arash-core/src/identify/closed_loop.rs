@@ -25,7 +25,7 @@
 //! many instruments as parameters it is the IV estimate) and on `Z` itself for DIDIM.
 
 use faer::Mat;
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
 use super::consistent::{identify_consistent, ConsistentOptions};
@@ -319,7 +319,9 @@ struct DryFriction {
     /// h-free impulse bound per joint: f_c where the joint's law is sign(q̇) and f_c > 0, else 0.
     friction: Vec<f64>,
     mass: Vec<f64>,
-    acceleration: Vec<f64>,
+    /// The torque of every other force at zero acceleration, and the zero acceleration.
+    bias: Vec<f64>,
+    zeros: Vec<f64>,
 }
 
 impl DryFriction {
@@ -356,7 +358,8 @@ impl DryFriction {
             others,
             friction,
             mass: vec![0.0; n * n],
-            acceleration: vec![0.0; n],
+            bias: vec![0.0; n],
+            zeros: vec![0.0; n],
         })
     }
 
@@ -369,12 +372,16 @@ impl DryFriction {
         (q, qd): (&mut [f64], &mut [f64]),
     ) -> Result<(), String> {
         let n = q.len();
-        forward_dynamics(model, data, q, qd, tau, &self.others, &mut self.acceleration).map_err(|e| e.to_string())?;
+        // One mass matrix per step: its Cholesky factor both checks it (an estimate that is not
+        // physical cannot drive the plant) and gives the inverse the friction's impulses need.
+        crate::dynamics::inverse_dynamics(model, data, q, qd, &self.zeros, &self.others, &mut self.bias);
         crate::dynamics::mass_matrix(model, data, q, &self.others, &mut self.mass);
         let inverse = DMatrix::from_row_slice(n, n, &self.mass)
-            .try_inverse()
-            .ok_or_else(|| "the mass matrix is singular".to_string())?;
-        let free: Vec<f64> = (0..n).map(|k| qd[k] + h * self.acceleration[k]).collect();
+            .cholesky()
+            .ok_or_else(|| "the mass matrix is not positive definite; the parameters are not physical".to_string())?
+            .inverse();
+        let acceleration = &inverse * DVector::from_iterator(n, tau.iter().zip(&self.bias).map(|(t, b)| t - b));
+        let free: Vec<f64> = (0..n).map(|k| qd[k] + h * acceleration[k]).collect();
         let velocity = stick_or_slip(&inverse, &free, &self.friction.iter().map(|f| h * f).collect::<Vec<_>>());
         qd.copy_from_slice(&velocity);
         for (q, qd) in q.iter_mut().zip(qd.iter()) {
@@ -676,7 +683,6 @@ fn instrumented(w_full: &Mat<f64>, z: &Mat<f64>) -> Mat<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::DVector;
     use rand::{RngExt, SeedableRng};
 
     /// The set-valued step satisfies the law's optimality conditions, checked directly: with
