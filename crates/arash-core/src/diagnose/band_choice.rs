@@ -30,7 +30,7 @@ use super::regression::{gram, rhs, solve_scaled, Column, Rows};
 use super::Runs;
 use crate::base_parameters::BaseParameters;
 use crate::effects::EffectKind;
-use crate::identify::cutoff::{SEARCH_ABOVE_SPECTRAL, SEARCH_FROM_BANDWIDTH};
+use crate::identify::cutoff::{motion_floor_hz, SEARCH_ABOVE_SPECTRAL};
 use crate::identify::decide::{
     as_good_as_best, best_predicting, geometric_grid, Equal, Prediction, Prefer, EQUAL_PREDICTION_SIGMAS,
 };
@@ -38,7 +38,7 @@ use crate::identify::estimate::joint_metrics;
 use crate::identify::filter::Butterworth;
 use crate::identify::friction_law::{laws_for_fit, ChosenLaws};
 use crate::identify::preprocess::{
-    edge_limited_cutoff_hz, validate_log, PreprocessError, Preprocessed, CUTOFF_PER_BANDWIDTH, MIN_CUTOFF_HZ,
+    edge_limited_cutoff_hz, validate_log, PreprocessError, Preprocessed, CUTOFF_PER_BANDWIDTH,
 };
 use crate::identify::Log;
 use crate::model::Model;
@@ -196,9 +196,7 @@ impl<'a> Search<'a> {
         let top = top.min(DIAGNOSIS_CUTOFF_SHARE * fs);
         // Each log must keep enough samples clear of its filter transients: the shortest decides.
         let shortest = validation.as_ref().map_or(samples, |v| samples.min(v.log.t.len()));
-        let motion_floor = positions
-            .bandwidth_hz
-            .map_or(MIN_CUTOFF_HZ, |b| (SEARCH_FROM_BANDWIDTH * b).min(MIN_CUTOFF_HZ))
+        let motion_floor = motion_floor_hz(positions.bandwidth_hz, false)
             .max(edge_limited_cutoff_hz(shortest, fs, false))
             .max(lowest_kept_cutoff_hz(shortest, fs, options.max_delay_s));
         // Ten held-out blocks of at least BLOCK_MEMORIES memories each: the memory scales as the

@@ -77,6 +77,18 @@ const COMPARISON_BLOCKS: usize = 10;
 /// its yaw predicted 9 % off (1.5 % at 13 Hz).
 pub const SEARCH_FROM_BANDWIDTH: f64 = 2.0;
 
+/// Where a cut-off search starts for a motion of `bandwidth_hz` ([`SEARCH_FROM_BANDWIDTH`]):
+/// `repeats` when that bandwidth is the highest harmonic that repeats from period to period,
+/// which is motion however small, so that a cut-off bending it distorts what the torque depends
+/// on (which a noise-dominated torque cannot show); otherwise no higher than [`MIN_CUTOFF_HZ`].
+pub fn motion_floor_hz(bandwidth_hz: Option<f64>, repeats: bool) -> f64 {
+    match (bandwidth_hz, repeats) {
+        (Some(b), true) => SEARCH_FROM_BANDWIDTH * b,
+        (Some(b), false) => (SEARCH_FROM_BANDWIDTH * b).min(MIN_CUTOFF_HZ),
+        (None, _) => MIN_CUTOFF_HZ,
+    }
+}
+
 /// The friction velocity's candidates are one octave apart: the fit changes little within one.
 const FRICTION_STEP: usize = super::decide::CUTOFFS_PER_OCTAVE;
 
@@ -212,14 +224,8 @@ impl<'a> Search<'a> {
         let fs = reference.sample_rate_hz;
         let n = reference.samples();
         let shortest = edge_limited_cutoff_hz(log.t.len(), fs, reference.periodic);
-        let floor = match (reference.bandwidth_hz, reference.periodic && against == Against::Regressor) {
-            // What repeats from period to period is motion, however small: a cut-off that bends
-            // it distorts what the torque depends on, which a noise-dominated torque cannot show.
-            (Some(b), true) => SEARCH_FROM_BANDWIDTH * b,
-            (Some(b), false) => (SEARCH_FROM_BANDWIDTH * b).min(MIN_CUTOFF_HZ),
-            (None, _) => MIN_CUTOFF_HZ,
-        }
-        .max(shortest);
+        let floor =
+            motion_floor_hz(reference.bandwidth_hz, reference.periodic && against == Against::Regressor).max(shortest);
         let length_limited = floor == shortest;
         let grid = geometric_grid(floor, 0.25 * fs);
         let top = (SEARCH_ABOVE_SPECTRAL * reference.cutoff_hz).clamp(floor, 0.25 * fs);

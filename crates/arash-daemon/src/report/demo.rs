@@ -360,12 +360,6 @@ impl RealRobot {
     }
 
     fn summary(&self) -> serde_json::Value {
-        let accepted: Vec<serde_json::Value> = self
-            .diagnosis
-            .accepted
-            .iter()
-            .map(|f| serde_json::json!({"name": f.name, "joints": f.joints, "heldout_gain": f.heldout_gain}))
-            .collect();
         let against: Vec<serde_json::Value> = self
             .against_upstream
             .iter()
@@ -377,7 +371,7 @@ impl RealRobot {
             "samples": self.samples,
             "identification_cutoff_hz": self.identification.settings.cutoff_hz,
             "identification_fp_percent": self.identification.training.fp_percent,
-            "accepted": accepted,
+            "accepted": accepted(&self.diagnosis),
             "error_before": self.diagnosis.before,
             "error_after": self.diagnosis.after,
             "against_published": against,
@@ -568,6 +562,15 @@ fn markdown(
     s
 }
 
+/// The effects a diagnosis accepted, as the summary lists them.
+fn accepted(diagnosis: &Diagnosis) -> Vec<serde_json::Value> {
+    diagnosis
+        .accepted
+        .iter()
+        .map(|f| serde_json::json!({"name": f.name, "joints": f.joints, "heldout_gain": f.heldout_gain}))
+        .collect()
+}
+
 /// The headline numbers, for scripts and tests.
 fn summary(model: &Model, calibration: &Calibration, diagnosis: &Diagnosis, tracking: &Tracking) -> serde_json::Value {
     let runs: Vec<serde_json::Value> = tracking
@@ -579,11 +582,6 @@ fn summary(model: &Model, calibration: &Calibration, diagnosis: &Diagnosis, trac
                 "faults": r.faults, "cycles_left_out": r.left_out,
             })
         })
-        .collect();
-    let accepted: Vec<serde_json::Value> = diagnosis
-        .accepted
-        .iter()
-        .map(|f| serde_json::json!({"name": f.name, "joints": f.joints, "heldout_gain": f.heldout_gain}))
         .collect();
     serde_json::json!({
         "format": "arash-demo-summary/1",
@@ -603,7 +601,7 @@ fn summary(model: &Model, calibration: &Calibration, diagnosis: &Diagnosis, trac
             serde_json::json!({"of": a.names.len(), "covered": covered})
         }),
         "diagnosis": {
-            "accepted": accepted,
+            "accepted": accepted(diagnosis),
             "error_before": diagnosis.before,
             "error_after": diagnosis.after,
         },
