@@ -8,9 +8,10 @@
 //! (issue 44: most joints of three real robots). So each joint's law is `tanh(q̇/v)` with its
 //! *friction velocity* v, or `sign(q̇)` (v → 0), chosen by prediction: the law whose fit, the
 //! other columns refitted, best predicts stretches of the log it was not fitted on
-//! ([`LAW_FOLDS`]-fold cross-validation). One nonlinear parameter per joint, searched over a grid
-//! of [`FRICTION_VELOCITY_SHARES`] of the joint's RMS speed, one joint at a time ([`LAW_SWEEPS`]
-//! passes over the joints).
+//! ([`LAW_FOLDS`]-fold cross-validation), kept over `sign(q̇)` only where it predicts better by
+//! more than one standard error ([`LAW_STANDARD_ERRORS`]). One nonlinear parameter per joint,
+//! searched over a grid of [`FRICTION_VELOCITY_SHARES`] of the joint's RMS speed, one joint at a
+//! time ([`LAW_SWEEPS`] passes over the joints).
 //!
 //! Prediction, not the fit's own error, because a law slow enough to stay unsaturated over most of
 //! the motion trades against viscous friction: in-sample it also soaks up what the model lacks,
@@ -31,13 +32,11 @@ use crate::model::{CoulombLaws, CoulombShape, Model};
 use nalgebra::{DMatrix, DVector};
 use std::ops::Range;
 
-/// Contiguous stretches of the log, each predicted by the fit on the others: the law kept is the
-/// one whose summed held-out error is least, `sign(q̇)` included. A law chosen by the noise of the
-/// stretches it was fitted on predicts the others worse, so the grid's many candidates do not
-/// make a smooth law out of noise. (Asking a smooth law to beat `sign(q̇)` by two standard errors
-/// of the folds' differences, as the cut-offs' rule does, kept `sign(q̇)` on every joint of the
-/// TX40, whose folds differ by what the declared model lacks; the diagnosis then found Stribeck
-/// terms of the wrong sign on four joints, the symptom of issue 44.)
+/// Contiguous stretches of the log, at most, each predicted by the fit on the others (fewer where
+/// the filter's memory asks for longer ones: [`fold_count`]). The paired fold-by-fold differences
+/// give the standard error [`LAW_STANDARD_ERRORS`] is counted in. (Two standard errors, as the
+/// cut-offs' rule asks, kept `sign(q̇)` on every joint of the TX40, whose diagnosis then found
+/// Stribeck terms of the wrong sign on four joints, the symptom of issue 44.)
 pub const LAW_FOLDS: usize = 10;
 
 /// Passes over the joints: each joint's law is chosen with the others' as they stand, and a
@@ -90,6 +89,17 @@ pub fn choose_laws(
     column: impl Fn(usize, CoulombShape) -> Vec<f64>,
 ) -> ChosenLaws {
     let mut shapes: Vec<CoulombShape> = start.shapes().to_vec();
+    let samples = problem.y.len() / problem.dof.max(1);
+    let fold_total = fold_count(samples, problem.guard);
+    if fold_total < LAW_MIN_FOLDS {
+        let reason = format!(
+            "Coulomb laws as declared ({}): {samples} samples hold {fold_total} stretches of {GUARDS_PER_FOLD} filter \
+             memories ({} samples each), fewer than the {LAW_MIN_FOLDS} that choosing a law from the data needs; a \
+             longer log or a wider cut-off would allow it",
+            start, problem.guard
+        );
+        return ChosenLaws { laws: CoulombLaws::declared(shapes), scores: Vec::new(), reason };
+    }
     // Each Coulomb joint's candidate laws with their weighted columns.
     let candidates: Vec<Vec<Candidate>> = problem
         .coulomb
@@ -123,9 +133,10 @@ pub fn choose_laws(
                 }
             };
             let fittest_error = total(&fittest_folds);
-            let (law, values) = match fittest_error < errors[0] {
-                true => (fittest_law, &fittest_column),
-                false => (laws[0].0, &laws[0].1),
+            // sign(q̇) unless the fittest law predicts better by more than the margin.
+            let (law, values) = match within_margin(&predicted[0], &fittest_folds) {
+                true => (laws[0].0, &laws[0].1),
+                false => (fittest_law, &fittest_column),
             };
             shapes[k] = law;
             put(&mut problem, (c, k), values);
@@ -140,8 +151,31 @@ pub fn choose_laws(
         }
     }
     let laws = CoulombLaws::declared(shapes);
-    let reason = explain(&laws, &scores, rms_speed);
+    let reason = explain(&laws, &scores, rms_speed, fold_total);
     ChosenLaws { laws, scores, reason }
+}
+
+/// Standard errors by which the best smooth law must predict better than `sign(q̇)` to be kept:
+/// the one-standard-error rule of cross-validation (Breiman et al. 1984; Hastie, Tibshirani and
+/// Friedman, *Elements of Statistical Learning* §7.10), `sign(q̇)` being the simpler model (no
+/// friction velocity to fit). The least held-out error alone is the best of a grid of noisy
+/// scores: on `sign(q̇)` data it kept near-sign laws, and sometimes wide ones, by chance, and the
+/// estimates' σ then missed the law's own uncertainty (docs/identification.md §7). Within the
+/// smooth laws the friction velocity is the one of least error: it is a parameter of the law,
+/// not a rung of complexity.
+pub const LAW_STANDARD_ERRORS: f64 = 1.0;
+
+/// Whether a candidate's held-out errors are within [`LAW_STANDARD_ERRORS`] standard errors of
+/// the fittest's: the standard error of the summed fold-by-fold differences, from their spread.
+fn within_margin(candidate: &FoldErrors, fittest: &FoldErrors) -> bool {
+    let (Some(candidate), Some(fittest)) = (candidate, fittest) else {
+        return candidate.is_some() && fittest.is_none();
+    };
+    let d: Vec<f64> = candidate.iter().zip(fittest).map(|(a, b)| a - b).collect();
+    let n = d.len() as f64;
+    let mean = d.iter().sum::<f64>() / n;
+    let spread = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
+    mean * n <= LAW_STANDARD_ERRORS * spread * n.sqrt()
 }
 
 /// Laws within this share of each other's friction velocity are the same choice: closer than the
@@ -282,7 +316,12 @@ fn weighted(mut values: Vec<f64>, weight: f64) -> Vec<f64> {
 
 /// One line for the reasons: each joint's law, its friction velocity against its RMS speed, and
 /// how much better it fits than `sign(q̇)`.
-fn explain(laws: &CoulombLaws, scores: &[(usize, Vec<(CoulombShape, f64)>)], rms_speed: &[f64]) -> String {
+fn explain(
+    laws: &CoulombLaws,
+    scores: &[(usize, Vec<(CoulombShape, f64)>)],
+    rms_speed: &[f64],
+    folds: usize,
+) -> String {
     let joints: Vec<String> = scores
         .iter()
         .map(|(k, errors)| {
@@ -299,9 +338,9 @@ fn explain(laws: &CoulombLaws, scores: &[(usize, Vec<(CoulombShape, f64)>)], rms
         })
         .collect();
     format!(
-        "Coulomb laws chosen from the data, each joint's the tanh(q̇/v) for v from {} to {} × its RMS speed that \
-         best predicts {LAW_FOLDS} stretches of the log each fitted without, where it predicts them better than \
-         sign(q̇): {}",
+        "Coulomb laws chosen from the data, each joint's sign(q̇) unless the tanh(q̇/v), for v from {} to {} × its \
+         RMS speed, that best predicts {folds} stretches of the log, each fitted without, predicts them better by \
+         more than {LAW_STANDARD_ERRORS} standard error of the stretches' differences: {}",
         FRICTION_VELOCITY_SHARES[0],
         FRICTION_VELOCITY_SHARES[FRICTION_VELOCITY_SHARES.len() - 1],
         joints.join("; ")
@@ -360,6 +399,23 @@ impl Products {
     }
 }
 
+/// A fold spans at least this many guards, so that half of it is scored clear of the samples its
+/// fit saw.
+const GUARDS_PER_FOLD: usize = 4;
+
+/// Fewer folds than this leave too few fold-by-fold differences to judge a law's gain by its
+/// spread: the log is too short, at its cut-off, for the data to choose a law.
+pub const LAW_MIN_FOLDS: usize = 3;
+
+/// As many folds as fit, at most [`LAW_FOLDS`], each [`GUARDS_PER_FOLD`] guards long. Folds any
+/// shorter would score samples within the filter's memory of the ones fitted, which share their
+/// noise: the score would then reward a law for fitting that noise, and a wide law that trades
+/// against viscous friction wins on `sign(q̇)` data (a 6 s period filtered at 1.7 Hz, whose
+/// memory of 0.47 s is longer than a tenth of it).
+fn fold_count(samples: usize, guard: usize) -> usize {
+    (samples / (GUARDS_PER_FOLD * guard.max(1))).min(LAW_FOLDS)
+}
+
 /// The cross-validation's folds: [`LAW_FOLDS`] contiguous stretches of the samples, each with its
 /// scored interior (the guard left off both ends), and the Gram matrices of the whole, of every
 /// fold and of every interior, kept up to date as columns change.
@@ -372,12 +428,11 @@ struct Folds {
 impl Folds {
     fn of(problem: &LawProblem) -> Self {
         let samples = problem.y.len() / problem.dof.max(1);
-        let count = LAW_FOLDS.min(samples).max(1);
+        let count = fold_count(samples, problem.guard).max(1);
         let bounds: Vec<usize> = (0..=count).map(|f| f * samples / count).collect();
         let folds: Vec<Range<usize>> = bounds.windows(2).map(|w| w[0]..w[1]).collect();
-        // A guard longer than a quarter of a fold would leave too little of it to score.
         let interiors = folds.iter().map(|f| {
-            let guard = problem.guard.min(f.len() / 4);
+            let guard = problem.guard.min(f.len() / GUARDS_PER_FOLD);
             f.start + guard..f.end - guard
         });
         let with_gram = |r: Range<usize>| {
@@ -498,6 +553,36 @@ mod tests {
             }
             assert!(chosen.laws.is_declared());
         }
+    }
+
+    /// A log too short, for its filter's memory, to hold [`LAW_MIN_FOLDS`] stretches that share no
+    /// filtered noise keeps its declared law and says why, even where a smooth law would fit.
+    #[test]
+    fn a_log_too_short_for_its_filter_keeps_its_law_and_says_so() {
+        let n = 400;
+        let velocity: Vec<f64> = (0..n).map(|i| 0.3 * (i as f64 * 0.05).sin()).collect();
+        let smooth = CoulombShape::Tanh { epsilon: 0.03 };
+        let y: Vec<f64> = velocity.iter().map(|v| 2.0 * v + 0.7 * smooth.eval(*v)).collect();
+        let column = |_: usize, law: CoulombShape| velocity.iter().map(|v| law.eval(*v)).collect::<Vec<f64>>();
+        let problem = |guard| LawProblem {
+            columns: vec![velocity.clone(), column(0, CoulombShape::Sign)],
+            y: y.clone(),
+            dof: 1,
+            coulomb: vec![(0, 1)],
+            weights: vec![1.0],
+            guard,
+        };
+        let rms = (velocity.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
+        let short = choose_laws(
+            problem(n / (GUARDS_PER_FOLD * LAW_MIN_FOLDS) + 1),
+            &[rms],
+            &CoulombLaws::undeclared(1),
+            column,
+        );
+        assert_eq!(short.laws.shape(0), CoulombShape::Sign, "{}", short.reason);
+        assert!(short.reason.contains("fewer than the 3"), "{}", short.reason);
+        let long_enough = choose_laws(problem(5), &[rms], &CoulombLaws::undeclared(1), column);
+        assert!(long_enough.laws.shape(0).epsilon().is_some(), "{}", long_enough.reason);
     }
 
     /// The held-out error the Gram updates give a candidate is that of fitting the columns
