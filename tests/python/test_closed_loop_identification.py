@@ -190,8 +190,11 @@ def test_a_closed_loop_whose_friction_rises_over_2_mm_s_validates_with_its_law(s
     print(f"laws {model.robot.friction_velocities}; FP% on the paper's trajectories (rows ω = 0.3 … 0.9):\n"
           f"{np.round(validation, 2)}")
     if not declared:
-        # Each joint's law is found near the plant's (within the grid's refinement and what the
-        # 16-bit encoders let the velocity show).
-        chosen = np.array(model.robot.friction_velocities, dtype=float)
-        assert np.all((chosen > 0.25 * 2e-3) & (chosen < 4 * 2e-3)), chosen
+        # Every smooth law chosen is near the plant's (within the grid's refinement and what the
+        # 16-bit encoders let the velocity show), and the insertion's is smooth: it moves at about
+        # its friction velocity, where the law shows. A joint whose motion does not show its law
+        # clearly keeps sign(q̇) (docs/identification.md §7), and the validation below judges it.
+        chosen = np.array([np.nan if v is None else v for v in model.robot.friction_velocities])
+        smooth = ~np.isnan(chosen)
+        assert smooth[2] and np.all((chosen[smooth] > 0.25 * 2e-3) & (chosen[smooth] < 4 * 2e-3)), chosen
     assert np.all(validation >= 95.0), validation

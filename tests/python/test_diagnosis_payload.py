@@ -106,15 +106,6 @@ def payload_torque(path, robot, payload, t, q):
 
 KNOWN_MASSES = [(1.0, (0.0, 0.0, 0.05)), (3.0, (0.0, 0.0, 0.1))]
 
-# The 3 kg mass added to run 2 is not found: its payload test on lwr_7_link finds no plateau in its
-# batches' covariance (run 2's residual, with the laws chosen on run 1, is correlated longer than
-# ten batches allow), so it is refused as untestable, and a configuration disturbance on the
-# shoulder takes its gravity first (docs/diagnosis.md, Limits). Open; strict, so that a fix shows.
-NOT_FOUND_YET = pytest.mark.xfail(
-    strict=True, reason="3 kg on real KUKA run 2: the payload's batches find no plateau (docs/diagnosis.md, Limits)"
-)
-
-
 def real_kuka_with(mass, at, loaded_on):
     """Run 1 identified and run 2 diagnosed, the known mass's torque added to run `loaded_on`."""
     path = urdf_path("kuka")
@@ -129,9 +120,7 @@ def real_kuka_with(mass, at, loaded_on):
         return arash.diagnose(robot, *runs[1], model=model)
 
 
-@pytest.mark.parametrize(
-    "mass,at", [KNOWN_MASSES[0], pytest.param(*KNOWN_MASSES[1], marks=NOT_FOUND_YET)], ids=["1kg", "3kg"]
-)
+@pytest.mark.parametrize("mass,at", KNOWN_MASSES, ids=["1kg", "3kg"])
 def test_a_known_mass_added_to_a_real_kuka_run_is_found(mass, at):
     """Real KUKA LWR4+ runs with all their own unmodelled effects, and a known mass on the flange
     added to the measured torque: the model identified on run 1 without it, run 2 with it."""
