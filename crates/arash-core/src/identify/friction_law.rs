@@ -110,7 +110,7 @@ pub fn choose_laws(
             laws.into_iter().map(|law| (law, weighted(column(k, law), problem.weights[k]))).collect()
         })
         .collect();
-    let mut folds = Folds::of(&problem);
+    let mut folds = Folds::of(&problem, fold_total);
     let mut scores = Vec::new();
     for sweep in 0..LAW_SWEEPS {
         let coulomb = problem.coulomb.clone();
@@ -175,8 +175,8 @@ fn standard_errors(folds: usize) -> f64 {
     StudentsT::new(0.0, 1.0, (folds.max(2) - 1) as f64).map_or(LAW_STANDARD_ERRORS, |t| t.inverse_cdf(level))
 }
 
-/// Whether a candidate's held-out errors are within [`LAW_STANDARD_ERRORS`] standard errors of
-/// the fittest's: the standard error of the summed fold-by-fold differences, from their spread.
+/// Whether a candidate's held-out errors are within the margin ([`standard_errors`] of the folds)
+/// of the fittest's: the standard error of the summed fold-by-fold differences, from their spread.
 fn within_margin(candidate: &FoldErrors, fittest: &FoldErrors) -> bool {
     let (Some(candidate), Some(fittest)) = (candidate, fittest) else {
         return candidate.is_some() && fittest.is_none();
@@ -416,14 +416,14 @@ impl Products {
 /// fit saw.
 const GUARDS_PER_FOLD: usize = 4;
 
-/// Fewer folds than this and the data do not choose a law: five- or tenfold cross-validation is
-/// the recommended compromise (Breiman and Spector 1992; Kohavi 1995; *Elements of Statistical
-/// Learning* §7.10), and fewer folds leave each fit extrapolating over a large share of the log.
-/// Its prediction then varies with how well the held-out stretch's motion was excited, which a
-/// wide law that trades against viscous friction steadies, and the spread of a few paired
-/// differences is too uncertain to call a standard error. With 3 folds a 6 s period (the
-/// generator's KUKA, sign law, filtered at 1.7 Hz) chose laws at 0.75 and 0.81 × the RMS speed
-/// with a "clear" gain, and fitted at 93 % mean FP% against 99.5 with sign(q̇).
+/// Fewer folds than this and the data do not choose a law: two paired differences are no spread
+/// to call a standard error. Few folds leave each fit extrapolating over a large share of the
+/// log, and the spread of a few differences is itself uncertain, which [`standard_errors`] answers
+/// with Student's t: with 3 folds and one plain standard error, a 6 s period (the generator's KUKA,
+/// sign law, filtered at 1.7 Hz) chose laws at 0.75 and 0.81 × the RMS speed and fitted at 93 %
+/// mean FP% against 99.5 with sign(q̇); with the t margin it keeps sign(q̇). Five folds, the usual
+/// minimum, would leave the smooth-law closed loop's 15 s period at 0.67 Hz (3 folds) without its
+/// law (docs/identification.md §7).
 pub const LAW_MIN_FOLDS: usize = 3;
 
 /// As many folds as fit, at most [`LAW_FOLDS`], each [`GUARDS_PER_FOLD`] guards long. Folds any
@@ -445,9 +445,10 @@ struct Folds {
 }
 
 impl Folds {
-    fn of(problem: &LawProblem) -> Self {
+    /// `count` folds of the problem's samples ([`fold_count`]).
+    fn of(problem: &LawProblem, count: usize) -> Self {
         let samples = problem.y.len() / problem.dof.max(1);
-        let count = fold_count(samples, problem.guard).max(1);
+        let count = count.max(1);
         let bounds: Vec<usize> = (0..=count).map(|f| f * samples / count).collect();
         let folds: Vec<Range<usize>> = bounds.windows(2).map(|w| w[0]..w[1]).collect();
         let interiors = folds.iter().map(|f| {
@@ -631,7 +632,7 @@ mod tests {
             weights: vec![1.0; 2],
             guard: 5,
         };
-        let got = Folds::of(&problem).heldout_errors(&problem, 1, (1, &candidate)).unwrap();
+        let got = Folds::of(&problem, LAW_FOLDS).heldout_errors(&problem, 1, (1, &candidate)).unwrap();
         assert_eq!(got.len(), LAW_FOLDS);
         let mut c = vec![0.0; 2 * n];
         for s in 0..n {
