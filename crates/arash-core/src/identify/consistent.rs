@@ -23,7 +23,7 @@ use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverSt
 use faer::Mat;
 
 use crate::model::Model;
-use crate::physical::{min_pseudo_inertia_eigenvalues, parameter_scales};
+use crate::physical::{min_pseudo_inertia_eigenvalues, onto_consistent, parameter_scales};
 
 /// Settings for [`identify_consistent`].
 #[derive(Clone, Debug)]
@@ -138,7 +138,8 @@ pub fn identify_consistent_signed(
         }
         other => return Err(ConsistentError::SolverFailed(other)),
     }
-    let params = solver.solution.x.clone();
+    let mut params = solver.solution.x.clone();
+    onto_consistent(model, &mut params[..standard]);
     Ok(ConsistentFit {
         min_pseudo_inertia_eigenvalue: min_pseudo_inertia_eigenvalues(model, &params[..standard]),
         params,
