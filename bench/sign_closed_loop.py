@@ -1,10 +1,10 @@
-"""The sign-law closed loop of issue 44 (docs/identification.md, "A sign-law closed loop does not
-reach 95 %"): PD with CAD gravity, no disturbance, the plant stepped at 10 kHz with the set-valued
-law sign(q̇) (a stuck joint stays exactly still), arash's designed excitation (four periods),
+"""The sign-law closed loop of issue 44 (docs/identification.md, "A sign-law closed loop"): PD
+with CAD gravity, no disturbance, the plant stepped at 10 kHz with the set-valued law sign(q̇) (a stuck joint stays exactly still), arash's designed excitation (four periods),
 16-bit encoders. Prints the paper's validation FP% (minimum over its four trajectories) of OLS and
 IDIM-IV, with the laws from the data and with sign(q̇) declared, and of an oracle: least squares on
 the plant's exact states at the log's instants (q̈ the mean over each control period), no
-filtering, no quantisation. About 5 minutes.
+filtering, no quantisation. Identification leaves each joint's resting samples out
+(identify/rest.rs), which the reasons report. About 2½ minutes.
 
     .venv/bin/python bench/sign_closed_loop.py
 """

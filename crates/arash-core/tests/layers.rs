@@ -43,6 +43,7 @@ const FOLDERS: &[(&str, &[&str])] = &[
             "decide",
             "signals",
             "friction",
+            "rest",
             "preprocess",
             "estimate",
             "friction_law",

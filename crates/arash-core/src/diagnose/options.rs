@@ -175,8 +175,10 @@ impl DiagnoseOptions {
     }
 
     /// The preprocessing a log gets at `cutoff_hz`: the user's other settings, no averaging,
-    /// derivatives not filtered again (they pass the filter once, as the torque does), and no
-    /// thinning before the diagnosis's own.
+    /// derivatives not filtered again (they pass the filter once, as the torque does), no
+    /// thinning before the diagnosis's own, and every sample's rows, resting or not: the diagnosis
+    /// builds and scores its own rows, and does not yet leave rests out (its law choice sees the
+    /// rows it scores).
     pub fn preprocessing(&self, cutoff_hz: f64) -> PreprocessOptions {
         PreprocessOptions {
             periods: Some(1),
@@ -184,6 +186,7 @@ impl DiagnoseOptions {
             cutoff_hz: Some(cutoff_hz),
             decimate: 1,
             filter_derivatives: false,
+            leave_out_rests: false,
             ..self.preprocess.clone()
         }
     }

@@ -558,7 +558,11 @@ pub fn closed_loop_fit(
             .map_err(|(time, why)| ClosedLoopError::Diverged { iteration, time, why })?;
         let simulated = preprocess(t, &q_sim, &tau_sim, model.dof(), &fixed)
             .map_err(|source| ClosedLoopError::SimulatedLog { iteration, source })?;
-        Ok(stack(model, base, &simulated).0)
+        // The log's resting rows are left out of the instruments too: DIDIM regresses the
+        // measured torque, zero there, on them.
+        let (mut z, mut unused) = stack(model, base, &simulated);
+        estimate::leave_out_rests(pre, (&mut z, &mut unused), pre.settled.clone());
+        Ok(z)
     };
     // An estimate whose mass matrix is not positive definite somewhere on the way cannot drive a
     // simulation. Its instruments then come from the physically consistent model nearest the
@@ -569,7 +573,11 @@ pub fn closed_loop_fit(
     let mut simulated = |beta: &[f64], z: Option<&Mat<f64>>, iteration: usize| -> Result<Mat<f64>, ClosedLoopError> {
         match instruments(&placed(base, beta), iteration) {
             Err(ClosedLoopError::Diverged { time, why, .. }) => {
-                let w_full = w_full.get_or_init(|| stack_full(model, pre).0);
+                let w_full = w_full.get_or_init(|| {
+                    let (mut w, mut tau) = stack_full(model, pre);
+                    estimate::leave_out_rests(pre, (&mut w, &mut tau), pre.settled.clone());
+                    w
+                });
                 let projected = z.map(|z| estimator.full(base, w_full, z));
                 let physical = identify_consistent(model, projected.as_ref().unwrap_or(w_full), &tau, consistent)
                     .map_err(|e| ClosedLoopError::Diverged { iteration, time, why: format!("{why}; {e}") })?;
@@ -646,8 +654,10 @@ fn iv_fit(
     let (m, p) = (w.nrows(), w.ncols());
     let sigma_p2 = residual.iter().map(|e| e * e).sum::<f64>() / (m - p) as f64;
     let unfiltered = estimate::unfiltered_prediction(model, pre, &base.independent, beta);
-    let meat_residual: Vec<f64> =
-        pre.settled_rows(&pre.tau_unfiltered, dof).iter().zip(&unfiltered).map(|(t, p)| t - p).collect();
+    let rests = pre.settled_rows(&pre.resting, dof);
+    let meat_residual: Vec<f64> = (pre.settled_rows(&pre.tau_unfiltered, dof).iter().zip(&unfiltered).zip(rests))
+        .map(|((t, p), resting)| if *resting { 0.0 } else { t - p })
+        .collect();
     let bread = zx.clone().try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::NAN));
     let block = ((2.0 * pre.rate_hz() / pre.cutoff_hz).ceil() as usize).max(1);
     let sigma_beta = estimate::sandwich_sigma(z, &meat_residual, dof, block, &bread);

@@ -24,7 +24,8 @@ use super::decide::{
     EQUAL_PREDICTION_SIGMAS,
 };
 use super::estimate::{
-    apply, coulomb_positions, filter_each_column, fit_stacked, joint_metrics, put_coulomb, regressor_rows, Method,
+    apply, coulomb_positions, filter_each_column, fit_stacked, joint_metrics, leave_out_rests, put_coulomb,
+    regressor_rows, Method,
 };
 use super::filter::Butterworth;
 use super::friction::RawVelocity;
@@ -282,7 +283,7 @@ impl<'a> Search<'a> {
         let columns = &base.independent;
         // The Coulomb columns of `w` are replaced by each candidate's in turn.
         let (mut w, rows) = self.filtered_columns(&pre, cutoff)?;
-        let tau = rows_of(&pre.tau, dof, &rows);
+        let mut tau = rows_of(&pre.tau, dof, &rows);
         let positions = coulomb_positions(model, columns);
         let filter = Butterworth::lowpass(pre.order, cutoff, fs)?;
         // σ_β's blocks span two periods of the cut-off, as in `fit` (they are not used here).
@@ -299,6 +300,7 @@ impl<'a> Search<'a> {
             };
             let filtered = filter_columns(&filter, &directions, dof, pre.periodic)?;
             put_coulomb(&mut w, dof, &positions, (&filtered, &rows));
+            leave_out_rests(&pre, (&mut w, &mut tau), rows.iter().copied());
             // A velocity with which the parameters cannot be fitted is simply not a candidate.
             let Ok(fit) = fit_stacked(&w, &tau, dof, base, Method::Ols, block) else { continue };
             let training = fit.metrics.fp_percent.iter().sum::<f64>() / dof as f64;
@@ -314,16 +316,17 @@ impl<'a> Search<'a> {
             v
         };
         let (predicted_fp, errors) = match &self.folds {
-            None => self.unfiltered_fit(&pre.tau_unfiltered, &scored_columns(&pre), &beta),
+            None => self.unfiltered_fit(&pre.tau_unfiltered, &scored_columns(&pre), &beta, &pre.resting),
             Some(folds) => {
                 // The fit is done with `pre`'s own motion: each half's takes its place in turn.
+                let resting = pre.resting.clone();
                 let mut moved = pre;
                 let mut scores = Vec::with_capacity(2);
                 for (half, other) in [(0, 1), (1, 0)] {
                     let half_q = &folds.positions[half];
                     (moved.q, moved.qd, moved.qdd) =
                         filtered_motion(&filter, half_q, (dof, 1.0 / fs), true, self.fixed.filter_derivatives)?;
-                    scores.push(self.unfiltered_fit(&folds.torques[other], &scored_columns(&moved), &beta));
+                    scores.push(self.unfiltered_fit(&folds.torques[other], &scored_columns(&moved), &beta, &resting));
                 }
                 let fp = scores.iter().map(|s| s.0).sum::<f64>() / 2.0;
                 (fp, scores.into_iter().flat_map(|s| s.1).collect())
@@ -366,10 +369,16 @@ impl<'a> Search<'a> {
     /// against the unfiltered torque `tau` (one period, or the whole log) there: mean FP% over the
     /// joints, and each sample's squared error summed over the joints, each joint's divided by its
     /// torque's variance.
-    fn unfiltered_fit(&self, tau: &[f64], v: &faer::Mat<f64>, beta: &[f64]) -> (f64, Vec<f64>) {
+    /// Resting joints' samples (`resting`, [`Preprocessed::resting`]) are not scored.
+    fn unfiltered_fit(&self, tau: &[f64], v: &faer::Mat<f64>, beta: &[f64], resting: &[bool]) -> (f64, Vec<f64>) {
         let dof = self.declared.model.dof();
-        let measured = rows_of(tau, dof, &self.scored);
-        let predicted = apply(v, beta);
+        let mut measured = rows_of(tau, dof, &self.scored);
+        let mut predicted = apply(v, beta);
+        for (r, k) in (0..measured.len()).map(|r| (r, r % dof)) {
+            if resting[self.scored[r / dof] * dof + k] {
+                (measured[r], predicted[r]) = (0.0, 0.0);
+            }
+        }
         let fp = joint_metrics(&measured, &predicted, dof).fp_percent.iter().sum::<f64>() / dof as f64;
         let samples = self.scored.len() as f64;
         let variances: Vec<f64> = (0..dof)

@@ -95,7 +95,33 @@ pub const CONDITION_LIMIT: f64 = 1e8;
 /// Only the [`Preprocessed::settled`] samples are stacked: near the ends of a log that is not
 /// periodic the filter's start-up transient would be fitted as if it were dynamics.
 pub fn stack(model: &Model, base: &BaseParameters, data: &Preprocessed) -> (Mat<f64>, Vec<f64>) {
-    (stack_columns(model, data, &base.independent), data.settled_rows(&data.tau, data.dof).to_vec())
+    let (mut w, mut tau) =
+        (stack_columns(model, data, &base.independent), data.settled_rows(&data.tau, data.dof).to_vec());
+    leave_out_rests(data, (&mut w, &mut tau), data.settled.clone());
+    (w, tau)
+}
+
+/// Zero the rows of `w` and the entries of `tau` (stacked at the samples `samples`, `dof` rows
+/// each) of every joint that rests there ([`Preprocessed::resting`]). A zero row adds nothing to
+/// the fit, its residual or σ's middle, and [`fit_stacked`] counts only the others.
+pub fn leave_out_rests(
+    data: &Preprocessed,
+    (w, tau): (&mut Mat<f64>, &mut [f64]),
+    samples: impl Iterator<Item = usize>,
+) {
+    let dof = data.dof;
+    for (r, s) in samples.enumerate() {
+        for k in (0..dof).filter(|&k| data.resting[s * dof + k]) {
+            let row = r * dof + k;
+            tau[row] = 0.0;
+            (0..w.ncols()).for_each(|c| w[(row, c)] = 0.0);
+        }
+    }
+}
+
+/// The rows of `w` (and `tau`) that are equations: not left out as zero ([`leave_out_rests`]).
+fn equations(w: &Mat<f64>, tau: &[f64]) -> usize {
+    (0..w.nrows()).filter(|&r| tau[r] != 0.0 || (0..w.ncols()).any(|c| w[(r, c)] != 0.0)).count()
 }
 
 /// The full regressor (all P standard parameters) stacked like [`stack`].
@@ -209,7 +235,14 @@ pub fn fit(model: &Model, base: &BaseParameters, data: &Preprocessed, method: Me
     let block = ((2.0 * data.rate_hz() / data.cutoff_hz).ceil() as usize).max(1);
     let unfiltered = |beta: &[f64]| -> Vec<f64> {
         let predicted = unfiltered_prediction(model, data, &base.independent, beta);
-        data.settled_rows(&data.tau_unfiltered, data.dof).iter().zip(&predicted).map(|(t, p)| t - p).collect()
+        let mut residual: Vec<f64> =
+            data.settled_rows(&data.tau_unfiltered, data.dof).iter().zip(&predicted).map(|(t, p)| t - p).collect();
+        for (i, r) in residual.iter_mut().enumerate() {
+            if data.resting[data.settled.start * data.dof + i] {
+                *r = 0.0;
+            }
+        }
+        residual
     };
     fit_stacked_with(&w, &tau, (model.dof(), base), (method, block), Some(&unfiltered))
 }
@@ -263,7 +296,7 @@ fn fit_stacked_with(
     (method, block_samples): (Method, usize),
     unfiltered: Option<&UnfilteredResidual>,
 ) -> Result<Fit, EstimateError> {
-    let (m, p) = (w.nrows(), w.ncols());
+    let (m, p) = (equations(w, tau), w.ncols());
     if m <= p {
         return Err(EstimateError::TooFewRows { rows: m, params: p });
     }

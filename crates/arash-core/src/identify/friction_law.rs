@@ -230,12 +230,15 @@ pub fn laws_for_fit(
         |x: &[f64], k: usize| (rows.iter().map(|&s| x[s * dof + k].powi(2)).sum::<f64>() / rows.len() as f64).sqrt();
     let weights: Vec<f64> = (0..dof).map(|k| rms(&data.tau, k)).map(|r| if r > 0.0 { 1.0 / r } else { 1.0 }).collect();
     let rms_speed: Vec<f64> = (0..dof).map(|k| rms(&data.qd_friction, k)).collect();
+    // A resting joint's rows are left out as the fit leaves them out: zero.
+    let resting = |s: usize, k: usize| data.resting[s * dof + k];
     let column = |k: usize, law: CoulombShape| -> Result<Vec<f64>, PreprocessError> {
         let filtered = data.filter_like_torque(&data.friction.joint_directions(k, dof, law), 1)?;
-        Ok(rows.iter().map(|&s| filtered[s]).collect())
+        Ok(rows.iter().map(|&s| if resting(s, k) { 0.0 } else { filtered[s] }).collect())
     };
+    let kept = |r: usize| if resting(rows[r / dof], r % dof) { 0.0 } else { weights[r % dof] };
     let mut stacked: Vec<Vec<f64>> =
-        (0..w.ncols()).map(|c| (0..w.nrows()).map(|r| w[(r, c)] * weights[r % dof]).collect()).collect();
+        (0..w.ncols()).map(|c| (0..w.nrows()).map(|r| w[(r, c)] * kept(r)).collect()).collect();
     for &(k, c) in &positions {
         for (s, v) in column(k, model.coulomb_laws.shape(k))?.iter().enumerate() {
             stacked[c][s * dof + k] = v * weights[k];
@@ -252,7 +255,7 @@ pub fn laws_for_fit(
     let y = rows
         .iter()
         .flat_map(|&s| (0..dof).map(move |k| (s, k)))
-        .map(|(s, k)| data.tau[s * dof + k] * weights[k])
+        .map(|(s, k)| if resting(s, k) { 0.0 } else { data.tau[s * dof + k] * weights[k] })
         .collect();
     // The torque's filter spreads each sample over its memory, in rows of the thinned samples.
     let memory_s =

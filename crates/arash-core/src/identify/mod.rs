@@ -12,6 +12,7 @@ pub mod filter;
 pub mod friction;
 pub mod friction_law;
 pub mod preprocess;
+pub mod rest;
 pub mod signals;
 
 use crate::base_parameters::BaseParameters;
@@ -224,7 +225,8 @@ fn identify_with(
         None => (ls, None),
     };
     let (beta, params, training, min_eig) = if method.consistent() {
-        let (w, tau_f) = stack_full(model, &pre);
+        let (mut w, mut tau_f) = stack_full(model, &pre);
+        estimate::leave_out_rests(&pre, (&mut w, &mut tau_f), pre.settled.clone());
         let projected = instruments.as_ref().map(|(estimator, z)| estimator.full(base, &w, z));
         let c = identify_consistent(model, projected.as_ref().unwrap_or(&w), &tau_f, &options.consistent)?;
         let predicted: Vec<f64> = estimate::apply(&w, &c.params);

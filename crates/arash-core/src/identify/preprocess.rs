@@ -38,6 +38,9 @@ pub struct PreprocessOptions {
     /// derivatives of the filtered position pass through the filter once, exactly as the torque
     /// does, which matters when the signals have content near the cut-off (the diagnosis).
     pub filter_derivatives: bool,
+    /// Leave each joint's resting samples out of the fit ([`super::rest`]). The diagnosis, which
+    /// builds and scores its own rows at every sample, turns it off.
+    pub leave_out_rests: bool,
 }
 
 /// The highest Butterworth order accepted: beyond it a zero-phase pass rings more than it gains.
@@ -53,6 +56,7 @@ impl Default for PreprocessOptions {
             decimate: 1,
             friction_cutoff_hz: None,
             filter_derivatives: true,
+            leave_out_rests: true,
         }
     }
 }
@@ -181,6 +185,9 @@ pub struct Preprocessed {
     pub periodic: bool,
     /// Decimation factor applied after filtering.
     pub decimate: usize,
+    /// Whether each joint rests at each sample (`samples × dof`, [`super::rest`]): those rows are
+    /// left out of the fit.
+    pub resting: Vec<bool>,
     /// The samples clear of the zero-phase filter's start-up transients (all of them for a
     /// periodic average, which is filtered circularly): what identification fits and scores.
     pub settled: std::ops::Range<usize>,
@@ -197,7 +204,7 @@ impl Preprocessed {
     }
 
     /// `x` (`samples × width`) restricted to the [`Self::settled`] samples.
-    pub fn settled_rows<'a>(&self, x: &'a [f64], width: usize) -> &'a [f64] {
+    pub fn settled_rows<'a, T>(&self, x: &'a [T], width: usize) -> &'a [T] {
         &x[self.settled.start * width..self.settled.end * width]
     }
 
@@ -500,7 +507,7 @@ pub fn preprocess(
     }
     let averaging = choose_periods(q, dof, 1.0 / dt, (options.periods, options.period_s), &mut choices)?;
     let periodic = averaging.is_some();
-    let raw_q = q;
+    let (raw_q, raw_dt) = (q, dt);
     // A period that is not a whole number of samples is resampled to the nearest whole number.
     let dt = averaging.map_or(dt, |a| dt * a.samples / a.per() as f64);
     let fs = 1.0 / dt;
@@ -570,6 +577,11 @@ pub fn preprocess(
     });
     let ((q_f, qd, qdd), (tau_avg, tau_f, friction)) = (chain?, other?);
     let keep = |x: &[f64]| every_nth_row(x, dof, options.decimate);
+    let resting = match options.leave_out_rests {
+        true => super::rest::resting(raw_q, dof, averaging, raw_dt, options.decimate),
+        false => vec![false; n.div_ceil(options.decimate) * dof],
+    };
+    choices.reasons.extend(super::rest::explain(&resting, dof, settled.clone(), raw_dt));
     let t_out: Vec<f64> = (0..n).step_by(options.decimate).map(|i| t[0] + i as f64 * dt).collect();
     Ok(Preprocessed {
         dof,
@@ -590,6 +602,7 @@ pub fn preprocess(
         order: options.order,
         periodic,
         decimate: options.decimate,
+        resting,
         settled,
         choices,
         averaging,

@@ -1,0 +1,146 @@
+//! The samples at which a joint rests, which identification leaves out of its equations.
+//!
+//! A joint held still by dry friction feels whatever friction holds it, anywhere between the
+//! Coulomb bounds: at those samples its friction is not a law of its velocity, neither sign(q̇)
+//! nor a smooth one, and a row that states one biases every column that correlates with the
+//! stops. Under a sign law in closed loop the insertion of ARASH:ASiST rested at 27 % of the
+//! samples, and least squares with those rows validated at 77 / 98 / 81 % on the paper's
+//! trajectories; left out, 99 % on every joint (docs/identification.md, "A sign-law closed loop").
+//! Leaving a resting joint's rows out is the maximum-likelihood treatment of the set-valued law:
+//! its friction there is an unknown bounded by f_c, which takes up that row exactly.
+//!
+//! A rest is read from the raw encoder: a reading that holds for at least [`REST_HOLD_S`].
+
+use super::signals::Averaging;
+
+/// A joint rests where its reading holds for at least this long (s). A reading repeated for a
+/// sample or two is slow motion across one encoder step; under closed-loop control a joint held by
+/// its friction stays for tens to hundreds of milliseconds while the loop's torque builds (the
+/// sign-law closed loop's insertion held for 10 ms or more at 38 % of the samples). Any hold from 3
+/// to 50 ms left out gave the same validation there (98–99.8 % on every joint); longer holds let
+/// the short stops bias the fit (docs/identification.md).
+pub const REST_HOLD_S: f64 = 0.01;
+
+/// Samples a reading must hold at `dt` for a rest: [`REST_HOLD_S`], and never fewer than two (a
+/// single sample holds nothing).
+pub fn hold_samples(dt: f64) -> usize {
+    ((REST_HOLD_S / dt).ceil() as usize).max(2)
+}
+
+/// Which samples of the raw log `q` (`N × dof`) lie within a run of identical readings at least
+/// `hold` samples long, joint by joint (`N × dof`).
+pub fn resting_in_log(q: &[f64], dof: usize, hold: usize) -> Vec<bool> {
+    let n = q.len() / dof.max(1);
+    let mut resting = vec![false; n * dof];
+    for k in 0..dof {
+        let mut start = 0;
+        for i in 1..=n {
+            if i == n || q[i * dof + k] != q[start * dof + k] {
+                if i - start >= hold {
+                    (start..i).for_each(|s| resting[s * dof + k] = true);
+                }
+                start = i;
+            }
+        }
+    }
+    resting
+}
+
+/// [`resting_in_log`] arranged as the preprocessed samples are: with `averaging`, a sample of the
+/// averaged period rests where the joint rests in any of the periods (the averaged torque holds
+/// that period's holding friction); then every `decimate`-th sample.
+pub fn resting(q: &[f64], dof: usize, averaging: Option<Averaging>, dt: f64, decimate: usize) -> Vec<bool> {
+    let raw = resting_in_log(q, dof, hold_samples(dt));
+    let arranged = match averaging {
+        None => raw,
+        Some(a) => {
+            let n = raw.len() / dof.max(1);
+            let per = a.per();
+            let step = a.samples / per as f64;
+            let mut any = vec![false; per * dof];
+            for p in 0..a.count {
+                for i in 0..per {
+                    let position = p as f64 * a.samples + i as f64 * step;
+                    // A resampled point rests where either raw sample around it does.
+                    let (below, above) = (position.floor() as usize, position.ceil() as usize);
+                    for k in 0..dof {
+                        let at = |s: usize| s < n && raw[s * dof + k];
+                        any[i * dof + k] |= at(below) || at(above);
+                    }
+                }
+            }
+            any
+        }
+    };
+    arranged.chunks(dof.max(1)).step_by(decimate.max(1)).flatten().copied().collect()
+}
+
+/// One line for the reasons: each joint's share of resting samples among `samples` (indices of
+/// `resting`, `samples × dof`), when any joint rests.
+pub fn explain(resting: &[bool], dof: usize, samples: std::ops::Range<usize>, dt: f64) -> Option<String> {
+    let count = samples.len().max(1) as f64;
+    let shares: Vec<f64> =
+        (0..dof).map(|k| samples.clone().filter(|&s| resting[s * dof + k]).count() as f64 / count).collect();
+    if shares.iter().all(|s| *s == 0.0) {
+        return None;
+    }
+    let each: Vec<String> = shares.iter().enumerate().map(|(k, s)| format!("joint {k} {:.1} %", 100.0 * s)).collect();
+    Some(format!(
+        "resting samples left out of the fit ({}): the reading held for {} samples ({:.0} ms) or more, where dry \
+         friction holds the joint with a force that is no law of its velocity",
+        each.join(", "),
+        hold_samples(dt),
+        1e3 * REST_HOLD_S
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A joint that moves, holds for 20 samples, moves, and holds for 3: only the long hold rests;
+    /// a second joint that never holds has no rest.
+    #[test]
+    fn only_holds_of_at_least_the_rest_length_rest() {
+        let mut q = Vec::new();
+        let mut x = 0.0;
+        let mut profile = vec![true; 10];
+        profile.extend([false; 20]);
+        profile.extend([true; 10]);
+        profile.extend([false; 3]);
+        profile.extend([true; 10]);
+        for (i, moves) in profile.iter().enumerate() {
+            if *moves {
+                x += 1.0;
+            }
+            q.extend([x, i as f64]);
+        }
+        let resting = resting_in_log(&q, 2, 10);
+        let first: Vec<bool> = resting.iter().step_by(2).copied().collect();
+        // The hold is the 20 samples held plus the one that reached the reading.
+        assert_eq!(first.iter().filter(|r| **r).count(), 21);
+        assert!(first[9..30].iter().all(|r| *r));
+        assert!(!first[30] && !first[40..44].iter().any(|r| *r));
+        assert!(!resting.iter().skip(1).step_by(2).any(|r| *r));
+    }
+
+    /// Two periods, the joint resting in the second only: the averaged sample rests.
+    #[test]
+    fn an_averaged_sample_rests_where_any_period_rests() {
+        let per = 100;
+        let mut q = Vec::new();
+        for p in 0..2 {
+            for i in 0..per {
+                let hold = p == 1 && (40..70).contains(&i);
+                q.push(if hold { 40.0 } else { i as f64 });
+            }
+        }
+        let averaging = Some(Averaging { count: 2, samples: per as f64 });
+        let resting = resting(&q, 1, averaging, 1e-3, 1);
+        assert_eq!(resting.len(), per);
+        assert!(resting[40..70].iter().all(|r| *r));
+        assert!(!resting[..40].iter().any(|r| *r) && !resting[70..].iter().any(|r| *r));
+        let decimated = super::resting(&q, 1, averaging, 1e-3, 10);
+        assert_eq!(decimated, (0..10).map(|i| resting[10 * i]).collect::<Vec<_>>());
+    }
+}
