@@ -653,11 +653,7 @@ fn iv_fit(
     let residual: Vec<f64> = tau.iter().zip(&predicted).map(|(t, p)| t - p).collect();
     let (m, p) = (w.nrows(), w.ncols());
     let sigma_p2 = residual.iter().map(|e| e * e).sum::<f64>() / (m - p) as f64;
-    let unfiltered = estimate::unfiltered_prediction(model, pre, &base.independent, beta);
-    let rests = pre.settled_rows(&pre.resting, dof);
-    let meat_residual: Vec<f64> = (pre.settled_rows(&pre.tau_unfiltered, dof).iter().zip(&unfiltered).zip(rests))
-        .map(|((t, p), resting)| if *resting { 0.0 } else { t - p })
-        .collect();
+    let meat_residual = estimate::unfiltered_residual(model, pre, &base.independent, beta);
     let bread = zx.clone().try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::NAN));
     let block = ((2.0 * pre.rate_hz() / pre.cutoff_hz).ceil() as usize).max(1);
     let sigma_beta = estimate::sandwich_sigma(z, &meat_residual, dof, block, &bread);

@@ -319,14 +319,18 @@ impl<'a> Search<'a> {
             None => self.unfiltered_fit(&pre.tau_unfiltered, &scored_columns(&pre), &beta, &pre.resting),
             Some(folds) => {
                 // The fit is done with `pre`'s own motion: each half's takes its place in turn.
-                let resting = pre.resting.clone();
                 let mut moved = pre;
                 let mut scores = Vec::with_capacity(2);
                 for (half, other) in [(0, 1), (1, 0)] {
                     let half_q = &folds.positions[half];
                     (moved.q, moved.qd, moved.qdd) =
                         filtered_motion(&filter, half_q, (dof, 1.0 / fs), true, self.fixed.filter_derivatives)?;
-                    scores.push(self.unfiltered_fit(&folds.torques[other], &scored_columns(&moved), &beta, &resting));
+                    scores.push(self.unfiltered_fit(
+                        &folds.torques[other],
+                        &scored_columns(&moved),
+                        &beta,
+                        &moved.resting,
+                    ));
                 }
                 let fp = scores.iter().map(|s| s.0).sum::<f64>() / 2.0;
                 (fp, scores.into_iter().flat_map(|s| s.1).collect())

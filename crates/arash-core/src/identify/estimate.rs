@@ -233,18 +233,17 @@ fn fill_band(
 pub fn fit(model: &Model, base: &BaseParameters, data: &Preprocessed, method: Method) -> Result<Fit, EstimateError> {
     let (w, tau) = stack(model, base, data);
     let block = ((2.0 * data.rate_hz() / data.cutoff_hz).ceil() as usize).max(1);
-    let unfiltered = |beta: &[f64]| -> Vec<f64> {
-        let predicted = unfiltered_prediction(model, data, &base.independent, beta);
-        let mut residual: Vec<f64> =
-            data.settled_rows(&data.tau_unfiltered, data.dof).iter().zip(&predicted).map(|(t, p)| t - p).collect();
-        for (i, r) in residual.iter_mut().enumerate() {
-            if data.resting[data.settled.start * data.dof + i] {
-                *r = 0.0;
-            }
-        }
-        residual
-    };
+    let unfiltered = |beta: &[f64]| unfiltered_residual(model, data, &base.independent, beta);
     fit_stacked_with(&w, &tau, (model.dof(), base), (method, block), Some(&unfiltered))
+}
+
+/// The unfiltered torque less [`unfiltered_prediction`] on the [`Preprocessed::settled`] samples,
+/// zero where a joint rests (its row is left out of the fit): what σ's middle is taken from.
+pub fn unfiltered_residual(model: &Model, data: &Preprocessed, columns: &[usize], beta: &[f64]) -> Vec<f64> {
+    let predicted = unfiltered_prediction(model, data, columns, beta);
+    let measured = data.settled_rows(&data.tau_unfiltered, data.dof).iter();
+    let resting = data.settled_rows(&data.resting, data.dof);
+    measured.zip(&predicted).zip(resting).map(|((t, p), rests)| if *rests { 0.0 } else { t - p }).collect()
 }
 
 /// The model `beta` on the [`Preprocessed::settled`] samples with unfiltered columns: the
