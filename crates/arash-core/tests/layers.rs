@@ -43,6 +43,7 @@ const FOLDERS: &[(&str, &[&str])] = &[
             "decide",
             "signals",
             "friction",
+            "repair",
             "rest",
             "preprocess",
             "estimate",

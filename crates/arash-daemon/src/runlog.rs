@@ -25,6 +25,8 @@ pub struct Log {
     /// Where each run after the first begins, when this is several runs concatenated: the robot
     /// moved between them, so nothing is to be filtered across these samples.
     pub starts: Vec<usize>,
+    /// What `--repair` did to the runs ([`Log::repaired`]), one line per change, each naming its file.
+    pub repairs: Vec<String>,
 }
 
 impl Log {
@@ -52,6 +54,28 @@ impl Log {
         jumps
     }
 
+    /// This log repaired ([`arash_core::identify::repair`]): a corrupt block at either end trimmed
+    /// and irregular stamps resampled, the reference alike. Returns the log and what was done.
+    pub fn repaired(self) -> Result<(Log, Vec<String>), arash_core::identify::repair::RepairError> {
+        let dof = self.q.len() / self.t.len().max(1);
+        let mut signals = vec![("q", self.q.as_slice(), dof), ("tau", self.tau.as_slice(), dof)];
+        if let Some(c) = &self.closed_loop {
+            signals.extend(
+                ["q_des", "qd_des", "qdd_des"].into_iter().zip(&c.reference).map(|(n, r)| (n, r.as_slice(), dof)),
+            );
+        }
+        let repaired = arash_core::identify::repair::repair(&self.t, &signals)?;
+        let mut columns = repaired.signals.into_iter();
+        let (q, tau) = (columns.next().unwrap_or_default(), columns.next().unwrap_or_default());
+        let closed_loop = self.closed_loop.map(|c| ClosedLoopChannels {
+            reference: [columns.next(), columns.next(), columns.next()].map(Option::unwrap_or_default),
+            controller: c.controller,
+        });
+        let (trajectory, starts, repairs) = (self.trajectory, self.starts, self.repairs);
+        let log = Log { t: repaired.t, q, tau, trajectory, closed_loop, starts, repairs };
+        Ok((log, repaired.report))
+    }
+
     /// The held-out runs as the diagnosis takes them.
     pub fn runs(&self) -> arash_core::diagnose::Runs<'_> {
         let log = arash_core::identify::Log { t: &self.t, q: &self.q, tau: &self.tau };
@@ -66,12 +90,14 @@ pub struct ClosedLoopChannels {
     pub controller: Result<LoggedController, String>,
 }
 
-/// Read a run, by extension: `.mcap` is a flight log, anything else CSV.
-pub fn read(path: &Path, model: &Model) -> anyhow::Result<Log> {
+/// Read a run, by extension: `.mcap` is a flight log, anything else CSV. With `repair`, a CSV
+/// cell that is not a finite number reads as NaN, for [`Log::repaired`] to trim, instead of
+/// refusing the file.
+pub fn read(path: &Path, model: &Model, repair: bool) -> anyhow::Result<Log> {
     if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("mcap")) {
         read_flight_log(path, model)
     } else {
-        read_csv(path, model)
+        read_csv(path, model, repair)
     }
 }
 
@@ -99,7 +125,15 @@ fn read_flight_log(path: &Path, model: &Model) -> anyhow::Result<Log> {
     let c = log.cycles;
     let closed_loop = ClosedLoopChannels { reference: [c.q_des, c.qd_des, c.qdd_des], controller };
     let (mut log, repaired) = regrid(
-        Log { t: c.t, q: c.q, tau: c.tau_meas, trajectory: None, closed_loop: Some(closed_loop), starts: vec![] },
+        Log {
+            t: c.t,
+            q: c.q,
+            tau: c.tau_meas,
+            trajectory: None,
+            closed_loop: Some(closed_loop),
+            starts: vec![],
+            repairs: vec![],
+        },
         dof,
     );
     log.trajectory = trajectory;
@@ -140,10 +174,13 @@ fn regrid(log: Log, dof: usize) -> (Log, usize) {
         reference: [columns.next(), columns.next(), columns.next()].map(Option::unwrap_or_default),
         controller: c.controller,
     });
-    (Log { t: uniform.t, q, tau, trajectory: log.trajectory, closed_loop, starts: log.starts }, uniform.repaired)
+    (
+        Log { t: uniform.t, q, tau, trajectory: log.trajectory, closed_loop, starts: log.starts, repairs: log.repairs },
+        uniform.repaired,
+    )
 }
 
-fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
+fn read_csv(path: &Path, model: &Model, repair: bool) -> anyhow::Result<Log> {
     let mut reader = csv::Reader::from_path(path).with_context(|| format!("opening log {}", path.display()))?;
     let headers = reader.headers().with_context(|| format!("reading the header of {}", path.display()))?.clone();
     let find = |name: &str| -> anyhow::Result<usize> {
@@ -165,8 +202,15 @@ fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
             model.joints.iter().map(|j| find(&format!("{channel}.{}", j.name)).ok()).collect::<Option<Vec<usize>>>()
         })
         .collect();
-    let mut log =
-        Log { t: Vec::new(), q: Vec::new(), tau: Vec::new(), trajectory: None, closed_loop: None, starts: vec![] };
+    let mut log = Log {
+        t: Vec::new(),
+        q: Vec::new(),
+        tau: Vec::new(),
+        trajectory: None,
+        closed_loop: None,
+        starts: vec![],
+        repairs: vec![],
+    };
     let mut reference: [Vec<f64>; 3] = Default::default();
     for (line, record) in reader.records().enumerate() {
         let record = record.with_context(|| format!("{}: record {}", path.display(), line + 1))?;
@@ -174,8 +218,10 @@ fn read_csv(path: &Path, model: &Model) -> anyhow::Result<Log> {
             let text = record.get(col).unwrap_or("");
             match text.trim().parse::<f64>() {
                 Ok(v) if v.is_finite() => Ok(v),
+                _ if repair => Ok(f64::NAN),
                 _ => bail!(
-                    "{}: row {} column `{}` is `{text}`, not a finite number",
+                    "{}: row {} column `{}` is `{text}`, not a finite number (--repair trims a corrupt block at \
+                     either end of a log)",
                     path.display(),
                     line + 2,
                     &headers[col]
@@ -220,7 +266,8 @@ pub fn concatenate(mut logs: Vec<Log>) -> Log {
         [one] => one.closed_loop.take(),
         _ => None,
     };
-    let mut out = Log { t: Vec::new(), q: Vec::new(), tau: Vec::new(), trajectory, closed_loop, starts: vec![] };
+    let mut out =
+        Log { t: Vec::new(), q: Vec::new(), tau: Vec::new(), trajectory, closed_loop, starts: vec![], repairs: vec![] };
     for log in logs {
         if !out.t.is_empty() {
             out.starts.push(out.t.len());
@@ -230,6 +277,7 @@ pub fn concatenate(mut logs: Vec<Log>) -> Log {
         out.t.extend(log.t.iter().map(|t| t + offset));
         out.q.extend(log.q);
         out.tau.extend(log.tau);
+        out.repairs.extend(log.repairs);
     }
     out
 }
@@ -246,7 +294,8 @@ mod tests {
         let q: Vec<f64> = t.iter().map(|t| 3.0 * t).collect();
         let reference = [q.clone(), q.clone(), q.clone()];
         let closed_loop = Some(ClosedLoopChannels { reference, controller: Err("none".into()) });
-        let (out, repaired) = regrid(Log { t, q: q.clone(), tau: q, trajectory: None, closed_loop, starts: vec![] }, 1);
+        let (out, repaired) =
+            regrid(Log { t, q: q.clone(), tau: q, trajectory: None, closed_loop, starts: vec![], repairs: vec![] }, 1);
         assert_eq!(repaired, 2);
         let c = out.closed_loop.expect("kept");
         assert!(c.reference.iter().all(|r| *r == out.q) && c.controller.is_err());
@@ -267,6 +316,7 @@ mod tests {
                 controller: Err("none".into()),
             }),
             starts: vec![],
+            repairs: vec![],
         };
         let one = concatenate(vec![run(12.5)]);
         assert!((one.t[0] - 0.0).abs() < 1e-12 && (one.t[3] - 3e-3).abs() < 1e-12, "{:?}", one.t);
@@ -288,6 +338,7 @@ mod tests {
             trajectory: None,
             closed_loop: None,
             starts: vec![],
+            repairs: vec![],
         };
         // Continuous: the second run starts one step on from where the first ended.
         assert!(concatenate(vec![run(0.0), run(5e-4)]).jumps().is_empty());
@@ -304,6 +355,7 @@ mod tests {
             trajectory: None,
             closed_loop: None,
             starts: vec![],
+            repairs: vec![],
         };
         let jumps = concatenate(vec![moving(0.0), moving(0.2 + 3e-3)]).jumps();
         assert_eq!(jumps.iter().map(|j| (j.0, j.1)).collect::<Vec<_>>(), [(200, 0)], "{jumps:?}");

@@ -428,9 +428,11 @@ fn errors<'py>(py: Python<'py>, m: &Metrics) -> PyResult<Bound<'py, PyDict>> {
 type Arrays<'py> = (PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>);
 
 /// Diagnose the log `(t, q, tau)` against the robot's declared model (see `arash.diagnose`);
-/// `validation_starts`: where each concatenated held-out run after the first begins.
+/// `validation_starts`: where each concatenated held-out run after the first begins;
+/// `repair_report`: what `arash.repair_log` did to the logs, put first among the reasons.
 #[pyfunction]
-#[pyo3(signature = (robot, log, options, model=None, validation=None, validation_starts=Vec::new()))]
+#[pyo3(signature = (robot, log, options, model=None, validation=None, validation_starts=Vec::new(), repair_report=Vec::new()))]
+#[allow(clippy::too_many_arguments)]
 fn _diagnose<'py>(
     py: Python<'py>,
     robot: &Robot,
@@ -439,6 +441,7 @@ fn _diagnose<'py>(
     model: Option<&Identification>,
     validation: Option<Arrays<'py>>,
     validation_starts: Vec<usize>,
+    repair_report: Vec<String>,
 ) -> PyResult<Diagnosis> {
     let dof = robot.model.dof();
     let (t, q, tau) = log_arrays(&log.0, &log.1, &log.2, dof)?;
@@ -474,6 +477,8 @@ fn _diagnose<'py>(
             Ok::<_, arash_core::diagnose::DiagnoseError>((inner, consistent))
         })
         .map_err(value_error)?;
+    let mut inner = inner;
+    inner.settings.reasons.splice(0..0, repair_report);
     Ok(Diagnosis { robot: robot_model, inner, consistent })
 }
 

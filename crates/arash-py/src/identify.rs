@@ -9,6 +9,7 @@ use arash_core::control::trajectory::paper_validation_state;
 use arash_core::identify::closed_loop::{ClosedLoop, LoggedController};
 use arash_core::identify::consistent::{identify_consistent, ConsistentOptions};
 use arash_core::identify::preprocess::PreprocessOptions;
+use arash_core::identify::repair::{repair, Signal};
 use arash_core::identify::{
     identify as core_identify, identify_in_closed_loop, validate, Declared, IdentifyOptions, Log,
 };
@@ -280,9 +281,11 @@ fn _identify<'py>(
     let mut reference: Option<[crate::Batch; 3]> = None;
     let mut controller: Option<String> = None;
     let mut keep_weak = false;
+    let mut repair_report: Vec<String> = Vec::new();
     crate::each_option(options, |key, value| {
         match key {
             "keep_weak" => keep_weak = value.extract()?,
+            "repair_report" => repair_report = value.extract()?,
             "reference" => {
                 let (a, b, c): (PyReadonlyArrayDyn<f64>, PyReadonlyArrayDyn<f64>, PyReadonlyArrayDyn<f64>) =
                     value.extract()?;
@@ -320,7 +323,48 @@ fn _identify<'py>(
         None => py.detach(|| core_identify(declared, log, method, &o)),
     }
     .map_err(value_error)?;
+    let mut inner = inner;
+    inner.settings.reasons.splice(0..0, repair_report);
     Ok(Identification::new(model, inner))
+}
+
+/// Repair a log (see `arash.repair_log`): `t` (N,) and `signals`, each (N, width) or (N,).
+/// Returns `(t, signals, report)`, every signal in its input's shape.
+#[pyfunction]
+fn _repair_log<'py>(
+    py: Python<'py>,
+    t: PyReadonlyArrayDyn<'py, f64>,
+    signals: Vec<(String, PyReadonlyArrayDyn<'py, f64>)>,
+) -> PyResult<(NumpyArray<'py>, Vec<NumpyArray<'py>>, Vec<String>)> {
+    if t.ndim() != 1 {
+        return Err(PyValueError::new_err(format!("t must be one-dimensional, got shape {:?}", t.shape())));
+    }
+    let n = t.len();
+    let mut arrays = Vec::with_capacity(signals.len());
+    for (name, array) in &signals {
+        let width = match array.shape() {
+            [rows] if *rows == n => 1,
+            [rows, width] if *rows == n => *width,
+            shape => {
+                return Err(PyValueError::new_err(format!("{name} must have {n} rows, as t has, got shape {shape:?}")))
+            }
+        };
+        arrays.push((name.as_str(), array.as_array().iter().copied().collect::<Vec<f64>>(), width));
+    }
+    let t_in: Vec<f64> = t.as_array().iter().copied().collect();
+    let borrowed: Vec<Signal> = arrays.iter().map(|(name, v, w)| (*name, v.as_slice(), *w)).collect();
+    let repaired = repair(&t_in, &borrowed).map_err(value_error)?;
+    let out = repaired
+        .signals
+        .iter()
+        .zip(&signals)
+        .map(|(values, (_, array))| {
+            let rows = repaired.t.len();
+            let tail: Vec<usize> = array.shape()[1..].to_vec();
+            to_numpy(py, values.clone(), false, rows, &tail)
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    Ok((vector_out(py, &repaired.t)?, out, repaired.report))
 }
 
 /// The closed loop's reference `(q_des, qd_des, qdd_des)`, each `(N, dof)`, and its controller (JSON),
@@ -420,6 +464,7 @@ pub(crate) fn register(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_class::<Excitation>()?;
     module.add_function(wrap_pyfunction!(_design_excitation, module)?)?;
     module.add_function(wrap_pyfunction!(_identify, module)?)?;
+    module.add_function(wrap_pyfunction!(_repair_log, module)?)?;
     module.add_function(wrap_pyfunction!(load_model, module)?)?;
     module.add_function(wrap_pyfunction!(consistent_least_squares, module)?)?;
     module.add_function(wrap_pyfunction!(paper_validation_trajectory, module)?)?;
@@ -494,9 +539,11 @@ fn _design_excitation(py: Python<'_>, robot: &Robot, options: &Bound<'_, PyDict>
     use arash_core::identify::excitation::{design_excitation as design, ExcitationOptions};
     let mut o = ExcitationOptions::default();
     let mut keep_weak = false;
+    let mut repair_report: Vec<String> = Vec::new();
     crate::each_option(options, |key, value| {
         match key {
             "keep_weak" => keep_weak = value.extract()?,
+            "repair_report" => repair_report = value.extract()?,
             "harmonics" => o.harmonics = value.extract()?,
             "period_s" => o.period_s = value.extract()?,
             "restarts" => o.restarts = value.extract()?,

@@ -6,9 +6,7 @@
 //! sample per logged cycle. `arash identify`, `arash diagnose` and the demo read daemon logs
 //! through this, and `arash.read_log` gives the result as `log["uniform"]`.
 
-/// A grid point within this share of the step of a logged time is that sample: the drive's
-/// clock ticks in whole periods, and what is left is round-off of the sum.
-const ON_A_SAMPLE: f64 = 1e-6;
+use crate::identify::repair::resample;
 
 /// Channels on a uniform grid: `t` (N) and each channel row-major (N × its width, as given).
 #[derive(Clone, Debug, PartialEq)]
@@ -37,37 +35,17 @@ pub fn on_uniform_grid(t: &[f64], channels: &[&[f64]], width: usize) -> Option<U
     }
     let (t0, t_end) = (t[keep[0]], t[keep[keep.len() - 1]]);
     let n = (((t_end - t0) / h).round() as usize + 1).max(t.len());
-    let mut out = Uniform {
-        t: Vec::with_capacity(n),
-        channels: channels.iter().map(|_| Vec::with_capacity(n * width)).collect(),
-        repaired: t.len() - keep.len(),
-    };
-    let mut j = 0;
-    for i in 0..n {
-        let at = t0 + i as f64 * h;
-        while j + 2 < keep.len() && t[keep[j + 1]] <= at {
-            j += 1;
-        }
-        let (a, b) = (keep[j], keep[(j + 1).min(keep.len() - 1)]);
-        let span = t[b] - t[a];
-        // A grid point on a logged time takes that sample exactly: blended with a weight of
-        // round-off, an encoder's positions leave its grid by 1e-14 and its step no longer shows
-        // (`diagnose/band.rs` then reads the whole closed-loop motion as noise).
-        let w = match ((at - t[a]).abs() <= ON_A_SAMPLE * h, (at - t[b]).abs() <= ON_A_SAMPLE * h) {
-            (true, _) => 0.0,
-            (_, true) => 1.0,
-            _ if span > 0.0 => ((at - t[a]) / span).clamp(0.0, 1.0),
-            _ => 0.0,
-        };
-        if (at - t[a]).abs() > 0.1 * h && (at - t[b]).abs() > 0.1 * h {
-            out.repaired += 1;
-        }
-        out.t.push(at);
-        for (x, y) in channels.iter().zip(&mut out.channels) {
-            y.extend((0..width).map(|k| x[a * width + k] * (1.0 - w) + x[b * width + k] * w));
-        }
-    }
-    Some(out)
+    let grid: Vec<f64> = (0..n).map(|i| t0 + i as f64 * h).collect();
+    let kept_t: Vec<f64> = keep.iter().map(|&i| t[i]).collect();
+    let kept: Vec<Vec<f64>> = channels
+        .iter()
+        .map(|x| keep.iter().flat_map(|&i| x[i * width..(i + 1) * width].iter().copied()).collect())
+        .collect();
+    // A grid point on a logged time takes that sample exactly: blended with a weight of
+    // round-off, an encoder's positions leave its grid by 1e-14 and its step no longer shows
+    // (`diagnose/band.rs` then reads the whole closed-loop motion as noise).
+    let (channels, blended) = resample(&kept_t, &kept, &vec![width; kept.len()], &grid);
+    Some(Uniform { t: grid, channels, repaired: t.len() - keep.len() + blended })
 }
 
 #[cfg(test)]

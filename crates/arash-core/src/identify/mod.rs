@@ -12,6 +12,7 @@ pub mod filter;
 pub mod friction;
 pub mod friction_law;
 pub mod preprocess;
+pub mod repair;
 pub mod rest;
 pub mod signals;
 

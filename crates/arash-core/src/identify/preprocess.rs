@@ -100,15 +100,22 @@ impl PreprocessOptions {
 pub enum PreprocessError {
     #[error("{name} has {got} values, expected {expected} ({samples} samples × {width})")]
     Shape { name: &'static str, got: usize, expected: usize, samples: usize, width: usize },
-    #[error("{name} is not finite at sample {sample}")]
+    #[error(
+        "{name} is not finite at sample {sample} (a corrupt block at either end of the log is trimmed by the opt-in repair: \
+         repair=True in Python, --repair on the command line)"
+    )]
     NotFinite { name: &'static str, sample: usize },
     #[error("need at least {needed} samples, got {got}")]
     TooFewSamples { needed: usize, got: usize },
-    #[error("t does not increase at sample {index}: {before} s is followed by {after} s")]
+    #[error(
+        "t does not increase at sample {index}: {before} s is followed by {after} s (a corrupt block at either end of the \
+         log is trimmed by the opt-in repair: repair=True in Python, --repair on the command line)"
+    )]
     TimeNotIncreasing { index: usize, before: f64, after: f64 },
     #[error(
         "t is not uniformly sampled: step {index} is {step:.6} s where the median step is {median:.6} s (a gap or a \
-         reordering; jitter under half a step is accepted)"
+         reordering; jitter under half a step is accepted; the opt-in repair, repair=True in Python or --repair on the \
+         command line, resamples isolated irregular steps onto a uniform grid)"
     )]
     NonUniformTime { index: usize, step: f64, median: f64 },
     #[error(

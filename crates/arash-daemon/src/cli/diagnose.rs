@@ -124,6 +124,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &options,
     )
     .context("diagnosis failed")?;
+    let mut diagnosis = diagnosis;
+    let repairs = train.repairs.iter().chain(validation.iter().flat_map(|v| &v.repairs));
+    diagnosis.settings.reasons.splice(0..0, repairs.cloned());
     eprintln!("diagnosed in {:.1} s", started.elapsed().as_secs_f64());
     let report = diagnosis.report();
     println!("{report}");

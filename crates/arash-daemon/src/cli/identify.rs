@@ -99,6 +99,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     .context("identification failed")?;
     identification.data.sources = args.runs.logs.iter().map(|p| p.display().to_string()).collect();
+    identification.settings.reasons.splice(0..0, log.repairs.iter().cloned());
     for warning in &identification.settings.warnings {
         eprintln!("warning: {warning}");
     }

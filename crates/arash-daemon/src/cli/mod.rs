@@ -43,6 +43,12 @@ pub struct Runs {
     /// Joint angle offsets q₀ of a motor-side log (degrees), one per joint.
     #[arg(long, value_delimiter = ',', requires = "gear_ratios", allow_negative_numbers = true)]
     pub joint_offsets_deg: Option<Vec<f64>>,
+    /// Repair each log before use: trim a block at either end that is not finite, steps back in
+    /// time or follows a gap, and resample stamps that are not one uniform stream onto a uniform
+    /// grid (docs/identification.md, "Logs as controllers write them"). What was done is printed
+    /// and recorded among the model file's reasons. Off, such a log is refused.
+    #[arg(long)]
+    pub repair: bool,
 }
 
 impl Runs {
@@ -94,7 +100,15 @@ impl Runs {
         let transmission = self.transmission(model.dof())?;
         let mut logs = Vec::with_capacity(paths.len());
         for path in paths {
-            let mut log = crate::runlog::read(path, model)?;
+            let mut log = crate::runlog::read(path, model, self.repair)?;
+            if self.repair {
+                let (repaired, report) = log.repaired().with_context(|| format!("repairing {}", path.display()))?;
+                for line in &report {
+                    eprintln!("note: {}: {line}", path.display());
+                }
+                log = repaired;
+                log.repairs = report.iter().map(|l| format!("{}: {l}", path.display())).collect();
+            }
             if let Some(t) = &transmission {
                 (log.q, log.tau) = t.to_joints(&log.q, &log.tau).with_context(|| format!("{}", path.display()))?;
             }

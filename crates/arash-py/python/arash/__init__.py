@@ -15,11 +15,11 @@ import json as _json
 import os as _os
 import warnings as _warnings
 from pathlib import Path as _Path
-from typing import Any, Optional, Sequence, Union
+from typing import Any, NamedTuple, Optional, Sequence, Union
 
 import numpy as _np
 
-from ._arash import _design_excitation, _diagnose, _identify, _simulate
+from ._arash import _design_excitation, _diagnose, _identify, _repair_log, _simulate
 from ._arash import (
     BaseParameters,
     DiagnoseOptions,
@@ -58,6 +58,8 @@ __all__ = [
     "load_model",
     "paper_validation_trajectory",
     "read_log",
+    "repair_log",
+    "RepairedLog",
     "simulate",
 ]
 
@@ -125,6 +127,34 @@ def _as_list(value: Any) -> Any:
     raise TypeError(f"controller holds a {type(value).__name__}, which is not a number or an array")
 
 
+class RepairedLog(NamedTuple):
+    """A log after ``repair_log``: ``t``, ``q``, ``tau``, the ``extra`` arrays in the order given,
+    and ``report``, one line per change (empty when the log needed none)."""
+
+    t: Any
+    q: Any
+    tau: Any
+    extra: tuple[Any, ...]
+    report: list[str]
+
+
+def repair_log(t: Any, q: Any, tau: Any, *extra: Any) -> RepairedLog:
+    """Repair a log as real controllers write it, for ``identify`` and ``diagnose`` (which do it
+    themselves with ``repair=True``): t (N,), q and tau (N, dof), and any other arrays of N rows
+    (a closed loop's reference) repaired alike.
+
+    A block at either end that is not finite, steps back in time or follows a gap of more than
+    three steps is trimmed (at most a quarter of the rows; a break elsewhere is refused, naming its
+    rows). Stamps that lie within half a step of one uniform line are a uniform stream's and are
+    kept; otherwise (a sample stamped early, a missed one, a loop that drifts) every array is
+    resampled at the median step by linear interpolation. ``report`` says what was done
+    (docs/identification.md, "Logs as controllers write them")."""
+    names = ["q", "tau"] + [f"extra[{k}]" for k in range(len(extra))]
+    arrays = [_np.asarray(a, dtype=float) for a in (q, tau, *extra)]
+    t, out, report = _repair_log(_np.asarray(t, dtype=float), list(zip(names, arrays)))
+    return RepairedLog(t, out[0], out[1], tuple(out[2:]), report)
+
+
 def identify(
     robot: Robot,
     t: Any,
@@ -146,6 +176,7 @@ def identify(
     iv_iterations: Optional[int] = None,
     iv_tolerance: Optional[float] = None,
     keep_weak: bool = False,
+    repair: bool = False,
 ) -> Identification:
     """Identify the robot's parameters from a log: t (N,), q and tau (N, dof), SI units.
 
@@ -169,16 +200,24 @@ def identify(
     stop at. keep_weak: fit every exact base parameter; by default those no trajectory within the
     limits separates are regrouped into the others (``robot.base_parameters(regroup_weak=True).weak``
     lists them, and ``Identification.base`` is the set fitted).
+    repair: repair the log first (``repair_log``: trim a corrupt end block, resample irregular
+    stamps; the reference alike); what it did heads ``settings["reasons"]``. Off, such a log is
+    refused with an error that names the sample.
 
     ``Identification.settings`` says what was chosen and why; a choice the data support only
     weakly is also raised as a ``UserWarning``.
     """
     if isinstance(controller, dict):
         controller = _json.dumps(controller, default=_as_list)
+    report: Optional[list[str]] = None
+    if repair:
+        repaired = repair_log(t, q, tau, *(reference or ()))
+        t, q, tau, report = repaired.t, repaired.q, repaired.tau, repaired.report
+        reference = repaired.extra if reference is not None else None
     options = _given(periods=periods, period_s=period_s, cutoff_hz=cutoff_hz, order=order, decimate=decimate,
                      friction_cutoff_hz=friction_cutoff_hz, pull=pull, stiffness_bounds=stiffness_bounds,
                      reference=reference, controller=controller, iv_iterations=iv_iterations,
-                     iv_tolerance=iv_tolerance, keep_weak=keep_weak or None)
+                     iv_tolerance=iv_tolerance, keep_weak=keep_weak or None, repair_report=report)
     if motor_side is not None:
         q, tau = motor_side.to_joints(q, tau)
     identification = _identify(robot, (t, q, tau), method, options)
@@ -237,6 +276,7 @@ def diagnose(
     consistent: Optional[bool] = None,
     consistent_cutoff_hz: Optional[float] = None,
     motor_side: Optional[Transmission] = None,
+    repair: bool = False,
 ) -> Diagnosis:
     """Find what the declared model lacks in a log, and the error before and after.
 
@@ -263,7 +303,18 @@ def diagnose(
     each; ``DiagnoseOptions()`` shows them. motor_side: a ``Transmission`` when q and tau (and the
     validation's) are motor angles and motor torques; it also gives the cogging search its ratios
     (unless ``transmission`` is given) and the ``coupled_rotor`` search its coupled motors.
+    repair: repair the log and each validation run first (``repair_log``); what it did heads
+    ``settings["reasons"]``.
     """
+    report: list[str] = []
+    if repair:
+        (t, q, tau), report = _repaired((t, q, tau), "training log")
+        if isinstance(validation, list):
+            runs = [_repaired(run, f"validation[{k}]") for k, run in enumerate(validation)]
+            validation, report = [r for r, _ in runs], report + [line for _, lines in runs for line in lines]
+        elif validation is not None:
+            validation, lines = _repaired(validation, "validation log")
+            report += lines
     validation, starts = _runs(validation)
     if motor_side is not None:
         q, tau = motor_side.to_joints(q, tau)
@@ -275,7 +326,15 @@ def diagnose(
         effects=None if effects is None else list(effects), torque_from_currents=torque_from_currents,
         refit=refit, hold_friction=hold_friction, consistent=consistent,
         consistent_cutoff_hz=consistent_cutoff_hz, motor_side=motor_side))
-    return _diagnose(robot, (t, q, tau), options, model, validation, starts)
+    return _diagnose(robot, (t, q, tau), options, model, validation, starts, report)
+
+
+def _repaired(run: Any, label: str) -> tuple[tuple[Any, Any, Any], list[str]]:
+    """``repair_log`` of one ``(t, q, tau)``, its report lines labelled with the run."""
+    if not isinstance(run, tuple) or len(run) != 3:
+        raise ValueError(f"{label}: expected a tuple (t, q, tau)")
+    r = repair_log(*run)
+    return (r.t, r.q, r.tau), [f"{label}: {line}" for line in r.report]
 
 
 def _runs(validation: Any) -> tuple[Optional[tuple[Any, Any, Any]], list[int]]:

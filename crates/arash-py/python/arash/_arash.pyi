@@ -22,6 +22,7 @@ __all__ = [
     "_design_excitation",
     "_diagnose",
     "_identify",
+    "_repair_log",
     "_simulate",
     "butter",
     "consistent_least_squares",
@@ -185,6 +186,10 @@ class Identification:
 def _identify(
     robot: Robot, log: tuple[_ArrayLike, _ArrayLike, _ArrayLike], method: Optional[str], options: dict[str, Any]
 ) -> Identification: ...
+
+def _repair_log(
+    t: _ArrayLike, signals: list[tuple[str, _ArrayLike]]
+) -> tuple[_Array, list[_Array], list[str]]: ...
 
 def load_model(path: Union[str, PathLike[str]]) -> Identification: ...
 
@@ -358,4 +363,5 @@ def _diagnose(
     model: Optional[Identification] = None,
     validation: Optional[tuple[_ArrayLike, _ArrayLike, _ArrayLike]] = None,
     validation_starts: list[int] = ...,
+    repair_report: list[str] = ...,
 ) -> Diagnosis: ...
