@@ -218,6 +218,33 @@ pub struct ModelFile {
     /// Per base parameter, what sets its σ% (files written before it was kept have none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub determination: Vec<Determination>,
+    /// The drive gains, when the model was identified from motor currents with a known load: the
+    /// torque of joint j is `gains[j]` times its current, and the model's parameters are in
+    /// physical units.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drive_gains: Option<DriveGains>,
+}
+
+/// Drive gains identified with a known load (`identify::gains`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DriveGains {
+    /// Per joint (N·m/A or N/A).
+    pub gains: Vec<f64>,
+    /// Their standard deviations.
+    pub sigma: Vec<f64>,
+    /// The body the known load rode on, and its mass (kg).
+    pub load_body: String,
+    pub load_mass: f64,
+    /// The load's unknowns estimated with the gains: name, value, σ (SI, about the body's frame
+    /// origin).
+    pub load_estimate: Vec<(String, f64, f64)>,
+    /// Scaled condition number of the stacked problem of gains, base and load parameters.
+    pub condition_number: f64,
+    /// Per joint: the known load's share of its torque, the load's torque over what the model
+    /// leaves unexplained, and whether the load fixes its gain (`identify::gains::NOT_FIXED`).
+    pub load_share: Vec<f64>,
+    pub load_over_unexplained: Vec<f64>,
+    pub fixed: Vec<bool>,
 }
 
 /// Write `text` to `path` through a temporary file and a rename, so that a crash never leaves half
@@ -355,6 +382,7 @@ impl ModelFile {
             settings,
             data,
             effects: vec![],
+            drive_gains: None,
         }
     }
 

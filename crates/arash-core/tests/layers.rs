@@ -51,6 +51,7 @@ const FOLDERS: &[(&str, &[&str])] = &[
             "cutoff",
             "consistent",
             "closed_loop",
+            "gains",
             "excitation",
         ],
     ),

@@ -8,10 +8,12 @@ use arash_core::base_parameters::BaseParameters as CoreBase;
 use arash_core::control::trajectory::paper_validation_state;
 use arash_core::identify::closed_loop::{ClosedLoop, LoggedController};
 use arash_core::identify::consistent::{identify_consistent, ConsistentOptions};
+use arash_core::identify::gains::KnownLoad;
 use arash_core::identify::preprocess::PreprocessOptions;
 use arash_core::identify::repair::{repair, Signal};
 use arash_core::identify::{
-    identify as core_identify, identify_in_closed_loop, validate, Declared, IdentifyOptions, Log,
+    identify as core_identify, identify_in_closed_loop, identify_with_known_load, validate, Declared, IdentifyOptions,
+    Log,
 };
 use arash_core::model_file::{IdentifyMethod, ModelFile as CoreIdentification};
 use arash_core::Model;
@@ -150,6 +152,26 @@ impl Identification {
     #[getter]
     fn condition_number(&self) -> f64 {
         self.inner.condition_number
+    }
+    /// The drive gains of a model identified from currents with a known load: "gains" and
+    /// "sigma" (per joint, N·m/A or N/A), "load_body", "load_mass", "load_estimate" (the load's
+    /// unknowns estimated with them: name, value, σ), "condition_number", and per joint
+    /// "load_share" (the load's share of its torque), "load_over_unexplained" (the load's torque
+    /// over what the model leaves) and "fixed" (whether the load fixes the gain). None otherwise.
+    #[getter]
+    fn drive_gains<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(g) = &self.inner.drive_gains else { return Ok(None) };
+        let d = PyDict::new(py);
+        d.set_item("gains", vector_out(py, &g.gains)?)?;
+        d.set_item("sigma", vector_out(py, &g.sigma)?)?;
+        d.set_item("load_body", &g.load_body)?;
+        d.set_item("load_mass", g.load_mass)?;
+        d.set_item("load_estimate", g.load_estimate.clone())?;
+        d.set_item("condition_number", g.condition_number)?;
+        d.set_item("load_share", vector_out(py, &g.load_share)?)?;
+        d.set_item("load_over_unexplained", vector_out(py, &g.load_over_unexplained)?)?;
+        d.set_item("fixed", g.fixed.clone())?;
+        Ok(Some(d))
     }
     /// What sets each σ% besides the noise, per base parameter: "apart" (the part of its unit
     /// column outside the others' span, 1/√VIF), "leans_on" (the index of the one it leans on
@@ -328,6 +350,56 @@ fn _identify<'py>(
     Ok(Identification::new(model, inner))
 }
 
+/// A run of currents: `(t, q, i, loaded)`.
+type CurrentRun<'py> = (PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>, bool);
+
+/// Identify from motor currents with a known load (see `arash.identify`'s `loaded`): `runs` are
+/// `(t, q, i, loaded)`, `load` the known load's body, mass and, where known, centre of mass and
+/// inertia about it.
+#[pyfunction]
+#[pyo3(signature = (robot, runs, load, method, options))]
+fn _identify_with_load<'py>(
+    py: Python<'py>,
+    robot: &Robot,
+    runs: Vec<CurrentRun<'py>>,
+    load: (String, f64, Option<[f64; 3]>, Option<[f64; 6]>),
+    method: Option<&str>,
+    options: &Bound<'py, PyDict>,
+) -> PyResult<Identification> {
+    let method: IdentifyMethod =
+        method.map_or(Ok(IdentifyMethod::default()), str::parse).map_err(PyValueError::new_err)?;
+    let mut o = IdentifyOptions::default();
+    crate::each_option(options, |key, value| {
+        match key {
+            "periods" => o.preprocess.periods = value.extract()?,
+            "period_s" => o.preprocess.period_s = value.extract()?,
+            "cutoff_hz" => o.preprocess.cutoff_hz = value.extract()?,
+            "order" => o.preprocess.order = value.extract()?,
+            "decimate" => o.preprocess.decimate = value.extract()?,
+            "friction_cutoff_hz" => o.preprocess.friction_cutoff_hz = value.extract()?,
+            "pull" => o.consistent.pull = value.extract()?,
+            _ => return Ok(false),
+        }
+        Ok(true)
+    })?;
+    let dof = robot.model.dof();
+    let arrays = runs
+        .iter()
+        .enumerate()
+        .map(|(k, (t, q, i, _))| {
+            log_arrays(t, q, i, dof).map_err(|e| PyValueError::new_err(format!("run {k}: {}", e.value(py))))
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    let logs: Vec<(Log, bool)> = arrays.iter().zip(&runs).map(|((t, q, i), r)| (Log { t, q, tau: i }, r.3)).collect();
+    let (body, mass, com, inertia) = load;
+    let load = KnownLoad { body, mass, com, inertia };
+    let model = Arc::clone(&robot.model);
+    let base = robot.fitted_base(false)?;
+    let declared = Declared { model: &model, base, urdf: &robot.urdf };
+    let (inner, _) = py.detach(|| identify_with_known_load(declared, &logs, &load, method, &o)).map_err(value_error)?;
+    Ok(Identification::new(model, inner))
+}
+
 /// Repair a log (see `arash.repair_log`): `t` (N,) and `signals`, each (N, width) or (N,).
 /// Returns `(t, signals, report)`, every signal in its input's shape.
 #[pyfunction]
@@ -465,6 +537,7 @@ pub(crate) fn register(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(_design_excitation, module)?)?;
     module.add_function(wrap_pyfunction!(_identify, module)?)?;
     module.add_function(wrap_pyfunction!(_repair_log, module)?)?;
+    module.add_function(wrap_pyfunction!(_identify_with_load, module)?)?;
     module.add_function(wrap_pyfunction!(load_model, module)?)?;
     module.add_function(wrap_pyfunction!(consistent_least_squares, module)?)?;
     module.add_function(wrap_pyfunction!(paper_validation_trajectory, module)?)?;

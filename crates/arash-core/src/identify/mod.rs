@@ -11,6 +11,7 @@ pub mod excitation;
 pub mod filter;
 pub mod friction;
 pub mod friction_law;
+pub mod gains;
 pub mod preprocess;
 pub mod repair;
 pub mod rest;
@@ -48,6 +49,8 @@ pub enum IdentifyError {
     File(#[from] ModelFileError),
     #[error(transparent)]
     ClosedLoop(#[from] ClosedLoopError),
+    #[error(transparent)]
+    Gains(#[from] gains::GainsError),
     #[error(
         "method {0} needs the closed loop's reference (q_des, qd_des, qdd_des at every sample) and the controller that \
          ran it, and none was given; ols, wls and consistent work on the log alone"
@@ -99,6 +102,65 @@ pub fn identify_in_closed_loop(
     options: &IdentifyOptions,
 ) -> Result<ModelFile, IdentifyError> {
     identify_with(declared, log, method, Some(closed_loop), options)
+}
+
+/// Identify from motor currents with drive gains ([`gains`]): `runs` are logs whose `tau` holds
+/// currents (A), each with or without the known `load`. The gains, the base parameters and the
+/// load's unknowns are fitted together; the model file is then fitted as [`identify`] fits it, on
+/// the first unloaded run's torque `k̂ᵢ iᵢ`, and records the gains. Coulomb laws the robot does not
+/// declare are chosen on that run and used for all.
+pub fn identify_with_known_load(
+    declared: Declared,
+    runs: &[(Log, bool)],
+    load: &gains::KnownLoad,
+    method: IdentifyMethod,
+    options: &IdentifyOptions,
+) -> Result<(ModelFile, gains::GainFit), IdentifyError> {
+    let body = load.validate(declared.model)?;
+    let first = runs.iter().position(|(_, loaded)| !loaded).ok_or(gains::GainsError::MissingRuns("unloaded"))?;
+    if !runs.iter().any(|(_, loaded)| *loaded) {
+        return Err(gains::GainsError::MissingRuns("loaded").into());
+    }
+    let against = cutoff::Against::Regressor;
+    let (pre_first, laws) = preprocess_with_laws((declared, runs[first].0), &options.preprocess, against)?;
+    let with_laws;
+    let model = match laws {
+        Some(laws) => {
+            with_laws = Model { coulomb_laws: laws, ..declared.model.clone() };
+            &with_laws
+        }
+        None => declared.model,
+    };
+    let declared = Declared { model, ..declared };
+    let mut preprocessed = Vec::with_capacity(runs.len());
+    for (r, (log, _)) in runs.iter().enumerate() {
+        preprocessed.push(match r == first {
+            true => pre_first.clone(),
+            false => cutoff::preprocess_for_fit(declared, *log, &options.preprocess, against)?,
+        });
+    }
+    let gain_runs: Vec<gains::GainRun> =
+        preprocessed.iter().zip(runs).map(|(data, (_, loaded))| gains::GainRun { data, loaded: *loaded }).collect();
+    let ls = if method == IdentifyMethod::Wls { Method::Wls } else { Method::Ols };
+    let fit = gains::fit_gains(model, declared.base, &gain_runs, (load, body), ls)?;
+    let log = runs[first].0;
+    let dof = model.dof();
+    let torque: Vec<f64> = log.tau.iter().enumerate().map(|(i, c)| c * fit.gains[i % dof]).collect();
+    let mut file = identify(declared, Log { tau: &torque, ..log }, method, options)?;
+    file.settings.reasons.splice(0..0, fit.reasons.iter().cloned());
+    file.settings.warnings.extend(fit.warnings.iter().cloned());
+    file.drive_gains = Some(crate::model_file::DriveGains {
+        gains: fit.gains.clone(),
+        sigma: fit.gain_sigma.clone(),
+        load_body: load.body.clone(),
+        load_mass: load.mass,
+        load_estimate: fit.load.clone(),
+        condition_number: fit.fit.condition_number,
+        load_share: fit.load_torque_share.clone(),
+        load_over_unexplained: fit.load_over_unexplained.clone(),
+        fixed: fit.fixed.clone(),
+    });
+    Ok((file, fit))
 }
 
 /// Why the base parameters are fewer than the exact rank: the weak ones, regrouped.

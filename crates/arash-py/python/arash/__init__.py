@@ -19,7 +19,7 @@ from typing import Any, NamedTuple, Optional, Sequence, Union
 
 import numpy as _np
 
-from ._arash import _design_excitation, _diagnose, _identify, _repair_log, _simulate
+from ._arash import _design_excitation, _diagnose, _identify, _identify_with_load, _repair_log, _simulate
 from ._arash import (
     BaseParameters,
     DiagnoseOptions,
@@ -177,6 +177,9 @@ def identify(
     iv_tolerance: Optional[float] = None,
     keep_weak: bool = False,
     repair: bool = False,
+    loaded: Optional[Union[tuple[Any, Any, Any], Sequence[tuple[Any, Any, Any]]]] = None,
+    load: Optional[dict[str, Any]] = None,
+    unloaded: Optional[Sequence[tuple[Any, Any, Any]]] = None,
 ) -> Identification:
     """Identify the robot's parameters from a log: t (N,), q and tau (N, dof), SI units.
 
@@ -203,10 +206,23 @@ def identify(
     repair: repair the log first (``repair_log``: trim a corrupt end block, resample irregular
     stamps; the reference alike); what it did heads ``settings["reasons"]``. Off, such a log is
     refused with an error that names the sample.
+    loaded, load, unloaded: calibrate from motor currents (docs/currents.md). ``tau`` (and every
+    run's third array) then holds currents in amperes; ``loaded`` is one run ``(t, q, i)`` or a list
+    of runs carrying a known load, ``unloaded`` more runs without it, and ``load`` the load:
+    ``{"body": link name, "mass": kg}``, with ``"com"`` (m, in the body's frame) and ``"inertia"``
+    (``[Ixx, Iyy, Izz, Ixy, Ixz, Iyz]`` about the centre of mass, kg·m²) where known. Each joint's
+    drive gain is fitted with the base parameters and the load's unknowns (Gautier and Briot
+    2014); the model is in physical units and ``Identification.drive_gains`` holds the gains.
 
     ``Identification.settings`` says what was chosen and why; a choice the data support only
     weakly is also raised as a ``UserWarning``.
     """
+    if loaded is not None:
+        return _identify_from_currents(robot, (t, q, tau), loaded, load, unloaded, method, repair, _given(
+            periods=periods, period_s=period_s, cutoff_hz=cutoff_hz, order=order, decimate=decimate,
+            friction_cutoff_hz=friction_cutoff_hz, pull=pull))
+    if load is not None or unloaded is not None:
+        raise ValueError("load and unloaded calibrate from currents and need the loaded run(s): loaded=(t, q, i)")
     if isinstance(controller, dict):
         controller = _json.dumps(controller, default=_as_list)
     report: Optional[list[str]] = None
@@ -223,6 +239,41 @@ def identify(
     identification = _identify(robot, (t, q, tau), method, options)
     for warning in identification.settings["warnings"]:
         _warnings.warn(f"arash.identify: {warning}", UserWarning, stacklevel=2)
+    return identification
+
+
+def _identify_from_currents(
+    robot: Robot,
+    run: tuple[Any, Any, Any],
+    loaded: Any,
+    load: Optional[dict[str, Any]],
+    unloaded: Optional[Sequence[tuple[Any, Any, Any]]],
+    method: Optional[str],
+    repair: bool,
+    options: dict[str, Any],
+) -> Identification:
+    """``identify`` with ``loaded``: the runs with their flags, the load checked for its keys."""
+    if not isinstance(load, dict) or "body" not in load or "mass" not in load:
+        raise ValueError("load: a dict with at least 'body' (the link it rides on) and 'mass' (kg)")
+    unknown = set(load) - {"body", "mass", "com", "inertia"}
+    if unknown:
+        raise ValueError(f"load: unknown key(s) {sorted(unknown)}; expected body, mass, com, inertia")
+    loaded_runs = [loaded] if isinstance(loaded, tuple) else list(loaded)
+    runs = [(run, False)] + [(r, False) for r in (unloaded or [])] + [(r, True) for r in loaded_runs]
+    arrays = []
+    for k, (r, flag) in enumerate(runs):
+        if not isinstance(r, tuple) or len(r) != 3:
+            raise ValueError(f"run {k}: expected a tuple (t, q, i)")
+        if repair:
+            r = repair_log(*r)[:3]
+        arrays.append((*(_np.asarray(a, dtype=float) for a in r), flag))
+    com = load.get("com")
+    inertia = load.get("inertia")
+    spec = (str(load["body"]), float(load["mass"]), None if com is None else [float(x) for x in com],
+            None if inertia is None else [float(x) for x in inertia])
+    identification = _identify_with_load(robot, arrays, spec, method, options)
+    for warning in identification.settings["warnings"]:
+        _warnings.warn(f"arash.identify: {warning}", UserWarning, stacklevel=3)
     return identification
 
 

@@ -22,6 +22,7 @@ __all__ = [
     "_design_excitation",
     "_diagnose",
     "_identify",
+    "_identify_with_load",
     "_repair_log",
     "_simulate",
     "butter",
@@ -162,6 +163,9 @@ class Identification:
     @property
     def condition_number(self) -> float: ...
     @property
+    def drive_gains(self) -> Optional[dict[str, Any]]:
+        """The drive gains of a model identified from currents with a known load, else None."""
+    @property
     def determination(self) -> Optional[dict[str, Any]]:
         """What sets each σ% besides the noise: "apart" (1/√VIF of each base parameter's column),
         "leans_on" (index of the column it leans on most, or None), "column_over_torque",
@@ -185,6 +189,14 @@ class Identification:
 
 def _identify(
     robot: Robot, log: tuple[_ArrayLike, _ArrayLike, _ArrayLike], method: Optional[str], options: dict[str, Any]
+) -> Identification: ...
+
+def _identify_with_load(
+    robot: Robot,
+    runs: list[tuple[_ArrayLike, _ArrayLike, _ArrayLike, bool]],
+    load: tuple[str, float, Optional[list[float]], Optional[list[float]]],
+    method: Optional[str],
+    options: dict[str, Any],
 ) -> Identification: ...
 
 def _repair_log(

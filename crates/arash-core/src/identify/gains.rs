@@ -1,0 +1,581 @@
+//! Drive gains identified with a known load (Gautier and Briot, "Global identification of joint
+//! drive gains and dynamic parameters of robots", ASME J. Dyn. Sys. Meas. Control 136(5), 2014).
+//!
+//! A rig that logs motor currents `i` has joint torques `kⱼ iⱼ`, with each joint's gain `kⱼ`
+//! (torque constant × gear or drum ratio × the current sensor's scale) known to ±10 % at best.
+//! Least squares on currents fits `β/kⱼ` joint by joint: every mass comes out in amperes, and
+//! a common scale of the gains cannot be told from the parameters' at all. A load of known mass,
+//! carried in some runs and not in others, fixes that scale:
+//!
+//! ```text
+//! unloaded runs:  W β             − diag(i) k = 0
+//! loaded runs:    W β + W B_b,u δ − diag(i) k = −W B_b,k π_k
+//! ```
+//!
+//! `W` is the base regressor, `B_b` the base map's columns of the body `b` the load rides on: the
+//! load adds its ten inertial parameters to that body's, so it reaches the torque as `W B_b π_L`.
+//! Its known part `π_k` (the mass, and the first moments and inertia where they are known) moves
+//! to the right-hand side; its unknown part enters through those of `B_b`'s columns that are
+//! independent (`δ`: the load's identifiable combinations, estimated with the gains). The
+//! problem is linear in `(β, δ, k)` and is solved by the least squares of [`super::estimate`], its
+//! σ the same block sandwich, its conditioning named by parameter where a gain is not fixed.
+
+use super::estimate::{apply, fit_stacked, stack, EstimateError, Fit, Method};
+use super::preprocess::Preprocessed;
+use crate::base_parameters::BaseParameters;
+use crate::model::Model;
+use crate::params::{body as body_params, PER_BODY};
+use faer::prelude::*;
+use faer::Mat;
+
+/// A load of known mass, and where known its centre of mass and inertia, fixed to one body.
+#[derive(Clone, Debug, PartialEq)]
+pub struct KnownLoad {
+    /// The body (URDF link) it rides on.
+    pub body: String,
+    /// kg.
+    pub mass: f64,
+    /// Its centre of mass in the body's frame (m), when known.
+    pub com: Option<[f64; 3]>,
+    /// Its inertia about its centre of mass, in the body frame's axes, `[Ixx, Iyy, Izz, Ixy, Ixz,
+    /// Iyz]` (kg·m²), when known; needs `com`.
+    pub inertia: Option<[f64; 6]>,
+}
+
+/// Why a known-load identification cannot be made, naming the input.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GainsError {
+    #[error("no {0} run: drive gains need runs both with and without the known load")]
+    MissingRuns(&'static str),
+    #[error("the load is on body `{name}`, which the robot does not have (bodies: {bodies})")]
+    UnknownBody { name: String, bodies: String },
+    #[error("the load's {what}")]
+    BadLoad { what: String },
+    #[error(
+        "a load on `{body}` known by {known} only cannot fix the gains: its known part acts on the base parameters \
+         exactly as its unknown {unknown} can, so the fit would take it for them (relative residual {residual:.1e}). \
+         Give its centre of mass (and inertia), or put it on a body whose mass the torque sees apart from its first \
+         moments"
+    )]
+    NotSeparable { body: String, known: String, unknown: String, residual: f64 },
+    #[error("run {run} has {dof} joints; the robot has {expected}")]
+    WrongRobot { run: usize, dof: usize, expected: usize },
+    #[error(transparent)]
+    Estimate(#[from] EstimateError),
+}
+
+impl KnownLoad {
+    /// The body's index, once every value is checked: a positive finite mass, a finite centre of
+    /// mass, an inertia that is physical (positive semi-definite, each principal moment at most
+    /// the sum of the other two) and given with its centre of mass.
+    pub fn validate(&self, model: &Model) -> Result<usize, GainsError> {
+        let body = model.bodies.iter().position(|b| b.name == self.body).ok_or_else(|| GainsError::UnknownBody {
+            name: self.body.clone(),
+            bodies: model.bodies.iter().map(|b| b.name.as_str()).collect::<Vec<_>>().join(", "),
+        })?;
+        let bad = |what: String| Err(GainsError::BadLoad { what });
+        if !(self.mass.is_finite() && self.mass > 0.0) {
+            return bad(format!("mass must be positive and finite, not {} kg", self.mass));
+        }
+        if let Some(c) = self.com.filter(|c| c.iter().any(|x| !x.is_finite())) {
+            return bad(format!("centre of mass must be finite, not {c:?} m"));
+        }
+        if let Some(i) = self.inertia {
+            if self.com.is_none() {
+                return bad("inertia is about its centre of mass, which must then be given too".into());
+            }
+            let m = nalgebra::Matrix3::new(i[0], i[3], i[4], i[3], i[1], i[5], i[4], i[5], i[2]);
+            let eigen = m.symmetric_eigenvalues();
+            let (lo, sum) = (eigen.min(), eigen.sum());
+            let tolerance = 1e-12 * eigen.amax().max(f64::MIN_POSITIVE);
+            if i.iter().any(|x| !x.is_finite()) || lo < -tolerance || eigen.iter().any(|e| *e > sum - e + tolerance) {
+                return bad(format!(
+                    "inertia {i:?} kg·m² is not physical: principal moments {:?} must be non-negative, each at most \
+                     the sum of the other two",
+                    eigen.as_slice()
+                ));
+            }
+        }
+        Ok(body)
+    }
+
+    /// The load's ten standard parameters about the body's frame origin (`[m, mcx, mcy, mcz,
+    /// Ixx, Iyy, Izz, Ixy, Ixz, Iyz]`), `None` where unknown.
+    pub fn parameters(&self) -> [Option<f64>; PER_BODY] {
+        let mut known = [None; PER_BODY];
+        known[0] = Some(self.mass);
+        if let Some(c) = self.com {
+            for a in 0..3 {
+                known[1 + a] = Some(self.mass * c[a]);
+            }
+            if let Some(i) = self.inertia {
+                // Parallel axes, from the centre of mass to the frame origin.
+                let m = self.mass;
+                let sq = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+                let about = [
+                    i[0] + m * (sq - c[0] * c[0]),
+                    i[1] + m * (sq - c[1] * c[1]),
+                    i[2] + m * (sq - c[2] * c[2]),
+                    i[3] - m * c[0] * c[1],
+                    i[4] - m * c[0] * c[2],
+                    i[5] - m * c[1] * c[2],
+                ];
+                for (a, v) in about.into_iter().enumerate() {
+                    known[4 + a] = Some(v);
+                }
+            }
+        }
+        known
+    }
+}
+
+/// The names of a body's ten parameters, as the load's are reported.
+const LOAD_NAMES: [&str; PER_BODY] = ["m", "mcx", "mcy", "mcz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"];
+
+/// One preprocessed run: its currents in place of the torque, and whether it carries the load.
+pub struct GainRun<'a> {
+    pub data: &'a Preprocessed,
+    pub loaded: bool,
+}
+
+/// The gains, the robot's base parameters and the load's unknowns, fitted together.
+#[derive(Clone, Debug)]
+pub struct GainFit {
+    /// Each joint's drive gain (N·m/A or N/A) and its σ.
+    pub gains: Vec<f64>,
+    pub gain_sigma: Vec<f64>,
+    /// The robot's base parameters (without the load) in physical units.
+    pub beta: Vec<f64>,
+    pub beta_sigma: Vec<f64>,
+    /// The load's identifiable unknowns: name, value and σ (first moments in kg·m, inertias about
+    /// the body's frame origin in kg·m²).
+    pub load: Vec<(String, f64, f64)>,
+    /// Per joint: the RMS of the known load's torque over the loaded runs, as a share of the
+    /// joint's RMS torque there. A joint where it is nil gets its scale only through parameters it
+    /// shares with the others.
+    pub load_torque_share: Vec<f64>,
+    /// Per joint: the RMS of the known load's torque over the RMS of the torque the model leaves
+    /// unexplained. Only where it is well above 1 does the load, rather than the model's error, set
+    /// the gain.
+    pub load_over_unexplained: Vec<f64>,
+    /// Whether the load fixes each gain ([`fixed`]).
+    pub fixed: Vec<bool>,
+    /// The fit of the stacked problem (conditioning, σ%, what sets each σ).
+    pub fit: Fit,
+    pub reasons: Vec<String>,
+    /// Gains the load does not fix.
+    pub warnings: Vec<String>,
+}
+
+/// Fit the drive gains, the base parameters and the load's unknowns from `runs` (at least one with
+/// the load and one without), the known `load` on body `body` ([`KnownLoad::validate`]).
+pub fn fit_gains(
+    model: &Model,
+    base: &BaseParameters,
+    runs: &[GainRun],
+    (load, body): (&KnownLoad, usize),
+    method: Method,
+) -> Result<GainFit, GainsError> {
+    let dof = model.dof();
+    for (run, r) in runs.iter().enumerate() {
+        if r.data.dof != dof {
+            return Err(GainsError::WrongRobot { run, dof: r.data.dof, expected: dof });
+        }
+    }
+    if !runs.iter().any(|r| r.loaded) {
+        return Err(GainsError::MissingRuns("loaded"));
+    }
+    if !runs.iter().any(|r| !r.loaded) {
+        return Err(GainsError::MissingRuns("unloaded"));
+    }
+    let p = base.rank;
+    let b_body = base_map_of_body(base, body);
+    let known = load.parameters();
+    let unknown: Vec<usize> = independent_columns(&b_body, p, (0..PER_BODY).filter(|&c| known[c].is_none()).collect());
+    separable(&b_body, p, &known, &unknown).map_err(|residual| GainsError::NotSeparable {
+        body: load.body.clone(),
+        known: names_of((0..PER_BODY).filter(|&c| known[c].is_some())),
+        unknown: names_of(unknown.iter().copied()),
+        residual,
+    })?;
+    let columns = p + unknown.len() + dof;
+    let stacked: Vec<(Mat<f64>, Vec<f64>, bool)> = runs
+        .iter()
+        .map(|r| {
+            let (w, current) = stack(model, base, r.data);
+            (w, current, r.loaded)
+        })
+        .collect();
+    let rows: usize = stacked.iter().map(|(w, _, _)| w.nrows()).sum();
+    let mut x = Mat::<f64>::zeros(rows, columns);
+    let mut y = vec![0.0; rows];
+    let mut load_torque = vec![(0.0, 0.0); dof];
+    let mut offset = 0;
+    for (w, current, loaded) in &stacked {
+        for r in 0..w.nrows() {
+            let (row, joint) = (offset + r, r % dof);
+            let wr: Vec<f64> = (0..p).map(|c| w[(r, c)]).collect();
+            for (c, v) in wr.iter().enumerate() {
+                x[(row, c)] = *v;
+            }
+            x[(row, p + unknown.len() + joint)] = -current[r];
+            if *loaded {
+                // The load's columns on this row: W B_b.
+                let on = |c: usize| wr.iter().enumerate().map(|(j, v)| v * b_body[j * PER_BODY + c]).sum::<f64>();
+                for (u, &c) in unknown.iter().enumerate() {
+                    x[(row, p + u)] = on(c);
+                }
+                let known_torque: f64 = (0..PER_BODY).filter_map(|c| known[c].map(|v| on(c) * v)).sum();
+                y[row] = -known_torque;
+                load_torque[joint].0 += known_torque * known_torque;
+            }
+        }
+        offset += w.nrows();
+    }
+    let names = fitted_names(model, base, &unknown);
+    let augmented = BaseParameters { rank: columns, names, expressions: vec![], weak: vec![], ..base.clone() };
+    let rate = runs.iter().map(|r| r.data.rate_hz() / r.data.cutoff_hz).fold(1.0, f64::max);
+    let block = (2.0 * rate).ceil() as usize;
+    // The linear problem in torque units starts the fit in current units, whose σ is reported.
+    let linear = fit_stacked(&x, &y, dof, &augmented, method, block)?;
+    let (j, z) = in_current_units(&x, &y, (dof, p + unknown.len()), &linear.beta);
+    let fit = fit_stacked(&j, &z, dof, &augmented, method, block)?;
+    let theta = &fit.beta;
+    let inverse = &theta[p + unknown.len()..];
+    let gains: Vec<f64> = inverse.iter().map(|c| 1.0 / c).collect();
+    let gain_sigma: Vec<f64> =
+        fit.sigma_beta[p + unknown.len()..].iter().zip(inverse).map(|(s, c)| s / (c * c)).collect();
+    // Each joint's torque over the loaded runs, from the fitted gains: what the load's share is of.
+    let mut offset = 0;
+    for (w, current, loaded) in &stacked {
+        if *loaded {
+            for r in 0..w.nrows() {
+                load_torque[r % dof].1 += (gains[r % dof] * current[r]).powi(2);
+            }
+        }
+        offset += w.nrows();
+    }
+    debug_assert_eq!(offset, rows);
+    let load_torque_share: Vec<f64> =
+        load_torque.iter().map(|(l, t)| if *t > 0.0 { (l / t).sqrt() } else { 0.0 }).collect();
+    // What the model leaves unexplained on each joint, in torque: the residual in current units
+    // times the gain, over every run, against the load's torque over the loaded runs.
+    let residual: Vec<f64> = apply(&j, theta).iter().zip(&z).map(|(a, b)| b - a).collect();
+    let loaded_rows: usize = stacked.iter().filter(|s| s.2).map(|s| s.0.nrows()).sum();
+    let load_over_unexplained: Vec<f64> = (0..dof)
+        .map(|k| {
+            let unexplained = residual.iter().skip(k).step_by(dof).map(|e| e * e).sum::<f64>() / (rows / dof) as f64;
+            let load = load_torque[k].0 / (loaded_rows / dof).max(1) as f64;
+            (load / (gains[k] * gains[k] * unexplained).max(f64::MIN_POSITIVE)).sqrt()
+        })
+        .collect();
+    let load_params: Vec<(String, f64, f64)> = unknown
+        .iter()
+        .enumerate()
+        .map(|(u, &c)| (format!("load.{}", LOAD_NAMES[c]), theta[p + u], fit.sigma_beta[p + u]))
+        .collect();
+    let shares = (&load_torque_share[..], &load_over_unexplained[..]);
+    let fixed: Vec<bool> =
+        (0..dof).map(|k| fixed(gains[k], gain_sigma[k], (load_torque_share[k], load_over_unexplained[k]))).collect();
+    let (reasons, warnings) = explain(model, (&gains, &gain_sigma), shares, &unknown, load);
+    Ok(GainFit {
+        gain_sigma,
+        gains,
+        beta: theta[..p].to_vec(),
+        beta_sigma: fit.sigma_beta[..p].to_vec(),
+        load: load_params,
+        load_torque_share,
+        load_over_unexplained,
+        fixed,
+        fit,
+        reasons,
+        warnings,
+    })
+}
+
+/// Gauss–Newton steps of the fit in current units, at most this many; each one is a least-squares
+/// solve of the stacked size.
+const GAUSS_NEWTON_STEPS: usize = 50;
+
+/// The problem refitted in current units: each row's residual `cⱼ τ̂ − i` with `cⱼ = 1/kⱼ`, where
+/// the torque-unit problem `x θ = y` (columns: the torque's `q` parameters, then `−diag(i)`) has the
+/// residual `kⱼ` times as large. In torque units a joint whose current the model explains poorly
+/// lowers that residual by lowering its gain: the least squares shrink the gain toward zero by
+/// `l²/(l² + 2u²)` for a load torque `l` and an unexplained torque `u` (the real KUKA's first joint
+/// came out at 17 % of its gain). In current units the unexplained current is the same whatever the
+/// gain, and only the load's current sets it: the errors-in-variables model of currents measured
+/// with noise. Solved by Gauss–Newton from the torque-unit fit `start`; returns the Jacobian at the
+/// optimum and the target `J θ* − e*`, whose least squares are `θ*` with the optimum's residual,
+/// so that [`fit_stacked`] gives its σ (the sandwich of the linearised problem) and conditioning.
+fn in_current_units(x: &Mat<f64>, y: &[f64], (dof, q): (usize, usize), start: &[f64]) -> (Mat<f64>, Vec<f64>) {
+    let rows = x.nrows();
+    let current = |r: usize| -x[(r, q + r % dof)];
+    let largest = start[q..].iter().fold(0.0f64, |m, k| m.max(k.abs()));
+    let mut theta: Vec<f64> = start[..q].to_vec();
+    theta.extend(start[q..].iter().map(|k| 1.0 / k.abs().max(1e-3 * largest)));
+    // The model's torque at each row and the residual in current units.
+    let torque = |theta: &[f64], r: usize| (0..q).map(|c| x[(r, c)] * theta[c]).sum::<f64>() - y[r];
+    let residual =
+        |theta: &[f64]| -> Vec<f64> { (0..rows).map(|r| theta[q + r % dof] * torque(theta, r) - current(r)).collect() };
+    let jacobian = |theta: &[f64]| {
+        Mat::<f64>::from_fn(rows, q + dof, |r, c| match c < q {
+            true => theta[q + r % dof] * x[(r, c)],
+            false if c - q == r % dof => torque(theta, r),
+            false => 0.0,
+        })
+    };
+    let cost = |e: &[f64]| e.iter().map(|v| v * v).sum::<f64>();
+    let mut e = residual(&theta);
+    for _ in 0..GAUSS_NEWTON_STEPS {
+        let j = jacobian(&theta);
+        let rhs = Mat::<f64>::from_fn(rows, 1, |r, _| -e[r]);
+        let step = j.qr().solve_lstsq(&rhs);
+        // Halve the step until the cost falls: far from the optimum the linearisation overshoots.
+        let mut scale = 1.0;
+        let (next, next_e) = loop {
+            let trial: Vec<f64> = theta.iter().enumerate().map(|(i, t)| t + scale * step[(i, 0)]).collect();
+            let trial_e = residual(&trial);
+            if cost(&trial_e) <= cost(&e) || scale < 1e-6 {
+                break (trial, trial_e);
+            }
+            scale *= 0.5;
+        };
+        let moved = (q..q + dof).map(|i| ((next[i] - theta[i]) / theta[i]).abs()).fold(0.0, f64::max);
+        (theta, e) = (next, next_e);
+        if moved < 1e-10 {
+            break;
+        }
+    }
+    let j = jacobian(&theta);
+    let z = (0..rows).map(|r| (0..q + dof).map(|c| j[(r, c)] * theta[c]).sum::<f64>() - e[r]).collect();
+    (j, z)
+}
+
+/// `B`'s columns of body `b`'s ten parameters (`p × 10`, row-major).
+fn base_map_of_body(base: &BaseParameters, b: usize) -> Vec<f64> {
+    let big_p = base.num_params;
+    let columns = body_params(b);
+    (0..base.rank).flat_map(|i| columns.clone().map(move |c| base.b[i * big_p + c])).collect()
+}
+
+/// Column `c` of the `p × 10` map `b_body`.
+fn column(b_body: &[f64], p: usize, c: usize) -> Vec<f64> {
+    (0..p).map(|i| b_body[i * PER_BODY + c]).collect()
+}
+
+/// An orthonormal basis, grown one vector at a time (Gram–Schmidt).
+#[derive(Default)]
+struct Span(Vec<Vec<f64>>);
+
+impl Span {
+    /// `v` less its projection on the span, and that part's norm over `v`'s (0 for a zero `v`).
+    fn outside(&self, mut v: Vec<f64>) -> (Vec<f64>, f64) {
+        let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        for e in &self.0 {
+            let d: f64 = v.iter().zip(e).map(|(a, b)| a * b).sum();
+            v.iter_mut().zip(e).for_each(|(a, b)| *a -= d * b);
+        }
+        let left = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        (v, if norm > 0.0 { left / norm } else { 0.0 })
+    }
+
+    /// Add `v` where more than `tolerance` of it (relative) lies outside; whether it was added.
+    fn add(&mut self, v: Vec<f64>, tolerance: f64) -> bool {
+        let (outside, share) = self.outside(v);
+        if share <= tolerance {
+            return false;
+        }
+        let n = outside.iter().map(|x| x * x).sum::<f64>().sqrt();
+        self.0.push(outside.iter().map(|x| x / n).collect());
+        true
+    }
+}
+
+/// Those of `candidates` (columns of `b_body`) that are independent of the ones before them: the
+/// load's unknowns that the torque can tell apart. A column within 10⁻⁸ of the others' span
+/// (relative) adds nothing the others do not.
+fn independent_columns(b_body: &[f64], p: usize, candidates: Vec<usize>) -> Vec<usize> {
+    let mut span = Span::default();
+    candidates.into_iter().filter(|&c| span.add(column(b_body, p, c), 1e-8)).collect()
+}
+
+/// Whether the known part of the load, `B_b π_k`, has a part outside the span of the unknowns'
+/// columns `B_b,u`: otherwise the load's unknowns take it up exactly and the gains are free
+/// (the fit sets them to zero). `Err` holds the relative residual.
+fn separable(b_body: &[f64], p: usize, known: &[Option<f64>; PER_BODY], unknown: &[usize]) -> Result<(), f64> {
+    let mut span = Span::default();
+    for &c in unknown {
+        span.add(column(b_body, p, c), 0.0);
+    }
+    let image: Vec<f64> =
+        (0..p).map(|i| (0..PER_BODY).filter_map(|c| known[c].map(|x| x * b_body[i * PER_BODY + c])).sum()).collect();
+    let (_, residual) = span.outside(image);
+    if residual > SEPARABLE {
+        Ok(())
+    } else {
+        Err(residual)
+    }
+}
+
+/// A known load whose base-parameter image lies within this relative distance of its unknowns'
+/// span is taken up by them: far above round-off (10⁻¹⁵), far below any load that acts apart.
+const SEPARABLE: f64 = 1e-6;
+
+fn names_of(columns: impl Iterator<Item = usize>) -> String {
+    columns.map(|c| LOAD_NAMES[c]).collect::<Vec<_>>().join(", ")
+}
+
+/// The names of the stacked problem's unknowns: the base parameters, the load's, the gains.
+fn fitted_names(model: &Model, base: &BaseParameters, unknown: &[usize]) -> Vec<String> {
+    let load = unknown.iter().map(|&c| format!("load.{}", LOAD_NAMES[c]));
+    let gains = model.joint_names().into_iter().map(|j| format!("k.{j}"));
+    base.names.iter().cloned().chain(load).chain(gains).collect()
+}
+
+/// A known load's torque under this share of a joint's torque leaves that joint's gain to what the
+/// joint shares with the others: the reasons say so.
+pub const LOAD_SHARE_FLOOR: f64 = 0.01;
+
+/// A gain known to worse than this share of it is not fixed by the load: a datasheet gives ±10 %,
+/// which is two such σ.
+pub const NOT_FIXED: f64 = 0.05;
+
+/// Whether a gain is fixed by the load ([`NOT_FIXED`]): its σ, and on a joint the load loads
+/// (`share` of its torque at least [`LOAD_SHARE_FLOOR`]) the load's torque over what the model
+/// leaves unexplained (`over`). The gain comes from matching the load's current, and a residual
+/// `u` that correlates with the load's torque `l` moves it by up to `‖u‖/‖l‖` (Cauchy–Schwarz),
+/// which the noise's σ does not count: on the real KUKA a load 2 × the unexplained torque left a
+/// gain 68 % off with a σ of 5 %. A joint the load does not load is fixed, if at all, through the
+/// parameters it shares, and its σ says how well.
+pub fn fixed(gain: f64, sigma: f64, (share, over): (f64, f64)) -> bool {
+    let loaded = share >= LOAD_SHARE_FLOOR;
+    sigma <= NOT_FIXED * gain.abs() && (!loaded || over * NOT_FIXED >= 1.0)
+}
+
+/// The reasons (each gain with its σ, the load's share of each joint's torque, the joints the load
+/// barely reaches) and the warnings (the gains it does not fix).
+fn explain(
+    model: &Model,
+    (gains, sigma): (&[f64], &[f64]),
+    (share, over): (&[f64], &[f64]),
+    unknown: &[usize],
+    load: &KnownLoad,
+) -> (Vec<String>, Vec<String>) {
+    let joints = model.joint_names();
+    let each: Vec<String> = joints
+        .iter()
+        .zip(gains.iter().zip(sigma))
+        .zip(share.iter().zip(over))
+        .map(|((j, (k, s)), (l, o))| {
+            format!("{j} {k:.4} ± {s:.4} (load {:.1} % of its torque, {o:.1} × what the model leaves)", 100.0 * l)
+        })
+        .collect();
+    let estimated: Vec<&str> = unknown.iter().map(|&c| LOAD_NAMES[c]).collect();
+    let mut reasons = vec![format!(
+        "drive gains fitted with the base parameters from runs with and without a {} kg load on {} (Gautier and \
+         Briot 2014){}: {}",
+        load.mass,
+        load.body,
+        match estimated.is_empty() {
+            true => String::new(),
+            false => format!(", its {} estimated with them", estimated.join(", ")),
+        },
+        each.join("; ")
+    )];
+    let loose: Vec<String> = (0..joints.len())
+        .filter(|&j| !fixed(gains[j], sigma[j], (share[j], over[j])))
+        .map(|j| {
+            format!(
+                "{} (σ {:.0} %, load {:.1} × the unexplained)",
+                joints[j],
+                100.0 * sigma[j] / gains[j].abs(),
+                over[j]
+            )
+        })
+        .collect();
+    let mut warnings = Vec::new();
+    if !loose.is_empty() {
+        warnings.push(format!(
+            "not fixed by this load: the gains of {}. A gain is fixed when its σ is under {:.0} % (a datasheet's ±10 % \
+             at 2σ) and, on a joint the load loads, the load's torque is at least {:.0} × what the model leaves \
+             unexplained there (what the model misses biases the gain by up to their ratio). Keep a datasheet's value \
+             for them, or calibrate again with a load these joints carry more of",
+            loose.join(", "),
+            100.0 * NOT_FIXED,
+            1.0 / NOT_FIXED
+        ));
+    }
+    let barely: Vec<&str> =
+        joints.iter().zip(share).filter(|(_, s)| **s < LOAD_SHARE_FLOOR).map(|(j, _)| j.as_str()).collect();
+    if !barely.is_empty() {
+        reasons.push(format!(
+            "the known load makes under {:.0} % of the torque of {}: their gains are fixed only through parameters \
+             they share with the other joints, and their σ says how well; a load on a body these joints move, \
+             carried over motion that loads them, fixes them directly",
+            100.0 * LOAD_SHARE_FLOOR,
+            barely.join(", ")
+        ));
+    }
+    (reasons, warnings)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load(body: &str) -> KnownLoad {
+        KnownLoad { body: body.into(), mass: 0.3, com: None, inertia: None }
+    }
+
+    #[test]
+    fn a_load_is_refused_by_what_is_wrong_with_it() {
+        let model = crate::arash_asist();
+        let error = |l: KnownLoad| l.validate(&model).unwrap_err().to_string();
+        assert!(error(load("gripper")).contains("body `gripper`, which the robot does not have"));
+        assert!(error(KnownLoad { mass: 0.0, ..load("insertion_carriage") }).contains("mass must be positive"));
+        let no_com = KnownLoad { inertia: Some([1e-3; 6]), ..load("insertion_carriage") };
+        assert!(error(no_com).contains("about its centre of mass, which must then be given"));
+        // Ixx beyond Iyy + Izz: no body has that.
+        let flat = KnownLoad { com: Some([0.0; 3]), inertia: Some([1.0, 0.1, 0.1, 0.0, 0.0, 0.0]), ..load("coupler") };
+        assert!(error(flat).contains("is not physical"));
+        assert_eq!(load("insertion_carriage").validate(&model).unwrap(), 4);
+    }
+
+    /// A point mass at c has, about the origin, the inertia m(|c|²E − ccᵀ) and first moments mc.
+    #[test]
+    fn a_known_centre_and_inertia_move_to_the_frame_origin_by_parallel_axes() {
+        let (m, c) = (2.0, [0.1, -0.2, 0.3]);
+        let known = KnownLoad { body: "b".into(), mass: m, com: Some(c), inertia: Some([0.0; 6]) }.parameters();
+        let sq = c.iter().map(|x| x * x).sum::<f64>();
+        let expected = [
+            m,
+            m * c[0],
+            m * c[1],
+            m * c[2],
+            m * (sq - c[0] * c[0]),
+            m * (sq - c[1] * c[1]),
+            m * (sq - c[2] * c[2]),
+            -m * c[0] * c[1],
+            -m * c[0] * c[2],
+            -m * c[1] * c[2],
+        ];
+        for (got, want) in known.iter().zip(expected) {
+            assert!((got.unwrap() - want).abs() < 1e-15);
+        }
+        let mass_only = KnownLoad { body: "b".into(), mass: m, com: None, inertia: None };
+        assert_eq!(mass_only.parameters().iter().filter(|p| p.is_some()).count(), 1);
+    }
+
+    /// Columns (1, 0), (2, 0), (0, 1) of a 2 × 10 map: the second adds nothing to the first.
+    #[test]
+    fn dependent_load_columns_are_left_out_and_a_known_part_in_their_span_is_refused() {
+        let mut b = vec![0.0; 2 * PER_BODY];
+        (b[0], b[1], b[PER_BODY + 2]) = (1.0, 2.0, 1.0);
+        assert_eq!(independent_columns(&b, 2, vec![0, 1, 2]), vec![0, 2]);
+        let mut known = [None; PER_BODY];
+        known[0] = Some(1.0);
+        // The known column (1, 0) lies in the span of column 1, (2, 0): refused.
+        assert!(separable(&b, 2, &known, &[1]).is_err());
+        assert!(separable(&b, 2, &known, &[2]).is_ok());
+    }
+}
