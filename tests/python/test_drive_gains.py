@@ -134,3 +134,37 @@ def test_the_gains_of_real_kuka_runs_turned_into_currents(loaded_run):
     named = " ".join(str(w.message) for w in caught if "not fixed by this load" in str(w.message))
     joints = robot.joint_names()
     assert all((joints[j] in named) != fixed[j] for j in range(robot.dof)), named
+
+
+def write_csv(path, names, run):
+    t, q, current = run
+    header = ["t"] + [f"q.{n}" for n in names] + [f"tau.{n}" for n in names]
+    rows = np.column_stack([t, q, current])
+    path.write_text(",".join(header) + "\n" + "\n".join(",".join(repr(float(v)) for v in row) for row in rows) + "\n")
+
+
+def test_the_cli_fits_the_gains_from_csv_currents_and_a_load_file(tmp_path):
+    import json
+    import subprocess
+
+    from test_daemon_log import ARASH
+
+    if not ARASH.exists():
+        pytest.skip(f"{ARASH} not built (cargo build --release)")
+    robot, runs, gains, _, _ = calibration("arash_asist", "insertion_carriage", 0.3, 4)
+    names = robot.joint_names()
+    write_csv(tmp_path / "free.csv", names, runs[0])
+    write_csv(tmp_path / "carried.csv", names, runs[1])
+    (tmp_path / "load.toml").write_text('body = "insertion_carriage"\nmass = 0.3\n')
+    (tmp_path / "bad.toml").write_text('body = "insertion_carriage"\nmass = 0.3\ncolour = "red"\n')
+    command = [str(ARASH), "identify", str(tmp_path / "free.csv"), "--friction-velocity", "sign,sign,sign",
+               "--loaded", str(tmp_path / "carried.csv"), "-o", str(tmp_path / "model.json"), "--load"]
+    bad = subprocess.run(command + [str(tmp_path / "bad.toml")], capture_output=True, text=True, timeout=600)
+    assert bad.returncode != 0 and "unknown field `colour`" in bad.stderr, bad.stderr
+    done = subprocess.run(command + [str(tmp_path / "load.toml")], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert "drive gain (per A)" in done.stdout, done.stdout
+    g = json.loads((tmp_path / "model.json").read_text())["drive_gains"]
+    error = np.abs(np.array(g["gains"]) - gains)
+    assert np.all(error <= 3 * np.array(g["sigma"])), (g["gains"], gains, g["sigma"])
+    assert arash.load_model(tmp_path / "model.json").drive_gains["load_body"] == "insertion_carriage"

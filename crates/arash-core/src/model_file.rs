@@ -637,6 +637,12 @@ impl ModelFile {
         s += &row("FP% (OLS)", &self.training_ols.fp_percent, &|x| format!("{x:.2}"));
         s += &row("‖τ − τ̂‖/‖τ‖", &self.training.relative_error, &|x| format!("{x:.4}"));
         s += &row("RMS (N·m or N)", &self.training.rms, &|x| format!("{x:.2e}"));
+        if let Some(g) = &self.drive_gains {
+            s += &row("drive gain (per A)", &g.gains, &|x| format!("{x:.4}"));
+            s += &row("  its σ", &g.sigma, &|x| format!("{x:.4}"));
+            let fixed: Vec<f64> = g.fixed.iter().map(|f| f64::from(u8::from(*f))).collect();
+            s += &row("  fixed by the load (1/0)", &fixed, &|x| format!("{x:.0}"));
+        }
         let worst = self.min_pseudo_inertia_eigenvalue.iter().copied().fold(f64::INFINITY, f64::min);
         s += &format!(
             "\n\nSmallest pseudo-inertia eigenvalue over bodies: {worst:.3e} ({})\n",

@@ -28,8 +28,11 @@ use crate::params::{body as body_params, PER_BODY};
 use faer::prelude::*;
 use faer::Mat;
 
-/// A load of known mass, and where known its centre of mass and inertia, fixed to one body.
-#[derive(Clone, Debug, PartialEq)]
+/// A load of known mass, and where known its centre of mass and inertia, fixed to one body. As a
+/// file (TOML or JSON): `body = "link_6"`, `mass = 2.805`, and optionally `com = [x, y, z]` and
+/// `inertia = [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]`.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct KnownLoad {
     /// The body (URDF link) it rides on.
     pub body: String,

@@ -7,9 +7,11 @@ use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::identify::closed_loop::{ClosedLoop, IvOptions, LoggedController};
 use arash_core::identify::consistent::ConsistentOptions;
+use arash_core::identify::gains::KnownLoad;
 use arash_core::identify::preprocess::PreprocessOptions;
 use arash_core::identify::{
-    identify, identify_in_closed_loop, validate, validation_table, Declared, IdentifyOptions, Log,
+    identify, identify_in_closed_loop, identify_with_known_load, validate, validation_table, Declared, IdentifyOptions,
+    Log,
 };
 use arash_core::model_file::IdentifyMethod;
 
@@ -67,6 +69,27 @@ pub struct Args {
     /// Model file to write.
     #[arg(short, long)]
     output: PathBuf,
+    /// Runs carrying a known load (--load), to calibrate from motor currents: the training logs
+    /// and these then hold currents (A) in their tau.<joint> columns, and each joint's drive gain
+    /// is fitted with the parameters (docs/currents.md).
+    #[arg(long, num_args = 1.., requires = "load")]
+    loaded: Vec<PathBuf>,
+    /// The known load, a TOML or JSON file: body = "<link>", mass = <kg>, and where known
+    /// com = [x, y, z] (m, in the link's frame) and inertia = [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]
+    /// (kg·m², about the centre of mass).
+    #[arg(long, requires = "loaded")]
+    load: Option<PathBuf>,
+}
+
+/// The known load of `--load`, by its extension: `.json` is JSON, anything else TOML.
+fn read_load(path: &std::path::Path) -> anyhow::Result<KnownLoad> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading the load {}", path.display()))?;
+    let json = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    let parsed = match json {
+        true => serde_json::from_str(&text).map_err(anyhow::Error::from),
+        false => toml::from_str(&text).map_err(anyhow::Error::from),
+    };
+    parsed.with_context(|| format!("the load {}", path.display()))
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -89,13 +112,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let base = BaseParameters::compute(&model, &BaseParameterOptions::fitted(args.keep_weak))?;
     let declared = Declared { model: &model, base: &base, urdf: &urdf };
     let data = Log { t: &log.t, q: &log.q, tau: &log.tau };
-    let mut identification = match args.method.closed_loop() {
-        true => {
+    let mut identification = match (&args.load, args.method.closed_loop()) {
+        (Some(path), _) => {
+            let load = read_load(path)?;
+            let carried = args.runs.read(&args.loaded, &model)?;
+            let runs = [(data, false), (Log { t: &carried.t, q: &carried.q, tau: &carried.tau }, true)];
+            eprintln!("fitting the drive gains with a {} kg load on {} ...", load.mass, load.body);
+            identify_with_known_load(declared, &runs, &load, args.method, &options).map(|(file, _)| file)
+        }
+        (None, true) => {
             let (reference, controller) = closed_loop_of(&args, &log)?;
             let closed_loop = ClosedLoop::new(reference, &controller);
             identify_in_closed_loop(declared, data, closed_loop, args.method, &options)
         }
-        false => identify(declared, data, args.method, &options),
+        (None, false) => identify(declared, data, args.method, &options),
     }
     .context("identification failed")?;
     identification.data.sources = args.runs.logs.iter().map(|p| p.display().to_string()).collect();
