@@ -52,9 +52,8 @@ def test_the_gains_of_a_kuka_are_found_and_a_second_payload_comes_out_in_kilogra
     second = Payload("lwr_7_link", 1.0, (0.0, 0.03, 0.02))
     logs = [make_log(Condition(*shape, seed=seed + s), truth=truth, payload=second)[1] for s in (200, 300)]
     (t, q, tau), held = logs
-    torque = lambda current: current * g["gains"]  # noqa: E731
-    d = arash.diagnose(robot, t, q, torque(tau / gains), model=model,
-                       validation=(held[0], held[1], torque(held[2] / gains)))
+    d = arash.diagnose(robot, t, q, tau / gains, model=model, validation=(held[0], held[1], held[2] / gains),
+                       currents=True)
     first = d.accepted[0] if d.accepted else None
     assert first is not None and first.name == "payload" and first.body == "lwr_7_link", d.report()
     assert abs(first.mass_kg - 1.0) <= 0.1, d.report()
@@ -134,6 +133,26 @@ def test_the_gains_of_real_kuka_runs_turned_into_currents(loaded_run):
     named = " ".join(str(w.message) for w in caught if "not fixed by this load" in str(w.message))
     joints = robot.joint_names()
     assert all((joints[j] in named) != fixed[j] for j in range(robot.dof)), named
+
+
+def test_a_gain_that_changed_since_the_calibration_is_found_as_a_drive_gain():
+    """A new motor on the KUKA's second joint, 25 % more torque per ampere, after calibration:
+    diagnosed from currents against the calibrated gains, the first effect is that joint's
+    drive gain, its coefficient the model's torque scale on the new currents, 1/1.25 − 1."""
+    robot, runs, gains, truth, shape = calibration("kuka", "lwr_7_link", 2.0, 0, fs=200.0)
+    model = identified(robot, runs, {"body": "lwr_7_link", "mass": 2.0})
+    changed = gains.copy()
+    changed[1] *= 1.25
+    (t, q, tau), held = [make_log(Condition(*shape, seed=s), truth=truth)[1] for s in (200, 300)]
+    d = arash.diagnose(robot, t, q, tau / changed, model=model, validation=(held[0], held[1], held[2] / changed),
+                       currents=True)
+    first = d.accepted[0] if d.accepted else None
+    assert first is not None and first.name == "drive_gain" and first.joints == [1], d.report()
+    # The calibrated gain's own error adds to the coefficient's σ.
+    calibrated = model.drive_gains["gains"][1] / gains[1] - 1
+    assert abs(first.coefficients[0] - (1 / 1.25 - 1)) <= 3 * first.sigma[0] + abs(calibrated), d.report()
+    with pytest.raises(ValueError, match="currents=True needs a model calibrated from currents"):
+        arash.diagnose(robot, t, q, tau, currents=True)
 
 
 def write_csv(path, names, run):

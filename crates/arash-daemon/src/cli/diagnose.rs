@@ -71,6 +71,12 @@ pub struct Args {
     /// joint (drive_gain; a torque constant or current scale that is off).
     #[arg(long)]
     torque_from_currents: bool,
+    /// The logs hold motor currents (A) in their tau.<joint> columns, and the --model was
+    /// calibrated from currents with a known load: each joint's torque is its calibrated drive
+    /// gain times its current, and a gain that changed since (a new motor, a sensor) is searched
+    /// as drive_gain (docs/currents.md).
+    #[arg(long, requires = "model")]
+    currents: bool,
     /// Also fit the physically consistent model together with the effects found and write it
     /// as model_consistent.json: the model the model-based controllers accept.
     #[arg(long)]
@@ -94,7 +100,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let options = options(&args, &model)?;
     let read = |paths: &[PathBuf]| args.runs.read(paths, &model);
     let train = args.runs.read_training(&model)?;
-    let validation = if args.validate.is_empty() { None } else { Some(read(&args.validate)?) };
+    let mut validation = if args.validate.is_empty() { None } else { Some(read(&args.validate)?) };
     let given = args
         .model
         .as_ref()
@@ -103,6 +109,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ModelFile::from_json(&text).with_context(|| format!("model {}", p.display()))
         })
         .transpose()?;
+    let mut train = train;
+    if args.currents {
+        let gains = given.as_ref().and_then(|g| g.drive_gains.as_ref()).with_context(|| {
+            "--currents needs a --model calibrated from currents with a known load (arash identify --loaded --load)"
+        })?;
+        for log in std::iter::once(&mut train).chain(validation.as_mut()) {
+            log.tau.iter_mut().enumerate().for_each(|(i, c)| *c *= gains.gains[i % gains.gains.len()]);
+        }
+    }
     eprintln!(
         "diagnosing {} samples ({} file(s)){} ...",
         train.t.len(),
@@ -154,7 +169,7 @@ fn options(args: &Args, model: &arash_core::Model) -> anyhow::Result<DiagnoseOpt
         batch_s: args.batch,
         alpha: args.alpha,
         min_gain: args.min_gain,
-        torque_from_currents: args.torque_from_currents,
+        torque_from_currents: args.torque_from_currents || args.currents,
         ..DiagnoseOptions::default()
     };
     if let Some(ids) = &args.effects {

@@ -328,6 +328,7 @@ def diagnose(
     consistent_cutoff_hz: Optional[float] = None,
     motor_side: Optional[Transmission] = None,
     repair: bool = False,
+    currents: bool = False,
 ) -> Diagnosis:
     """Find what the declared model lacks in a log, and the error before and after.
 
@@ -356,6 +357,10 @@ def diagnose(
     (unless ``transmission`` is given) and the ``coupled_rotor`` search its coupled motors.
     repair: repair the log and each validation run first (``repair_log``); what it did heads
     ``settings["reasons"]``.
+    currents: tau (and the validation's) are motor currents and ``model`` was calibrated from
+    currents with a known load (``identify(..., loaded=, load=)``): each joint's torque is its
+    calibrated gain times its current, so that a payload comes out in kilograms, and a gain that
+    changed since is searched as ``drive_gain`` (docs/currents.md).
     """
     report: list[str] = []
     if repair:
@@ -366,6 +371,17 @@ def diagnose(
         elif validation is not None:
             validation, lines = _repaired(validation, "validation log")
             report += lines
+    if currents:
+        gains = None if model is None or model.drive_gains is None else model.drive_gains["gains"]
+        if gains is None:
+            raise ValueError("currents=True needs a model calibrated from currents with a known load "
+                             "(arash.identify(..., loaded=, load=))")
+        tau = _np.asarray(tau, dtype=float) * gains
+        if isinstance(validation, list):
+            validation = [(r[0], r[1], _np.asarray(r[2], dtype=float) * gains) for r in validation]
+        elif validation is not None:
+            validation = (validation[0], validation[1], _np.asarray(validation[2], dtype=float) * gains)
+        torque_from_currents = True
     validation, starts = _runs(validation)
     if motor_side is not None:
         q, tau = motor_side.to_joints(q, tau)
