@@ -78,6 +78,18 @@ def test_a_joint_the_load_does_not_move_is_named_not_fixed():
     g = model.drive_gains
     assert g["sigma"][5] > 0.05 * abs(g["gains"][5])
     assert np.all(np.abs(g["gains"][:3] - gains[:3]) <= 0.02 * gains[:3])
+    # A datasheet at ±10 %: taken for the joint the load does not fix, checked on the others; one
+    # that is 50 % off on joint 1 is named.
+    sheet = [(k * (1.5 if j == 0 else 1.05), 0.1 * k) for j, k in enumerate(gains)]
+    with pytest.warns(UserWarning, match=r"joint_1: the datasheet's gain .* differ by"):
+        checked = arash.identify(robot, *runs[0], loaded=runs[1], load={"body": "link_6", "mass": 1.0},
+                                 datasheet_gains=sheet)
+    c = checked.drive_gains
+    assert c["from_datasheet"] == [not f for f in c["fixed"]] and c["from_datasheet"][5]
+    assert c["gains"][5] == sheet[5][0] and c["sigma"][5] == sheet[5][1]
+    assert c["gains"][0] == g["gains"][0], "a gain the load fixes is the load's"
+    with pytest.raises(ValueError, match="datasheet gains: 2 given for 6 joints"):
+        arash.identify(robot, *runs[0], loaded=runs[1], load={"body": "link_6", "mass": 1.0}, datasheet_gains=sheet[:2])
 
 
 def test_bad_inputs_are_refused_by_name():

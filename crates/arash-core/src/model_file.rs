@@ -232,6 +232,9 @@ pub struct DriveGains {
     pub gains: Vec<f64>,
     /// Their standard deviations.
     pub sigma: Vec<f64>,
+    /// Whether each gain is a datasheet's, taken where the load does not fix it.
+    #[serde(default)]
+    pub from_datasheet: Vec<bool>,
     /// The body the known load rode on, and its mass (kg).
     pub load_body: String,
     pub load_mass: f64,

@@ -171,6 +171,7 @@ impl Identification {
         d.set_item("load_share", vector_out(py, &g.load_share)?)?;
         d.set_item("load_over_unexplained", vector_out(py, &g.load_over_unexplained)?)?;
         d.set_item("fixed", g.fixed.clone())?;
+        d.set_item("from_datasheet", g.from_datasheet.clone())?;
         Ok(Some(d))
     }
     /// What sets each σ% besides the noise, per base parameter: "apart" (the part of its unit
@@ -316,22 +317,12 @@ fn _identify<'py>(
             "controller" => controller = Some(value.extract()?),
             "iv_iterations" => o.iv.max_iterations = value.extract()?,
             "iv_tolerance" => o.iv.tolerance = value.extract()?,
-            "periods" => o.preprocess.periods = value.extract()?,
-            "period_s" => o.preprocess.period_s = value.extract()?,
-            "cutoff_hz" => o.preprocess.cutoff_hz = value.extract()?,
-            "order" => o.preprocess.order = value.extract()?,
-            "decimate" => o.preprocess.decimate = value.extract()?,
-            "friction_cutoff_hz" => o.preprocess.friction_cutoff_hz = value.extract()?,
-            "pull" => o.consistent.pull = value.extract()?,
             "stiffness_bounds" => o.consistent.stiffness_bounds = value.extract()?,
-            _ => return Ok(false),
+            _ => return fit_option(&mut o, key, value),
         }
         Ok(true)
     })?;
-    let pull = o.consistent.pull;
-    if !(pull >= 0.0 && pull.is_finite()) {
-        return Err(PyValueError::new_err(format!("pull must be a non-negative number, got {pull}")));
-    }
+    check_pull(&o)?;
     let (t, q, tau) = log_arrays(&log.0, &log.1, &log.2, robot.model.dof())?;
     let model = Arc::clone(&robot.model);
     let base = robot.fitted_base(keep_weak)?;
@@ -350,6 +341,30 @@ fn _identify<'py>(
     Ok(Identification::new(model, inner))
 }
 
+/// The preprocessing and pull options both identifications take, set from the Python option
+/// `key`; `false` for a key that is not one of them.
+fn fit_option(o: &mut IdentifyOptions, key: &str, value: &Bound<'_, PyAny>) -> PyResult<bool> {
+    match key {
+        "periods" => o.preprocess.periods = value.extract()?,
+        "period_s" => o.preprocess.period_s = value.extract()?,
+        "cutoff_hz" => o.preprocess.cutoff_hz = value.extract()?,
+        "order" => o.preprocess.order = value.extract()?,
+        "decimate" => o.preprocess.decimate = value.extract()?,
+        "friction_cutoff_hz" => o.preprocess.friction_cutoff_hz = value.extract()?,
+        "pull" => o.consistent.pull = value.extract()?,
+        _ => return Ok(false),
+    }
+    Ok(true)
+}
+
+fn check_pull(o: &IdentifyOptions) -> PyResult<()> {
+    let pull = o.consistent.pull;
+    match pull >= 0.0 && pull.is_finite() {
+        true => Ok(()),
+        false => Err(PyValueError::new_err(format!("pull must be a non-negative number, got {pull}"))),
+    }
+}
+
 /// A run of currents: `(t, q, i, loaded)`.
 type CurrentRun<'py> = (PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>, bool);
 
@@ -357,7 +372,7 @@ type CurrentRun<'py> = (PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f6
 /// `(t, q, i, loaded)`, `load` the known load's body, mass and, where known, centre of mass and
 /// inertia about it.
 #[pyfunction]
-#[pyo3(signature = (robot, runs, load, method, options))]
+#[pyo3(signature = (robot, runs, load, method, options, datasheet=None))]
 fn _identify_with_load<'py>(
     py: Python<'py>,
     robot: &Robot,
@@ -365,23 +380,13 @@ fn _identify_with_load<'py>(
     load: (String, f64, Option<[f64; 3]>, Option<[f64; 6]>),
     method: Option<&str>,
     options: &Bound<'py, PyDict>,
+    datasheet: Option<Vec<(f64, f64)>>,
 ) -> PyResult<Identification> {
     let method: IdentifyMethod =
         method.map_or(Ok(IdentifyMethod::default()), str::parse).map_err(PyValueError::new_err)?;
     let mut o = IdentifyOptions::default();
-    crate::each_option(options, |key, value| {
-        match key {
-            "periods" => o.preprocess.periods = value.extract()?,
-            "period_s" => o.preprocess.period_s = value.extract()?,
-            "cutoff_hz" => o.preprocess.cutoff_hz = value.extract()?,
-            "order" => o.preprocess.order = value.extract()?,
-            "decimate" => o.preprocess.decimate = value.extract()?,
-            "friction_cutoff_hz" => o.preprocess.friction_cutoff_hz = value.extract()?,
-            "pull" => o.consistent.pull = value.extract()?,
-            _ => return Ok(false),
-        }
-        Ok(true)
-    })?;
+    crate::each_option(options, |key, value| fit_option(&mut o, key, value))?;
+    check_pull(&o)?;
     let dof = robot.model.dof();
     let arrays = runs
         .iter()
@@ -396,7 +401,8 @@ fn _identify_with_load<'py>(
     let model = Arc::clone(&robot.model);
     let base = robot.fitted_base(false)?;
     let declared = Declared { model: &model, base, urdf: &robot.urdf };
-    let (inner, _) = py.detach(|| identify_with_known_load(declared, &logs, &load, method, &o)).map_err(value_error)?;
+    let given = (&load, datasheet.as_deref());
+    let (inner, _) = py.detach(|| identify_with_known_load(declared, &logs, given, method, &o)).map_err(value_error)?;
     Ok(Identification::new(model, inner))
 }
 

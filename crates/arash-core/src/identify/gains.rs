@@ -61,6 +61,8 @@ pub enum GainsError {
          moments"
     )]
     NotSeparable { body: String, known: String, unknown: String, residual: f64 },
+    #[error("datasheet gains: {0}")]
+    BadDatasheet(String),
     #[error("run {run} has {dof} joints; the robot has {expected}")]
     WrongRobot { run: usize, dof: usize, expected: usize },
     #[error(transparent)]
@@ -294,6 +296,59 @@ pub fn fit_gains(
         reasons,
         warnings,
     })
+}
+
+/// Gains from a datasheet, each `(k, σ)`, checked against the load's: where the load fixes a gain
+/// ([`fixed`]) its own value is kept, and a datasheet value more than 3 combined σ away is a
+/// warning (a wrong datasheet, a wrong current scale, or a load that was not what was declared);
+/// where it does not, the datasheet's value and σ are taken.
+pub fn with_datasheet(fit: &GainFit, datasheet: &[(f64, f64)], joints: &[String]) -> Result<Checked, GainsError> {
+    if datasheet.len() != joints.len() {
+        return Err(GainsError::BadDatasheet(format!("{} given for {} joints", datasheet.len(), joints.len())));
+    }
+    if let Some((j, (k, s))) =
+        datasheet.iter().enumerate().find(|(_, (k, s))| !(k.is_finite() && *k != 0.0 && s.is_finite() && *s >= 0.0))
+    {
+        return Err(GainsError::BadDatasheet(format!(
+            "{}'s is {k} ± {s}: a gain must be finite and non-zero, its σ finite and non-negative",
+            joints[j]
+        )));
+    }
+    let (mut gains, mut sigma, mut taken) = (fit.gains.clone(), fit.gain_sigma.clone(), vec![false; joints.len()]);
+    let (mut reasons, mut warnings) = (Vec::new(), Vec::new());
+    for (j, &(k, s)) in datasheet.iter().enumerate() {
+        let z = (fit.gains[j] - k) / (fit.gain_sigma[j].powi(2) + s * s).sqrt();
+        match fit.fixed[j] {
+            true if z.abs() > 3.0 => warnings.push(format!(
+                "{}: the datasheet's gain {k:.4} ± {s:.4} and the load's {:.4} ± {:.4} differ by {z:.1} σ; the load's \
+                 is kept (check the datasheet, the current sensor's scale and the load)",
+                joints[j], fit.gains[j], fit.gain_sigma[j]
+            )),
+            true => reasons.push(format!(
+                "{}: the datasheet's gain {k:.4} ± {s:.4} agrees with the load's {:.4} ± {:.4} ({z:+.1} σ)",
+                joints[j], fit.gains[j], fit.gain_sigma[j]
+            )),
+            false => {
+                (gains[j], sigma[j], taken[j]) = (k, s, true);
+                reasons.push(format!(
+                    "{}: the load does not fix its gain, so the datasheet's {k:.4} ± {s:.4} is used (the load's fit \
+                     gave {:.4} ± {:.4})",
+                    joints[j], fit.gains[j], fit.gain_sigma[j]
+                ));
+            }
+        }
+    }
+    Ok(Checked { gains, sigma, from_datasheet: taken, reasons, warnings })
+}
+
+/// The gains to use after [`with_datasheet`]: each with its σ, whether it is the datasheet's, and
+/// what the check found.
+pub struct Checked {
+    pub gains: Vec<f64>,
+    pub sigma: Vec<f64>,
+    pub from_datasheet: Vec<bool>,
+    pub reasons: Vec<String>,
+    pub warnings: Vec<String>,
 }
 
 /// Gauss–Newton steps of the fit in current units, at most this many; each one is a least-squares

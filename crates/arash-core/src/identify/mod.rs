@@ -108,11 +108,12 @@ pub fn identify_in_closed_loop(
 /// currents (A), each with or without the known `load`. The gains, the base parameters and the
 /// load's unknowns are fitted together; the model file is then fitted as [`identify`] fits it, on
 /// the first unloaded run's torque `k̂ᵢ iᵢ`, and records the gains. Coulomb laws the robot does not
-/// declare are chosen on that run and used for all.
+/// declare are chosen on that run and used for all. `datasheet` gains, each `(k, σ)`, are checked
+/// against the load's and used where the load does not fix a gain ([`gains::with_datasheet`]).
 pub fn identify_with_known_load(
     declared: Declared,
     runs: &[(Log, bool)],
-    load: &gains::KnownLoad,
+    (load, datasheet): (&gains::KnownLoad, Option<&[(f64, f64)]>),
     method: IdentifyMethod,
     options: &IdentifyOptions,
 ) -> Result<(ModelFile, gains::GainFit), IdentifyError> {
@@ -143,15 +144,26 @@ pub fn identify_with_known_load(
         preprocessed.iter().zip(runs).map(|(data, (_, loaded))| gains::GainRun { data, loaded: *loaded }).collect();
     let ls = if method == IdentifyMethod::Wls { Method::Wls } else { Method::Ols };
     let fit = gains::fit_gains(model, declared.base, &gain_runs, (load, body), ls)?;
-    let log = runs[first].0;
     let dof = model.dof();
-    let torque: Vec<f64> = log.tau.iter().enumerate().map(|(i, c)| c * fit.gains[i % dof]).collect();
+    let (mut reasons, mut warnings) = (fit.reasons.clone(), fit.warnings.clone());
+    let (used, sigma, from_datasheet) = match datasheet {
+        Some(given) => {
+            let checked = gains::with_datasheet(&fit, given, &model.joint_names())?;
+            reasons.extend(checked.reasons);
+            warnings.extend(checked.warnings);
+            (checked.gains, checked.sigma, checked.from_datasheet)
+        }
+        None => (fit.gains.clone(), fit.gain_sigma.clone(), vec![false; dof]),
+    };
+    let log = runs[first].0;
+    let torque: Vec<f64> = log.tau.iter().enumerate().map(|(i, c)| c * used[i % dof]).collect();
     let mut file = identify(declared, Log { tau: &torque, ..log }, method, options)?;
-    file.settings.reasons.splice(0..0, fit.reasons.iter().cloned());
-    file.settings.warnings.extend(fit.warnings.iter().cloned());
+    file.settings.reasons.splice(0..0, reasons);
+    file.settings.warnings.extend(warnings);
     file.drive_gains = Some(crate::model_file::DriveGains {
-        gains: fit.gains.clone(),
-        sigma: fit.gain_sigma.clone(),
+        gains: used,
+        sigma,
+        from_datasheet,
         load_body: load.body.clone(),
         load_mass: load.mass,
         load_estimate: fit.load.clone(),

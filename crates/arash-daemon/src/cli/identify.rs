@@ -79,6 +79,16 @@ pub struct Args {
     /// (kg·m², about the centre of mass).
     #[arg(long, requires = "loaded")]
     load: Option<PathBuf>,
+    /// Gains from a datasheet, K:SIGMA per joint (e.g. 0.8:0.08,1.2:0.12,...), checked against
+    /// the load's and used where the load does not fix a gain.
+    #[arg(long, value_delimiter = ',', requires = "load", value_parser = parse_gain)]
+    datasheet_gains: Option<Vec<(f64, f64)>>,
+}
+
+fn parse_gain(text: &str) -> Result<(f64, f64), String> {
+    let bad = || format!("`{text}`: expected K:SIGMA such as 0.8:0.08");
+    let (k, s) = text.split_once(':').ok_or_else(bad)?;
+    Ok((k.trim().parse().map_err(|_| bad())?, s.trim().parse().map_err(|_| bad())?))
 }
 
 /// The known load of `--load`, by its extension: `.json` is JSON, anything else TOML.
@@ -118,7 +128,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let carried = args.runs.read(&args.loaded, &model)?;
             let runs = [(data, false), (Log { t: &carried.t, q: &carried.q, tau: &carried.tau }, true)];
             eprintln!("fitting the drive gains with a {} kg load on {} ...", load.mass, load.body);
-            identify_with_known_load(declared, &runs, &load, args.method, &options).map(|(file, _)| file)
+            let datasheet = args.datasheet_gains.as_deref();
+            identify_with_known_load(declared, &runs, (&load, datasheet), args.method, &options).map(|(file, _)| file)
         }
         (None, true) => {
             let (reference, controller) = closed_loop_of(&args, &log)?;
