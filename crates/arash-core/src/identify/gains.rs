@@ -510,6 +510,16 @@ pub fn fixed(gain: f64, sigma: f64, (share, over): (f64, f64)) -> bool {
     sigma <= NOT_FIXED * gain.abs() && (!loaded || over * NOT_FIXED >= 1.0)
 }
 
+/// The least mass, at the same place, that would fix a gain that `mass` does not on a joint the
+/// load loads ([`fixed`]): the load's torque, and with it both the ratio to the unexplained torque
+/// and the σ's inverse, grows in proportion to the mass (σ the more slowly where the model's
+/// error, not the noise, sets it: a lower bound then).
+fn least_mass(mass: f64, gain: f64, sigma: f64, over: f64) -> f64 {
+    let by_ratio = 1.0 / (NOT_FIXED * over.max(f64::MIN_POSITIVE));
+    let by_sigma = sigma / (NOT_FIXED * gain.abs());
+    mass * by_ratio.max(by_sigma).max(1.0)
+}
+
 /// The reasons (each gain with its σ, the load's share of each joint's torque, the joints the load
 /// barely reaches) and the warnings (the gains it does not fix).
 fn explain(
@@ -543,8 +553,15 @@ fn explain(
     let loose: Vec<String> = (0..joints.len())
         .filter(|&j| !fixed(gains[j], sigma[j], (share[j], over[j])))
         .map(|j| {
+            let least = match share[j] >= LOAD_SHARE_FLOOR {
+                true => format!(
+                    "; about {:.3} kg at the same place would fix it",
+                    least_mass(load.mass, gains[j], sigma[j], over[j])
+                ),
+                false => String::new(),
+            };
             format!(
-                "{} (σ {:.0} %, load {:.1} × the unexplained)",
+                "{} (σ {:.0} %, load {:.1} × the unexplained{least})",
                 joints[j],
                 100.0 * sigma[j] / gains[j].abs(),
                 over[j]
