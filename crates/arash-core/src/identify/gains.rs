@@ -251,16 +251,11 @@ pub fn fit_gains(
     let gain_sigma: Vec<f64> =
         fit.sigma_beta[p + unknown.len()..].iter().zip(inverse).map(|(s, c)| s / (c * c)).collect();
     // Each joint's torque over the loaded runs, from the fitted gains: what the load's share is of.
-    let mut offset = 0;
-    for (w, current, loaded) in &stacked {
-        if *loaded {
-            for r in 0..w.nrows() {
-                load_torque[r % dof].1 += (gains[r % dof] * current[r]).powi(2);
-            }
+    for (_, current, _) in stacked.iter().filter(|s| s.2) {
+        for (r, i) in current.iter().enumerate() {
+            load_torque[r % dof].1 += (gains[r % dof] * i).powi(2);
         }
-        offset += w.nrows();
     }
-    debug_assert_eq!(offset, rows);
     let load_torque_share: Vec<f64> =
         load_torque.iter().map(|(l, t)| if *t > 0.0 { (l / t).sqrt() } else { 0.0 }).collect();
     // What the model leaves unexplained on each joint, in torque: the residual in current units
