@@ -280,15 +280,8 @@ pub fn validate_log(t: &[f64], q: &[f64], tau: &[f64], dof: usize) -> Result<f64
     if let Some((index, step)) = t.windows(2).map(step).enumerate().find(|(_, s)| off(*s) >= MAX_JITTER) {
         return Err(PreprocessError::NonUniformTime { index, step, median });
     }
-    // The stream's step is the slope of a line through the stamps: jitter, even at the ends,
-    // does not bias it.
-    let (mean_i, mean_t) = ((n - 1) as f64 / 2.0, t.iter().sum::<f64>() / n as f64);
-    let (mut num, mut den) = (0.0, 0.0);
-    for (i, ti) in t.iter().enumerate() {
-        num += (i as f64 - mean_i) * (ti - mean_t);
-        den += (i as f64 - mean_i).powi(2);
-    }
-    Ok(num / den)
+    // The stream's step is the slope of a line through the stamps.
+    Ok(super::repair::stamp_line(t).0)
 }
 
 /// Time stamps may jitter by less than this share of the step: more is a gap (refused).

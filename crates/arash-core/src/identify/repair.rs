@@ -179,8 +179,9 @@ fn describe_break<'a>(t: &[f64], i: usize, median: f64, unusable: &dyn Fn(usize)
     }
 }
 
-/// How far, in steps, the farthest stamp lies from the least-squares line through all of them.
-fn stamps_off_line(t: &[f64]) -> f64 {
+/// The least-squares line through the stamps `t` against their index: `(step, mean index, mean
+/// time)`. Jitter, even at the ends, does not bias its step.
+pub fn stamp_line(t: &[f64]) -> (f64, f64, f64) {
     let n = t.len();
     let (mean_i, mean_t) = ((n - 1) as f64 / 2.0, t.iter().sum::<f64>() / n as f64);
     let (mut num, mut den) = (0.0, 0.0);
@@ -188,7 +189,12 @@ fn stamps_off_line(t: &[f64]) -> f64 {
         num += (i as f64 - mean_i) * (ti - mean_t);
         den += (i as f64 - mean_i).powi(2);
     }
-    let slope = num / den;
+    (num / den, mean_i, mean_t)
+}
+
+/// How far, in steps, the farthest stamp lies from the least-squares line through all of them.
+fn stamps_off_line(t: &[f64]) -> f64 {
+    let (slope, mean_i, mean_t) = stamp_line(t);
     let farthest =
         t.iter().enumerate().map(|(i, ti)| (ti - mean_t - slope * (i as f64 - mean_i)).abs()).fold(0.0, f64::max);
     farthest / slope
