@@ -232,6 +232,14 @@ pub struct DriveGains {
     pub gains: Vec<f64>,
     /// Their standard deviations.
     pub sigma: Vec<f64>,
+    /// Their covariance, row-major (joints × joints; `sigma` is its diagonal's root). Files
+    /// written before it was kept read as empty: the gains are then taken as independent.
+    #[serde(default)]
+    pub covariance: Vec<f64>,
+    /// Per joint j, how the model's base parameters move with its gain, `∂β/∂ln kⱼ`
+    /// (`identify::gains::beta_per_gain`): a later diagnosis counts the gains' σ through it.
+    #[serde(default)]
+    pub beta_per_gain: Vec<Vec<f64>>,
     /// Whether each gain is a datasheet's, taken where the load does not fix it.
     #[serde(default)]
     pub from_datasheet: Vec<bool>,
@@ -248,6 +256,33 @@ pub struct DriveGains {
     pub load_share: Vec<f64>,
     pub load_over_unexplained: Vec<f64>,
     pub fixed: Vec<bool>,
+}
+
+impl DriveGains {
+    /// Lengths against `dof` joints and `p` base parameters, and values a torque can be computed
+    /// with: each gain finite and non-zero, each σ finite and non-negative.
+    fn check_shape(&self, dof: usize, p: usize) -> Result<(), String> {
+        let per_joint = [("gains", self.gains.len()), ("sigma", self.sigma.len())];
+        if let Some((name, n)) = per_joint.iter().find(|(_, n)| *n != dof) {
+            return Err(format!("`drive_gains.{name}` has {n} entries; the robot has {dof} joints"));
+        }
+        if !(self.covariance.is_empty() || self.covariance.len() == dof * dof) {
+            return Err(format!("`drive_gains.covariance` has {} entries, not {dof} × {dof}", self.covariance.len()));
+        }
+        if !(self.beta_per_gain.is_empty()
+            || self.beta_per_gain.len() == dof && self.beta_per_gain.iter().all(|b| b.len() == p))
+        {
+            return Err(format!("`drive_gains.beta_per_gain` must be {dof} rows of {p} (one per base parameter)"));
+        }
+        if let Some(k) = self.gains.iter().find(|k| !(k.is_finite() && **k != 0.0)) {
+            return Err(format!("a drive gain is {k}; each must be finite and non-zero"));
+        }
+        let rest = self.sigma.iter().chain(&self.covariance).chain(self.beta_per_gain.iter().flatten());
+        match rest.copied().find(|x| !x.is_finite()) {
+            Some(x) => Err(format!("a drive gain's σ, covariance or sensitivity is {x}; each must be finite")),
+            None => Ok(()),
+        }
+    }
 }
 
 /// Write `text` to `path` through a temporary file and a rename, so that a crash never leaves half
@@ -528,7 +563,10 @@ impl ModelFile {
         if let Some(x) = values.copied().find(|x| !x.is_finite()) {
             return file(format!("a parameter is {x}; every value must be finite"));
         }
-        Ok(())
+        match &self.drive_gains {
+            Some(g) => g.check_shape(model.dof(), self.beta.len()).map_err(ModelFileError::Shape),
+            None => Ok(()),
+        }
     }
 
     /// A P-vector whose product with the full regressor is the prediction: π̂, or β̂ placed on the

@@ -229,10 +229,20 @@ impl Effect {
     fn mass_kg(&self) -> Option<f64> {
         self.finding.mass_kg
     }
-    /// A payload's mass σ (kg).
+    /// A payload's mass σ (kg); on torque from currents, it counts the drive gains' σ.
     #[getter]
     fn mass_sigma_kg(&self) -> Option<f64> {
         self.finding.mass_sigma_kg
+    }
+    /// Per coefficient, the part of `sigma` the calibrated drive gains give (None unless the
+    /// torque came from currents through them).
+    #[getter]
+    fn sigma_from_gains<'py>(&self, py: Python<'py>) -> PyResult<Option<NumpyArray<'py>>> {
+        let s = &self.finding.sigma_from_gains;
+        if s.is_empty() {
+            return Ok(None);
+        }
+        to_numpy(py, s.clone(), false, s.len(), &[]).map(Some)
     }
     #[getter]
     fn body(&self) -> Option<String> {
@@ -273,7 +283,8 @@ impl Diagnosis {
     }
     /// Set when the search stopped because the model is heavier than the data (a payload of
     /// negative mass explained the residual best): `body`, `mass_kg` (the mass the data lack,
-    /// positive), `mass_sigma_kg`, `p_value`, `heldout_gain`, `round`. None otherwise.
+    /// positive), `mass_sigma_kg` (with the drive gains' σ on torque from currents, whose part is
+    /// `mass_sigma_from_gains_kg`), `p_value`, `heldout_gain`, `round`. None otherwise.
     #[getter]
     fn too_heavy<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
         let Some(h) = &self.inner.too_heavy else { return Ok(None) };
@@ -281,6 +292,7 @@ impl Diagnosis {
         d.set_item("body", &h.body)?;
         d.set_item("mass_kg", h.mass_kg)?;
         d.set_item("mass_sigma_kg", h.mass_sigma_kg)?;
+        d.set_item("mass_sigma_from_gains_kg", h.mass_sigma_from_gains_kg)?;
         d.set_item("p_value", h.p_value)?;
         d.set_item("heldout_gain", h.heldout_gain)?;
         d.set_item("round", h.round)?;

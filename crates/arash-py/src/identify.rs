@@ -154,7 +154,8 @@ impl Identification {
         self.inner.condition_number
     }
     /// The drive gains of a model identified from currents with a known load: "gains" and
-    /// "sigma" (per joint, N·m/A or N/A), "load_body", "load_mass", "load_estimate" (the load's
+    /// "sigma" (per joint, N·m/A or N/A), "covariance" (joints × joints, None in a file written
+    /// before it was kept), "load_body", "load_mass", "load_estimate" (the load's
     /// unknowns estimated with them: name, value, σ), "condition_number", and per joint
     /// "load_share" (the load's share of its torque), "load_over_unexplained" (the load's torque
     /// over what the model leaves) and "fixed" (whether the load fixes the gain). None otherwise.
@@ -164,6 +165,12 @@ impl Identification {
         let d = PyDict::new(py);
         d.set_item("gains", vector_out(py, &g.gains)?)?;
         d.set_item("sigma", vector_out(py, &g.sigma)?)?;
+        let dof = g.gains.len();
+        let covariance = match g.covariance.is_empty() {
+            true => None,
+            false => Some(to_numpy(py, g.covariance.clone(), false, dof, &[dof])?),
+        };
+        d.set_item("covariance", covariance)?;
         d.set_item("load_body", &g.load_body)?;
         d.set_item("load_mass", g.load_mass)?;
         d.set_item("load_estimate", g.load_estimate.clone())?;

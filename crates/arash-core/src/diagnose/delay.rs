@@ -132,6 +132,7 @@ fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
         mass_sigma_kg: None,
         body: None,
         centre_of_mass_m: None,
+        sigma_from_gains: vec![],
         round: 0,
     })
 }

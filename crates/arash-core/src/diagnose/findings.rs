@@ -42,11 +42,23 @@ pub struct Finding {
     pub body: Option<String>,
     #[serde(default)]
     pub centre_of_mass_m: Option<[Option<f64>; 3]>,
+    /// Per coefficient, the part of its σ the calibrated drive gains give (`diagnose::calibration`;
+    /// empty when the torque did not come from currents through them). `term.sigma` counts it.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sigma_from_gains: Vec<f64>,
     /// Search round in which it was accepted (0: the delay search).
     pub round: usize,
 }
 
 impl Finding {
+    /// Add the gains' part `from_gains` (per coefficient) to the σ of the fit's.
+    pub(super) fn count_gains(&mut self, from_gains: &[f64]) {
+        for (s, g) in self.term.sigma.iter_mut().zip(from_gains) {
+            *s = s.hypot(*g);
+        }
+        self.sigma_from_gains = from_gains.to_vec();
+    }
+
     /// Read a payload's mass, its σ and its centre of mass off its term's coefficients
     /// (`m, m·cx, m·cy, m·cz`); nothing for any other effect. A first moment pinned at zero (its
     /// column is zero on this data, σ zero) leaves that coordinate unknown.
@@ -75,6 +87,9 @@ pub struct TooHeavy {
     /// The mass the data lack against the model (kg, positive), and its σ.
     pub mass_kg: f64,
     pub mass_sigma_kg: f64,
+    /// The part of that σ the calibrated drive gains give, when the torque came from currents.
+    #[serde(default)]
+    pub mass_sigma_from_gains_kg: Option<f64>,
     pub p_value: f64,
     /// Held-out gain of the negative payload on the joint it helps most.
     pub heldout_gain: f64,

@@ -15,9 +15,13 @@
 //!    or the odd-numbered blocks when fitting on the even ones), and one that does not cut it by
 //!    at least `min_gain` is not worth a term;
 //! 6. the best is added, the model refitted, and the search repeated until nothing passes.
+//!
+//! On torque computed from currents with calibrated drive gains, each coefficient's σ also counts
+//! the gains' own ([`calibration`]).
 
 mod band;
 mod band_choice;
+mod calibration;
 mod candidates;
 mod context;
 mod delay;

@@ -64,6 +64,9 @@ impl Diagnosis {
                         1e3 * m,
                         1e3 * f.mass_sigma_kg.unwrap_or(0.0)
                     );
+                    if let Some(g) = f.sigma_from_gains.first() {
+                        s += &format!(" (± {:.1} g of it from the drive gains)", 1e3 * g);
+                    }
                     if let Some(c) = f.centre_of_mass_m {
                         let mm = c.map(|x| x.map_or("–".to_string(), |x| format!("{:.1}", 1e3 * x)));
                         s += &format!(
@@ -80,13 +83,15 @@ impl Diagnosis {
         }
         if let Some(h) = &self.too_heavy {
             s += &format!(
-                "\nThe model is heavier than the data: on {}, {:.1} ± {:.1} g less mass explains the rest best \
+                "\nThe model is heavier than the data: on {}, {:.1} ± {:.1} g{} less mass explains the rest best \
                  (p = {:.1e}, held-out gain {:.1} %). A negative mass is no payload, and what an effect \
                  took up after it would be that weight, so the search stopped at round {}. Refit the model on \
                  this log (--refit), or take the mass out of the model.\n",
                 h.body,
                 1e3 * h.mass_kg,
                 1e3 * h.mass_sigma_kg,
+                h.mass_sigma_from_gains_kg
+                    .map_or(String::new(), |g| format!(" (± {:.1} g of it from the drive gains)", 1e3 * g)),
                 h.p_value,
                 100.0 * h.heldout_gain,
                 h.round

@@ -4,6 +4,7 @@
 use std::borrow::Cow;
 
 use super::band_choice::choose_band;
+use super::calibration::GainErrors;
 use super::candidates::{candidates, not_the_cable};
 use super::context::{parallel_map, Context};
 use super::delay::search_delay;
@@ -60,7 +61,8 @@ pub fn diagnose(
     let (templates, not_searched) = candidates(&model, &ctx.train, (options, choice.laws.is_some()));
     skipped.extend(not_searched);
     let pool = ctx.pool(templates, &problem, &heldout);
-    let search = Search { ctx: &ctx, problem: &problem, heldout: &heldout, pool: &pool };
+    let gain_errors = GainErrors::of(&ctx, &problem);
+    let search = Search { ctx: &ctx, problem: &problem, heldout: &heldout, pool: &pool, gain_errors };
     search.select(&mut state)?;
     // 3. Final joint fit, errors before and after, and the updated model.
     search.finish(state, delay, skipped, declared.urdf, train.t.len())
@@ -94,6 +96,8 @@ struct Search<'a> {
     problem: &'a Problem,
     heldout: &'a HeldOut,
     pool: &'a [Candidate],
+    /// The calibrated drive gains' errors, when the torque came from currents through them.
+    gain_errors: Option<GainErrors>,
 }
 
 impl Search<'_> {
@@ -121,7 +125,7 @@ impl Search<'_> {
         if tested.is_empty() {
             return Ok(false);
         }
-        let (mut passing, lighter) = self.judge(round, &tested, &coef, state);
+        let (mut passing, lighter) = self.judge(round, &tested, (&base_cols, &coef), state);
         // A mass taken off one body can look like a mass put on another (a parallelogram's links
         // pull against each other): the positive explanation stands unless the missing mass
         // explains clearly more, by the margin `most_useful` gives a simpler term.
@@ -172,6 +176,7 @@ impl Search<'_> {
             mass_sigma_kg: None,
             body: None,
             centre_of_mass_m: None,
+            sigma_from_gains: vec![],
             round,
         });
         state.accepted.last_mut().expect("just pushed").weigh();
@@ -220,7 +225,7 @@ impl Search<'_> {
         &self,
         round: usize,
         tested: &[(usize, GroupTest)],
-        coef: &[f64],
+        (base_cols, coef): (&[&Column], &[f64]),
         state: &mut State,
     ) -> (Vec<Passed>, Option<(f64, TooHeavy)>) {
         let (ctx, dof) = (self.ctx, self.problem.dof);
@@ -262,10 +267,13 @@ impl Search<'_> {
                 let gain = term.joints(dof).iter().map(|&k| gains[k]).fold(f64::NEG_INFINITY, f64::max);
                 if let Some(coefficient) = flipped {
                     // A payload of negative mass: the model is heavier than the data.
+                    let from_gains = self.mass_sigma_from_gains(base_cols, *i);
+                    let measured = t.sigma.first().copied().unwrap_or(f64::NAN);
                     let heavy = TooHeavy {
                         body: term.body.clone().unwrap_or_default(),
                         mass_kg: -coefficient,
-                        mass_sigma_kg: t.sigma.first().copied().unwrap_or(f64::NAN),
+                        mass_sigma_kg: measured.hypot(from_gains.unwrap_or(0.0)),
+                        mass_sigma_from_gains_kg: from_gains,
                         p_value,
                         heldout_gain: gain,
                         round,
@@ -292,6 +300,13 @@ impl Search<'_> {
             }
         }
         (passing, lighter)
+    }
+
+    /// The σ the calibrated gains give the mass of payload candidate `i` fitted on `base_cols`.
+    fn mass_sigma_from_gains(&self, base_cols: &[&Column], i: usize) -> Option<f64> {
+        let errors = self.gain_errors.as_ref()?;
+        let columns: Vec<&Column> = base_cols.iter().copied().chain(&self.pool[i].columns).collect();
+        errors.sigma(&columns, self.problem.dof)?.get(base_cols.len()).copied()
     }
 
     /// The effect (accepted, or `candidate` itself) whose coefficient the joint fit of the model,
@@ -359,10 +374,14 @@ impl Search<'_> {
         let x_before = least_squares(&declared_only, &problem.y, dof, Rows::All).ok_or(DiagnoseError::Singular)?;
         let x_after = least_squares(&final_cols, &problem.y, dof, Rows::All).ok_or(DiagnoseError::Singular)?;
         // Coefficients of the effects from the joint fit (they moved as later effects came in).
+        let from_gains = self.gain_errors.as_ref().and_then(|g| g.sigma(&final_cols, dof));
         let mut offset = declared_only.len();
         for (f, &i) in state.accepted.iter_mut().filter(|f| f.term.kind != EffectKind::Delay).zip(&state.chosen) {
             let width = pool[i].columns.len();
             f.term.coefficients = x_after[offset..offset + width].to_vec();
+            if let Some(s) = &from_gains {
+                f.count_gains(&s[offset..offset + width]);
+            }
             f.weigh();
             offset += width;
         }

@@ -656,12 +656,14 @@ fn iv_fit(
     let meat_residual = estimate::unfiltered_residual(model, pre, &base.independent, beta);
     let bread = zx.clone().try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::NAN));
     let block = ((2.0 * pre.rate_hz() / pre.cutoff_hz).ceil() as usize).max(1);
-    let sigma_beta = estimate::sandwich_sigma(z, &meat_residual, dof, block, &bread);
+    let covariance = estimate::sandwich_covariance(z, &meat_residual, dof, block, &bread);
+    let sigma_beta = estimate::standard_deviations(&covariance);
     let sigma_percent = sigma_beta.iter().zip(beta).map(|(s, b)| 100.0 * s / b.abs()).collect();
     Fit {
         method: estimate::Method::Ols,
         beta: beta.to_vec(),
         sigma_beta,
+        covariance,
         sigma_percent,
         sigma_p2,
         joint_weights: vec![1.0; dof],

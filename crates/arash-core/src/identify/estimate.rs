@@ -63,6 +63,8 @@ pub struct Fit {
     pub beta: Vec<f64>,
     /// Standard deviation of each β̂ (eq. 16).
     pub sigma_beta: Vec<f64>,
+    /// The covariance of β̂ whose diagonal `sigma_beta` is (the block sandwich).
+    pub covariance: DMatrix<f64>,
     /// Relative standard deviation `100 σ_β / |β̂|` (eq. 15).
     pub sigma_percent: Vec<f64>,
     /// Residual variance of the (weighted) system (eq. 17).
@@ -335,7 +337,8 @@ fn fit_stacked_with(
         }
         None => weighted_residual,
     };
-    let sigma_beta = block_sandwich_sigma(w, &meat_residual, &weights, dof, block_samples.max(1), &r_inv);
+    let covariance = block_sandwich_covariance(w, &meat_residual, &weights, dof, block_samples.max(1), &r_inv);
+    let sigma_beta = standard_deviations(&covariance);
     let sigma_percent = sigma_beta.iter().zip(&beta).map(|(s, b)| 100.0 * s / b.abs()).collect();
     let metrics = joint_metrics(tau, &predicted, dof);
     let determination = determination((&r_factor, &r_inv), column_over_torque(w, tau, dof), &beta);
@@ -343,6 +346,7 @@ fn fit_stacked_with(
         method,
         beta,
         sigma_beta,
+        covariance,
         sigma_percent,
         sigma_p2,
         joint_weights: weights,
@@ -463,30 +467,41 @@ fn householder_qr(w: &Mat<f64>, b: &Mat<f64>) -> (Vec<f64>, DMatrix<f64>, f64) {
     ((0..p).map(|i| beta_mat[(i, 0)]).collect(), r_factor, condition)
 }
 
-/// σ_β from the sandwich (see [`fit_stacked`]) on the weighted system ([`sandwich_sigma`]).
-fn block_sandwich_sigma(
+/// The covariance of β̂ from the sandwich (see [`fit_stacked`]) on the weighted system.
+fn block_sandwich_covariance(
     w: &Mat<f64>,
     weighted_residual: &[f64],
     weights: &[f64],
     dof: usize,
     block_samples: usize,
     r_inv: &DMatrix<f64>,
-) -> Vec<f64> {
+) -> DMatrix<f64> {
     // Row-weighted residuals once; each sample's score is then g_s = Σ_k W_(s,k)ᵀ e_(s,k).
     let e: Vec<f64> = weighted_residual.iter().enumerate().map(|(i, r)| r * weights[i % dof]).collect();
     // (W̃ᵀW̃)⁻¹ = R⁻¹R⁻ᵀ for the weighted W̃.
     let gram_inv = r_inv * r_inv.transpose();
-    sandwich_sigma(w, &e, dof, block_samples, &gram_inv)
+    sandwich_covariance(w, &e, dof, block_samples, &gram_inv)
 }
 
-/// σ from the sandwich `bread · Ω · breadᵀ`, with the small-sample factor `m / (m − p)`. Ω is
+/// The square roots of a covariance's diagonal (a round-off negative reads as zero).
+pub fn standard_deviations(covariance: &DMatrix<f64>) -> Vec<f64> {
+    covariance.diagonal().iter().map(|v| v.max(0.0).sqrt()).collect()
+}
+
+/// The covariance from the sandwich `bread · Ω · breadᵀ`, with the small-sample factor `m / (m − p)`. Ω is
 /// the overlapping-batch-means estimate of the long-run covariance of the scores
 /// `g_s = Σ_k X_(s,k)ᵀ e_(s,k)` of `x` (W for least squares, the instruments for IV) on the
 /// residual `e`: every run of `block_samples` consecutive samples, not only disjoint blocks.
 /// Disjoint blocks give an Ω of rank at most their number, which at a low cut-off (a few blocks
 /// per period) is below the number of parameters and under-states σ by a large factor; the
 /// overlapping runs keep its rank and the same bandwidth (Bartlett's kernel).
-pub fn sandwich_sigma(x: &Mat<f64>, e: &[f64], dof: usize, block_samples: usize, bread: &DMatrix<f64>) -> Vec<f64> {
+pub fn sandwich_covariance(
+    x: &Mat<f64>,
+    e: &[f64],
+    dof: usize,
+    block_samples: usize,
+    bread: &DMatrix<f64>,
+) -> DMatrix<f64> {
     let (m, p) = (x.nrows(), x.ncols());
     let samples = m / dof;
     let block = block_samples.clamp(1, samples.max(1));
@@ -511,8 +526,7 @@ pub fn sandwich_sigma(x: &Mat<f64>, e: &[f64], dof: usize, block_samples: usize,
     let gram = sums.transpose() * &sums;
     let scale = samples as f64 / (block as f64 * runs as f64);
     let meat = DMatrix::from_fn(p, p, |i, j| gram[(i, j)] * scale);
-    let cov = bread * meat * bread.transpose() * degrees_of_freedom_factor(m, p, samples, block);
-    (0..p).map(|i| cov[(i, i)].max(0.0).sqrt()).collect()
+    bread * meat * bread.transpose() * degrees_of_freedom_factor(m, p, samples, block)
 }
 
 /// The small-sample factor of the sandwich: `m_eff / (m_eff − p)` for residuals that carry

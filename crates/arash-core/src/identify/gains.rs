@@ -149,6 +149,8 @@ pub struct GainFit {
     /// Each joint's drive gain (N·m/A or N/A) and its σ.
     pub gains: Vec<f64>,
     pub gain_sigma: Vec<f64>,
+    /// The gains' covariance (row-major, joints × joints): `gain_sigma` is its diagonal's root.
+    pub gain_covariance: Vec<f64>,
     /// The robot's base parameters (without the load) in physical units.
     pub beta: Vec<f64>,
     pub beta_sigma: Vec<f64>,
@@ -250,6 +252,14 @@ pub fn fit_gains(
     let gains: Vec<f64> = inverse.iter().map(|c| 1.0 / c).collect();
     let gain_sigma: Vec<f64> =
         fit.sigma_beta[p + unknown.len()..].iter().zip(inverse).map(|(s, c)| s / (c * c)).collect();
+    // k = 1/c moves by −dc/c² on each joint: the two signs cancel in the covariance.
+    let at = p + unknown.len();
+    let gain_covariance: Vec<f64> = (0..dof * dof)
+        .map(|ij| {
+            let (i, j) = (ij / dof, ij % dof);
+            fit.covariance[(at + i, at + j)] * gains[i] * gains[i] * gains[j] * gains[j]
+        })
+        .collect();
     // Each joint's torque over the loaded runs, from the fitted gains: what the load's share is of.
     for (_, current, _) in stacked.iter().filter(|s| s.2) {
         for (r, i) in current.iter().enumerate() {
@@ -280,6 +290,7 @@ pub fn fit_gains(
     let (reasons, warnings) = explain(model, (&gains, &gain_sigma), shares, &unknown, load);
     Ok(GainFit {
         gain_sigma,
+        gain_covariance,
         gains,
         beta: theta[..p].to_vec(),
         beta_sigma: fit.sigma_beta[..p].to_vec(),
@@ -309,7 +320,9 @@ pub fn with_datasheet(fit: &GainFit, datasheet: &[(f64, f64)], joints: &[String]
             joints[j]
         )));
     }
-    let (mut gains, mut sigma, mut taken) = (fit.gains.clone(), fit.gain_sigma.clone(), vec![false; joints.len()]);
+    let dof = joints.len();
+    let (mut gains, mut sigma, mut taken) = (fit.gains.clone(), fit.gain_sigma.clone(), vec![false; dof]);
+    let mut covariance = fit.gain_covariance.clone();
     let (mut reasons, mut warnings) = (Vec::new(), Vec::new());
     for (j, &(k, s)) in datasheet.iter().enumerate() {
         let z = (fit.gains[j] - k) / (fit.gain_sigma[j].powi(2) + s * s).sqrt();
@@ -325,6 +338,11 @@ pub fn with_datasheet(fit: &GainFit, datasheet: &[(f64, f64)], joints: &[String]
             )),
             false => {
                 (gains[j], sigma[j], taken[j]) = (k, s, true);
+                // A datasheet's error is its own, independent of the fit's.
+                for i in 0..dof {
+                    (covariance[i * dof + j], covariance[j * dof + i]) = (0.0, 0.0);
+                }
+                covariance[j * dof + j] = s * s;
                 reasons.push(format!(
                     "{}: the load does not fix its gain, so the datasheet's {k:.4} ± {s:.4} is used (the load's fit \
                      gave {:.4} ± {:.4})",
@@ -333,7 +351,7 @@ pub fn with_datasheet(fit: &GainFit, datasheet: &[(f64, f64)], joints: &[String]
             }
         }
     }
-    Ok(Checked { gains, sigma, from_datasheet: taken, reasons, warnings })
+    Ok(Checked { gains, sigma, covariance, from_datasheet: taken, reasons, warnings })
 }
 
 /// The gains to use after [`with_datasheet`]: each with its σ, whether it is the datasheet's, and
@@ -341,6 +359,8 @@ pub fn with_datasheet(fit: &GainFit, datasheet: &[(f64, f64)], joints: &[String]
 pub struct Checked {
     pub gains: Vec<f64>,
     pub sigma: Vec<f64>,
+    /// Row-major, joints × joints.
+    pub covariance: Vec<f64>,
     pub from_datasheet: Vec<bool>,
     pub reasons: Vec<String>,
     pub warnings: Vec<String>,
@@ -402,6 +422,29 @@ fn in_current_units(x: &Mat<f64>, y: &[f64], (dof, q): (usize, usize), start: &[
     let j = jacobian(&theta);
     let z = (0..rows).map(|r| (0..q + dof).map(|c| j[(r, c)] * theta[c]).sum::<f64>() - e[r]).collect();
     (j, z)
+}
+
+/// How a model fitted by least squares on `data`'s torque `kⱼ iⱼ` moves with the gains: per
+/// joint j, `∂β/∂ln kⱼ`, the fit of joint j's torque alone (the other joints' rows zero), with the
+/// joint weights `method` gives the whole torque. A gain's error scales its joint's torque, and a
+/// model fitted on it takes up part of that scale: what a later diagnosis sees of the error is the
+/// rest (`diagnose::calibration`). Exact for least squares; for a physically consistent fit whose
+/// constraints hold with margin, the same to first order.
+pub fn beta_per_gain(
+    model: &Model,
+    base: &BaseParameters,
+    data: &Preprocessed,
+    gains: &[f64],
+    method: Method,
+) -> Result<Vec<Vec<f64>>, EstimateError> {
+    let dof = model.dof();
+    let (w, current) = stack(model, base, data);
+    let torque: Vec<f64> = current.iter().enumerate().map(|(r, i)| i * gains[r % dof]).collect();
+    let weights = fit_stacked(&w, &torque, dof, base, method, 1)?.joint_weights;
+    let weighted = Mat::<f64>::from_fn(w.nrows(), w.ncols(), |r, c| w[(r, c)] * weights[r % dof]);
+    let rhs = Mat::<f64>::from_fn(w.nrows(), dof, |r, j| if r % dof == j { torque[r] * weights[j] } else { 0.0 });
+    let solved = weighted.qr().solve_lstsq(&rhs);
+    Ok((0..dof).map(|j| (0..w.ncols()).map(|c| solved[(c, j)]).collect()).collect())
 }
 
 /// `B`'s columns of body `b`'s ten parameters (`p × 10`, row-major).

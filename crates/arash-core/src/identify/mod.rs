@@ -146,15 +146,16 @@ pub fn identify_with_known_load(
     let fit = gains::fit_gains(model, declared.base, &gain_runs, (load, body), ls)?;
     let dof = model.dof();
     let (mut reasons, mut warnings) = (fit.reasons.clone(), fit.warnings.clone());
-    let (used, sigma, from_datasheet) = match datasheet {
+    let (used, sigma, covariance, from_datasheet) = match datasheet {
         Some(given) => {
             let checked = gains::with_datasheet(&fit, given, &model.joint_names())?;
             reasons.extend(checked.reasons);
             warnings.extend(checked.warnings);
-            (checked.gains, checked.sigma, checked.from_datasheet)
+            (checked.gains, checked.sigma, checked.covariance, checked.from_datasheet)
         }
-        None => (fit.gains.clone(), fit.gain_sigma.clone(), vec![false; dof]),
+        None => (fit.gains.clone(), fit.gain_sigma.clone(), fit.gain_covariance.clone(), vec![false; dof]),
     };
+    let beta_per_gain = gains::beta_per_gain(model, declared.base, &preprocessed[first], &used, ls)?;
     let log = runs[first].0;
     let torque: Vec<f64> = log.tau.iter().enumerate().map(|(i, c)| c * used[i % dof]).collect();
     let mut file = identify(declared, Log { tau: &torque, ..log }, method, options)?;
@@ -163,6 +164,8 @@ pub fn identify_with_known_load(
     file.drive_gains = Some(crate::model_file::DriveGains {
         gains: used,
         sigma,
+        covariance,
+        beta_per_gain,
         from_datasheet,
         load_body: load.body.clone(),
         load_mass: load.mass,

@@ -320,7 +320,11 @@ class Effect:
     @property
     def mass_kg(self) -> Optional[float]: ...
     @property
-    def mass_sigma_kg(self) -> Optional[float]: ...
+    def mass_sigma_kg(self) -> Optional[float]:
+        """A payload's mass σ (kg); on torque from currents, it counts the drive gains' σ."""
+    @property
+    def sigma_from_gains(self) -> Optional[_Array]:
+        """Per coefficient, the part of ``sigma`` the calibrated drive gains give, else None."""
     @property
     def body(self) -> Optional[str]: ...
     @property
@@ -339,8 +343,8 @@ class Diagnosis:
     @property
     def too_heavy(self) -> Optional[dict[str, Any]]:
         """Set when the search stopped because the model is heavier than the data: ``body``,
-        ``mass_kg`` (the mass the data lack), ``mass_sigma_kg``, ``p_value``, ``heldout_gain``,
-        ``round``."""
+        ``mass_kg`` (the mass the data lack), ``mass_sigma_kg``, ``mass_sigma_from_gains_kg``,
+        ``p_value``, ``heldout_gain``, ``round``."""
     @property
     def settings(self) -> dict[str, Any]:
         """The settings it ran with; ``reasons`` says what chose the cut-offs."""
