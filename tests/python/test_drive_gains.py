@@ -59,10 +59,16 @@ def test_the_gains_of_a_kuka_are_found_and_a_second_payload_comes_out_in_kilogra
     assert abs(first.mass_kg - 1.0) <= 0.1, d.report()
 
 
-def test_the_gains_of_arash_asist_are_found_with_a_load_on_its_insertion():
+@pytest.mark.parametrize("fit", ["current", "tls"])
+def test_the_gains_of_arash_asist_are_found_with_a_load_on_its_insertion(fit):
+    """By least squares in amperes, and by total least squares (Gautier and Briot's)."""
     robot, runs, gains, _, _ = calibration("arash_asist", "insertion_carriage", 0.3, 4)
-    model = identified(robot, runs, {"body": "insertion_carriage", "mass": 0.3})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        model = arash.identify(robot, *runs[0], loaded=runs[1], load={"body": "insertion_carriage", "mass": 0.3},
+                               gains_fit=fit)
     g = model.drive_gains
+    assert g["estimator"] == fit
     error = g["gains"] - gains
     assert np.all(np.abs(error) <= 3 * g["sigma"]), (error, g["sigma"])
     # Pitch and insertion carry the load; yaw feels a few per cent of it, and its σ says so.
@@ -104,6 +110,8 @@ def test_bad_inputs_are_refused_by_name():
         ({"loaded": runs[1], "load": {**load, "inertia": [1e-3, 1e-3, 1e-3, 0, 0, 0]}}, "centre of mass"),
         ({"loaded": runs[1], "load": {"body": "counterweight_right", "mass": 0.3}}, "cannot fix the gains"),
         ({"loaded": runs[1], "load": {**load, "colour": "red"}}, "unknown key"),
+        ({"loaded": runs[1], "load": load, "gains_fit": "svd"}, "gains fit `svd`: use `current`"),
+        ({"gains_fit": "tls"}, "need the loaded run"),
         ({"loaded": (runs[1][0], np.hstack([runs[1][1], runs[1][1]]), runs[1][2]), "load": load},
          r"run 1: q must have shape \(N, 3\)"),
         ({"load": load}, None),
@@ -192,10 +200,13 @@ def test_the_cli_fits_the_gains_from_csv_currents_and_a_load_file(tmp_path):
                "--loaded", str(tmp_path / "carried.csv"), "-o", str(tmp_path / "model.json"), "--load"]
     bad = subprocess.run(command + [str(tmp_path / "bad.toml")], capture_output=True, text=True, timeout=600)
     assert bad.returncode != 0 and "unknown field `colour`" in bad.stderr, bad.stderr
+    svd = subprocess.run(command + [str(tmp_path / "load.toml"), "--gains-fit", "svd"], capture_output=True, text=True)
+    assert svd.returncode != 0 and "gains fit `svd`" in svd.stderr, svd.stderr
     done = subprocess.run(command + [str(tmp_path / "load.toml")], capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
     assert "drive gain (per A)" in done.stdout, done.stdout
     g = json.loads((tmp_path / "model.json").read_text())["drive_gains"]
+    assert g["estimator"] == "current"
     error = np.abs(np.array(g["gains"]) - gains)
     assert np.all(error <= 3 * np.array(g["sigma"])), (g["gains"], gains, g["sigma"])
     assert arash.load_model(tmp_path / "model.json").drive_gains["load_body"] == "insertion_carriage"

@@ -232,6 +232,9 @@ pub struct DriveGains {
     pub gains: Vec<f64>,
     /// Their standard deviations.
     pub sigma: Vec<f64>,
+    /// How the stacked problem was solved.
+    #[serde(default)]
+    pub estimator: crate::identify::gains::GainEstimator,
     /// Their covariance, row-major (joints × joints; `sigma` is its diagonal's root). Files
     /// written before it was kept read as empty: the gains are then taken as independent.
     #[serde(default)]

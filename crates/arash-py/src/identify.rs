@@ -8,7 +8,7 @@ use arash_core::base_parameters::BaseParameters as CoreBase;
 use arash_core::control::trajectory::paper_validation_state;
 use arash_core::identify::closed_loop::{ClosedLoop, LoggedController};
 use arash_core::identify::consistent::{identify_consistent, ConsistentOptions};
-use arash_core::identify::gains::KnownLoad;
+use arash_core::identify::gains::{Calibration, GainEstimator, KnownLoad};
 use arash_core::identify::preprocess::PreprocessOptions;
 use arash_core::identify::repair::{repair, Signal};
 use arash_core::identify::{
@@ -165,6 +165,7 @@ impl Identification {
         let d = PyDict::new(py);
         d.set_item("gains", vector_out(py, &g.gains)?)?;
         d.set_item("sigma", vector_out(py, &g.sigma)?)?;
+        d.set_item("estimator", g.estimator.id())?;
         let dof = g.gains.len();
         let covariance = match g.covariance.is_empty() {
             true => None,
@@ -377,9 +378,9 @@ type CurrentRun<'py> = (PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f6
 
 /// Identify from motor currents with a known load (see `arash.identify`'s `loaded`): `runs` are
 /// `(t, q, i, loaded)`, `load` the known load's body, mass and, where known, centre of mass and
-/// inertia about it.
+/// inertia about it; `gains` the datasheet's `(k, σ)` per joint and the gains fit, each or None.
 #[pyfunction]
-#[pyo3(signature = (robot, runs, load, method, options, datasheet=None))]
+#[pyo3(signature = (robot, runs, load, method, options, gains=(None, None)))]
 fn _identify_with_load<'py>(
     py: Python<'py>,
     robot: &Robot,
@@ -387,8 +388,11 @@ fn _identify_with_load<'py>(
     load: (String, f64, Option<[f64; 3]>, Option<[f64; 6]>),
     method: Option<&str>,
     options: &Bound<'py, PyDict>,
-    datasheet: Option<Vec<(f64, f64)>>,
+    gains: (Option<Vec<(f64, f64)>>, Option<String>),
 ) -> PyResult<Identification> {
+    let (datasheet, gains_fit) = gains;
+    let estimator: GainEstimator =
+        gains_fit.as_deref().map_or(Ok(GainEstimator::default()), str::parse).map_err(PyValueError::new_err)?;
     let method: IdentifyMethod =
         method.map_or(Ok(IdentifyMethod::default()), str::parse).map_err(PyValueError::new_err)?;
     let mut o = IdentifyOptions::default();
@@ -408,8 +412,9 @@ fn _identify_with_load<'py>(
     let model = Arc::clone(&robot.model);
     let base = robot.fitted_base(false)?;
     let declared = Declared { model: &model, base, urdf: &robot.urdf };
-    let given = (&load, datasheet.as_deref());
-    let (inner, _) = py.detach(|| identify_with_known_load(declared, &logs, given, method, &o)).map_err(value_error)?;
+    let calibration = Calibration { load: &load, datasheet: datasheet.as_deref(), estimator };
+    let (inner, _) =
+        py.detach(|| identify_with_known_load(declared, &logs, calibration, method, &o)).map_err(value_error)?;
     Ok(Identification::new(model, inner))
 }
 

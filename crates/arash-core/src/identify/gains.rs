@@ -20,7 +20,7 @@
 //! problem is linear in `(β, δ, k)` and is solved by the least squares of [`super::estimate`], its
 //! σ the same block sandwich, its conditioning named by parameter where a gain is not fixed.
 
-use super::estimate::{apply, fit_stacked, stack, EstimateError, Fit, Method};
+use super::estimate::{fit_stacked, sandwich_covariance, stack, standard_deviations, EstimateError, Fit, Method};
 use super::preprocess::Preprocessed;
 use crate::base_parameters::BaseParameters;
 use crate::model::Model;
@@ -50,6 +50,11 @@ pub struct KnownLoad {
 pub enum GainsError {
     #[error("no {0} run: drive gains need runs both with and without the known load")]
     MissingRuns(&'static str),
+    #[error(
+        "total least squares has no solution here: the smallest singular direction of the stacked system leaves out \
+         the load's torque (the load does not reach the currents); use the default gains fit"
+    )]
+    NoTotalLeastSquares,
     #[error("the load is on body `{name}`, which the robot does not have (bodies: {bodies})")]
     UnknownBody { name: String, bodies: String },
     #[error("the load's {what}")]
@@ -137,6 +142,51 @@ impl KnownLoad {
 /// The names of a body's ten parameters, as the load's are reported.
 const LOAD_NAMES: [&str; PER_BODY] = ["m", "mcx", "mcy", "mcz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"];
 
+/// How the stacked problem is solved. Both treat the currents as measured with noise, which plain
+/// least squares in torque units does not: it shrinks a gain toward zero where the model leaves
+/// torque unexplained ([`in_current_units`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum GainEstimator {
+    /// Least squares of each row's residual in amperes, by Gauss–Newton (the default).
+    #[default]
+    #[serde(rename = "current")]
+    CurrentUnits,
+    /// Total least squares of the stacked system, every column scaled to unit norm (Gautier and
+    /// Briot's): errors in every column alike, the currents' among them.
+    #[serde(rename = "tls")]
+    TotalLeastSquares,
+}
+
+impl std::str::FromStr for GainEstimator {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "current" => Ok(Self::CurrentUnits),
+            "tls" => Ok(Self::TotalLeastSquares),
+            other => Err(format!("gains fit `{other}`: use `current` (least squares in amperes) or `tls`")),
+        }
+    }
+}
+
+impl GainEstimator {
+    /// Its name on the command line and in Python.
+    pub fn id(self) -> &'static str {
+        match self {
+            Self::CurrentUnits => "current",
+            Self::TotalLeastSquares => "tls",
+        }
+    }
+}
+
+/// What a calibration from currents is given besides the runs: the known load, gains from a
+/// datasheet if any (each `(k, σ)`, [`with_datasheet`]), and how to solve.
+#[derive(Clone, Copy, Debug)]
+pub struct Calibration<'a> {
+    pub load: &'a KnownLoad,
+    pub datasheet: Option<&'a [(f64, f64)]>,
+    pub estimator: GainEstimator,
+}
+
 /// One preprocessed run: its currents in place of the torque, and whether it carries the load.
 pub struct GainRun<'a> {
     pub data: &'a Preprocessed,
@@ -181,7 +231,7 @@ pub fn fit_gains(
     base: &BaseParameters,
     runs: &[GainRun],
     (load, body): (&KnownLoad, usize),
-    method: Method,
+    (method, estimator): (Method, GainEstimator),
 ) -> Result<GainFit, GainsError> {
     let dof = model.dof();
     for (run, r) in runs.iter().enumerate() {
@@ -244,9 +294,17 @@ pub fn fit_gains(
     let rate = runs.iter().map(|r| r.data.rate_hz() / r.data.cutoff_hz).fold(1.0, f64::max);
     let block = (2.0 * rate).ceil() as usize;
     // The linear problem in torque units starts the fit in current units, whose σ is reported.
-    let linear = fit_stacked(&x, &y, dof, &augmented, method, block)?;
-    let (j, z) = in_current_units(&x, &y, (dof, p + unknown.len()), &linear.beta);
-    let fit = fit_stacked(&j, &z, dof, &augmented, method, block)?;
+    let fit = match estimator {
+        GainEstimator::CurrentUnits => {
+            let linear = fit_stacked(&x, &y, dof, &augmented, method, block)?;
+            let (j, z) = in_current_units(&x, &y, (dof, p + unknown.len()), &linear.beta);
+            fit_stacked(&j, &z, dof, &augmented, method, block)?
+        }
+        GainEstimator::TotalLeastSquares => {
+            let theta = total_least_squares(&x, &y).ok_or(GainsError::NoTotalLeastSquares)?;
+            at_total_least_squares(&x, &y, (dof, p + unknown.len()), &theta, (&augmented, block))?
+        }
+    };
     let theta = &fit.beta;
     let inverse = &theta[p + unknown.len()..];
     let gains: Vec<f64> = inverse.iter().map(|c| 1.0 / c).collect();
@@ -270,7 +328,7 @@ pub fn fit_gains(
         load_torque.iter().map(|(l, t)| if *t > 0.0 { (l / t).sqrt() } else { 0.0 }).collect();
     // What the model leaves unexplained on each joint, in torque: the residual in current units
     // times the gain, over every run, against the load's torque over the loaded runs.
-    let residual: Vec<f64> = apply(&j, theta).iter().zip(&z).map(|(a, b)| b - a).collect();
+    let residual = residual_in_current_units(&x, &y, (dof, p + unknown.len()), theta);
     let loaded_rows: usize = stacked.iter().filter(|s| s.2).map(|s| s.0.nrows()).sum();
     let load_over_unexplained: Vec<f64> = (0..dof)
         .map(|k| {
@@ -381,47 +439,102 @@ const GAUSS_NEWTON_STEPS: usize = 50;
 /// optimum and the target `J θ* − e*`, whose least squares are `θ*` with the optimum's residual,
 /// so that [`fit_stacked`] gives its σ (the sandwich of the linearised problem) and conditioning.
 fn in_current_units(x: &Mat<f64>, y: &[f64], (dof, q): (usize, usize), start: &[f64]) -> (Mat<f64>, Vec<f64>) {
-    let rows = x.nrows();
-    let current = |r: usize| -x[(r, q + r % dof)];
     let largest = start[q..].iter().fold(0.0f64, |m, k| m.max(k.abs()));
     let mut theta: Vec<f64> = start[..q].to_vec();
     theta.extend(start[q..].iter().map(|k| 1.0 / k.abs().max(1e-3 * largest)));
-    // The model's torque at each row and the residual in current units.
-    let torque = |theta: &[f64], r: usize| (0..q).map(|c| x[(r, c)] * theta[c]).sum::<f64>() - y[r];
-    let residual =
-        |theta: &[f64]| -> Vec<f64> { (0..rows).map(|r| theta[q + r % dof] * torque(theta, r) - current(r)).collect() };
-    let jacobian = |theta: &[f64]| {
-        Mat::<f64>::from_fn(rows, q + dof, |r, c| match c < q {
-            true => theta[q + r % dof] * x[(r, c)],
-            false if c - q == r % dof => torque(theta, r),
-            false => 0.0,
-        })
-    };
     let cost = |e: &[f64]| e.iter().map(|v| v * v).sum::<f64>();
-    let mut e = residual(&theta);
+    let (mut j, mut e) = linearised(x, y, (dof, q), &theta);
     for _ in 0..GAUSS_NEWTON_STEPS {
-        let j = jacobian(&theta);
-        let rhs = Mat::<f64>::from_fn(rows, 1, |r, _| -e[r]);
+        let rhs = Mat::<f64>::from_fn(j.nrows(), 1, |r, _| -e[r]);
         let step = j.qr().solve_lstsq(&rhs);
         // Halve the step until the cost falls: far from the optimum the linearisation overshoots.
         let mut scale = 1.0;
-        let (next, next_e) = loop {
+        let next = loop {
             let trial: Vec<f64> = theta.iter().enumerate().map(|(i, t)| t + scale * step[(i, 0)]).collect();
-            let trial_e = residual(&trial);
-            if cost(&trial_e) <= cost(&e) || scale < 1e-6 {
-                break (trial, trial_e);
+            if cost(&residual_in_current_units(x, y, (dof, q), &trial)) <= cost(&e) || scale < 1e-6 {
+                break trial;
             }
             scale *= 0.5;
         };
         let moved = (q..q + dof).map(|i| ((next[i] - theta[i]) / theta[i]).abs()).fold(0.0, f64::max);
-        (theta, e) = (next, next_e);
+        theta = next;
+        (j, e) = linearised(x, y, (dof, q), &theta);
         if moved < 1e-10 {
             break;
         }
     }
-    let j = jacobian(&theta);
-    let z = (0..rows).map(|r| (0..q + dof).map(|c| j[(r, c)] * theta[c]).sum::<f64>() - e[r]).collect();
+    let z = (0..j.nrows()).map(|r| (0..q + dof).map(|c| j[(r, c)] * theta[c]).sum::<f64>() - e[r]).collect();
     (j, z)
+}
+
+/// Each row's residual in current units at `theta` (the torque's `q` parameters, then `cⱼ =
+/// 1/kⱼ`): `cⱼ (x θ − y) − i`, the current being `−x` in the row's gain column.
+fn residual_in_current_units(x: &Mat<f64>, y: &[f64], (dof, q): (usize, usize), theta: &[f64]) -> Vec<f64> {
+    (0..x.nrows()).map(|r| theta[q + r % dof] * torque_at(x, y, q, theta, r) + x[(r, q + r % dof)]).collect()
+}
+
+/// The model's torque at row `r` beyond the known load's: `x θ − y` over the torque's columns.
+fn torque_at(x: &Mat<f64>, y: &[f64], q: usize, theta: &[f64], r: usize) -> f64 {
+    (0..q).map(|c| x[(r, c)] * theta[c]).sum::<f64>() - y[r]
+}
+
+/// The Jacobian of [`residual_in_current_units`] at `theta`, and that residual.
+fn linearised(x: &Mat<f64>, y: &[f64], (dof, q): (usize, usize), theta: &[f64]) -> (Mat<f64>, Vec<f64>) {
+    let j = Mat::<f64>::from_fn(x.nrows(), q + dof, |r, c| match c < q {
+        true => theta[q + r % dof] * x[(r, c)],
+        false if c - q == r % dof => torque_at(x, y, q, theta, r),
+        false => 0.0,
+    });
+    (j, residual_in_current_units(x, y, (dof, q), theta))
+}
+
+/// Total least squares of `x θ = y` (Golub and Van Loan): the smallest correction of `[x y]` in
+/// Frobenius norm that makes the system consistent, from the right singular vector of the
+/// smallest singular value. Columns are scaled to unit norm first, so that N·m, amperes and the
+/// load's torque weigh alike; the singular vectors come from the small triangular factor of a QR,
+/// not from the tall matrix. `None` when that vector has no component along `y`.
+fn total_least_squares(x: &Mat<f64>, y: &[f64]) -> Option<Vec<f64>> {
+    let (m, n) = (x.nrows(), x.ncols());
+    let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|a| a * a).sum::<f64>().sqrt().max(f64::MIN_POSITIVE);
+    let mut norms: Vec<f64> = (0..n).map(|c| norm(&mut (0..m).map(|r| x[(r, c)]))).collect();
+    norms.push(norm(&mut y.iter().copied()));
+    let a = Mat::<f64>::from_fn(m, n + 1, |r, c| if c < n { x[(r, c)] } else { y[r] } / norms[c]);
+    let r = a.qr().thin_R().to_owned();
+    let r = nalgebra::DMatrix::from_fn(n + 1, n + 1, |i, j| if j >= i { r[(i, j)] } else { 0.0 });
+    let svd = r.svd(false, true);
+    let v_t = svd.v_t?;
+    let smallest = svd.singular_values.argmin().0;
+    let v = v_t.row(smallest);
+    if v[n].abs() < 1e-12 {
+        return None;
+    }
+    Some((0..n).map(|c| -v[c] / v[n] * norms[n] / norms[c]).collect())
+}
+
+/// The fit at the total-least-squares estimate `theta` (torque units: the parameters, then the
+/// gains): the problem linearised in current units there, as [`in_current_units`] linearises it
+/// at its own optimum, for the conditioning; its σ the sandwich of that linearisation on the
+/// residual at `theta`.
+fn at_total_least_squares(
+    x: &Mat<f64>,
+    y: &[f64],
+    (dof, q): (usize, usize),
+    theta: &[f64],
+    (base, block): (&BaseParameters, usize),
+) -> Result<Fit, GainsError> {
+    let mut point: Vec<f64> = theta[..q].to_vec();
+    point.extend(theta[q..].iter().map(|k| 1.0 / k));
+    let (j, e) = linearised(x, y, (dof, q), &point);
+    let z: Vec<f64> = (0..j.nrows()).map(|r| (0..q + dof).map(|c| j[(r, c)] * point[c]).sum::<f64>() - e[r]).collect();
+    let mut fit = fit_stacked(&j, &z, dof, base, Method::Ols, block)?;
+    let gram = j.transpose() * &j;
+    let gram = nalgebra::DMatrix::from_fn(q + dof, q + dof, |a, b| gram[(a, b)]);
+    let bread = gram.try_inverse().ok_or(GainsError::NoTotalLeastSquares)?;
+    fit.covariance = sandwich_covariance(&j, &e, dof, block, &bread);
+    fit.sigma_beta = standard_deviations(&fit.covariance);
+    fit.sigma_percent = fit.sigma_beta.iter().zip(&point).map(|(s, b)| 100.0 * s / b.abs()).collect();
+    fit.beta = point;
+    Ok(fit)
 }
 
 /// How a model fitted by least squares on `data`'s torque `kⱼ iⱼ` moves with the gains: per
@@ -638,6 +751,27 @@ mod tests {
 
     fn load(body: &str) -> KnownLoad {
         KnownLoad { body: body.into(), mass: 0.3, com: None, inertia: None }
+    }
+
+    /// Errors in every column of `[x y]`, equal once each is scaled to unit norm, as TLS assumes:
+    /// TLS recovers θ where least squares attenuates it by the noise's share of each regressor's
+    /// variance (regression dilution, here 1/1.09).
+    #[test]
+    fn total_least_squares_is_not_diluted_by_noisy_regressors() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let (m, theta, noise): (usize, [f64; 2], f64) = (20_000, [2.0, -1.0], 0.3);
+        let mut normal = || -> f64 { (0..12).map(|_| rng.random_range(0.0..1.0)).sum::<f64>() - 6.0 };
+        let truth: Vec<[f64; 2]> = (0..m).map(|_| [normal(), normal()]).collect();
+        let y_noise = noise * (theta[0] * theta[0] + theta[1] * theta[1]).sqrt();
+        let y: Vec<f64> = truth.iter().map(|r| theta[0] * r[0] + theta[1] * r[1] + y_noise * normal()).collect();
+        let x = Mat::<f64>::from_fn(m, 2, |r, c| truth[r][c] + noise * normal());
+        let tls = total_least_squares(&x, &y).unwrap();
+        let ls = x.qr().solve_lstsq(Mat::<f64>::from_fn(m, 1, |r, _| y[r]));
+        for c in 0..2 {
+            assert!((tls[c] - theta[c]).abs() < 0.03 * theta[c].abs(), "TLS {tls:?}");
+            assert!((ls[(c, 0)] - theta[c]).abs() > 0.05 * theta[c].abs(), "LS was not diluted: {:?}", ls[(c, 0)]);
+        }
     }
 
     #[test]

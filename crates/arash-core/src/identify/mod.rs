@@ -108,15 +108,17 @@ pub fn identify_in_closed_loop(
 /// currents (A), each with or without the known `load`. The gains, the base parameters and the
 /// load's unknowns are fitted together; the model file is then fitted as [`identify`] fits it, on
 /// the first unloaded run's torque `k̂ᵢ iᵢ`, and records the gains. Coulomb laws the robot does not
-/// declare are chosen on that run and used for all. `datasheet` gains, each `(k, σ)`, are checked
-/// against the load's and used where the load does not fix a gain ([`gains::with_datasheet`]).
+/// declare are chosen on that run and used for all. A datasheet's gains, each `(k, σ)`, are
+/// checked against the load's and used where the load does not fix a gain
+/// ([`gains::with_datasheet`]).
 pub fn identify_with_known_load(
     declared: Declared,
     runs: &[(Log, bool)],
-    (load, datasheet): (&gains::KnownLoad, Option<&[(f64, f64)]>),
+    calibration: gains::Calibration,
     method: IdentifyMethod,
     options: &IdentifyOptions,
 ) -> Result<(ModelFile, gains::GainFit), IdentifyError> {
+    let gains::Calibration { load, datasheet, estimator } = calibration;
     let body = load.validate(declared.model)?;
     let first = runs.iter().position(|(_, loaded)| !loaded).ok_or(gains::GainsError::MissingRuns("unloaded"))?;
     if !runs.iter().any(|(_, loaded)| *loaded) {
@@ -143,7 +145,7 @@ pub fn identify_with_known_load(
     let gain_runs: Vec<gains::GainRun> =
         preprocessed.iter().zip(runs).map(|(data, (_, loaded))| gains::GainRun { data, loaded: *loaded }).collect();
     let ls = if method == IdentifyMethod::Wls { Method::Wls } else { Method::Ols };
-    let fit = gains::fit_gains(model, declared.base, &gain_runs, (load, body), ls)?;
+    let fit = gains::fit_gains(model, declared.base, &gain_runs, (load, body), (ls, estimator))?;
     let dof = model.dof();
     let (mut reasons, mut warnings) = (fit.reasons.clone(), fit.warnings.clone());
     let (used, sigma, covariance, from_datasheet) = match datasheet {
@@ -164,6 +166,7 @@ pub fn identify_with_known_load(
     file.drive_gains = Some(crate::model_file::DriveGains {
         gains: used,
         sigma,
+        estimator,
         covariance,
         beta_per_gain,
         from_datasheet,

@@ -7,7 +7,7 @@ use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::identify::closed_loop::{ClosedLoop, IvOptions, LoggedController};
 use arash_core::identify::consistent::ConsistentOptions;
-use arash_core::identify::gains::KnownLoad;
+use arash_core::identify::gains::{Calibration, GainEstimator, KnownLoad};
 use arash_core::identify::preprocess::PreprocessOptions;
 use arash_core::identify::{
     identify, identify_in_closed_loop, identify_with_known_load, validate, validation_table, Declared, IdentifyOptions,
@@ -83,6 +83,10 @@ pub struct Args {
     /// the load's and used where the load does not fix a gain.
     #[arg(long, value_delimiter = ',', requires = "load", value_parser = parse_gain)]
     datasheet_gains: Option<Vec<(f64, f64)>>,
+    /// How the gains are fitted: `current` (least squares of the residual in amperes) or `tls`
+    /// (total least squares of the stacked system, Gautier and Briot's).
+    #[arg(long, requires = "load", default_value = "current")]
+    gains_fit: GainEstimator,
 }
 
 fn parse_gain(text: &str) -> Result<(f64, f64), String> {
@@ -128,8 +132,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let carried = args.runs.read(&args.loaded, &model)?;
             let runs = [(data, false), (Log { t: &carried.t, q: &carried.q, tau: &carried.tau }, true)];
             eprintln!("fitting the drive gains with a {} kg load on {} ...", load.mass, load.body);
-            let datasheet = args.datasheet_gains.as_deref();
-            identify_with_known_load(declared, &runs, (&load, datasheet), args.method, &options).map(|(file, _)| file)
+            let calibration =
+                Calibration { load: &load, datasheet: args.datasheet_gains.as_deref(), estimator: args.gains_fit };
+            identify_with_known_load(declared, &runs, calibration, args.method, &options).map(|(file, _)| file)
         }
         (None, true) => {
             let (reference, controller) = closed_loop_of(&args, &log)?;

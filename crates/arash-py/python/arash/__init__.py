@@ -181,6 +181,7 @@ def identify(
     load: Optional[dict[str, Any]] = None,
     unloaded: Optional[Sequence[tuple[Any, Any, Any]]] = None,
     datasheet_gains: Optional[Sequence[tuple[float, float]]] = None,
+    gains_fit: Optional[str] = None,
 ) -> Identification:
     """Identify the robot's parameters from a log: t (N,), q and tau (N, dof), SI units.
 
@@ -215,7 +216,9 @@ def identify(
     drive gain is fitted with the base parameters and the load's unknowns (Gautier and Briot
     2014); the model is in physical units and ``Identification.drive_gains`` holds the gains.
     datasheet_gains: ``(k, σ)`` per joint from a datasheet, checked against the load's (a warning
-    beyond 3σ) and used where the load does not fix a gain.
+    beyond 3σ) and used where the load does not fix a gain. gains_fit: "current" (the default:
+    least squares of the residual in amperes, the currents being what is measured with noise) or
+    "tls" (total least squares of the stacked system, every column scaled to unit norm).
 
     ``Identification.settings`` says what was chosen and why; a choice the data support only
     weakly is also raised as a ``UserWarning``.
@@ -223,10 +226,10 @@ def identify(
     if loaded is not None:
         return _identify_from_currents(robot, (t, q, tau), loaded, load, unloaded, method, repair, _given(
             periods=periods, period_s=period_s, cutoff_hz=cutoff_hz, order=order, decimate=decimate,
-            friction_cutoff_hz=friction_cutoff_hz, pull=pull), datasheet_gains)
-    if load is not None or unloaded is not None or datasheet_gains is not None:
-        raise ValueError("load, unloaded and datasheet_gains calibrate from currents and need the loaded run(s): "
-                         "loaded=(t, q, i)")
+            friction_cutoff_hz=friction_cutoff_hz, pull=pull), datasheet_gains, gains_fit)
+    if load is not None or unloaded is not None or datasheet_gains is not None or gains_fit is not None:
+        raise ValueError("load, unloaded, datasheet_gains and gains_fit calibrate from currents and need the loaded "
+                         "run(s): loaded=(t, q, i)")
     if isinstance(controller, dict):
         controller = _json.dumps(controller, default=_as_list)
     report: Optional[list[str]] = None
@@ -256,6 +259,7 @@ def _identify_from_currents(
     repair: bool,
     options: dict[str, Any],
     datasheet: Optional[Sequence[tuple[float, float]]] = None,
+    gains_fit: Optional[str] = None,
 ) -> Identification:
     """``identify`` with ``loaded``: the runs with their flags, the load checked for its keys."""
     if not isinstance(load, dict) or "body" not in load or "mass" not in load:
@@ -277,7 +281,7 @@ def _identify_from_currents(
     spec = (str(load["body"]), float(load["mass"]), None if com is None else [float(x) for x in com],
             None if inertia is None else [float(x) for x in inertia])
     given = None if datasheet is None else [(float(k), float(s)) for k, s in datasheet]
-    identification = _identify_with_load(robot, arrays, spec, method, options, given)
+    identification = _identify_with_load(robot, arrays, spec, method, options, (given, gains_fit))
     for warning in identification.settings["warnings"]:
         _warnings.warn(f"arash.identify: {warning}", UserWarning, stacklevel=3)
     return identification
