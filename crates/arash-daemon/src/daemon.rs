@@ -15,7 +15,7 @@ use anyhow::Context;
 use arash_core::control::{
     controller_with_effects, Controller, ControllerKind, Faults, PlanLimits, RobustGains, Trajectory,
 };
-use arash_core::model_file::ModelFile;
+use arash_core::model_file::{DriveGains, ModelFile};
 use arash_core::record::Mode;
 use arash_core::Model;
 use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
@@ -23,6 +23,7 @@ use tokio::net::UnixListener;
 
 use crate::config::{DaemonConfig, LinkKind};
 use crate::ctl::CtlRequest;
+use crate::drive_config::TorqueConstants;
 use crate::link::MotorLink;
 use crate::live::server::LiveServer;
 use crate::live::window::display_scales;
@@ -60,6 +61,9 @@ struct Operator {
     plan_limits: PlanLimits,
     /// Control period (s): the spacing at which a trajectory is checked.
     dt: f64,
+    /// The configured drive, and the torque constants the cycle runs with (fixed at start-up).
+    drive: crate::drive_config::DriveConfig,
+    torque_constant: TorqueConstants,
 }
 
 /// Build a controller of `kind` for `model` with parameters from `model_file` (or CAD). The
@@ -69,25 +73,41 @@ struct Operator {
 pub fn build_controller(
     model: &Model,
     kind: ControllerKind,
-    model_file: Option<&std::path::Path>,
+    model_file: Option<(&std::path::Path, &ModelFile)>,
     gains: Option<&RobustGains>,
 ) -> anyhow::Result<(Box<dyn Controller>, LoggedController)> {
     let (params, effects) = match model_file {
         None => (model.cad_parameters(), vec![]),
-        Some(path) => {
-            let text = read_file(path, MAX_INPUT_FILE_BYTES).context("reading the model file")?;
-            let id = ModelFile::from_json(&text).with_context(|| format!("loading {}", path.display()))?;
+        Some((path, id)) => {
             let params = if kind == ControllerKind::Pd {
                 id.controller_parameters(model)
             } else {
                 id.consistent_controller_parameters(model)
             };
             let params = params.with_context(|| format!("{} refused for the {kind:?} controller", path.display()))?;
-            (params, id.effects)
+            (params, id.effects.clone())
         }
     };
     let controller = controller_with_effects(kind, model, &params, &effects, gains)?;
     Ok((controller, LoggedController::Standard { kind, params, effects, gains: gains.cloned() }))
+}
+
+/// Read a model file named by the configuration or an operator.
+pub fn read_model_file(path: &std::path::Path) -> anyhow::Result<ModelFile> {
+    let text = read_file(path, MAX_INPUT_FILE_BYTES).context("reading the model file")?;
+    ModelFile::from_json(&text).with_context(|| format!("loading {}", path.display()))
+}
+
+/// The torque constants the daemon runs with ([`TorqueConstants::choose`]): the start-up model's
+/// gains where it has them, else the configuration's. Printed per joint with where it came from.
+fn torque_constants(config: &DaemonConfig, model: &Model, file: Option<&ModelFile>) -> anyhow::Result<TorqueConstants> {
+    let gains = file.and_then(|f| f.drive_gains.as_ref());
+    let chosen = TorqueConstants::choose(&config.drive, gains, &model.joint_names())
+        .with_context(|| format!("control.model {:?}", config.control.model))?;
+    for ((name, k), source) in model.joint_names().iter().zip(&chosen.values).zip(&chosen.sources) {
+        eprintln!("arash-daemon: {name}: {k:.5} per ampere, {source}");
+    }
+    Ok(chosen)
 }
 
 /// Largest model or trajectory file the daemon reads: a model file embeds its URDF (15 kB for
@@ -197,9 +217,13 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     let units = config.control.gain_units.parse().map_err(anyhow::Error::msg)?;
     let gains = RobustGains::from_paper(&model, units).ok();
     let kind = config.controller()?;
+    let start_model = config.control.model.as_deref().map(|p| read_model_file(p).map(|f| (p, f))).transpose()?;
     let (controller, logged_controller) =
-        build_controller(&model, kind, config.control.model.as_deref(), gains.as_ref())?;
-    let cycle = ControlCycle::new(config.cycle_config(&model)?, controller);
+        build_controller(&model, kind, start_model.as_ref().map(|(p, f)| (*p, f)), gains.as_ref())?;
+    let torque_constant = torque_constants(&config, &model, start_model.as_ref().map(|(_, f)| f))?;
+    let mut cycle_config = config.cycle_config(&model)?;
+    cycle_config.drive.torque_constant.clone_from(&torque_constant.values);
+    let cycle = ControlCycle::new(cycle_config, controller);
 
     let (request_tx, request_rx) = rtrb::RingBuffer::new(64);
     let (garbage_tx, mut garbage_rx) = rtrb::RingBuffer::new(64);
@@ -210,6 +234,9 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     let mut metadata = std::collections::BTreeMap::new();
     metadata.insert("controller_at_start".into(), config.control.controller.clone());
     metadata.insert("rate_hz".into(), config.control.rate_hz.to_string());
+    // What turns the logged torques back into the drive's currents (`arash identify --loaded`).
+    metadata.insert("torque_constant".into(), serde_json::to_string(&torque_constant.values)?);
+    metadata.insert("torque_constant_source".into(), serde_json::to_string(&torque_constant.sources)?);
     let scales = display_scales(&model);
     let live = match config.live.enabled {
         true => Some(open_live(&config, &urdf, &scales)?),
@@ -289,6 +316,8 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
         live: live.as_ref().map(|(server, _)| server.clone()),
         next_run: Mutex::new(0),
         controller: Mutex::new(logged_controller),
+        drive: config.drive.clone(),
+        torque_constant,
     });
     let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
     let served = runtime.block_on(async {
@@ -525,13 +554,34 @@ async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::Result<serd
         CtlRequest::Controller { kind, model } => {
             let kind = crate::config::controller_kind(&kind).context("controller kind")?;
             let path = model.map(PathBuf::from);
+            let file = path.as_deref().map(|p| read_model_file(p).map(|f| (p, f))).transpose()?;
+            if let Some((p, gains)) = file.as_ref().and_then(|(p, f)| Some((p, f.drive_gains.as_ref()?))) {
+                same_torque_constants(operator, p, gains)?;
+            }
             let (controller, logged) =
-                build_controller(&operator.model, kind, path.as_deref(), operator.gains.as_ref())?;
+                build_controller(&operator.model, kind, file.as_ref().map(|(p, f)| (*p, f)), operator.gains.as_ref())?;
             applied(operator, send(operator, Request::Controller(controller))?).await?;
             *operator.controller.lock().expect("controller lock") = logged;
             Ok(status(operator))
         }
     }
+}
+
+/// A model switched to at run time must drive the currents as the running cycle does: its gains
+/// turn the same torque into the same current, or the daemon is restarted with it.
+fn same_torque_constants(operator: &Operator, path: &std::path::Path, gains: &DriveGains) -> anyhow::Result<()> {
+    let names = operator.model.joint_names();
+    let wanted =
+        TorqueConstants::choose(&operator.drive, Some(gains), &names).with_context(|| format!("{}", path.display()))?;
+    let running = &operator.torque_constant.values;
+    anyhow::ensure!(
+        wanted.values == *running,
+        "{} has drive gains {:?} per ampere, and the daemon runs with {running:?}: the torque constants are fixed at \
+         start-up; restart the daemon with it as control.model",
+        path.display(),
+        wanted.values
+    );
+    Ok(())
 }
 
 fn status(operator: &Operator) -> serde_json::Value {
@@ -551,6 +601,8 @@ fn status(operator: &Operator) -> serde_json::Value {
         "last_run_ended": s.last_run_ended.load(Ordering::Relaxed),
         "telemetry": s.have_telemetry.load(Ordering::Relaxed),
         "drive": drive_status(s.drive.load(Ordering::Relaxed)),
+        "torque_constant": operator.torque_constant.values,
+        "torque_constant_source": operator.torque_constant.sources,
         "q": q,
         "missed_cycles": load(&s.missed),
         "log_dropped": load(&s.log_dropped),

@@ -2,7 +2,8 @@
 //!
 //! - **Segments.** Idle time goes to `daemon-<n>.mcap`, rotated by size or age; each trajectory
 //!   run gets its own `run-<id>-<label>.mcap`, with time zero at the run's first cycle, so that
-//!   `arash identify` takes it as is.
+//!   `arash identify` takes it as is. Run numbers restart with the daemon, so a name already
+//!   taken in the directory gets `-2`, `-3`, …: no session overwrites another's logs.
 //! - **Crash safety.** A file is written as `<name>.mcap.part` and renamed when finished. A
 //!   `.part` file found at start-up was cut off by a crash: [`recover`] rewrites what survived
 //!   (up to its last flushed second) into `<name>.recovered.mcap`, a complete file with a
@@ -416,6 +417,7 @@ impl Logger {
     fn open(&mut self, name: &str, segment: &str, run: Option<u32>) -> anyhow::Result<()> {
         let info = run.and_then(|id| self.runs.lock().expect("registry lock").get(&id).cloned());
         let header = self.header(segment, run.zip(info.as_ref()));
+        let name = unused_name(&self.cfg.dir, name);
         let path = self.cfg.dir.join(format!("{name}.mcap"));
         let part = self.cfg.dir.join(format!("{name}.mcap.part"));
         let mut writer = LogWriter::create(&part, &header, self.ctx.rate_hz)?;
@@ -545,9 +547,32 @@ impl FineHistogram {
     }
 }
 
+/// `name`, or `name-2`, `name-3`, … if a log of that name is already in `dir`, finished or not:
+/// run numbers start again at 1 when the daemon restarts, and a new run must not overwrite an
+/// earlier session's.
+fn unused_name(dir: &std::path::Path, name: &str) -> String {
+    let taken = |n: &str| dir.join(format!("{n}.mcap")).exists() || dir.join(format!("{n}.mcap.part")).exists();
+    if !taken(name) {
+        return name.to_string();
+    }
+    (2..).map(|k| format!("{name}-{k}")).find(|n| !taken(n)).expect("an unused name")
+}
+
 #[cfg(test)]
 mod tests {
-    use super::FineHistogram;
+    use super::{unused_name, FineHistogram};
+
+    #[test]
+    fn a_log_never_takes_the_name_of_one_already_there() {
+        let dir = std::env::temp_dir().join(format!("arash-logger-names-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        assert_eq!(unused_name(&dir, "run-1-x"), "run-1-x");
+        std::fs::write(dir.join("run-1-x.mcap"), b"").unwrap();
+        assert_eq!(unused_name(&dir, "run-1-x"), "run-1-x-2");
+        std::fs::write(dir.join("run-1-x-2.mcap.part"), b"").unwrap();
+        assert_eq!(unused_name(&dir, "run-1-x"), "run-1-x-3");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn quantiles_come_from_1_us_bins_and_the_maximum_is_exact() {

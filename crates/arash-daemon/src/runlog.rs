@@ -90,19 +90,45 @@ pub struct ClosedLoopChannels {
     pub controller: Result<LoggedController, String>,
 }
 
+/// What a run's `tau` is to hold: the joint torque, or the motor currents a calibration from
+/// currents fits (`arash identify --loaded`, `arash diagnose --currents`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Effort {
+    Torque,
+    Current,
+}
+
 /// Read a run, by extension: `.mcap` is a flight log, anything else CSV. With `repair`, a CSV
 /// cell that is not a finite number reads as NaN, for [`Log::repaired`] to trim, instead of
-/// refusing the file.
-pub fn read(path: &Path, model: &Model, repair: bool) -> anyhow::Result<Log> {
+/// refusing the file. A CSV holds what `effort` asks for; a daemon's flight log holds torques,
+/// which [`Effort::Current`] turns back into currents by the torque constants it ran with.
+pub fn read(path: &Path, model: &Model, repair: bool, effort: Effort) -> anyhow::Result<Log> {
     if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("mcap")) {
-        read_flight_log(path, model)
+        read_flight_log(path, model, effort)
     } else {
         read_csv(path, model, repair)
     }
 }
 
-fn read_flight_log(path: &Path, model: &Model) -> anyhow::Result<Log> {
-    let log = arash_core::flightlog::read_log(path)?;
+/// The torque per ampere a daemon's flight log was written with: its `torque_constant`
+/// metadata, or for a log written before it was kept, the attached configuration's.
+fn logged_torque_constant(log: &arash_core::flightlog::FlightLog, path: &Path) -> anyhow::Result<Vec<f64>> {
+    if let Some(text) = log.metadata.get("torque_constant") {
+        return serde_json::from_str(text).with_context(|| format!("{}: torque_constant metadata", path.display()));
+    }
+    let config = log.attachment_text("daemon.toml").with_context(|| {
+        format!(
+            "{} was not written by arash daemon (no torque constants): it holds torques, not currents",
+            path.display()
+        )
+    })?;
+    let config = arash_daemon::config::DaemonConfig::parse(&config)
+        .with_context(|| format!("{}: daemon.toml", path.display()))?;
+    Ok(config.drive.torque_constant)
+}
+
+fn read_flight_log(path: &Path, model: &Model, effort: Effort) -> anyhow::Result<Log> {
+    let mut log = arash_core::flightlog::read_log(path)?;
     let expected: Vec<&str> = model.joints.iter().map(|j| j.name.as_str()).collect();
     if log.joint_names != expected {
         bail!("{} logs joints {:?}; the robot has {:?}", path.display(), log.joint_names, expected);
@@ -122,6 +148,11 @@ fn read_flight_log(path: &Path, model: &Model) -> anyhow::Result<Log> {
             path.display()
         )),
     };
+    if effort == Effort::Current {
+        let k = logged_torque_constant(&log, path)?;
+        anyhow::ensure!(k.len() == dof, "{}: {} torque constants for {dof} joints", path.display(), k.len());
+        log.cycles.tau_meas.iter_mut().enumerate().for_each(|(i, tau)| *tau /= k[i % dof]);
+    }
     let c = log.cycles;
     let closed_loop = ClosedLoopChannels { reference: [c.q_des, c.qd_des, c.qdd_des], controller };
     let (mut log, repaired) = regrid(
@@ -285,6 +316,49 @@ pub fn concatenate(mut logs: Vec<Log>) -> Log {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A daemon-like flight log of ARASH:ASiST whose logged torque is `tau` on every joint, with
+    /// `metadata`; its path.
+    fn flight_log(name: &str, tau: [f64; 3], metadata: &[(&str, &str)]) -> std::path::PathBuf {
+        use arash_core::flightlog::{LogHeader, LogWriter};
+        let model = arash_core::arash_asist();
+        let path = std::env::temp_dir().join(format!("arash-runlog-{name}-{}.mcap", std::process::id()));
+        let header = LogHeader {
+            urdf: arash_core::ARASH_ASIST_URDF.into(),
+            joint_names: model.joint_names(),
+            metadata: metadata.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect(),
+            attachments: vec![],
+            with_truth: false,
+            start_unix_ns: 0,
+        };
+        let mut writer = LogWriter::create(&path, &header, 1000.0).unwrap();
+        let mut record = arash_core::record::CycleRecord::new(3);
+        for cycle in 0..5 {
+            record.cycle = cycle;
+            record.t = cycle as f64 * 1e-3;
+            record.tau_meas.copy_from_slice(&tau);
+            writer.write_cycle(&record).unwrap();
+        }
+        writer.finish().unwrap();
+        path
+    }
+
+    /// Read as currents, a daemon's log gives its torques over the torque constants it ran with;
+    /// a log without them is refused by name, not read as amperes.
+    #[test]
+    fn a_daemon_log_read_as_currents_divides_by_its_torque_constants() {
+        let model = arash_core::arash_asist();
+        let path = flight_log("k", [1.0, 2.0, 3.0], &[("torque_constant", "[0.5, 4.0, 2.0]")]);
+        let currents = read(&path, &model, false, Effort::Current).unwrap();
+        assert_eq!(&currents.tau[..3], &[2.0, 0.5, 1.5]);
+        assert_eq!(&read(&path, &model, false, Effort::Torque).unwrap().tau[..3], &[1.0, 2.0, 3.0]);
+        let bare = flight_log("bare", [1.0, 2.0, 3.0], &[]);
+        let error = read(&bare, &model, false, Effort::Current).map(|_| ()).map_err(|e| format!("{e:#}")).unwrap_err();
+        assert!(error.contains("not written by arash daemon"), "{error}");
+        for p in [path, bare] {
+            std::fs::remove_file(p).unwrap();
+        }
+    }
 
     /// A repeated time is dropped from every channel alike: the reference stays aligned with the
     /// measurement, and the controller is kept.

@@ -620,3 +620,94 @@ fn a_logging_failure_is_reported_and_the_control_loop_goes_on() {
     // The daemon still stops cleanly, and says the logger failed.
     assert!(!terminate(&mut d).success());
 }
+
+/// Play 7 s of the paper's ω = 0.9 trajectory under PD with `model`'s gravity, on a daemon
+/// configured with `torque_constant`; returns its status and the run's log.
+fn run_with(dir: &Scratch, pty: &str, torque_constant: &[f64], model: &Path) -> (serde_json::Value, PathBuf) {
+    let config = format!(
+        "[control]\ncontroller = \"pd\"\nmodel = {:?}\n[drive]\ntorque_constant = {torque_constant:?}\n",
+        model.to_str().unwrap()
+    );
+    let mut d = daemon(dir, pty, &config);
+    wait_until(dir, Duration::from_secs(5), "telemetry", |s| s["telemetry"] == true);
+    ctl(dir, &["enable"]).unwrap();
+    let trajectory = concat!(env!("CARGO_MANIFEST_DIR"), "/../../trajectories/paper_validation_0.9.json");
+    let log = ctl(dir, &["run", trajectory, "--duration", "7", "--wait"]).unwrap_or_else(|e| panic!("{e}"));
+    let s = status(dir);
+    assert!(terminate(&mut d).success(), "{}", stderr(dir));
+    std::fs::remove_file(dir.join("s.sock")).ok();
+    (s, PathBuf::from(log.trim()))
+}
+
+#[test]
+fn the_daemon_commands_currents_through_a_models_identified_drive_gains() {
+    let _serial = serial();
+    let dir = Scratch::new("e2e", "gains");
+    // A model file, and the same with drive gains as `arash identify --loaded --load` records
+    // them: the mock drive's true torque constants, and ones 10 % and 3× off.
+    let robot = concat!(env!("CARGO_MANIFEST_DIR"), "/../../robots/arash_asist.urdf");
+    let (log, plain) = (dir.join("run.mcap"), dir.join("plain.json"));
+    let trajectory = concat!(env!("CARGO_MANIFEST_DIR"), "/../../trajectories/paper_validation_0.9.json");
+    let scenario = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenarios/nominal.toml");
+    let args = ["simulate", "--scenario", scenario, "--trajectory", trajectory, "--controller", "idc-cad"];
+    let args = [&args[..], &["--duration", "7", "-o"]].concat();
+    let out = Command::new(ARASH).args(args).arg(&log).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out =
+        Command::new(ARASH).arg("identify").arg(&log).args(["--robot", robot, "-o"]).arg(&plain).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let truth = arash_daemon::drive_config::DriveConfig::default().torque_constant;
+    let with_gains = |name: &str, scale: f64| {
+        let mut m: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&plain).unwrap()).unwrap();
+        m["drive_gains"] = serde_json::json!({
+            "gains": truth.iter().map(|k| k * scale).collect::<Vec<_>>(), "sigma": [1e-3, 1e-3, 1e-3],
+            "load_body": "insertion_carriage", "load_mass": 0.3, "load_estimate": [], "condition_number": 10.0,
+            "load_share": [0.1, 0.1, 0.1], "load_over_unexplained": [50.0, 50.0, 50.0], "fixed": [true, true, true],
+        });
+        dir.file(name, &m.to_string())
+    };
+    let (right, off, far) = (with_gains("right.json", 1.0), with_gains("off.json", 1.1), with_gains("far.json", 3.0));
+    // A datasheet 20 % low, as the configuration's torque constants.
+    let datasheet: Vec<f64> = truth.iter().map(|k| 0.8 * k).collect();
+    let (_mock, pty) = mock(&dir, None);
+
+    let (s, by_datasheet) = run_with(&dir, &pty, &datasheet, &plain);
+    assert_eq!(s["torque_constant"], serde_json::json!(datasheet), "{s}");
+    assert_eq!(s["torque_constant_source"][1], "drive.torque_constant", "{s}");
+    let (s, by_model) = run_with(&dir, &pty, &datasheet, &right);
+    assert_eq!(s["torque_constant"], serde_json::json!(truth), "{s}");
+    assert!(s["torque_constant_source"][1].as_str().unwrap().contains("identified with a 0.3 kg load"), "{s}");
+    // The log reads the drive's current times the constant. Through the model's true gains that
+    // is the torque on the joints; through a datasheet 20 % low, 80 % of it, and every parameter
+    // identified from such a log comes out 80 % of what the other's gives.
+    let fitted = |log: &Path, name: &str| -> serde_json::Value {
+        let out = dir.join(name);
+        let done = Command::new(ARASH).arg("identify").arg(log).args(["--robot", robot, "-o"]).arg(&out).output();
+        assert!(done.as_ref().unwrap().status.success(), "{}", String::from_utf8_lossy(&done.unwrap().stderr));
+        serde_json::from_str(&std::fs::read_to_string(out).unwrap()).unwrap()
+    };
+    let (a, b) = (fitted(&by_datasheet, "a.json"), fitted(&by_model, "b.json"));
+    let values = |m: &serde_json::Value, key: &str| serde_json::from_value::<Vec<f64>>(m[key].clone()).unwrap();
+    let (beta_a, beta_b, sigma_a) = (values(&a, "beta"), values(&b, "beta"), values(&a, "sigma_percent"));
+    let sure: Vec<usize> = (0..beta_a.len()).filter(|&i| sigma_a[i] < 3.0).collect();
+    assert!(sure.len() >= 4, "{sigma_a:?}");
+    for i in sure {
+        eprintln!("β{}: {:.4e} by the datasheet, {:.4e} by the model's gains", i + 1, beta_a[i], beta_b[i]);
+        assert!((beta_a[i] / beta_b[i] - 0.8).abs() < 0.04, "β{}: {} against {}", i + 1, beta_a[i], beta_b[i]);
+    }
+    let flight = read_log(&by_model).unwrap();
+    assert_eq!(serde_json::from_str::<Vec<f64>>(&flight.metadata["torque_constant"]).unwrap(), truth);
+
+    // At run time a model whose gains differ is refused; one without gains is taken.
+    let mut d = daemon(&dir, &pty, &format!("[control]\ncontroller = \"pd\"\nmodel = {:?}\n", right.to_str().unwrap()));
+    let err = ctl(&dir, &["controller", "pd", "--model", off.to_str().unwrap()]).unwrap_err();
+    assert!(err.contains("fixed at start-up") && err.contains("restart the daemon"), "{err}");
+    ctl(&dir, &["controller", "pd", "--model", plain.to_str().unwrap()]).unwrap();
+    assert!(terminate(&mut d).success());
+    std::fs::remove_file(dir.join("s.sock")).ok();
+    // A gain 3× the configured one is a wrong scale, not a calibration: the daemon does not start.
+    let config = format!("[control]\ncontroller = \"pd\"\nmodel = {:?}\n", far.to_str().unwrap());
+    let out = daemon_command(&dir, &pty, &config).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("more than 2×") && err.contains("yaw"), "{err}");
+}

@@ -91,7 +91,10 @@ pub struct Args {
     output: PathBuf,
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub fn run(mut args: Args) -> anyhow::Result<()> {
+    if args.currents {
+        args.runs.effort = crate::runlog::Effort::Current;
+    }
     let (model, urdf) = args.runs.robot()?;
     anyhow::ensure!(
         args.model.is_some() || !(args.refit || args.hold_friction),

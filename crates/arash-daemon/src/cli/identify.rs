@@ -106,7 +106,10 @@ fn read_load(path: &std::path::Path) -> anyhow::Result<KnownLoad> {
     parsed.with_context(|| format!("the load {}", path.display()))
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub fn run(mut args: Args) -> anyhow::Result<()> {
+    if args.load.is_some() {
+        args.runs.effort = crate::runlog::Effort::Current;
+    }
     let (model, urdf) = args.runs.robot()?;
     let log = args.runs.read_training(&model)?;
     let options = IdentifyOptions {

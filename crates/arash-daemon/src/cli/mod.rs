@@ -49,6 +49,10 @@ pub struct Runs {
     /// and recorded among the model file's reasons. Off, such a log is refused.
     #[arg(long)]
     pub repair: bool,
+    /// What the logs are read as: torques, or currents for a calibration from them (set by the
+    /// command: `identify --load`, `diagnose --currents`).
+    #[arg(skip = crate::runlog::Effort::Torque)]
+    pub effort: crate::runlog::Effort,
 }
 
 impl Runs {
@@ -100,7 +104,7 @@ impl Runs {
         let transmission = self.transmission(model.dof())?;
         let mut logs = Vec::with_capacity(paths.len());
         for path in paths {
-            let mut log = crate::runlog::read(path, model, self.repair)?;
+            let mut log = crate::runlog::read(path, model, self.repair, self.effort)?;
             if self.repair {
                 let (repaired, report) = log.repaired().with_context(|| format!("repairing {}", path.display()))?;
                 for line in &report {

@@ -248,10 +248,10 @@ fn experiment(
     }
 
     println!("\n[4/8] calibration: {} periods averaged, Butterworth order 5 forward and backward", plan.periods);
-    let training_log = runlog::read(&training, model, false)?;
+    let training_log = runlog::read(&training, model, false, runlog::Effort::Torque)?;
     let validation: Vec<(f64, runlog::Log)> = validation
         .into_iter()
-        .map(|(omega, path)| Ok((omega, runlog::read(&path, model, false)?)))
+        .map(|(omega, path)| Ok((omega, runlog::read(&path, model, false, runlog::Effort::Torque)?)))
         .collect::<anyhow::Result<_>>()?;
     let mut calibration = calibrate(model, urdf, base, plan, (&training, &training_log), &validation)?;
     let truth_file = match &truth {
