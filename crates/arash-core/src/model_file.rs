@@ -225,6 +225,42 @@ pub struct ModelFile {
     pub drive_gains: Option<DriveGains>,
 }
 
+/// How the stacked problem is solved. Both treat the currents as measured with noise, which plain
+/// least squares in torque units does not: it shrinks a gain toward zero where the model leaves
+/// torque unexplained (`identify::gains`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum GainEstimator {
+    /// Least squares of each row's residual in amperes, by Gauss–Newton (the default).
+    #[default]
+    #[serde(rename = "current")]
+    CurrentUnits,
+    /// Total least squares of the stacked system, every column scaled to unit norm (Gautier and
+    /// Briot's): errors in every column alike, the currents' among them.
+    #[serde(rename = "tls")]
+    TotalLeastSquares,
+}
+
+impl std::str::FromStr for GainEstimator {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "current" => Ok(Self::CurrentUnits),
+            "tls" => Ok(Self::TotalLeastSquares),
+            other => Err(format!("gains fit `{other}`: use `current` (least squares in amperes) or `tls`")),
+        }
+    }
+}
+
+impl GainEstimator {
+    /// Its name on the command line and in Python.
+    pub fn id(self) -> &'static str {
+        match self {
+            Self::CurrentUnits => "current",
+            Self::TotalLeastSquares => "tls",
+        }
+    }
+}
+
 /// Drive gains identified with a known load (`identify::gains`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DriveGains {
@@ -234,7 +270,7 @@ pub struct DriveGains {
     pub sigma: Vec<f64>,
     /// How the stacked problem was solved.
     #[serde(default)]
-    pub estimator: crate::identify::gains::GainEstimator,
+    pub estimator: GainEstimator,
     /// Their covariance, row-major (joints × joints; `sigma` is its diagonal's root). Files
     /// written before it was kept read as empty: the gains are then taken as independent.
     #[serde(default)]

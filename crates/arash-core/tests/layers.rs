@@ -68,6 +68,7 @@ const FOLDERS: &[(&str, &[&str])] = &[
             "band_choice",
             "candidates",
             "context",
+            "calibration",
             "delay",
             "outcome",
             "search",

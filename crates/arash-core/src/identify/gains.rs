@@ -28,6 +28,8 @@ use crate::params::{body as body_params, PER_BODY};
 use faer::prelude::*;
 use faer::Mat;
 
+pub use crate::model_file::GainEstimator;
+
 /// A load of known mass, and where known its centre of mass and inertia, fixed to one body. As a
 /// file (TOML or JSON): `body = "link_6"`, `mass = 2.805`, and optionally `com = [x, y, z]` and
 /// `inertia = [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]`.
@@ -141,42 +143,6 @@ impl KnownLoad {
 
 /// The names of a body's ten parameters, as the load's are reported.
 const LOAD_NAMES: [&str; PER_BODY] = ["m", "mcx", "mcy", "mcz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"];
-
-/// How the stacked problem is solved. Both treat the currents as measured with noise, which plain
-/// least squares in torque units does not: it shrinks a gain toward zero where the model leaves
-/// torque unexplained ([`in_current_units`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum GainEstimator {
-    /// Least squares of each row's residual in amperes, by Gauss–Newton (the default).
-    #[default]
-    #[serde(rename = "current")]
-    CurrentUnits,
-    /// Total least squares of the stacked system, every column scaled to unit norm (Gautier and
-    /// Briot's): errors in every column alike, the currents' among them.
-    #[serde(rename = "tls")]
-    TotalLeastSquares,
-}
-
-impl std::str::FromStr for GainEstimator {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "current" => Ok(Self::CurrentUnits),
-            "tls" => Ok(Self::TotalLeastSquares),
-            other => Err(format!("gains fit `{other}`: use `current` (least squares in amperes) or `tls`")),
-        }
-    }
-}
-
-impl GainEstimator {
-    /// Its name on the command line and in Python.
-    pub fn id(self) -> &'static str {
-        match self {
-            Self::CurrentUnits => "current",
-            Self::TotalLeastSquares => "tls",
-        }
-    }
-}
 
 /// What a calibration from currents is given besides the runs: the known load, gains from a
 /// datasheet if any (each `(k, σ)`, [`with_datasheet`]), and how to solve.
