@@ -5,7 +5,7 @@
 //! joint radian) and, where one joint's motion also turns another joint's motor (a coupled wrist),
 //! that coupling off the diagonal; q₀ are the joint offsets. Power balance, τᵀq̇ = τ_mᵀθ̇, gives
 //! the joint torques τ = Rᵀ τ_m. The Stäubli TX40 is the example (docs/real-data.md): N =
-//! (32, 32, 45, −48, 45, 32), and joint 5's motion turns motor 6 by N₆ = 32, so R[5][4] = 32.
+//! (32, 32, 45, −48, 45, 32), and joint 5's motion turns motor 6 by N₆ = 32, so R\[5\]\[4\] = 32.
 //!
 //! Not on a real-time path: a log is mapped once, before preprocessing.
 

@@ -2,6 +2,10 @@
 //! `cli/`, the reports and figures they write in `report/`; this file only parses arguments and
 //! reports errors.
 
+// The argument docs are clap's help text, written for a terminal: `tau.<joint>` and `<kg>` there
+// are placeholders, not HTML.
+#![allow(rustdoc::invalid_html_tags)]
+
 mod cli;
 mod report;
 mod runlog;

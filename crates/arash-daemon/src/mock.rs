@@ -332,7 +332,7 @@ pub fn wait_readable(fd: std::os::fd::RawFd, timeout_ms: i32) {
     unsafe { libc::poll(&mut pfd, 1, timeout_ms) };
 }
 
-/// The mock motor in the same process, as a [`MotorLink`]: each command is answered at once,
+/// The mock motor in the same process, as a [`crate::link::MotorLink`]: each command is answered at once,
 /// through the fault plan's silences (byte-level faults need the serial path).
 pub struct InProcessLink {
     pub motor: MockMotor,

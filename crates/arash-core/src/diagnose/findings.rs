@@ -123,7 +123,7 @@ pub enum RejectionReason {
     /// Significant, but fitted with the accepted effects it gives `label` (an accepted effect or
     /// itself) the sign that effect cannot have (`coefficient`).
     FlipsSign { p_value: f64, label: String, coefficient: f64 },
-    /// A payload whose mass is within [`super::options::PAYLOAD_MASS_SIGMAS`] σ of zero, or
+    /// A payload whose mass is within `PAYLOAD_MASS_SIGMAS` σ of zero, or
     /// whose centre of mass is farther from its body's frame than the body extends
     /// ([`crate::model::Model::body_extent_m`]): not a mass on that body. `distance_m` is set for
     /// the second.
@@ -318,7 +318,7 @@ pub struct Series {
     pub contributions: Vec<Vec<f64>>,
 }
 
-/// What [`diagnose`] found.
+/// What [`super::diagnose`] found.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Diagnosis {
     /// `"arash-diagnosis/1"`.

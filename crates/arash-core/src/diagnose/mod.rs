@@ -17,7 +17,7 @@
 //! 6. the best is added, the model refitted, and the search repeated until nothing passes.
 //!
 //! On torque computed from currents with calibrated drive gains, each coefficient's σ also counts
-//! the gains' own ([`calibration`]).
+//! the gains' own (`diagnose/calibration.rs`).
 
 mod band;
 mod band_choice;

@@ -37,7 +37,7 @@ pub struct DiagnoseOptions {
     /// Preprocessing, in the settings identification takes: `cutoff_hz` (`None`: the band in
     /// which the declared model predicts held-out torque best, `diagnose/band_choice.rs`; set, it
     /// must lie below half the sample rate), `friction_cutoff_hz` (`None`: the cut-off, slower
-    /// where the encoder's steps would exceed [`MAX_VELOCITY_NOISE`] of the speed) and `order`.
+    /// where the encoder's steps would exceed `MAX_VELOCITY_NOISE` of the speed) and `order`.
     /// The diagnosis reads residuals in time, so it never averages periods, and it thins with
     /// `decimate` below.
     pub preprocess: PreprocessOptions,

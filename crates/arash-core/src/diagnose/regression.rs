@@ -269,7 +269,7 @@ pub enum Untested {
 /// repeats with the trajectory), so the covariance is the batch sandwich
 /// `H⁻¹ (Σ_b g_b g_bᵀ) H⁻¹`, `g_b = C̃_bᵀ e_b`, and the statistic is scaled as Hotelling's T² to
 /// `F(k, B − k)`, which stays honest with a few dozen batches. The batches are as long as the
-/// scores' own correlation asks ([`Batching::FromScores`], by blocking: [`plateau`]): a fixed
+/// scores' own correlation asks ([`Batching::FromScores`], by blocking: `plateau`): a fixed
 /// length of seconds left a 9 s log four batches and no power, while a log whose residual is
 /// correlated over seconds gets batches of seconds.
 pub fn test_group(

@@ -242,7 +242,7 @@ fn check_reference(closed_loop: &ClosedLoop, samples: usize, dof: usize) -> Resu
 /// do, since `M`, `C` and `g` are linear in π); the controller sees the exact state (the
 /// instruments carry no noise), its torque is held over each sample (zero-order hold), and the
 /// plant is integrated by RK4 in steps of at most a millisecond, or, where a joint's dry friction
-/// follows sign(q̇), by [`DryFriction`]'s set-valued steps of at most a tenth of one.
+/// follows sign(q̇), by `DryFriction`'s set-valued steps of at most a tenth of one.
 pub fn simulate_loop(
     model: &Model,
     params: &[f64],

@@ -14,7 +14,7 @@
 //!   filtering takes the noise out of the target along with the motion. The unfiltered torque is
 //!   one target for all: a cut-off too low loses motion the model needs, one too high lets the
 //!   encoders' noise into q̈, and both show as a larger error. A periodic log's halves predict
-//!   each other's torque ([`Folds`]), so that a closed loop's noise cannot flatter the score.
+//!   each other's torque (`Folds`), so that a closed loop's noise cannot flatter the score.
 //!
 //! The candidates run from the lowest cut-off the log allows to [`SEARCH_ABOVE_SPECTRAL`] times
 //! the one the motion's spectrum suggests ([`super::decide`]), within a quarter of the sample rate.

@@ -33,7 +33,7 @@ use nalgebra::{DMatrix, DVector};
 use std::ops::Range;
 
 /// Contiguous stretches of the log, at most, each predicted by the fit on the others (fewer where
-/// the filter's memory asks for longer ones: [`fold_count`]). The paired fold-by-fold differences
+/// the filter's memory asks for longer ones: `fold_count`). The paired fold-by-fold differences
 /// give the standard error [`LAW_STANDARD_ERRORS`] is counted in. (Two standard errors, as the
 /// cut-offs' rule asks, kept `sign(q̇)` on every joint of the TX40, whose diagnosis then found
 /// Stribeck terms of the wrong sign on four joints, the symptom of issue 44.)
@@ -207,7 +207,7 @@ pub fn settled(previous: &CoulombLaws, next: &CoulombLaws) -> bool {
 const MOST_FITTED: usize = 10_000;
 
 /// Identification's laws: [`choose_laws`] on the preprocessed log's settled samples (at most
-/// [`MOST_FITTED`] of them), each joint's rows weighted by one over its filtered torque's RMS so
+/// `MOST_FITTED` of them), each joint's rows weighted by one over its filtered torque's RMS so
 /// that N·m and N do not mix. The non-Coulomb columns are taken unfiltered here (they are smooth;
 /// the fit itself filters them) and the Coulomb candidates filtered like the torque, as the fit
 /// builds them. `None` when the declared model has no Coulomb column.
@@ -421,7 +421,7 @@ const GUARDS_PER_FOLD: usize = 4;
 
 /// Fewer folds than this and the data do not choose a law: two paired differences are no spread
 /// to call a standard error. Few folds leave each fit extrapolating over a large share of the
-/// log, and the spread of a few differences is itself uncertain, which [`standard_errors`] answers
+/// log, and the spread of a few differences is itself uncertain, which `standard_errors` answers
 /// with Student's t: with 3 folds and one plain standard error, a 6 s period (the generator's KUKA,
 /// sign law, filtered at 1.7 Hz) chose laws at 0.75 and 0.81 × the RMS speed and fitted at 93 %
 /// mean FP% against 99.5 with sign(q̇); with the t margin it keeps sign(q̇). Five folds, the usual

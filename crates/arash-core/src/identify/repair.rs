@@ -202,7 +202,7 @@ fn stamps_off_line(t: &[f64]) -> f64 {
 
 /// `channels` (row-major, `widths[c]` values per sample of the increasing `t`) at the times of
 /// `grid`, by linear interpolation between the logged samples around each point; a point on a
-/// logged time (within [`ON_A_SAMPLE`] of the grid's step) takes that sample exactly, and points
+/// logged time (within `ON_A_SAMPLE` of the grid's step) takes that sample exactly, and points
 /// beyond either end take the end sample. Also returns how many points were blended.
 pub fn resample(t: &[f64], channels: &[Vec<f64>], widths: &[usize], grid: &[f64]) -> (Vec<Vec<f64>>, usize) {
     let h = match grid {

@@ -1,6 +1,6 @@
 //! The real-time side of the daemon.
 //!
-//! - [`reference`]: hold / approach / run a trajectory;
+//! - [`mod@reference`]: hold / approach / run a trajectory;
 //! - [`cycle`]: one control cycle and the daemon's safety rules;
 //! - [`clock`]: absolute deadlines, overrun skipping, SCHED_FIFO and mlockall;
 //! - [`runner`]: the control thread and its queues.
