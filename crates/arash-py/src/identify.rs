@@ -380,7 +380,7 @@ type CurrentRun<'py> = (PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f6
 /// `(t, q, i, loaded)`, `load` the known load's body, mass and, where known, centre of mass and
 /// inertia about it; `gains` the datasheet's `(k, σ)` per joint and the gains fit, each or None.
 #[pyfunction]
-#[pyo3(signature = (robot, runs, load, method, options, gains=(None, None)))]
+#[pyo3(signature = (robot, runs, load, method, options, gains))]
 fn _identify_with_load<'py>(
     py: Python<'py>,
     robot: &Robot,

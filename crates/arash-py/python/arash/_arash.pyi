@@ -197,7 +197,7 @@ def _identify_with_load(
     load: tuple[str, float, Optional[list[float]], Optional[list[float]]],
     method: Optional[str],
     options: dict[str, Any],
-    gains: tuple[Optional[list[tuple[float, float]]], Optional[str]] = (None, None),
+    gains: tuple[Optional[list[tuple[float, float]]], Optional[str]],
 ) -> Identification: ...
 
 def _repair_log(
