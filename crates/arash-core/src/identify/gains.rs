@@ -429,8 +429,14 @@ fn in_current_units(x: &Mat<f64>, y: &[f64], (dof, q): (usize, usize), start: &[
             break;
         }
     }
-    let z = (0..j.nrows()).map(|r| (0..q + dof).map(|c| j[(r, c)] * theta[c]).sum::<f64>() - e[r]).collect();
+    let z = linear_target(&j, &theta, &e);
     (j, z)
+}
+
+/// `J θ − e`: the target whose least squares on `J` is `θ` at a stationary point, with the
+/// residual `e`, so that [`fit_stacked`] gives the linearised problem's σ and conditioning.
+fn linear_target(j: &Mat<f64>, theta: &[f64], e: &[f64]) -> Vec<f64> {
+    (0..j.nrows()).map(|r| (0..theta.len()).map(|c| j[(r, c)] * theta[c]).sum::<f64>() - e[r]).collect()
 }
 
 /// Each row's residual in current units at `theta` (the torque's `q` parameters, then `cⱼ =
@@ -491,7 +497,7 @@ fn at_total_least_squares(
     let mut point: Vec<f64> = theta[..q].to_vec();
     point.extend(theta[q..].iter().map(|k| 1.0 / k));
     let (j, e) = linearised(x, y, (dof, q), &point);
-    let z: Vec<f64> = (0..j.nrows()).map(|r| (0..q + dof).map(|c| j[(r, c)] * point[c]).sum::<f64>() - e[r]).collect();
+    let z = linear_target(&j, &point, &e);
     let mut fit = fit_stacked(&j, &z, dof, base, Method::Ols, block)?;
     let gram = j.transpose() * &j;
     let gram = nalgebra::DMatrix::from_fn(q + dof, q + dof, |a, b| gram[(a, b)]);
@@ -519,7 +525,11 @@ pub fn beta_per_gain(
     let dof = model.dof();
     let (w, current) = stack(model, base, data);
     let torque: Vec<f64> = current.iter().enumerate().map(|(r, i)| i * gains[r % dof]).collect();
-    let weights = fit_stacked(&w, &torque, dof, base, method, 1)?.joint_weights;
+    // Least squares weighs every joint alike; only WLS needs a fit for its weights.
+    let weights = match method {
+        Method::Ols => vec![1.0; dof],
+        Method::Wls => fit_stacked(&w, &torque, dof, base, method, 1)?.joint_weights,
+    };
     let weighted = Mat::<f64>::from_fn(w.nrows(), w.ncols(), |r, c| w[(r, c)] * weights[r % dof]);
     let rhs = Mat::<f64>::from_fn(w.nrows(), dof, |r, j| if r % dof == j { torque[r] * weights[j] } else { 0.0 });
     let solved = weighted.qr().solve_lstsq(&rhs);
