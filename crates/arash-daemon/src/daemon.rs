@@ -197,6 +197,7 @@ fn limit_send_buffer(listener: &std::net::TcpListener) -> anyhow::Result<()> {
 pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     let DaemonOptions { config, config_text, model, urdf } = options;
     config.validate(&model).context("invalid configuration")?;
+    crate::rt::memory::one_malloc_arena();
     let dof = model.dof();
     // First of all, before anything slow: a drive left powered by a crashed daemon keeps applying
     // its last current until told otherwise. The control cycle goes on sending DISABLE until an
@@ -256,34 +257,40 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
         logger = logger.with_live(server.clone());
     }
     let logger_shared = shared.clone();
-    let logger_thread = std::thread::Builder::new().name("arash-logger".into()).spawn(move || {
-        let result = logger.run(log_rx);
-        if let Err(e) = &result {
-            // The control loop goes on (stopping it could drop the robot); the operator sees this
-            // here, in `ctl status`, and in the growing log_dropped count.
-            eprintln!("arash-daemon: ERROR: logging stopped: {e:#}");
-            logger_shared.logging_failed.store(true, Ordering::Release);
-        }
-        result
-    })?;
+    let logger_thread = std::thread::Builder::new()
+        .name("arash-logger".into())
+        .stack_size(crate::rt::memory::LOGGER_STACK_BYTES)
+        .spawn(move || {
+            let result = logger.run(log_rx);
+            if let Err(e) = &result {
+                // The control loop goes on (stopping it could drop the robot); the operator sees this
+                // here, in `ctl status`, and in the growing log_dropped count.
+                eprintln!("arash-daemon: ERROR: logging stopped: {e:#}");
+                logger_shared.logging_failed.store(true, Ordering::Release);
+            }
+            result
+        })?;
 
     let (rt_tx, rt_rx) = std::sync::mpsc::channel();
     let rt_shared = shared.clone();
     let (priority, policy) = (config.rt.priority, config.rt.policy);
     let period = Duration::from_secs_f64(1.0 / config.control.rate_hz);
-    let control_thread = std::thread::Builder::new().name("arash-control".into()).spawn(move || {
-        match setup_realtime(priority, policy) {
-            Ok(status) => {
-                let _ = rt_tx.send(Ok(status));
+    let control_thread = std::thread::Builder::new()
+        .name("arash-control".into())
+        .stack_size(crate::rt::memory::CONTROL_STACK_BYTES)
+        .spawn(move || {
+            match setup_realtime(priority, policy) {
+                Ok(status) => {
+                    let _ = rt_tx.send(Ok(status));
+                }
+                Err(e) => {
+                    let _ = rt_tx.send(Err(e));
+                    return;
+                }
             }
-            Err(e) => {
-                let _ = rt_tx.send(Err(e));
-                return;
-            }
-        }
-        let queues = Queues { requests: request_rx, garbage: garbage_tx, log: log_tx };
-        runner::run(cycle, link.as_mut(), queues, &rt_shared, period);
-    })?;
+            let queues = Queues { requests: request_rx, garbage: garbage_tx, log: log_tx };
+            runner::run(cycle, link.as_mut(), queues, &rt_shared, period);
+        })?;
     let rt_status = rt_rx.recv().context("the control thread died during set-up")?;
     let rt_status = match rt_status {
         Ok(s) => s,
@@ -607,6 +614,7 @@ fn status(operator: &Operator) -> serde_json::Value {
         "missed_cycles": load(&s.missed),
         "log_dropped": load(&s.log_dropped),
         "logging": !s.logging_failed.load(Ordering::Acquire),
+        "memory": crate::rt::memory::MemoryUse::of_self(),
         "live": operator.live.as_ref().map(|l| l.status()),
         "link": {
             "frames_received": load(&s.frames_received),

@@ -12,7 +12,7 @@ use std::path::Path;
 
 use mcap::read::{LinearReader, Options, RawMessageStream};
 use mcap::records::{MessageHeader, Record};
-use mcap::{Attachment, Compression, WriteOptions};
+use mcap::Attachment;
 
 use super::LogError;
 
@@ -31,10 +31,7 @@ pub fn rewrite_complete(from: &Path, to: &Path) -> Result<usize, LogError> {
     let part = std::path::PathBuf::from(part);
     let mcap_error = |source| LogError::Mcap { path: part.display().to_string(), source };
     let file = File::create(&part).map_err(io(&part))?;
-    let mut writer = WriteOptions::new()
-        .compression(Some(Compression::Zstd))
-        .profile("")
-        .library(format!("arash {} (recovered)", env!("CARGO_PKG_VERSION")))
+    let mut writer = super::writer::write_options(format!("arash {} (recovered)", env!("CARGO_PKG_VERSION")))
         .create(BufWriter::new(file))
         .map_err(mcap_error)?;
 

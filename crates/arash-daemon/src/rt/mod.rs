@@ -3,9 +3,11 @@
 //! - [`mod@reference`]: hold / approach / run a trajectory;
 //! - [`cycle`]: one control cycle and the daemon's safety rules;
 //! - [`clock`]: absolute deadlines, overrun skipping, SCHED_FIFO and mlockall;
-//! - [`runner`]: the control thread and its queues.
+//! - [`runner`]: the control thread and its queues;
+//! - [`memory`]: what the locked process holds, and the stack and arena limits that keep it small.
 
 pub mod clock;
 pub mod cycle;
+pub mod memory;
 pub mod reference;
 pub mod runner;
