@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 runs=${1:-5}
-cargo build --release -q -p arash-daemon
+cargo build --release -q -p arash-cli
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
 target/release/arash simulate --scenario scenarios/cogging.toml --trajectory trajectories/excitation_L5_T15.json \

@@ -68,7 +68,7 @@ def main():
 
     arash_bin = ROOT / "target" / "release" / "arash"
     if not arash_bin.exists():
-        subprocess.run(["cargo", "build", "--release", "-p", "arash-daemon"], cwd=ROOT, check=True)
+        subprocess.run(["cargo", "build", "--release", "-p", "arash-cli"], cwd=ROOT, check=True)
     for method in ("ols", "consistent"):
         print(f"\n== arash identify --method {method}", flush=True)
         subprocess.run(

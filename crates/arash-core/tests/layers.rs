@@ -1,8 +1,9 @@
 //! Modules depend only downward (docs/architecture.md): each layer below lists the modules of a
 //! crate, or the files of a folder module, lowest first, and no file may name a module listed
-//! after its own. Read from the source: `crate::<module>` (and `arash_daemon::<module>` in the
-//! binary), and `super::<sibling>` inside a folder. Comments and `#[cfg(test)]` sections are left
-//! out: a test may use anything.
+//! after its own. Read from the source: `crate::<module>`, and `super::<sibling>` inside a
+//! folder. Comments and `#[cfg(test)]` sections are left out: a test may use anything. Between
+//! crates Cargo enforces the order (arash-core ← arash-daemon ← arash-cli, arash-core ← arash-py),
+//! and a test here checks that the rig's binary links no plotting or reports.
 //!
 //! `cargo test -p arash-core --test layers` runs it.
 
@@ -80,9 +81,19 @@ const FOLDERS: &[(&str, &[&str])] = &[
     ("sim", &["scenario", "truth", "plant", "drive", "rig", "run"]),
 ];
 
-/// arash-daemon: the rig library, then the binary's own modules (`main.rs` declares them).
-const DAEMON: &[&str] =
-    &["link", "drive_config", "ctl", "rt", "live", "logger", "config", "mock", "daemon", "runlog", "report", "cli"];
+/// arash-daemon: the rig library, leaf first (its binary, `main.rs`, only calls `daemon`).
+const DAEMON: &[&str] = &["exit", "link", "drive_config", "ctl", "rt", "live", "logger", "config", "mock", "daemon"];
+
+/// The files of arash-daemon's folder modules, leaf first.
+const DAEMON_FOLDERS: &[(&str, &[&str])] = &[
+    ("link", &["frame", "serial", "can"]),
+    ("rt", &["clock", "memory", "reference", "cycle", "runner"]),
+    ("live", &["window", "server"]),
+    ("daemon", &["startup", "requests", "server"]),
+];
+
+/// arash-cli: the `arash` binary's modules (`main.rs` declares them), leaf first.
+const CLI: &[&str] = &["runlog", "report", "cli"];
 
 fn src(krate: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(krate).join("src")
@@ -159,8 +170,9 @@ fn arash_core_modules_depend_only_downward() {
 
 #[test]
 fn files_inside_a_folder_module_depend_only_downward() {
-    let root = src("arash-core");
-    for (folder, files) in FOLDERS {
+    let folders = FOLDERS.iter().map(|f| ("arash-core", f)).chain(DAEMON_FOLDERS.iter().map(|f| ("arash-daemon", f)));
+    for (krate, (folder, files)) in folders {
+        let root = src(krate);
         let found = upward(&root.join(folder), files, &["super::"]);
         assert!(found.is_empty(), "upward references in {folder}/: {found:#?}");
         let listed: Vec<String> = files_of(&root, folder)
@@ -176,13 +188,43 @@ fn files_inside_a_folder_module_depend_only_downward() {
 
 #[test]
 fn arash_daemon_modules_depend_only_downward() {
-    let found = upward(&src("arash-daemon"), DAEMON, &["crate::", "arash_daemon::"]);
+    let found = upward(&src("arash-daemon"), DAEMON, &["crate::"]);
     assert!(found.is_empty(), "upward references: {found:#?}");
 }
 
 #[test]
+fn arash_cli_modules_depend_only_downward() {
+    let found = upward(&src("arash-cli"), CLI, &["crate::"]);
+    assert!(found.is_empty(), "upward references: {found:#?}");
+}
+
+/// The crates below the rig's in a crate's normal dependency tree, by name.
+fn dependencies(krate: &str) -> Vec<String> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let out = std::process::Command::new(cargo)
+        .args(["tree", "--offline", "--locked", "-e", "normal", "--prefix", "none", "-p", krate])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("cargo tree runs");
+    assert!(out.status.success(), "cargo tree -p {krate}: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).lines().filter_map(|l| l.split_whitespace().next()).map(String::from).collect()
+}
+
+/// systemd runs `arash-daemon`: the tools' plotting, fonts, progress bars and CSV are not in it.
+/// The same check on `arash` finds them, so it can fail.
+#[test]
+fn the_rig_links_no_plotting_or_reports() {
+    let tools = ["arash-cli", "plotters", "dejavu", "indicatif", "csv"];
+    let rig = dependencies("arash-daemon");
+    let found: Vec<&&str> = tools.iter().filter(|t| rig.iter().any(|d| d == **t)).collect();
+    assert!(found.is_empty(), "arash-daemon depends on {found:?}");
+    let cli = dependencies("arash-cli");
+    assert!(tools.iter().all(|t| cli.iter().any(|d| d == t)), "cargo tree -p arash-cli lacks one of {tools:?}");
+}
+
+#[test]
 fn every_module_is_in_a_layer() {
-    for (krate, layers) in [("arash-core", CORE), ("arash-daemon", DAEMON)] {
+    for (krate, layers) in [("arash-core", CORE), ("arash-daemon", DAEMON), ("arash-cli", CLI)] {
         for entry in std::fs::read_dir(src(krate)).unwrap() {
             let path = entry.unwrap().path();
             let stem = path.file_stem().unwrap().to_string_lossy().into_owned();

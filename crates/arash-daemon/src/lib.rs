@@ -1,6 +1,7 @@
-//! The ARASH:ASiST rig: everything the daemon runs, and nothing else. The `arash` binary's
-//! command-line front (`src/cli/`) and its reports and figures (`src/report/`) sit beside this
-//! library, in the binary, so that the rig's code path carries no plotting.
+//! The ARASH:ASiST rig: everything the daemon runs, and nothing else. Its binary, `arash-daemon`,
+//! is what systemd runs. The `arash` command-line tool (crates/arash-cli) uses this library for
+//! `arash daemon`, `ctl` and `mock-motor`; its reports and figures live there, so that the rig's
+//! dependency tree carries no plotting.
 //!
 //! - [`link`]: the motor link (serial protocol and CAN) behind one trait;
 //! - [`drive_config`]: drive units (counts, amperes) to joint units;
@@ -10,12 +11,14 @@
 //! - [`logger`]: the logger thread (segments, rotation, crash recovery, black box, timing);
 //! - [`daemon`]: the daemon itself (link, loop, logger and control socket together);
 //! - [`ctl`]: the control socket's client;
-//! - [`config`]: the daemon's configuration file.
+//! - [`config`]: the daemon's configuration file;
+//! - [`exit`]: how the binaries report errors and panics.
 
 pub mod config;
 pub mod ctl;
 pub mod daemon;
 pub mod drive_config;
+pub mod exit;
 pub mod link;
 pub mod live;
 pub mod logger;

@@ -57,13 +57,26 @@ impl Schedule {
 }
 
 /// How to treat a refusal of real-time scheduling.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum RtPolicy {
     /// SCHED_FIFO and mlockall, or refuse to start.
     Require,
     /// Try them; run with ordinary scheduling if refused (logged).
     Ignore,
+}
+
+impl std::str::FromStr for RtPolicy {
+    type Err = String;
+
+    /// `require` or `ignore`, as the configuration's `rt.policy` and `--rt` spell them.
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "require" => Ok(Self::Require),
+            "ignore" => Ok(Self::Ignore),
+            other => Err(format!("real-time policy must be `require` or `ignore`, not `{other}`")),
+        }
+    }
 }
 
 /// What the real-time set-up achieved.

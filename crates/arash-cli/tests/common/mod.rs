@@ -1,4 +1,4 @@
-//! Helpers shared by the daemon's integration tests.
+//! Helpers shared by the command-line tool's integration tests.
 
 // Each test binary compiles this module on its own and uses only part of it.
 #![allow(dead_code)]

@@ -13,6 +13,12 @@ mod common;
 use common::Scratch;
 
 const ARASH: &str = env!("CARGO_BIN_EXE_arash");
+/// The unit's binary, `arash-daemon`, built beside `arash` by `cargo test --workspace`.
+fn daemon_binary() -> std::path::PathBuf {
+    let path = Path::new(ARASH).with_file_name("arash-daemon");
+    assert!(path.exists(), "{} is not built: run `cargo build --release -p arash-daemon` first", path.display());
+    path
+}
 const UNIT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../deploy/arash.service");
 /// The user the test runs the daemon as (`nobody` on Debian).
 const UID: u32 = 65534;
@@ -101,13 +107,9 @@ fn the_daemon_runs_a_trajectory_as_an_unprivileged_user_with_only_two_capabiliti
             "--ambient-caps=-all,+sys_nice,+ipc_lock",
             "--bounding-set=-all,+sys_nice,+ipc_lock",
             "--no-new-privs",
-            ARASH,
-            "daemon",
-            "--rt",
-            "require",
-            "--port",
-            &pty,
         ])
+        .arg(daemon_binary())
+        .args(["--rt", "require", "--port", &pty])
         .arg("--socket")
         .arg(dir.join("s.sock"))
         .arg("--log-dir")

@@ -37,7 +37,7 @@ pub struct Args {
     powered: Option<Vec<f64>>,
     /// Real-time set-up of the serving thread (SCHED_FIFO at the daemon's default priority, and
     /// mlockall): `ignore` tries it and serves without if refused; `require` refuses to start.
-    #[arg(long, value_enum, default_value_t = RtPolicy::Ignore)]
+    #[arg(long, value_parser = <RtPolicy as std::str::FromStr>::from_str, default_value = "ignore")]
     rt: RtPolicy,
 }
 

@@ -8,8 +8,6 @@ pub mod mock_motor;
 pub mod model;
 pub mod simulate;
 
-use std::path::Path;
-
 use anyhow::Context;
 use arash_core::transmission::Transmission;
 
@@ -147,16 +145,4 @@ fn parse_coupling(text: &str) -> Result<(usize, usize, f64), String> {
     }
 }
 
-/// Load a robot model and keep its URDF text (model files and logs embed it). `None` is the
-/// ARASH:ASiST description built into the binary.
-pub fn load_robot(path: Option<&Path>) -> anyhow::Result<(arash_core::Model, String)> {
-    let Some(path) = path else {
-        return Ok((arash_core::arash_asist(), arash_core::ARASH_ASIST_URDF.to_string()));
-    };
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading URDF {}", path.display()))?;
-    let model = arash_core::parse_urdf(&text).with_context(|| format!("loading {}", path.display()))?;
-    for warning in &model.warnings {
-        eprintln!("warning: {}: {warning}", path.display());
-    }
-    Ok((model, text))
-}
+pub use arash_daemon::daemon::startup::load_robot;
