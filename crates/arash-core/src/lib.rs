@@ -8,6 +8,7 @@
 //! Units are SI throughout: rad, m, s, kg, N·m, N.
 
 pub mod base_parameters;
+#[cfg(feature = "blas-lapack")]
 pub mod blas_lapack;
 pub mod control;
 pub mod data;
