@@ -176,8 +176,10 @@ def test_design_excitation_from_python(robot):
     np.testing.assert_allclose(qdd[0], 0, atol=1e-12)
     again = arash.design_excitation(robot, restarts=1, iterations=300, quiet=True)
     assert again.to_json() == exc.to_json()  # deterministic for a seed
-    with pytest.raises(ValueError, match="at least 2 harmonics"):
+    with pytest.raises(ValueError, match=r"harmonics = 1 cannot be used: expected 2 or more"):
         arash.design_excitation(robot, harmonics=1, quiet=True)
+    with pytest.raises(ValueError, match=r"min_speed_fraction = 1.5 cannot be used: expected a share from 0 to 1"):
+        arash.design_excitation(robot, min_speed_fraction=1.5, quiet=True)
 
 
 def test_cli_calibration_run_prints_tables_i_and_ii():

@@ -134,7 +134,7 @@ fn excite_refuses_bad_options_by_name() {
     ]);
     assert!(!out.status.success());
     let err = String::from_utf8(out.stderr).unwrap();
-    assert!(err.contains("at least 2 harmonics"), "{err}");
+    assert!(err.contains("harmonics = 1") && err.contains("2 or more"), "{err}");
     let out = arash(&[
         "excite",
         "--robot",
@@ -147,6 +147,21 @@ fn excite_refuses_bad_options_by_name() {
     let err = String::from_utf8(out.stderr).unwrap();
     assert!(!out.status.success() && err.contains("acceleration_limits has 2 entries"), "{err}");
     assert!(!never.exists(), "a refused design writes no file");
+}
+
+/// Settings go through their own `validate` (identify/options.rs) before any log is read: the log
+/// named here does not exist, and the error is about the setting.
+#[test]
+fn identify_refuses_bad_settings_by_name_before_reading_logs() {
+    let dir = Scratch::new("cli", "identify-bad-settings");
+    let missing = dir.join("missing.csv");
+    let model = dir.join("never.json");
+    for (flag, name) in [("--pull=-1", "pull = -1"), ("--order=13", "order = 13"), ("--cutoff=0", "cutoff_hz = 0")] {
+        let out = arash(&["identify", missing.to_str().unwrap(), "-o", model.to_str().unwrap(), flag]);
+        let err = String::from_utf8(out.stderr).unwrap();
+        assert!(!out.status.success() && err.contains(name) && !err.contains("missing.csv"), "{flag}: {err}");
+    }
+    assert!(!model.exists());
 }
 
 #[test]

@@ -2,13 +2,14 @@
 //! 1 kHz of a 15 s, 5-harmonic excitation; CAD torques plus noise), step by step and whole.
 //! Run: cargo bench -p arash-core --bench identification
 
+use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
 use std::hint::black_box;
 
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::control::fourier::Excitation;
-use arash_core::identify::consistent::{identify_consistent, ConsistentOptions};
+use arash_core::identify::consistent::identify_consistent;
 use arash_core::identify::estimate::{fit, stack, Method};
-use arash_core::identify::preprocess::{preprocess, PreprocessOptions};
+use arash_core::identify::preprocess::preprocess;
 use arash_core::identify::{identify, Declared, IdentifyOptions, Log};
 use arash_core::model_file::IdentifyMethod;
 use arash_core::*;

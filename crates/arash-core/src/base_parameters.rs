@@ -127,7 +127,7 @@ impl ReachableLimits {
     /// The model's limits less `margin` of each range at both ends; unbounded joints get ±π rad or
     /// ±0.1 m and 2 rad/s or 2 m/s. `acceleration` per joint, or `None` for
     /// [`DEFAULT_ACCELERATION_PER_SPEED`] × the speed limit.
-    pub fn new(model: &Model, acceleration: Option<&[f64]>, margin: f64) -> Result<Self, String> {
+    pub fn new(model: &Model, acceleration: Option<&[f64]>, margin: f64) -> Result<Self, LimitsError> {
         let n = model.dof();
         let (mut lower, mut upper, mut velocity) = (vec![], vec![], vec![]);
         for joint in &model.joints {
@@ -138,13 +138,13 @@ impl ReachableLimits {
             velocity.push(if joint.velocity.is_finite() { joint.velocity } else { 2.0 });
         }
         let acceleration = match acceleration {
-            Some(a) if a.len() != n => {
-                return Err(format!("acceleration_limits has {} entries, the robot {n} joints", a.len()))
+            Some(a) if a.len() != n => return Err(LimitsError::Count { got: a.len(), dof: n }),
+            Some(a) => {
+                if let Some(&bad) = a.iter().find(|x| !(x.is_finite() && **x > 0.0)) {
+                    return Err(LimitsError::NotPositive(bad));
+                }
+                a.to_vec()
             }
-            Some(a) if a.iter().any(|x| !(x.is_finite() && *x > 0.0)) => {
-                return Err("acceleration limits must be positive and finite".into())
-            }
-            Some(a) => a.to_vec(),
             None => velocity.iter().map(|v| DEFAULT_ACCELERATION_PER_SPEED * v).collect(),
         };
         Ok(Self { lower, upper, velocity, acceleration })
@@ -173,6 +173,15 @@ fn position_range(joint: &crate::model::ActuatedJoint) -> (f64, f64) {
     } else {
         (-std::f64::consts::PI, std::f64::consts::PI)
     }
+}
+
+/// Acceleration limits that [`ReachableLimits::new`] cannot use.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LimitsError {
+    #[error("acceleration_limits has {got} entries, the robot {dof} joints")]
+    Count { got: usize, dof: usize },
+    #[error("acceleration_limits = {0} cannot be used: expected a positive number")]
+    NotPositive(f64),
 }
 
 #[derive(Debug, thiserror::Error)]

@@ -5,7 +5,7 @@
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::control::{standard_controller, ControllerKind, RobustGains, Trajectory};
 use arash_core::diagnose::{diagnose, DiagnoseError, DiagnoseOptions, Diagnosis, Runs};
-use arash_core::identify::preprocess::PreprocessOptions;
+use arash_core::identify::options::PreprocessOptions;
 use arash_core::identify::{identify, Declared, IdentifyOptions, Log};
 use arash_core::model::{CoulombLaws, CoulombShape};
 use arash_core::model_file::{IdentifyMethod, ModelFile};
@@ -537,7 +537,7 @@ fn the_consistent_refit_with_the_effects_found_is_physical_and_tracks_the_wiring
         IdentifyMethod::Consistent,
         &IdentifyOptions {
             // As `arash identify` and `arash demo` do: periods averaged, 5 × the top harmonic.
-            preprocess: arash_core::identify::preprocess::PreprocessOptions {
+            preprocess: arash_core::identify::PreprocessOptions {
                 periods: Some(4),
                 cutoff_hz: Some(5.0 * 5.0 / 15.0),
                 ..Default::default()
@@ -552,7 +552,7 @@ fn the_consistent_refit_with_the_effects_found_is_physical_and_tracks_the_wiring
         diagnose(Declared { model: &model, base: &base, urdf: ARASH_ASIST_URDF }, log, None, None, &options).unwrap();
     assert_eq!(d.accepted[0].name, "configuration_disturbance", "{}", d.report());
     assert_eq!(d.accepted[0].joints, vec![1]);
-    let consistent = arash_core::identify::consistent::ConsistentOptions::default();
+    let consistent = arash_core::identify::ConsistentOptions::default();
     let preprocess = PreprocessOptions { cutoff_hz: Some(plain.settings.cutoff_hz), ..options.preprocess.clone() };
     let refit_options = DiagnoseOptions { preprocess, ..options };
     let refit =

@@ -2,9 +2,8 @@
 //! determinism, and an improvement over where the optimiser started.
 
 use arash_core::base_parameters::BaseParameterOptions;
-use arash_core::identify::excitation::{
-    design_excitation, normalised_condition_number, sigma_factors, ExcitationOptions,
-};
+use arash_core::identify::excitation::{design_excitation, normalised_condition_number, sigma_factors};
+use arash_core::identify::options::ExcitationOptions;
 use arash_core::*;
 
 fn quick() -> ExcitationOptions {

@@ -4,7 +4,8 @@ mod common;
 
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::identify::estimate::{fit, fit_stacked, EstimateError, Method};
-use arash_core::identify::preprocess::{preprocess, PreprocessOptions, Preprocessed};
+use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
+use arash_core::identify::preprocess::{preprocess, Preprocessed};
 use arash_core::*;
 use common::*;
 use faer::Mat;
@@ -328,7 +329,7 @@ fn two_periods_preprocessed(seed: u64) -> (Model, BaseParameters, Vec<f64>, Prep
 
 #[test]
 fn consistent_identification_is_physical_and_fits_like_ols() {
-    use arash_core::identify::consistent::{identify_consistent, ConsistentOptions};
+    use arash_core::identify::consistent::identify_consistent;
     use arash_core::identify::estimate::{joint_metrics, stack_full};
     use arash_core::physical::min_pseudo_inertia_eigenvalues;
     let (model, base, pi, pre) = two_periods_preprocessed(24);
@@ -358,7 +359,7 @@ fn consistent_identification_is_physical_and_fits_like_ols() {
 /// fit even where least squares wants the other sign; a free one follows the data.
 #[test]
 fn a_signed_extra_column_keeps_its_sign_in_the_consistent_fit() {
-    use arash_core::identify::consistent::{identify_consistent_signed, ConsistentOptions};
+    use arash_core::identify::consistent::identify_consistent_signed;
     use arash_core::identify::estimate::stack_full;
     let (model, _, _, pre) = two_periods_preprocessed(25);
     let (w, tau_f) = stack_full(&model, &pre);

@@ -40,6 +40,7 @@ const FOLDERS: &[(&str, &[&str])] = &[
     (
         "identify",
         &[
+            "options",
             "filter",
             "decide",
             "signals",

@@ -9,7 +9,7 @@ use arash_core::diagnose::{
     Finding, Runs,
 };
 use arash_core::effects::EffectKind;
-use arash_core::identify::consistent::ConsistentOptions;
+use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
 use arash_core::identify::{Declared, Log};
 use arash_core::model_file::{Metrics, ModelFile};
 use numpy::PyReadonlyArrayDyn;
@@ -19,7 +19,6 @@ use pyo3::types::PyDict;
 
 use crate::identify::{log_arrays, Identification};
 use crate::{to_numpy, value_error, NumpyArray, Robot};
-use arash_core::identify::preprocess::PreprocessOptions;
 
 /// The diagnosis's settings. `DiagnoseOptions()` holds the defaults; `DiagnoseOptions(alpha=0.05)`
 /// changes one. `consistent` and `consistent_cutoff_hz` ask for the physically consistent refit

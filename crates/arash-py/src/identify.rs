@@ -7,9 +7,9 @@ use std::sync::Arc;
 use arash_core::base_parameters::BaseParameters as CoreBase;
 use arash_core::control::trajectory::paper_validation_state;
 use arash_core::identify::closed_loop::{ClosedLoop, LoggedController};
-use arash_core::identify::consistent::{identify_consistent, ConsistentOptions};
+use arash_core::identify::consistent::identify_consistent;
 use arash_core::identify::gains::{Calibration, GainEstimator, KnownLoad};
-use arash_core::identify::preprocess::PreprocessOptions;
+use arash_core::identify::options::{ConsistentOptions, ExcitationOptions, PreprocessOptions};
 use arash_core::identify::repair::{repair, Signal};
 use arash_core::identify::{
     identify as core_identify, identify_in_closed_loop, identify_with_known_load, validate, Declared, IdentifyOptions,
@@ -330,7 +330,7 @@ fn _identify<'py>(
         }
         Ok(true)
     })?;
-    check_pull(&o)?;
+    check_settings(&o)?;
     let (t, q, tau) = log_arrays(&log.0, &log.1, &log.2, robot.model.dof())?;
     let model = Arc::clone(&robot.model);
     let base = robot.fitted_base(keep_weak)?;
@@ -365,12 +365,10 @@ fn fit_option(o: &mut IdentifyOptions, key: &str, value: &Bound<'_, PyAny>) -> P
     Ok(true)
 }
 
-fn check_pull(o: &IdentifyOptions) -> PyResult<()> {
-    let pull = o.consistent.pull;
-    match pull >= 0.0 && pull.is_finite() {
-        true => Ok(()),
-        false => Err(PyValueError::new_err(format!("pull must be a non-negative number, got {pull}"))),
-    }
+/// The settings checked by their own `validate` before any work, so that a bad one raises
+/// `ValueError` naming it, as the CLI's message does.
+fn check_settings(o: &IdentifyOptions) -> PyResult<()> {
+    o.preprocess.validate().and(o.consistent.validate()).map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
 /// A run of currents: `(t, q, i, loaded)`.
@@ -397,7 +395,7 @@ fn _identify_with_load<'py>(
         method.map_or(Ok(IdentifyMethod::default()), str::parse).map_err(PyValueError::new_err)?;
     let mut o = IdentifyOptions::default();
     crate::each_option(options, |key, value| fit_option(&mut o, key, value))?;
-    check_pull(&o)?;
+    check_settings(&o)?;
     let dof = robot.model.dof();
     let arrays = runs
         .iter()
@@ -627,7 +625,7 @@ impl Excitation {
 #[pyfunction]
 #[pyo3(signature = (robot, options, quiet))]
 fn _design_excitation(py: Python<'_>, robot: &Robot, options: &Bound<'_, PyDict>, quiet: bool) -> PyResult<Excitation> {
-    use arash_core::identify::excitation::{design_excitation as design, ExcitationOptions};
+    use arash_core::identify::excitation::design_excitation as design;
     let mut o = ExcitationOptions::default();
     let mut keep_weak = false;
     let mut repair_report: Vec<String> = Vec::new();

@@ -673,7 +673,7 @@ fn filtfilt<'py>(
     order: Option<usize>,
 ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     // Identification's order unless told otherwise.
-    let order = order.unwrap_or(arash_core::identify::preprocess::PreprocessOptions::default().order);
+    let order = order.unwrap_or(arash_core::identify::PreprocessOptions::default().order);
     let filter = Butterworth::lowpass(order, cutoff_hz, sample_rate_hz).map_err(value_error)?;
     let view = x.as_array();
     let shape = view.shape().to_vec();

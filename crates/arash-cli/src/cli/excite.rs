@@ -1,12 +1,13 @@
 //! `arash excite`: design the excitation trajectory (paper eqs. 18–20) and write it as JSON.
 
+use arash_core::identify::options::ExcitationOptions;
 use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::control::fourier::{Excitation, DEFAULT_SAMPLE_RATE_HZ};
-use arash_core::identify::excitation::{design_excitation, sigma_factors, Coverage, ExcitationOptions};
+use arash_core::identify::excitation::{design_excitation, sigma_factors, Coverage};
 use arash_core::BaseParameters;
 use serde::Serialize;
 

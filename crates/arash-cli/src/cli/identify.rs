@@ -6,9 +6,8 @@ use std::path::PathBuf;
 use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::identify::closed_loop::{ClosedLoop, IvOptions, LoggedController};
-use arash_core::identify::consistent::ConsistentOptions;
 use arash_core::identify::gains::{Calibration, GainEstimator, KnownLoad};
-use arash_core::identify::preprocess::PreprocessOptions;
+use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
 use arash_core::identify::{
     identify, identify_in_closed_loop, identify_with_known_load, validate, validation_table, Declared, IdentifyOptions,
     Log,
@@ -110,8 +109,6 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if args.load.is_some() {
         args.runs.effort = crate::runlog::Effort::Current;
     }
-    let (model, urdf) = args.runs.robot()?;
-    let log = args.runs.read_training(&model)?;
     let options = IdentifyOptions {
         preprocess: PreprocessOptions {
             periods: args.periods,
@@ -125,6 +122,11 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         consistent: ConsistentOptions { pull: args.pull, ..Default::default() },
         iv: IvOptions { max_iterations: args.iv_iterations, ..Default::default() },
     };
+    // A bad setting is refused by name before any log is read.
+    options.preprocess.validate()?;
+    options.consistent.validate()?;
+    let (model, urdf) = args.runs.robot()?;
+    let log = args.runs.read_training(&model)?;
     eprintln!("identifying from {} samples ({} file(s)) with {:?} ...", log.t.len(), args.runs.logs.len(), args.method);
     let base = BaseParameters::compute(&model, &BaseParameterOptions::fitted(args.keep_weak))?;
     let declared = Declared { model: &model, base: &base, urdf: &urdf };

@@ -1,7 +1,8 @@
 //! The settings of a diagnosis: one home for its defaults, and their validation.
 
 use crate::effects::EffectKind;
-use crate::identify::preprocess::{PreprocessError, PreprocessOptions};
+use crate::identify::options::{PreprocessOptions, SettingError};
+use crate::identify::preprocess::PreprocessError;
 use crate::identify::IdentifyError;
 use crate::transmission::Transmission;
 
@@ -107,7 +108,7 @@ impl Default for DiagnoseOptions {
 impl DiagnoseOptions {
     /// Check every setting before any work starts; `dof` is the robot's.
     pub fn validate(&self, dof: usize) -> Result<(), OptionsError> {
-        self.preprocess.validate().map_err(OptionsError::Preprocess)?;
+        self.preprocess.validate()?;
         let positive = [("block_s", self.block_s), ("batch_s", self.batch_s.unwrap_or(1.0)), ("max_vif", self.max_vif)];
         if let Some((name, value)) = positive.into_iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
             return Err(OptionsError::NotPositive { name, value });
@@ -151,7 +152,7 @@ pub enum OptionsError {
     #[error("the declared transmission is for {got} joints, the robot has {dof}")]
     Motors { dof: usize, got: usize },
     #[error(transparent)]
-    Preprocess(PreprocessError),
+    Preprocess(#[from] SettingError),
 }
 
 impl DiagnoseOptions {

@@ -7,6 +7,7 @@
 //! [`crate::identify::consistent`] gets the effects' columns as free extra columns, so that both
 //! come from one fit on the same data.
 
+use crate::identify::options::ConsistentOptions;
 use faer::Mat;
 
 use super::band::Band;
@@ -14,7 +15,7 @@ use super::options::{DiagnoseError, DiagnoseOptions};
 use super::prepare::{full_columns, prepare, term_columns};
 use crate::base_parameters::BaseParameters;
 use crate::effects::EffectKind;
-use crate::identify::consistent::{identify_consistent_signed, ConsistentOptions};
+use crate::identify::consistent::identify_consistent_signed;
 use crate::identify::estimate::joint_metrics;
 use crate::identify::Log;
 use crate::model::Model;

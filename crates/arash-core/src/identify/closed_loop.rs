@@ -24,13 +24,14 @@
 //! settled `Z`, on the instrumented regressor `P_Z W` for IV (two-stage least squares: with as
 //! many instruments as parameters it is the IV estimate) and on `Z` itself for DIDIM.
 
+use super::options::{ConsistentOptions, PreprocessOptions};
 use faer::Mat;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
-use super::consistent::{identify_consistent, ConsistentOptions};
+use super::consistent::identify_consistent;
 use super::estimate::{self, stack, stack_full, Fit};
-use super::preprocess::{preprocess, PreprocessError, PreprocessOptions, Preprocessed};
+use super::preprocess::{preprocess, PreprocessError, Preprocessed};
 use crate::base_parameters::BaseParameters;
 use crate::control::{controller_with_effects, Controller, ControllerKind, Desired, PdGains, PdGravity, RobustGains};
 use crate::data::Data;

@@ -22,32 +22,14 @@ use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
 use faer::Mat;
 
+use super::options::{ConsistentOptions, SettingError};
 use crate::model::Model;
 use crate::physical::{min_pseudo_inertia_eigenvalues, onto_consistent, parameter_scales};
 
-/// Settings for [`identify_consistent`].
-#[derive(Clone, Debug)]
-pub struct ConsistentOptions {
-    /// Strength of the pull toward CAD, relative to the data (0 disables it).
-    pub pull: f64,
-    /// Bounds on each joint's cable stiffness `ke` (N·m/rad or N/m).
-    pub stiffness_bounds: (f64, f64),
-    /// Length scale ℓ used to scale first moments and inertias (m).
-    pub length_scale: f64,
-}
-
-impl Default for ConsistentOptions {
-    fn default() -> Self {
-        Self {
-            pull: 1e-4,
-            stiffness_bounds: (0.0, f64::INFINITY),
-            length_scale: crate::physical::DEFAULT_LENGTH_SCALE_M,
-        }
-    }
-}
-
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ConsistentError {
+    #[error(transparent)]
+    Setting(#[from] SettingError),
     #[error("the consistent problem has no solution: {0:?} (check the stiffness bounds)")]
     Infeasible(SolverStatus),
     #[error("Clarabel stopped with {0:?}; the consistent estimate is not reliable")]
@@ -93,6 +75,7 @@ pub fn identify_consistent_signed(
     options: &ConsistentOptions,
     extra_signs: &[Option<f64>],
 ) -> Result<ConsistentFit, ConsistentError> {
+    options.validate()?;
     let (standard, p) = (model.num_params(), w.ncols());
     if p < standard {
         return Err(ConsistentError::Shape { cols: w.ncols(), params: standard });

@@ -29,9 +29,9 @@ use super::estimate::{
 };
 use super::filter::Butterworth;
 use super::friction::RawVelocity;
+use super::options::PreprocessOptions;
 use super::preprocess::{
-    edge_limited_cutoff_hz, filtered_motion, preprocess, Choices, PreprocessError, PreprocessOptions, Preprocessed,
-    MIN_CUTOFF_HZ,
+    edge_limited_cutoff_hz, filtered_motion, preprocess, Choices, PreprocessError, Preprocessed, MIN_CUTOFF_HZ,
 };
 use super::signals::{filter_columns, mean_of, periods_of};
 use super::{Declared, Log};

@@ -24,57 +24,19 @@ use nalgebra::DMatrix;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::base_parameters::{BaseParameterOptions, BaseParameters, ReachableLimits, DEFAULT_POSITION_MARGIN};
+use super::options::{ExcitationOptions, SettingError};
+use crate::base_parameters::{BaseParameterOptions, BaseParameters, LimitsError, ReachableLimits};
 use crate::control::fourier::Excitation;
 use crate::data::Data;
 use crate::model::Model;
 use crate::regressor::regressor;
 
-/// Settings for [`design_excitation`]; `Default` is the paper's L = 5, T = 15 s.
-#[derive(Clone, Debug)]
-pub struct ExcitationOptions {
-    pub harmonics: usize,
-    pub period_s: f64,
-    /// Seeded restarts of the optimiser.
-    pub restarts: usize,
-    pub seed: u64,
-    /// Instants per period in the condition-number objective.
-    pub samples: usize,
-    /// Acceleration limit per joint (rad/s² or m/s²); `None` uses
-    /// [`crate::base_parameters::DEFAULT_ACCELERATION_PER_SPEED`] × the speed limit.
-    pub acceleration_limits: Option<Vec<f64>>,
-    /// Fraction of each position range kept clear at both ends.
-    pub margin: f64,
-    /// Nelder–Mead iterations per restart.
-    pub iterations: u64,
-    /// Least share of each joint's usable position range the trajectory must cover.
-    pub min_range_fraction: f64,
-    /// Least peak speed of each joint, as a share of the fastest the series can move over that
-    /// range (the speed limit, or ω·L times half the range when that is lower).
-    pub min_speed_fraction: f64,
-}
-
-impl Default for ExcitationOptions {
-    fn default() -> Self {
-        Self {
-            harmonics: 5,
-            period_s: 15.0,
-            restarts: 12,
-            seed: 1,
-            samples: 150,
-            acceleration_limits: None,
-            margin: DEFAULT_POSITION_MARGIN,
-            iterations: 1000,
-            min_range_fraction: 0.7,
-            min_speed_fraction: 0.5,
-        }
-    }
-}
-
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ExcitationError {
-    #[error("{0}")]
-    BadOptions(String),
+    #[error(transparent)]
+    Setting(#[from] SettingError),
+    #[error(transparent)]
+    Limits(#[from] LimitsError),
     #[error("no restart found a trajectory within the limits that covers the least range and speed (best shortfall {0:.3e}); widen the limits, lower min_range_fraction or min_speed_fraction, or use more harmonics")]
     Infeasible(f64),
 }
@@ -168,8 +130,7 @@ pub type Limits = ReachableLimits;
 
 /// The limits of `options`: the model's, less the margin, with its acceleration limits.
 pub fn limits(model: &Model, options: &ExcitationOptions) -> Result<Limits, ExcitationError> {
-    ReachableLimits::new(model, options.acceleration_limits.as_deref(), options.margin)
-        .map_err(ExcitationError::BadOptions)
+    ReachableLimits::new(model, options.acceleration_limits.as_deref(), options.margin).map_err(ExcitationError::Limits)
 }
 
 /// Progress of [`design_excitation`], for a progress display.
@@ -321,17 +282,10 @@ pub fn design_excitation(
     options: &ExcitationOptions,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Excitation, ExcitationError> {
-    if options.harmonics < 2 {
-        return Err(ExcitationError::BadOptions("at least 2 harmonics are needed to start and end at rest".into()));
-    }
-    if !(options.period_s.is_finite() && options.period_s > 0.0)
-        || options.restarts == 0
-        || options.samples < 2 * base.rank
-    {
-        return Err(ExcitationError::BadOptions(format!(
-            "need a positive period, at least one restart and at least {} samples",
-            2 * base.rank
-        )));
+    options.validate()?;
+    if options.samples < 2 * base.rank {
+        let least = format!("at least {} instants per period (twice the {} base parameters)", 2 * base.rank, base.rank);
+        return Err(SettingError::new("samples", options.samples, least).into());
     }
     let limits = limits(model, options)?;
     let problem = Problem { model, base, limits: &limits, options };

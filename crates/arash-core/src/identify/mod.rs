@@ -12,6 +12,7 @@ pub mod filter;
 pub mod friction;
 pub mod friction_law;
 pub mod gains;
+pub mod options;
 pub mod preprocess;
 pub mod repair;
 pub mod rest;
@@ -21,10 +22,17 @@ use crate::base_parameters::BaseParameters;
 use crate::model::Model;
 use crate::model_file::{DataSummary, Fitted, IdentifyMethod, Metrics, ModelFile, ModelFileError, Settings};
 use crate::physical::{min_pseudo_inertia_eigenvalues, nearest_standard_parameters};
-use closed_loop::{closed_loop_fit, ClosedLoop, ClosedLoopError, Estimator, IvOptions};
-use consistent::{identify_consistent, ConsistentError, ConsistentOptions};
+use closed_loop::{closed_loop_fit, ClosedLoopError};
+use consistent::{identify_consistent, ConsistentError};
 use estimate::{fit, joint_metrics, stack_full, EstimateError, JointMetrics, Method};
-use preprocess::{preprocess, PreprocessError, PreprocessOptions};
+use preprocess::{preprocess, PreprocessError};
+
+// The surface most callers need; the modules above stay public for the rest.
+pub use closed_loop::{ClosedLoop, Estimator, IvOptions};
+pub use consistent::ConsistentFit;
+pub use excitation::{design_excitation, ExcitationError};
+pub use options::{ConsistentOptions, ExcitationOptions, PreprocessOptions, SettingError};
+pub use preprocess::Preprocessed;
 
 /// Everything [`identify`] can be told.
 #[derive(Clone, Debug, Default)]
@@ -203,7 +211,7 @@ fn weak_reason(base: &BaseParameters) -> String {
 /// trajectories at 46 % on the insertion (docs/identification.md).
 fn preprocess_with_laws(
     (declared, log): (Declared, Log),
-    options: &preprocess::PreprocessOptions,
+    options: &PreprocessOptions,
     against: cutoff::Against,
 ) -> Result<(preprocess::Preprocessed, Option<crate::model::CoulombLaws>), IdentifyError> {
     let mut pre = cutoff::preprocess_for_fit(declared, log, options, against)?;

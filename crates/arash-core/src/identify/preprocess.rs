@@ -9,91 +9,9 @@
 use super::decide::{bandwidth, find_period, harmonic_bandwidth, PERIODIC_MISMATCH};
 use super::filter::{Butterworth, FilterError};
 use super::friction::{FrictionVelocity, RawVelocity};
+use super::options::{PreprocessOptions, SettingError};
 use super::signals::{averaged, central_difference, every_nth_row, filter_columns, periods_of, Averaging};
 use crate::model::CoulombLaws;
-
-/// Settings for [`preprocess`]: the one home of the preprocessing defaults, which every front end
-/// (CLI, Python, diagnosis, demo) starts from, overriding only what its user set. `Default` leaves
-/// the period and the cut-off to the data ([`super::decide`]) and keeps the paper's order 5.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PreprocessOptions {
-    /// Number of whole excitation periods in the log: `None` finds them from the data (and finds
-    /// whether the log is periodic at all); `Some(1)` says it is not periodic (no averaging).
-    pub periods: Option<usize>,
-    /// The period (s), when known but not the number of periods: the log is averaged over as many
-    /// whole periods as it holds. Takes precedence over `periods`.
-    pub period_s: Option<f64>,
-    /// Low-pass cut-off (Hz); `None` takes [`CUTOFF_PER_BANDWIDTH`] times the highest frequency
-    /// of the motion, read from the positions' spectrum against their noise floor.
-    pub cutoff_hz: Option<f64>,
-    /// Butterworth order, applied forward and backward.
-    pub order: usize,
-    /// Keep every `decimate`-th sample after filtering (1 keeps all).
-    pub decimate: usize,
-    /// Cut-off of the velocity that switches Coulomb friction (Hz), at most a quarter of the
-    /// sample rate; `None`: chosen by the fit ([`super::cutoff`]) in identification and the
-    /// diagnosis, the main cut-off when preprocessing alone.
-    pub friction_cutoff_hz: Option<f64>,
-    /// Filter q̇ and q̈ again after each central difference (the paper's method). Off, the
-    /// derivatives of the filtered position pass through the filter once, exactly as the torque
-    /// does, which matters when the signals have content near the cut-off (the diagnosis).
-    pub filter_derivatives: bool,
-    /// Leave each joint's resting samples out of the fit ([`super::rest`]). The diagnosis, which
-    /// builds and scores its own rows at every sample, turns it off.
-    pub leave_out_rests: bool,
-}
-
-/// The highest Butterworth order accepted: beyond it a zero-phase pass rings more than it gains.
-pub const MAX_ORDER: usize = 12;
-
-impl Default for PreprocessOptions {
-    fn default() -> Self {
-        Self {
-            periods: None,
-            period_s: None,
-            cutoff_hz: None,
-            order: 5,
-            decimate: 1,
-            friction_cutoff_hz: None,
-            filter_derivatives: true,
-            leave_out_rests: true,
-        }
-    }
-}
-
-impl PreprocessOptions {
-    /// Check every setting before any work starts.
-    pub fn validate(&self) -> Result<(), PreprocessError> {
-        let positive = [
-            ("cutoff_hz", self.cutoff_hz),
-            ("friction_cutoff_hz", self.friction_cutoff_hz),
-            ("period_s", self.period_s),
-        ];
-        for (name, value) in positive {
-            if let Some(v) = value.filter(|v| !(v.is_finite() && *v > 0.0)) {
-                return Err(PreprocessError::Setting { name, value: v.to_string(), expected: "a positive number" });
-            }
-        }
-        if self.periods == Some(0) {
-            return Err(PreprocessError::Setting {
-                name: "periods",
-                value: "0".into(),
-                expected: "1 (not periodic) or more",
-            });
-        }
-        if !(1..=MAX_ORDER).contains(&self.order) {
-            return Err(PreprocessError::Setting {
-                name: "order",
-                value: self.order.to_string(),
-                expected: "an order from 1 to 12",
-            });
-        }
-        if self.decimate == 0 {
-            return Err(PreprocessError::BadDecimation);
-        }
-        Ok(())
-    }
-}
 
 /// Why a log cannot be preprocessed. Each variant names the offending input.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -135,10 +53,8 @@ pub enum PreprocessError {
          or a longer log"
     )]
     TooShortForCutoff { duration_s: f64, cutoff_hz: f64, edge_s: f64, lowest_hz: f64 },
-    #[error("{name} = {value} cannot be used: expected {expected}")]
-    Setting { name: &'static str, value: String, expected: &'static str },
-    #[error("decimation factor must be at least 1")]
-    BadDecimation,
+    #[error(transparent)]
+    Setting(#[from] SettingError),
     #[error(
         "decimating by {factor} leaves a Nyquist frequency of {nyquist_hz} Hz, not above the {cutoff_hz} Hz cut-off"
     )]

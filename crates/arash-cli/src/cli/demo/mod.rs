@@ -20,8 +20,8 @@ use arash_core::control::Trajectory;
 use arash_core::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use arash_core::identify::closed_loop::ClosedLoop;
 use arash_core::identify::estimate::joint_metrics;
-use arash_core::identify::excitation::{design_excitation, ExcitationOptions};
-use arash_core::identify::preprocess::PreprocessOptions;
+use arash_core::identify::excitation::design_excitation;
+use arash_core::identify::options::{ExcitationOptions, PreprocessOptions};
 use arash_core::identify::{
     identify, identify_in_closed_loop, validate, validation_series, validation_table, Declared, IdentifyOptions, Log,
 };
