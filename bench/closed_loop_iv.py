@@ -1,8 +1,8 @@
 """OLS against IDIM-IV and DIDIM on closed-loop logs with known truth (issue 18's coverage table).
 
-Each log comes from the independent PD loop on Pinocchio (tests/python/closed_loop.py,
+Each log comes from the independent PD loop on Pinocchio (tests/python/support/closed_loop.py,
 ``pd_gravity_log``): ARASH:ASiST with perturbed inertials, friction and stiffness
-(tests/python/simulated.py), four 10 s periods of a random Fourier excitation at 1 kHz, 16-bit
+(tests/python/support/simulated.py), four 10 s periods of a random Fourier excitation at 1 kHz, 16-bit
 encoders that the controller differences, and a drive disturbance of the given share of the RMS
 torque in a 2 Hz band. Prints, per disturbance and method, the share of base parameters within
 3σ of the truth over all seeds, the worst seed's share, the parameters whose mean error over the
@@ -29,10 +29,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
 import arash  # noqa: E402
-from closed_loop import pd_gravity_log  # noqa: E402
-from conftest import ROBOT_FILES  # noqa: E402
-from independent import Condition  # noqa: E402
-from simulated import true_parameters  # noqa: E402
+from support.closed_loop import pd_gravity_log  # noqa: E402
+from support.paths import ROBOT_FILES  # noqa: E402
+from support.independent import Condition  # noqa: E402
+from support.simulated import true_parameters  # noqa: E402
 
 METHODS = ["ols", "idim-iv", "didim"]
 

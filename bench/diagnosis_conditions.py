@@ -1,6 +1,6 @@
 """The diagnosis's null and power across the conditions real rigs log in (issue 44, item 4).
 
-Every log comes from the independent Pinocchio generator (tests/python/independent.py): current
+Every log comes from the independent Pinocchio generator (tests/python/support/independent.py): current
 sensors' noise (white, or band-limited) at 100–500 Hz, smooth Coulomb laws with a friction velocity
 of their own, and the short logs of real runs (9–30 s), on three robots. The robot is loaded as a
 new user loads it, declaring no Coulomb law, so each joint's law is chosen from the data; the
@@ -26,7 +26,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
 import arash  # noqa: E402
-from independent import TANH_EPSILON, Condition, Injected, make_log, urdf_path  # noqa: E402
+from support.independent import TANH_EPSILON, Condition, Injected, make_log, urdf_path  # noqa: E402
 
 # robot, fs (Hz), encoder bits, noise (share of RMS torque), Coulomb law, periods, duration (s), noise band (Hz)
 CONDITIONS = [

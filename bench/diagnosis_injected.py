@@ -2,7 +2,7 @@
 encoder resolutions (issue 19, item 5's table).
 
 The same generator and detection rule as ``diagnosis_power.py`` (the Pinocchio-based
-``tests/python/independent.py``, the declared ARASH:ASiST model, 1 % torque noise, sign(q̇)
+``tests/python/support/independent.py``, the declared ARASH:ASiST model, 1 % torque noise, sign(q̇)
 Coulomb friction, aperiodic 30 s logs, no validation log), each effect at 15 % of its joint's RMS
 torque; here the sample rate and the encoders vary. ``drive_gain`` is left out: it is searched
 only when the torque comes from currents and is measured against a calibrated model
@@ -17,7 +17,7 @@ import time
 from diagnosis_power import EFFECTS, detected  # noqa: E402  (also puts tests/python on the path)
 
 import arash  # noqa: E402
-from independent import Condition, Injected, make_log  # noqa: E402
+from support.independent import Condition, Injected, make_log  # noqa: E402
 
 RATES = [200, 1000]
 BITS = [12, 16, 20]

@@ -1,6 +1,6 @@
 """How often arash.diagnose accepts anything on logs of the declared model (issue 19's null).
 
-Each log comes from the independent Pinocchio generator (tests/python/independent.py) with a
+Each log comes from the independent Pinocchio generator (tests/python/support/independent.py) with a
 validation log of the same robot beside it; the robot is loaded as a new user loads it (no option
 set, so its Coulomb law is sign(q̇) even where the log's is tanh), and a tanh log is diagnosed a
 second time with its law declared (`coulomb_epsilon`): that row is the declared model's null, the
@@ -18,7 +18,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
 import arash  # noqa: E402
-from independent import TANH_EPSILON, Condition, make_log, urdf_path  # noqa: E402
+from support.independent import TANH_EPSILON, Condition, make_log, urdf_path  # noqa: E402
 
 # robot, fs (Hz), encoder bits, torque noise (share of RMS), Coulomb law, periods, duration (s)
 CONDITIONS = [

@@ -3,7 +3,7 @@
 The user's case of issue 19: a model identified on a run without load, then a run with a known
 mass on one link, diagnosed against that model. And the mirror: the model identified with the
 mass on, the run without it (the model is then heavier than the data, which is never a payload).
-Every log comes from the independent Pinocchio generator (tests/python/independent.py), the mass
+Every log comes from the independent Pinocchio generator (tests/python/support/independent.py), the mass
 added as a point mass to Pinocchio's tree; the loaded log and its validation log use other
 trajectories than the calibration run.
 
@@ -22,7 +22,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
 import arash  # noqa: E402
-from independent import Condition, Payload, make_log  # noqa: E402
+from support.independent import Condition, Payload, make_log  # noqa: E402
 
 PAYLOADS = [
     Payload("lwr_7_link", 1.0, (0.0, 0.0, 0.05)),

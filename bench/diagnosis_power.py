@@ -1,6 +1,6 @@
 """How often arash.diagnose finds an effect of a given size (issue 19's power curve).
 
-Each log comes from the independent Pinocchio generator (tests/python/independent.py): the
+Each log comes from the independent Pinocchio generator (tests/python/support/independent.py): the
 declared ARASH:ASiST model, 1 kHz, 16-bit encoders, 1 % torque noise, sign(q̇) Coulomb friction, an
 aperiodic trajectory, plus one injected effect whose torque has an RMS of the given share of its
 joint's RMS torque. No validation log: the held-out error is judged on the log's own odd blocks,
@@ -21,7 +21,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "python"))
 import arash  # noqa: E402
-from independent import Condition, Injected, make_log  # noqa: E402
+from support.independent import Condition, Injected, make_log  # noqa: E402
 
 EFFECTS = [("offset", 0), ("configuration_disturbance", 2), ("armature", 2), ("stribeck", 2)]
 DURATIONS = [10.0, 30.0, 300.0]

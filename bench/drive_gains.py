@@ -1,5 +1,5 @@
 """Coverage of the drive gains fitted with a known load (issue 45, docs/currents.md): Pinocchio
-logs (tests/python/independent.py) as currents τ/k, gains k drawn from 0.5–2× per joint and seed,
+logs (tests/python/support/independent.py) as currents τ/k, gains k drawn from 0.5–2× per joint and seed,
 2 % current noise, 30 s per run, sign law declared. Per condition and seed: the unloaded run and
 the loaded run (a point mass at (0, 0, 0.05) m on the link, its mass alone given) fit the gains;
 then a second payload (half the mass, at (0, 0.03, 0.02) m) on two later runs is diagnosed with
@@ -20,7 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
 import arash  # noqa: E402
-from independent import Condition, Payload, make_log, urdf_path  # noqa: E402
+from support.independent import Condition, Payload, make_log, urdf_path  # noqa: E402
 
 CONDITIONS = [  # robot, link, mass (kg), rate (Hz), gains fit
     ("kuka", "lwr_7_link", 2.0, 1000.0, "current"),

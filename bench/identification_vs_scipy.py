@@ -17,11 +17,11 @@ import pinocchio as pin
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from simulated import fourier_trajectory, log, true_parameters  # noqa: E402
+from support.simulated import fourier_trajectory, log, true_parameters  # noqa: E402
 from timing import median_seconds  # noqa: E402
-from test_identification import cvxpy_consistent  # noqa: E402
-from conftest import ROBOT_FILES  # noqa: E402
-from test_against_pinocchio import Expanded  # noqa: E402
+from support.references import cvxpy_consistent  # noqa: E402
+from support.paths import ROBOT_FILES  # noqa: E402
+from support.independent import Expanded  # noqa: E402
 
 FS = 1000.0
 # The friction velocity's cut-off both pipelines use (Hz), set so that arash runs no search.

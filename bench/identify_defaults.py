@@ -1,6 +1,6 @@
 """What the data-driven choices cost (issue 17): `arash.identify` with the defaults (period found,
 cut-off searched) against the same cut-offs set by hand, on the issue's
-independent log (tests/python/independent.py: Pinocchio, ARASH:ASiST, 8 × 10 s at 1 kHz, 16-bit
+independent log (tests/python/support/independent.py: Pinocchio, ARASH:ASiST, 8 × 10 s at 1 kHz, 16-bit
 encoders, 1 % torque noise). Medians of 7 calls.
 
     .venv/bin/python bench/identify_defaults.py
@@ -15,7 +15,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
 import arash  # noqa: E402
-from independent import Condition, make_log  # noqa: E402
+from support.independent import Condition, make_log  # noqa: E402
 
 
 def median_seconds(call, repeats=7):

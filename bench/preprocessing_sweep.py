@@ -1,5 +1,5 @@
 """The preprocessing choices over the whole range of conditions (issue 17): random logs from the
-independent generator (tests/python/independent.py: Pinocchio, ARASH:ASiST, KUKA LWR4+ and TX40;
+independent generator (tests/python/support/independent.py: Pinocchio, ARASH:ASiST, KUKA LWR4+ and TX40;
 100 Hz to 5 kHz; 12 to 20 bits; 0.5 to 5 % torque noise; sign or tanh Coulomb; 2 to 20 periods
 or aperiodic; 5 to 300 s), each identified with the defaults and compared with the best single
 cut-off of the test's grid (those that pass the trajectory).
@@ -19,8 +19,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
 import arash  # noqa: E402
-from independent import Condition, make_log  # noqa: E402
-from test_preprocessing_choices import fits_by_cutoff  # noqa: E402
+from support.independent import Condition, make_log  # noqa: E402
+from support.references import fits_by_cutoff  # noqa: E402
 
 # Longer logs than this many samples make the Pinocchio generator (a Python loop) too slow.
 MOST_SAMPLES = 150_000

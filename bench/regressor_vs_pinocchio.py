@@ -15,9 +15,9 @@ import arash
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from conftest import ROBOT_FILES, random_states  # noqa: E402
+from support.paths import ROBOT_FILES, random_states  # noqa: E402
 from timing import median_seconds  # noqa: E402
-from test_against_pinocchio import Expanded  # noqa: E402
+from support.independent import Expanded  # noqa: E402
 
 
 def main():

@@ -18,11 +18,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
 import arash  # noqa: E402
-import closed_loop as cl  # noqa: E402
-from conftest import ROBOT_FILES  # noqa: E402
-from independent import Condition, Expanded, urdf_path  # noqa: E402
-from simulated import true_parameters  # noqa: E402
-from test_closed_loop_identification import paper_validation_fp  # noqa: E402
+from support import closed_loop as cl  # noqa: E402
+from support.paths import ROBOT_FILES  # noqa: E402
+from support.independent import Condition, Expanded, urdf_path  # noqa: E402
+from support.simulated import true_parameters  # noqa: E402
+from support.closed_loop import paper_validation_fp  # noqa: E402
 
 CONDITION = Condition("arash_asist", 1000, 16, 0.0, "sign", 4, 60.0, seed=0, designed=True)
 SUBSTEPS = 10

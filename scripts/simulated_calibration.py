@@ -26,7 +26,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "python"))
 import arash  # noqa: E402
-from simulated import log, true_parameters  # noqa: E402
+from support.simulated import log, true_parameters  # noqa: E402
 
 
 def write_csv(path, robot, t, q, tau):

@@ -13,8 +13,8 @@ import pytest
 pin = pytest.importorskip("pinocchio")
 import arash  # noqa: E402
 
-from conftest import ROBOT_FILES, kuka_urdf, random_physical_params, random_states, tx40_urdf  # noqa: E402
-from independent import Expanded, joint_torques  # noqa: E402
+from support.paths import ROBOT_FILES, kuka_urdf, random_physical_params, random_states, tx40_urdf  # noqa: E402
+from support.independent import Expanded, joint_torques  # noqa: E402
 
 STATES = 1000
 TOLERANCE = 1e-9

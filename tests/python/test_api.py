@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import arash
-from conftest import ROBOT_FILES, random_physical_params, random_states
+from support.paths import ROBOT_FILES, random_physical_params, random_states
 
 
 @pytest.fixture(scope="module")

@@ -12,8 +12,8 @@ import pytest
 pytest.importorskip("pinocchio")
 import arash  # noqa: E402
 
-from closed_loop import closed_loop_log  # noqa: E402
-from independent import Condition, make_log  # noqa: E402
+from support.closed_loop import closed_loop_log  # noqa: E402
+from support.independent import Condition, make_log  # noqa: E402
 
 CONDITIONS = [
     # Two periods of arash's designed excitation, 16-bit encoders: the daemon's calibration run.

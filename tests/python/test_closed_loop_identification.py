@@ -12,10 +12,10 @@ import pytest
 pytest.importorskip("pinocchio")
 import arash  # noqa: E402
 
-from closed_loop import pd_gravity_log  # noqa: E402
-from conftest import ROBOT_FILES, ROOT  # noqa: E402
-from independent import TANH_EPSILON, Condition, Expanded, rigid_torques  # noqa: E402
-from simulated import true_parameters  # noqa: E402
+from support.closed_loop import paper_validation_fp, pd_gravity_log  # noqa: E402
+from support.paths import ROBOT_FILES, ROOT  # noqa: E402
+from support.independent import Condition  # noqa: E402
+from support.simulated import true_parameters  # noqa: E402
 
 
 def closed_loop_case(seed, disturbance=0.1):
@@ -27,26 +27,6 @@ def closed_loop_case(seed, disturbance=0.1):
     condition = Condition("arash_asist", 1000, 16, 0.0, "tanh", 4, 40.0, seed=seed)
     robot, log, reference, controller = pd_gravity_log(condition, truth, actuator_noise=disturbance, noise_hz=2.0)
     return robot, log, reference, controller, truth
-
-
-def paper_validation_fp(robot, model, truth, law=None):
-    """FP% per joint of ``model`` on the paper's four validation trajectories (ω = 0.3, 0.5, 0.7,
-    0.9, one period at 1 kHz), against the noise-free torque of the true robot from Pinocchio,
-    whose Coulomb law is ``law``: None for tanh of ``TANH_EPSILON``, "sign", or a friction
-    velocity per joint."""
-    expanded = Expanded(ROBOT_FILES["arash_asist"], robot)
-    expanded.set_parameters(truth)
-    n, nb = robot.dof, len(robot.body_names())
-    fv, fc, ke = truth[10 * nb : 10 * nb + 2 * n : 2], truth[10 * nb + 1 : 10 * nb + 2 * n : 2], truth[10 * nb + 2 * n :]
-    rows = []
-    for omega in (0.3, 0.5, 0.7, 0.9):
-        t = np.arange(int(round(2 * np.pi / omega * 1000))) / 1000
-        q, qd, qdd = arash.paper_validation_trajectory(omega, t)
-        shape = np.sign(qd) if law == "sign" else np.tanh(qd / np.asarray(TANH_EPSILON if law is None else law))
-        exact = rigid_torques(expanded, q, qd, qdd) + fv * qd + fc * shape + ke * q
-        error = np.linalg.norm(exact - model.predict(q, qd, qdd), axis=0)
-        rows.append(100 * (1 - error / np.linalg.norm(exact - exact.mean(axis=0), axis=0)))
-    return np.array(rows)
 
 
 def within_three_sigma(model, truth):
@@ -145,7 +125,7 @@ def test_the_stick_step_holds_a_joint_still_until_the_other_torques_overcome_its
     checked against scipy's minimiser of that convex function."""
     from scipy.optimize import minimize
 
-    from closed_loop import coulomb_step
+    from support.closed_loop import coulomb_step
 
     h, m, fc = 1e-3, 2.0, 3.0
     for force, expected in ((2.5, 0.0), (-2.9, 0.0), (5.0, h * (5.0 - fc) / m), (-4.0, h * (-4.0 + fc) / m)):

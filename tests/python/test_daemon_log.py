@@ -11,10 +11,9 @@ import numpy as np
 import pytest
 
 import arash
-from conftest import ROOT
+from support.paths import ARASH
 
 mcap_reader = pytest.importorskip("mcap.reader")
-ARASH = ROOT / "target" / "release" / "arash"
 
 
 @pytest.fixture(scope="module")

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import arash
-from conftest import ROOT
+from support.paths import ROOT
 
 NOMINAL = ROOT / "scenarios" / "nominal.toml"
 OMEGA = 0.5

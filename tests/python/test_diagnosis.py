@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import arash
-from conftest import ROOT, kuka_run
+from support.paths import ROOT, kuka_run
 
 EXCITATION = ROOT / "trajectories" / "excitation_L5_T15.json"
 # The simulated drive's joint motion per motor radian (docs/simulator.md).
@@ -207,7 +207,7 @@ def test_kuka_measured_data_identify_on_run_1_hold_out_run_2():
     """Real data nobody on the team recorded: the declared model (rigid body, viscous and
     Coulomb friction, cable stiffness) fitted on run 1, judged on run 2. What the diagnosis adds
     must cut the error on run 2, joint by joint, and never make a joint worse."""
-    from conftest import kuka_urdf
+    from support.paths import kuka_urdf
 
     robot = arash.Robot.from_urdf(kuka_urdf())
     t, q, tau = kuka_run(1)
@@ -229,7 +229,7 @@ def test_kuka_effects_found_on_runs_1_and_2_cut_the_error_on_run_3():
     2 %, no other joint changes, and every effect but one left out alone costs its joints more
     than a tenth of their squared error (run 3 covers other joint space: on 2026-11-27 a Stribeck
     term on joint 3 found on run 2 left run 3's joint 3 0.7 % worse; docs/diagnosis.md)."""
-    from conftest import kuka_urdf
+    from support.paths import kuka_urdf
 
     robot = arash.Robot.from_urdf(kuka_urdf())
     d = arash.diagnose(robot, *kuka_run(1), validation=kuka_run(2))

@@ -16,7 +16,7 @@ import pytest
 pytest.importorskip("pinocchio")
 import arash  # noqa: E402
 
-from independent import TANH_EPSILON, Condition, Injected, make_log, trajectory, urdf_path  # noqa: E402
+from support.independent import TANH_EPSILON, Condition, Injected, make_log, trajectory, urdf_path  # noqa: E402
 
 NULL = [
     # The case: 8 periods of 10 s at 1 kHz, 16-bit encoders, 1 % noise, sign(q̇).

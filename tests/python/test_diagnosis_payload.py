@@ -9,15 +9,13 @@ over seeds and encoders (docs/diagnosis.md, "A mass added or taken off").
 
 import warnings
 
-import numpy as np
 import pytest
 
 pytest.importorskip("pinocchio")
-from scipy.signal import butter, filtfilt  # noqa: E402
 
 import arash  # noqa: E402
-from conftest import kuka_run  # noqa: E402
-from independent import Condition, Expanded, Payload, make_log, urdf_path  # noqa: E402
+from support.paths import kuka_run  # noqa: E402
+from support.independent import Condition, Payload, make_log, payload_torque, urdf_path  # noqa: E402
 
 LOG = (1000, 16, 0.01, "sign", None, 30.0)
 CASES = [
@@ -87,21 +85,6 @@ def test_without_the_sign_rule_the_missing_weight_would_be_taken_up_by_other_eff
         d = arash.diagnose(robot, *run, model=model, validation=held, effects=others)
     assert d.too_heavy is None
     assert d.accepted, d.report()
-
-
-def payload_torque(path, robot, payload, t, q):
-    """The torque a point mass adds on a measured motion, from Pinocchio: RNEA with the mass minus
-    RNEA without (the dynamics are linear in the masses), at velocities and accelerations from a
-    zero-phase 10 Hz filter and central differences, as a torque sensor would feel them."""
-    b, a = butter(4, 10.0 / (0.5 / (t[1] - t[0])))
-    smooth = filtfilt(b, a, q, axis=0)
-    qd = np.gradient(smooth, t, axis=0)
-    qdd = np.gradient(qd, t, axis=0)
-    tree = Expanded(path, robot)
-    tree.set_parameters(robot.cad_parameters())
-    without = np.array([tree.torque(*x) for x in zip(smooth, qd, qdd)])
-    tree.add_point_mass(payload)
-    return np.array([tree.torque(*x) for x in zip(smooth, qd, qdd)]) - without
 
 
 KNOWN_MASSES = [(1.0, (0.0, 0.0, 0.05)), (3.0, (0.0, 0.0, 0.1))]

@@ -1,6 +1,6 @@
 """Calibration from motor currents with a known load (issue 45): per-joint drive gains fitted with
 the base parameters (Gautier and Briot 2014), on logs our code did not generate. The robots are
-Pinocchio's (tests/python/independent.py), with currents τ/k for gains k drawn from 0.5–2× and
+Pinocchio's (tests/python/support/independent.py), with currents τ/k for gains k drawn from 0.5–2× and
 the load a point mass added to Pinocchio's tree; and the real KUKA LWR4+ runs of ../shared/data,
 turned into currents by made-up gains, with a known mass's torque (from Pinocchio) added to one.
 bench/drive_gains.py gives the coverage over seeds (docs/currents.md)."""
@@ -13,9 +13,9 @@ import pytest
 pytest.importorskip("pinocchio")
 
 import arash  # noqa: E402
-from conftest import kuka_run, kuka_urdf  # noqa: E402
-from independent import Condition, Payload, make_log, trajectory, urdf_path  # noqa: E402
-from test_diagnosis_payload import payload_torque  # noqa: E402
+from support.paths import kuka_run, kuka_urdf  # noqa: E402
+from support.independent import Condition, Payload, make_log, trajectory, urdf_path  # noqa: E402
+from support.independent import payload_torque  # noqa: E402
 
 
 def calibration(name, link, mass, seed, fs=1000.0, noise=0.02):
@@ -186,7 +186,7 @@ def test_the_cli_fits_the_gains_from_csv_currents_and_a_load_file(tmp_path):
     import json
     import subprocess
 
-    from test_daemon_log import ARASH
+    from support.paths import ARASH
 
     if not ARASH.exists():
         pytest.skip(f"{ARASH} not built (cargo build --release)")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import arash
-from conftest import kuka_urdf, random_physical_params, tx40_urdf
+from support.paths import kuka_urdf, random_physical_params, tx40_urdf
 
 
 def reachable_trajectories(robot, count, rng, samples=200):
@@ -112,7 +112,7 @@ def test_identify_fits_the_identifiable_base_parameters_unless_told_to_keep_the_
     parameter, says so, and predicts as well as the fit that keeps it, while the parameters the
     weak one leaned on are no longer lost in its noise."""
     pytest.importorskip("pinocchio")
-    import independent
+    from support import independent
 
     condition = independent.Condition("arash_asist", 1000, 16, 0.01, "sign", 4, 60.0, seed=4, designed=designed)
     robot, log, _ = independent.make_log(condition)
@@ -138,7 +138,7 @@ def test_the_diagnosis_fits_the_exact_base_parameters():
     """The regrouping's residual is a bias of arash's own that an effect could take up, so the
     diagnosis keeps the weak parameter (its inertial parameters are nuisance)."""
     pytest.importorskip("pinocchio")
-    import independent
+    from support import independent
 
     robot, log, _ = independent.make_log(independent.Condition("arash_asist", 200, 16, 0.01, "sign", None, 10.0, seed=5))
     assert arash.diagnose(robot, *log).model.base.names == robot.base_parameters().names

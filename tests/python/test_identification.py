@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 import arash
-from simulated import fourier_trajectory, log, pseudo_inertia, true_parameters
+from support.simulated import fourier_trajectory, log, pseudo_inertia, true_parameters
+from support.references import cvxpy_consistent
 
 FS = 1000.0
 
@@ -115,38 +116,6 @@ def test_bad_logs_are_refused(robot, training):
         arash.identify(robot, t, still, tau)
 
 
-def cvxpy_consistent(cp, robot, W, tau, pull):
-    """The consistent problem written independently in cvxpy (see identify/consistent.rs)."""
-    m = W.shape[0]
-    cad = robot.cad_parameters()
-    ell = 0.1
-    scales = []
-    for b in range(8):
-        mass = cad[10 * b]
-        scales += [mass] + [mass * ell] * 3 + [mass * ell**2] * 6
-    scales = np.array(scales + [1.0] * 9)
-    gram_diag = (W**2).sum(axis=0)
-    mean_curv = np.mean(gram_diag * scales**2)
-    lam = pull * (gram_diag + 1e-3 * mean_curv / scales**2)
-    x = cp.Variable(89)
-    objective = (cp.sum_squares(W @ x - tau) + cp.sum(cp.multiply(lam, cp.square(x - cad)))) / m
-    constraints = [x[80:86] >= 0, x[86:89] >= 0]
-    for b in range(8):
-        m_, hx, hy, hz, ixx, iyy, izz, ixy, ixz, iyz = [x[10 * b + i] for i in range(10)]
-        J = cp.bmat([
-            [0.5 * (-ixx + iyy + izz), -ixy, -ixz, hx],
-            [-ixy, 0.5 * (ixx - iyy + izz), -iyz, hy],
-            [-ixz, -iyz, 0.5 * (ixx + iyy - izz), hz],
-            [hx, hy, hz, m_],
-        ])
-        constraints.append(J >> 0)
-    problem = cp.Problem(cp.Minimize(objective), constraints)
-    problem.solve(solver=cp.CLARABEL)
-    assert problem.status == "optimal"
-    value = lambda v: (((W @ v - tau) ** 2).sum() + (lam * (v - cad) ** 2).sum()) / m
-    return x.value, problem.value, value
-
-
 @pytest.mark.parametrize("pull", [1e-4, 1e-1])
 def test_consistent_solve_matches_cvxpy(robot, truth, pull):
     cp = pytest.importorskip("cvxpy")
@@ -207,7 +176,7 @@ def test_sigma_is_the_spread_of_the_estimate_over_noise_seeds_on_independent_dat
     matches the mean σ̂ (median ratio within 0.8–1.25; the disjoint-block estimate on the filtered
     residual was 1.3–1.65 low), and the truth lies within 3σ̂ in ≥ 95 % of the estimates."""
     pytest.importorskip("pinocchio")
-    import independent
+    from support import independent
 
     condition = independent.Condition("arash_asist", 1000, 20, 0.01, "sign", 4, 60.0, seed=0)
     robot, _, truth = independent.make_log(condition)
@@ -238,7 +207,7 @@ def test_table_i_names_why_each_large_sigma_is_large_on_independent_data():
     The numbers behind the causes are checked against a QR regression in
     crates/arash-core/tests/identification.rs."""
     pytest.importorskip("pinocchio")
-    import independent
+    from support import independent
 
     condition = independent.Condition("arash_asist", 1000, 12, 0.05, "sign", 4, 60.0, seed=3)
     robot, log, _ = independent.make_log(condition)

@@ -12,7 +12,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from conftest import ROOT
+from support.paths import ROOT
 
 pytest.importorskip("websockets")
 mcap_reader = pytest.importorskip("mcap.reader")

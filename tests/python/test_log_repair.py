@@ -1,6 +1,6 @@
 """The opt-in log repair (issue 45, item 3): logs as real controllers write them, with a corrupt
 block at the start, a bad last row, missed samples and samples stamped early. The logs are
-Pinocchio's (tests/python/independent.py), the reference for the resampling is numpy's
+Pinocchio's (tests/python/support/independent.py), the reference for the resampling is numpy's
 ``interp``, and the check of the whole path is the fit of the same robot from a uniform log."""
 
 import json
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import arash
-from independent import Condition, designed_excitation, make_log
-from test_daemon_log import ARASH
+from support.independent import Condition, designed_excitation, make_log
+from support.paths import ARASH
 
 CONDITION = Condition("arash_asist", 1000, 16, 0.0, "tanh", 4, 60.0, seed=3, designed=True)
 DT = 1.0 / CONDITION.fs
@@ -48,7 +48,7 @@ def logs():
 
 
 def robot_path():
-    from independent import urdf_path
+    from support.independent import urdf_path
 
     return urdf_path("arash_asist")
 

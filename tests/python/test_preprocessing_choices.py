@@ -15,7 +15,8 @@ import pytest
 pytest.importorskip("pinocchio")
 import arash  # noqa: E402
 
-from independent import Condition, make_log  # noqa: E402
+from support.independent import Condition, make_log  # noqa: E402
+from support.references import fits_by_cutoff  # noqa: E402
 
 CONDITIONS = [
     # The issue's case: 8 periods of 10 s at 1 kHz, 16-bit encoders, 1 % noise, sign(q̇).
@@ -35,27 +36,6 @@ CONDITIONS = [
 DESIGNED = CONDITIONS[1]
 assert DESIGNED.designed
 
-# Cut-offs the best is searched over: 0.5 Hz to a quarter of the sample rate...
-GRID_POINTS = 16
-# ... that pass the trajectory: at least this many times its highest frequency. A cut-off below
-# the motion's own harmonics filters them out of the torque and the regressor alike, and the fit
-# of what is left can score a higher training FP% (the TX40 log below: 98.5 at 0.5 Hz, where its
-# harmonics reach 1 Hz) while its model predicts the log's torque at −459 %. That is no model of
-# the log, and no cut-off a user should be pointed to.
-PASSES_THE_MOTION = 2.0
-
-
-def fits_by_cutoff(robot, log, fs, top_frequency=0.0):
-    """FP% per joint at each cut-off of the grid at or above PASSES_THE_MOTION × `top_frequency`
-    (the period left to arash): rows are cut-offs."""
-    rows = []
-    grid = np.geomspace(0.5, fs / 4, GRID_POINTS)
-    for cutoff in grid[grid >= PASSES_THE_MOTION * top_frequency]:
-        try:
-            rows.append(arash.identify(robot, *log, cutoff_hz=float(cutoff)).fp_percent)
-        except ValueError:  # a cut-off the log cannot be filtered or fitted at is no candidate
-            continue
-    return np.array(rows)
 
 
 @pytest.mark.parametrize("condition", CONDITIONS, ids=[c.label for c in CONDITIONS])

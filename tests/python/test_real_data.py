@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import arash
-from conftest import ROOT, SHARED_DATA
+from support.paths import ROOT, SHARED_DATA
 
 TX40 = SHARED_DATA / "staubli_tx40"
 KUKA = SHARED_DATA / "kuka_lwr4"

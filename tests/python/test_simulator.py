@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import arash
-from conftest import ROBOT_FILES, ROOT
+from support.paths import ROBOT_FILES, ROOT
 
 mcap_reader = pytest.importorskip("mcap.reader")
 mcap_protobuf = pytest.importorskip("mcap_protobuf.decoder")
@@ -69,7 +69,7 @@ def test_a_truncated_log_reads_its_beginning(run, tmp_path):
 
 def test_simulated_torques_equal_pinocchio_inverse_dynamics_with_the_true_parameters(run):
     pytest.importorskip("pinocchio")
-    from test_against_pinocchio import Expanded
+    from support.independent import Expanded
 
     result, _ = run
     robot = arash.Robot.arash_asist()

@@ -17,8 +17,9 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use crate::convert::{to_numpy, value_error, vector_out, NumpyArray};
 use crate::identify::{log_arrays, Identification};
-use crate::{to_numpy, value_error, NumpyArray, Robot};
+use crate::robot::Robot;
 
 /// The diagnosis's settings. `DiagnoseOptions()` holds the defaults; `DiagnoseOptions(alpha=0.05)`
 /// changes one. `consistent` and `consistent_cutoff_hz` ask for the physically consistent refit
@@ -192,12 +193,12 @@ impl Effect {
     #[getter]
     fn coefficients<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
         let c = &self.finding.term.coefficients;
-        to_numpy(py, c.clone(), false, c.len(), &[])
+        vector_out(py, c)
     }
     #[getter]
     fn sigma<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
         let s = &self.finding.term.sigma;
-        to_numpy(py, s.clone(), false, s.len(), &[])
+        vector_out(py, s)
     }
     #[getter]
     fn statistic(&self) -> f64 {
@@ -241,7 +242,7 @@ impl Effect {
         if s.is_empty() {
             return Ok(None);
         }
-        to_numpy(py, s.clone(), false, s.len(), &[]).map(Some)
+        vector_out(py, s).map(Some)
     }
     #[getter]
     fn body(&self) -> Option<String> {
@@ -361,14 +362,14 @@ impl Diagnosis {
     #[getter]
     fn noise_floor<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
         let floor = &self.inner.noise_floor;
-        to_numpy(py, floor.clone(), false, floor.len(), &[])
+        vector_out(py, floor)
     }
     /// The torque's white noise in the band, RMS per joint (numpy array), read above a quarter
     /// of the sample rate.
     #[getter]
     fn sensor_noise<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
         let noise = &self.inner.sensor_noise;
-        to_numpy(py, noise.clone(), false, noise.len(), &[])
+        vector_out(py, noise)
     }
     /// `error_before` on the training data.
     #[getter]
@@ -399,7 +400,7 @@ impl Diagnosis {
         let dof = self.robot.dof();
         let d = PyDict::new(py);
         let table = |v: &[f64]| to_numpy(py, v.to_vec(), false, v.len() / dof.max(1), &[dof]);
-        d.set_item("t", to_numpy(py, s.t.clone(), false, s.t.len(), &[])?)?;
+        d.set_item("t", vector_out(py, &s.t)?)?;
         for (name, v) in [
             ("q", &s.q),
             ("qd", &s.qd),
@@ -431,7 +432,7 @@ impl Diagnosis {
 fn errors<'py>(py: Python<'py>, m: &Metrics) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     for (name, v) in [("rms", &m.rms), ("fp_percent", &m.fp_percent), ("rel", &m.relative_error)] {
-        d.set_item(name, to_numpy(py, v.clone(), false, v.len(), &[])?)?;
+        d.set_item(name, vector_out(py, v)?)?;
     }
     Ok(d)
 }

@@ -23,7 +23,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::{batch, same_length, to_numpy, value_error, vector, BaseParameters, NumpyArray, Robot};
+use crate::convert::{batch, row_major, same_length, to_numpy, value_error, vector, vector_out, Batch, NumpyArray};
+use crate::robot::{BaseParameters, Robot};
 
 /// A log's arrays, borrowed from numpy where they are contiguous (a 300,000-sample log is 17 MB).
 pub(crate) type LogArrays<'a> = (Cow<'a, [f64]>, Cow<'a, [f64]>, Cow<'a, [f64]>);
@@ -49,19 +50,7 @@ pub(crate) fn log_arrays<'a>(
     if nq != n || ntau != n {
         return Err(PyValueError::new_err(format!("t has {n} samples, q has {nq} and tau has {ntau}")));
     }
-    // numpy's `as_slice` also accepts Fortran order, whose memory order is not row-major.
-    let values = |a: &'a PyReadonlyArrayDyn<'_, f64>| -> Cow<'a, [f64]> {
-        match a.as_slice() {
-            Ok(slice) if a.is_c_contiguous() => Cow::Borrowed(slice),
-            _ => Cow::Owned(a.as_array().iter().copied().collect()),
-        }
-    };
-    Ok((values(t), values(q), values(tau)))
-}
-
-/// A 1-D numpy copy of `values`.
-fn vector_out<'py>(py: Python<'py>, values: &[f64]) -> PyResult<NumpyArray<'py>> {
-    to_numpy(py, values.to_vec(), false, values.len(), &[])
+    Ok((row_major(t), row_major(q), row_major(tau)))
 }
 
 /// An identified model. Arrays are numpy; `params` is None unless the method was "consistent".
@@ -121,7 +110,7 @@ impl Identification {
     }
     #[getter]
     fn params<'py>(&self, py: Python<'py>) -> PyResult<Option<NumpyArray<'py>>> {
-        self.inner.params.as_ref().map(|p| to_numpy(py, p.clone(), false, p.len(), &[])).transpose()
+        self.inner.params.as_ref().map(|p| vector_out(py, p)).transpose()
     }
     #[getter]
     fn min_pseudo_inertia_eigenvalue<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
@@ -309,11 +298,11 @@ fn _identify<'py>(
         method.map_or(Ok(IdentifyMethod::default()), str::parse).map_err(PyValueError::new_err)?;
     let mut o = IdentifyOptions::default();
     let dof = robot.model.dof();
-    let mut reference: Option<[crate::Batch; 3]> = None;
+    let mut reference: Option<[Batch; 3]> = None;
     let mut controller: Option<String> = None;
     let mut keep_weak = false;
     let mut repair_report: Vec<String> = Vec::new();
-    crate::each_option(options, |key, value| {
+    crate::convert::each_option(options, |key, value| {
         match key {
             "keep_weak" => keep_weak = value.extract()?,
             "repair_report" => repair_report = value.extract()?,
@@ -394,7 +383,7 @@ fn _identify_with_load<'py>(
     let method: IdentifyMethod =
         method.map_or(Ok(IdentifyMethod::default()), str::parse).map_err(PyValueError::new_err)?;
     let mut o = IdentifyOptions::default();
-    crate::each_option(options, |key, value| fit_option(&mut o, key, value))?;
+    crate::convert::each_option(options, |key, value| fit_option(&mut o, key, value))?;
     check_settings(&o)?;
     let dof = robot.model.dof();
     let arrays = runs
@@ -458,7 +447,7 @@ fn _repair_log<'py>(
 /// The closed loop's reference `(q_des, qd_des, qdd_des)`, each `(N, dof)`, and its controller (JSON),
 /// checked: both or neither.
 fn closed_loop_arrays(
-    reference: Option<[crate::Batch; 3]>,
+    reference: Option<[Batch; 3]>,
     controller: Option<&str>,
     dof: usize,
     samples: usize,
@@ -629,7 +618,7 @@ fn _design_excitation(py: Python<'_>, robot: &Robot, options: &Bound<'_, PyDict>
     let mut o = ExcitationOptions::default();
     let mut keep_weak = false;
     let mut repair_report: Vec<String> = Vec::new();
-    crate::each_option(options, |key, value| {
+    crate::convert::each_option(options, |key, value| {
         match key {
             "keep_weak" => keep_weak = value.extract()?,
             "repair_report" => repair_report = value.extract()?,

@@ -16,16 +16,16 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
+use crate::convert::{batch, matrix_out, value_error, vector_out};
 use crate::identify::Identification;
-use crate::{batch, to_numpy, value_error, Robot};
+use crate::robot::Robot;
 
 fn matrix<'py>(py: Python<'py>, values: &[f64], dof: usize) -> PyResult<Bound<'py, PyAny>> {
-    let n = values.len().checked_div(dof).unwrap_or(0);
-    Ok(to_numpy(py, values.to_vec(), false, n, &[dof])?.into_any())
+    Ok(matrix_out(py, values, dof)?.into_any())
 }
 
 fn vector<'py>(py: Python<'py>, values: &[f64]) -> PyResult<Bound<'py, PyAny>> {
-    Ok(to_numpy(py, values.to_vec(), false, values.len(), &[])?.into_any())
+    Ok(vector_out(py, values)?.into_any())
 }
 
 fn integers<'py, T: numpy::Element + Copy>(py: Python<'py>, values: &[T]) -> Bound<'py, PyAny> {

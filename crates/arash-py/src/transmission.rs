@@ -5,7 +5,7 @@ use numpy::ndarray::{Array2, IxDyn};
 use numpy::{IntoPyArray, PyArrayDyn, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
 
-use crate::{batch, same_length, value_error};
+use crate::convert::{batch, same_length, value_error};
 
 type Array<'py> = Bound<'py, PyArrayDyn<f64>>;
 

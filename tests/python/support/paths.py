@@ -1,4 +1,5 @@
-"""Shared fixtures for the Python tests: robot files, random states, Pinocchio oracles."""
+"""Where the robots, the fixtures, the measured data and the built binary are, and random
+states and physical parameters for a robot."""
 
 import math
 import xml.etree.ElementTree as ET
@@ -7,9 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 FIXTURES = ROOT / "tests" / "fixtures"
 SHARED_DATA = ROOT.parent / "shared" / "data"
+# The `arash` binary that `cargo build --release` makes (scripts/test builds it first).
+ARASH = ROOT / "target" / "release" / "arash"
 
 ROBOT_FILES = {
     "arash_asist": ROOT / "robots" / "arash_asist.urdf",

@@ -19,7 +19,7 @@ import numpy as np
 import pinocchio as pin
 
 import arash
-from conftest import ROBOT_FILES, kuka_urdf, tx40_urdf, urdf_couplings
+from .paths import ROBOT_FILES, kuka_urdf, tx40_urdf, urdf_couplings
 
 # ours [m, mx, my, mz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz]  <-  Pinocchio's index for each entry
 OURS_FROM_PIN = [0, 1, 2, 3, 4, 6, 9, 5, 7, 8]
@@ -176,7 +176,7 @@ def limits(robot):
     return np.array(lo), np.array(hi), np.array(vmax)
 
 
-DESIGNED = Path(__file__).resolve().parents[2] / "trajectories" / "excitation_L5_T15.json"
+DESIGNED = Path(__file__).resolve().parents[3] / "trajectories" / "excitation_L5_T15.json"
 
 
 def designed_excitation(t):
@@ -360,3 +360,20 @@ def make_log(condition, states=None, truth=None, effect=None, payload=None):
     step = quantum(path, robot) / 2**condition.bits
     q_measured = np.round(q / step) * step
     return robot, (t, q_measured, tau), truth
+
+
+def payload_torque(path, robot, payload, t, q):
+    """The torque a point mass adds on a measured motion, from Pinocchio: RNEA with the mass minus
+    RNEA without (the dynamics are linear in the masses), at velocities and accelerations from a
+    zero-phase 10 Hz filter and central differences, as a torque sensor would feel them."""
+    from scipy.signal import butter, filtfilt
+
+    b, a = butter(4, 10.0 / (0.5 / (t[1] - t[0])))
+    smooth = filtfilt(b, a, q, axis=0)
+    qd = np.gradient(smooth, t, axis=0)
+    qdd = np.gradient(qd, t, axis=0)
+    tree = Expanded(path, robot)
+    tree.set_parameters(robot.cad_parameters())
+    without = np.array([tree.torque(*x) for x in zip(smooth, qd, qdd)])
+    tree.add_point_mass(payload)
+    return np.array([tree.torque(*x) for x in zip(smooth, qd, qdd)]) - without

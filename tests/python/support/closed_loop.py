@@ -12,7 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 import arash
-from independent import TANH_EPSILON, Expanded, friction, make_log, quantum, rigid_torques, trajectory, urdf_path
+from .independent import TANH_EPSILON, Expanded, friction, make_log, quantum, rigid_torques, trajectory, urdf_path
+from .paths import ROBOT_FILES
 
 # The loop's bandwidth (Hz) and damping ratio, from each joint's inertia at the start.
 LOOP_HZ = 5.0
@@ -157,3 +158,23 @@ def coulomb_step(mass, free, impulse):
         if np.max(np.abs(lam - before)) <= 1e-12 * max(1e-300, np.max(impulse)):
             break
     return free - inverse @ lam
+
+
+def paper_validation_fp(robot, model, truth, law=None):
+    """FP% per joint of ``model`` on the paper's four validation trajectories (ω = 0.3, 0.5, 0.7,
+    0.9, one period at 1 kHz), against the noise-free torque of the true robot from Pinocchio,
+    whose Coulomb law is ``law``: None for tanh of ``TANH_EPSILON``, "sign", or a friction
+    velocity per joint."""
+    expanded = Expanded(ROBOT_FILES["arash_asist"], robot)
+    expanded.set_parameters(truth)
+    n, nb = robot.dof, len(robot.body_names())
+    fv, fc, ke = truth[10 * nb : 10 * nb + 2 * n : 2], truth[10 * nb + 1 : 10 * nb + 2 * n : 2], truth[10 * nb + 2 * n :]
+    rows = []
+    for omega in (0.3, 0.5, 0.7, 0.9):
+        t = np.arange(int(round(2 * np.pi / omega * 1000))) / 1000
+        q, qd, qdd = arash.paper_validation_trajectory(omega, t)
+        shape = np.sign(qd) if law == "sign" else np.tanh(qd / np.asarray(TANH_EPSILON if law is None else law))
+        exact = rigid_torques(expanded, q, qd, qdd) + fv * qd + fc * shape + ke * q
+        error = np.linalg.norm(exact - model.predict(q, qd, qdd), axis=0)
+        rows.append(100 * (1 - error / np.linalg.norm(exact - exact.mean(axis=0), axis=0)))
+    return np.array(rows)
