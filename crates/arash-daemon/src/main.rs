@@ -15,5 +15,5 @@ struct Cli {
 fn main() -> std::process::ExitCode {
     arash_daemon::exit::report_panics_as_bugs();
     let args = Cli::parse().args;
-    arash_daemon::exit::exit_code(daemon::startup::options(args).and_then(daemon::run))
+    arash_daemon::exit::exit_code(daemon::startup::options(args).map_err(anyhow::Error::from).and_then(daemon::run))
 }

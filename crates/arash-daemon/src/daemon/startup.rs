@@ -5,19 +5,64 @@ use std::path::{Path, PathBuf};
 use std::str::FromStr;
 use std::sync::Arc;
 
-use anyhow::Context;
-use arash_core::control::{controller_with_effects, Controller, ControllerKind, RobustGains};
-use arash_core::model_file::ModelFile;
+use arash_core::control::{controller_with_effects, Controller, ControllerError, ControllerKind, RobustGains};
+use arash_core::model_file::{ModelFile, ModelFileError};
+use arash_core::urdf::UrdfError;
 use arash_core::Model;
 
-use crate::config::{DaemonConfig, LinkKind};
-use crate::drive_config::TorqueConstants;
+use crate::config::{ConfigError, DaemonConfig, LinkKind};
+use crate::drive_config::{DriveConfigError, TorqueConstants};
 use crate::link::MotorLink;
 use crate::live::server::LiveServer;
+use crate::live::LiveConfigError;
 use arash_core::identify::closed_loop::LoggedController;
 
 use super::DaemonOptions;
 use crate::rt::clock::RtPolicy;
+
+/// Why the daemon cannot start. Each names the file, setting or device concerned, and the daemon
+/// has enabled nothing when it says so. The cause, where there is one, is the error's `source`:
+/// the binaries print the chain on one line, as the control socket's answers do. (The operator's requests reuse the file and controller
+/// cases: a model file named at run time is read and checked alike.)
+#[derive(Debug, thiserror::Error)]
+pub enum StartupError {
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error("invalid configuration")]
+    Live(#[from] LiveConfigError),
+    #[error("opening {path}")]
+    Open { path: PathBuf, source: std::io::Error },
+    #[error("{0} is not a regular file")]
+    NotAFile(PathBuf),
+    #[error("{path} is larger than {max} bytes")]
+    TooLarge { path: PathBuf, max: usize },
+    #[error("{0} is not UTF-8 text")]
+    NotUtf8(PathBuf),
+    #[error("loading {path}")]
+    ModelFile { path: PathBuf, source: ModelFileError },
+    #[error("{path} refused for the {kind:?} controller")]
+    Refused { path: PathBuf, kind: ControllerKind, source: ModelFileError },
+    #[error(transparent)]
+    Controller(#[from] ControllerError),
+    #[error("control.model {model:?}")]
+    TorqueConstants { model: Option<PathBuf>, source: DriveConfigError },
+    #[error("the motor link: {0}")]
+    Link(std::io::Error),
+    #[error("link.kind = \"can\" needs Linux SocketCAN")]
+    NoSocketCan,
+    #[error("binding the live stream to live.address {address}")]
+    LiveBind { address: std::net::SocketAddr, source: std::io::Error },
+    #[error("the live stream's socket: {0}")]
+    LiveSocket(std::io::Error),
+    #[error("the live stream: {0}")]
+    LiveServer(String),
+    #[error("reading URDF {path}")]
+    ReadRobot { path: PathBuf, source: std::io::Error },
+    #[error("loading {path}")]
+    Robot { path: PathBuf, source: UrdfError },
+    #[error("writing the effective configuration: {0}")]
+    Effective(String),
+}
 
 /// Build a controller of `kind` for `model` with parameters from `model_file` (or CAD). The
 /// model-based laws also compensate the effects a diagnosis added to the file. Returns it with
@@ -26,9 +71,9 @@ use crate::rt::clock::RtPolicy;
 pub fn build_controller(
     model: &Model,
     kind: ControllerKind,
-    model_file: Option<(&std::path::Path, &ModelFile)>,
+    model_file: Option<(&Path, &ModelFile)>,
     gains: Option<&RobustGains>,
-) -> anyhow::Result<(Box<dyn Controller>, LoggedController)> {
+) -> Result<(Box<dyn Controller>, LoggedController), StartupError> {
     let (params, effects) = match model_file {
         None => (model.cad_parameters(), vec![]),
         Some((path, id)) => {
@@ -37,7 +82,7 @@ pub fn build_controller(
             } else {
                 id.consistent_controller_parameters(model)
             };
-            let params = params.with_context(|| format!("{} refused for the {kind:?} controller", path.display()))?;
+            let params = params.map_err(|source| StartupError::Refused { path: path.into(), kind, source })?;
             (params, id.effects.clone())
         }
     };
@@ -46,9 +91,9 @@ pub fn build_controller(
 }
 
 /// Read a model file named by the configuration or an operator.
-pub fn read_model_file(path: &std::path::Path) -> anyhow::Result<ModelFile> {
-    let text = read_file(path, MAX_INPUT_FILE_BYTES).context("reading the model file")?;
-    ModelFile::from_json(&text).with_context(|| format!("loading {}", path.display()))
+pub fn read_model_file(path: &Path) -> Result<ModelFile, StartupError> {
+    let text = read_file(path, MAX_INPUT_FILE_BYTES)?;
+    ModelFile::from_json(&text).map_err(|source| StartupError::ModelFile { path: path.into(), source })
 }
 
 /// The torque constants the daemon runs with ([`TorqueConstants::choose`]): the start-up model's
@@ -57,10 +102,10 @@ pub(super) fn torque_constants(
     config: &DaemonConfig,
     model: &Model,
     file: Option<&ModelFile>,
-) -> anyhow::Result<TorqueConstants> {
+) -> Result<TorqueConstants, StartupError> {
     let gains = file.and_then(|f| f.drive_gains.as_ref());
     let chosen = TorqueConstants::choose(&config.drive, gains, &model.joint_names())
-        .with_context(|| format!("control.model {:?}", config.control.model))?;
+        .map_err(|source| StartupError::TorqueConstants { model: config.control.model.clone(), source })?;
     for ((name, k), source) in model.joint_names().iter().zip(&chosen.values).zip(&chosen.sources) {
         eprintln!("arash-daemon: {name}: {k:.5} per ampere, {source}");
     }
@@ -74,31 +119,36 @@ pub(super) const MAX_INPUT_FILE_BYTES: usize = 64 << 20;
 
 /// Read a regular file of at most `max` bytes as UTF-8: a device, a FIFO or an oversized file
 /// named by an operator must not stall the daemon's operator interface.
-pub(super) fn read_file(path: &std::path::Path, max: usize) -> anyhow::Result<String> {
+pub(super) fn read_file(path: &Path, max: usize) -> Result<String, StartupError> {
     use std::io::Read;
-    let file = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
-    let meta = file.metadata().with_context(|| format!("reading {}", path.display()))?;
-    anyhow::ensure!(meta.is_file(), "{} is not a regular file", path.display());
+    let open = |source| StartupError::Open { path: path.into(), source };
+    let file = std::fs::File::open(path).map_err(open)?;
+    if !file.metadata().map_err(open)?.is_file() {
+        return Err(StartupError::NotAFile(path.into()));
+    }
     let mut bytes = Vec::new();
-    file.take(max as u64 + 1).read_to_end(&mut bytes).with_context(|| format!("reading {}", path.display()))?;
-    anyhow::ensure!(bytes.len() <= max, "{} is larger than {max} bytes", path.display());
-    String::from_utf8(bytes).map_err(|_| anyhow::anyhow!("{} is not UTF-8 text", path.display()))
+    file.take(max as u64 + 1).read_to_end(&mut bytes).map_err(open)?;
+    if bytes.len() > max {
+        return Err(StartupError::TooLarge { path: path.into(), max });
+    }
+    String::from_utf8(bytes).map_err(|_| StartupError::NotUtf8(path.into()))
 }
 
-pub(super) fn open_link(config: &DaemonConfig, dof: usize) -> anyhow::Result<Box<dyn MotorLink>> {
+pub(super) fn open_link(config: &DaemonConfig, dof: usize) -> Result<Box<dyn MotorLink>, StartupError> {
     match config.link.kind {
         LinkKind::Serial => {
-            let port = crate::link::serial::open_port(&config.link.port, config.link.baud)?;
+            let port =
+                crate::link::serial::open_port(&config.link.port, config.link.baud).map_err(StartupError::Link)?;
             Ok(Box::new(crate::link::serial::SerialLink::new(port, dof)))
         }
         LinkKind::Can => {
             #[cfg(target_os = "linux")]
             {
-                let bus = crate::link::can::SocketCan::open(&config.link.interface)?;
+                let bus = crate::link::can::SocketCan::open(&config.link.interface).map_err(StartupError::Link)?;
                 Ok(Box::new(crate::link::can::CanLink::new(bus, dof)))
             }
             #[cfg(not(target_os = "linux"))]
-            anyhow::bail!("link.kind = \"can\" needs Linux SocketCAN")
+            Err(StartupError::NoSocketCan)
         }
     }
 }
@@ -109,13 +159,13 @@ pub(super) fn open_live(
     config: &DaemonConfig,
     urdf: &str,
     scales: &[(f64, &'static str)],
-) -> anyhow::Result<(Arc<LiveServer>, std::net::TcpListener)> {
+) -> Result<(Arc<LiveServer>, std::net::TcpListener), StartupError> {
     let addr = config.live.socket_addr()?;
     let listener =
-        std::net::TcpListener::bind(addr).with_context(|| format!("binding the live stream to live.address {addr}"))?;
-    listener.set_nonblocking(true)?;
-    limit_send_buffer(&listener)?;
-    let addr = listener.local_addr()?;
+        std::net::TcpListener::bind(addr).map_err(|source| StartupError::LiveBind { address: addr, source })?;
+    listener.set_nonblocking(true).map_err(StartupError::LiveSocket)?;
+    limit_send_buffer(&listener).map_err(StartupError::LiveSocket)?;
+    let addr = listener.local_addr().map_err(StartupError::LiveSocket)?;
     if !addr.ip().is_loopback() {
         eprintln!(
             "arash-daemon: WARNING: the live stream listens on {addr}, not on loopback: anyone who can reach it \
@@ -124,7 +174,8 @@ pub(super) fn open_live(
     }
     eprintln!("arash-daemon: live stream on ws://{addr} (Foxglove: open connection, Foxglove WebSocket)");
     let units: Vec<&str> = scales.iter().map(|s| s.1).collect();
-    let server = LiveServer::new(addr, urdf, &units, config.live.client_queue)?;
+    let server = LiveServer::new(addr, urdf, &units, config.live.client_queue)
+        .map_err(|e| StartupError::LiveServer(format!("{e:#}")))?;
     Ok((Arc::new(server), listener))
 }
 
@@ -133,7 +184,7 @@ pub(super) fn open_live(
 /// read hold megabytes of it, minutes old by the time they arrive, before anything is dropped.
 const LIVE_SEND_BUFFER_BYTES: libc::c_int = 64 * 1024;
 
-fn limit_send_buffer(listener: &std::net::TcpListener) -> anyhow::Result<()> {
+fn limit_send_buffer(listener: &std::net::TcpListener) -> std::io::Result<()> {
     use std::os::fd::AsRawFd;
     let size = LIVE_SEND_BUFFER_BYTES;
     // SAFETY: a valid socket descriptor, and a pointer to a c_int with its size, as SO_SNDBUF takes.
@@ -146,8 +197,10 @@ fn limit_send_buffer(listener: &std::net::TcpListener) -> anyhow::Result<()> {
             std::mem::size_of::<libc::c_int>() as libc::socklen_t,
         )
     };
-    anyhow::ensure!(rc == 0, "setting the live stream's send buffer: {}", std::io::Error::last_os_error());
-    Ok(())
+    match rc {
+        0 => Ok(()),
+        _ => Err(std::io::Error::other(format!("setting its send buffer: {}", std::io::Error::last_os_error()))),
+    }
 }
 
 /// The daemon's command line: `arash-daemon` (what systemd runs) and `arash daemon` take the
@@ -187,9 +240,14 @@ pub struct DaemonArgs {
 
 /// The configuration file with the command line's overrides, the robot it names, and the
 /// effective configuration as every log records it.
-pub fn options(args: DaemonArgs) -> anyhow::Result<DaemonOptions> {
+pub fn options(args: DaemonArgs) -> Result<DaemonOptions, StartupError> {
     let (mut config, text) = match &args.config {
-        Some(path) => (DaemonConfig::load(path)?, std::fs::read_to_string(path)?),
+        Some(path) => {
+            let config = DaemonConfig::load(path)?;
+            let text =
+                std::fs::read_to_string(path).map_err(|source| StartupError::Open { path: path.clone(), source })?;
+            (config, text)
+        }
         None => (DaemonConfig::default(), String::new()),
     };
     if let Some(p) = args.port {
@@ -219,21 +277,65 @@ pub fn options(args: DaemonArgs) -> anyhow::Result<DaemonOptions> {
     config.live.allow_remote |= args.live_allow_remote;
     let (model, urdf) = load_robot(config.robot.as_deref())?;
     // The effective configuration goes into every log, overrides included.
-    let config_text =
-        format!("# as loaded{}\n{}", if text.is_empty() { " (defaults)" } else { "" }, toml::to_string(&config)?);
+    let effective = toml::to_string(&config).map_err(|e| StartupError::Effective(e.to_string()))?;
+    let config_text = format!("# as loaded{}\n{effective}", if text.is_empty() { " (defaults)" } else { "" });
     Ok(DaemonOptions { config, config_text, model, urdf })
 }
 
 /// Load a robot model and keep its URDF text (model files and logs embed it). `None` is the
 /// ARASH:ASiST description built into the binary. The URDF's warnings go to stderr.
-pub fn load_robot(path: Option<&Path>) -> anyhow::Result<(Model, String)> {
+pub fn load_robot(path: Option<&Path>) -> Result<(Model, String), StartupError> {
     let Some(path) = path else {
         return Ok((arash_core::arash_asist(), arash_core::ARASH_ASIST_URDF.to_string()));
     };
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading URDF {}", path.display()))?;
-    let model = arash_core::parse_urdf(&text).with_context(|| format!("loading {}", path.display()))?;
+    let text = std::fs::read_to_string(path).map_err(|source| StartupError::ReadRobot { path: path.into(), source })?;
+    let model = arash_core::parse_urdf(&text).map_err(|source| StartupError::Robot { path: path.into(), source })?;
     for warning in &model.warnings {
         eprintln!("warning: {}: {warning}", path.display());
     }
     Ok((model, text))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("arash-startup-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    #[test]
+    fn a_file_the_daemon_must_not_read_is_refused_by_name() {
+        let dir = scratch("files");
+        let named = |e: StartupError, what: &str| {
+            let text = format!("{:#}", anyhow::Error::from(e));
+            assert!(text.contains(&dir.display().to_string()) && text.contains(what), "{text}");
+        };
+        named(read_file(&dir, 100).unwrap_err(), "is not a regular file");
+        named(read_file(&dir.join("missing.json"), 100).unwrap_err(), "missing.json: No such file");
+        let big = dir.join("big.json");
+        std::fs::write(&big, vec![b'x'; 101]).unwrap();
+        assert!(matches!(read_file(&big, 100), Err(StartupError::TooLarge { max: 100, .. })));
+        let binary = dir.join("binary.json");
+        std::fs::write(&binary, [0xff, 0xfe]).unwrap();
+        assert!(matches!(read_file(&binary, 100), Err(StartupError::NotUtf8(_))));
+        std::fs::write(dir.join("model.json"), "{").unwrap();
+        assert!(matches!(read_model_file(&dir.join("model.json")), Err(StartupError::ModelFile { .. })));
+        std::fs::write(dir.join("robot.urdf"), "<robot>").unwrap();
+        assert!(matches!(load_robot(Some(&dir.join("robot.urdf"))), Err(StartupError::Robot { .. })));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_bad_override_is_refused_before_anything_opens() {
+        let dir = scratch("override");
+        let config = dir.join("daemon.toml");
+        std::fs::write(&config, "[link]\nbogus = 1\n").unwrap();
+        let args = DaemonArgs { config: Some(config), ..Default::default() };
+        let e = options(args).err().expect("an unknown key is refused");
+        assert!(matches!(e, StartupError::Config(_)) && e.to_string().contains("bogus"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
