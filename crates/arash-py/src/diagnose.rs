@@ -17,7 +17,7 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::convert::{to_numpy, value_error, vector_out, NumpyArray};
+use crate::convert::{matrix_out, value_error, vector_out, NumpyArray};
 use crate::identify::{log_arrays, Identification};
 use crate::robot::Robot;
 
@@ -399,7 +399,7 @@ impl Diagnosis {
         let s = &self.inner.series;
         let dof = self.robot.dof();
         let d = PyDict::new(py);
-        let table = |v: &[f64]| to_numpy(py, v.to_vec(), false, v.len() / dof.max(1), &[dof]);
+        let table = |v: &[f64]| matrix_out(py, v, dof);
         d.set_item("t", vector_out(py, &s.t)?)?;
         for (name, v) in [
             ("q", &s.q),

@@ -9,7 +9,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 use crate::batching::{batched, fill, row, Scratch};
-use crate::convert::{batch, same_length, to_numpy, value_error};
+use crate::convert::{batch, matrix_out, same_length, to_numpy, value_error};
 
 /// A robot model: kinematic tree, mimic couplings, CAD parameters.
 #[pyclass(module = "arash._arash", frozen)]
@@ -430,7 +430,7 @@ impl BaseParameters {
     /// B, shape (p, P).
     #[getter(B)]
     fn b<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-        to_numpy(py, self.base.b.clone(), false, self.base.rank, &[self.base.num_params])
+        matrix_out(py, &self.base.b, self.base.num_params)
     }
 
     #[getter]
