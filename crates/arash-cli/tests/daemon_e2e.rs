@@ -501,8 +501,7 @@ fn systemd_hears_ready_after_telemetry_and_watchdog_while_running_and_sigterm_fi
     let notify = UnixDatagram::bind(dir.join("notify.sock")).unwrap();
     notify.set_read_timeout(Some(Duration::from_millis(500))).unwrap();
     // A pty nobody answers yet: no telemetry, so no READY.
-    let (master, slave) = serialport::TTYPort::pair().unwrap();
-    let pty = serialport::SerialPort::name(&slave).unwrap();
+    let (master, slave, pty) = arash_daemon::mock::pseudo_terminal().unwrap();
     let err = std::fs::File::create(dir.join("daemon.err")).unwrap();
     let mut d = Proc(
         daemon_command(&dir, &pty, "[link]\nstartup_timeout_ms = 10000\n")
@@ -533,8 +532,6 @@ fn systemd_hears_ready_after_telemetry_and_watchdog_while_running_and_sigterm_fi
             Default::default(),
         )
         .unwrap();
-        let mut master = master;
-        serialport::SerialPort::set_timeout(&mut master, Duration::ZERO).unwrap();
         motor.serve(master, &stop_mock).unwrap();
         drop(slave);
     });
@@ -573,8 +570,7 @@ fn systemd_hears_ready_after_telemetry_and_watchdog_while_running_and_sigterm_fi
 fn no_telemetry_within_the_startup_timeout_is_an_error_that_names_it() {
     let _serial = serial();
     let dir = Scratch::new("e2e", "startup");
-    let (_master, slave) = serialport::TTYPort::pair().unwrap();
-    let pty = serialport::SerialPort::name(&slave).unwrap();
+    let (_master, _slave, pty) = arash_daemon::mock::pseudo_terminal().unwrap();
     let out = daemon_command(&dir, &pty, "[link]\nstartup_timeout_ms = 300\n").output().unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);

@@ -105,6 +105,19 @@ pub struct MockMotor {
     pub watchdog: std::time::Duration,
 }
 
+/// A pseudo-terminal for the mock motor to play a drive on: the master end, set for
+/// [`MockMotor::serve`] (reads return at once), the slave end, and the slave's path, which the
+/// daemon opens as its serial port. Keep the slave open while daemons come and go, or the master
+/// sees a hang-up between them.
+pub fn pseudo_terminal() -> anyhow::Result<(serialport::TTYPort, serialport::TTYPort, String)> {
+    use anyhow::Context;
+    use serialport::SerialPort;
+    let (mut master, slave) = serialport::TTYPort::pair().context("opening a pseudo-terminal")?;
+    master.set_timeout(std::time::Duration::ZERO)?;
+    let path = slave.name().context("the pseudo-terminal has no name")?;
+    Ok((master, slave, path))
+}
+
 impl MockMotor {
     pub fn new(model: &Model, scenario: &Scenario, config: DriveConfig, faults: FaultPlan) -> Result<Self, MockError> {
         let dof = model.dof();

@@ -30,9 +30,7 @@ impl Drop for Killed {
 
 /// The mock motor on a pseudo-terminal, served from a thread of this process until `stop`.
 fn mock_motor(stop: Arc<AtomicBool>) -> (String, std::thread::JoinHandle<()>) {
-    let (mut master, slave) = serialport::TTYPort::pair().unwrap();
-    let path = serialport::SerialPort::name(&slave).unwrap();
-    serialport::SerialPort::set_timeout(&mut master, Duration::ZERO).unwrap();
+    let (master, slave, path) = arash_daemon::mock::pseudo_terminal().unwrap();
     let serving = std::thread::spawn(move || {
         let model = arash_core::arash_asist();
         let scenario = arash_core::sim::Scenario::default();

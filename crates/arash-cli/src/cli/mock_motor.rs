@@ -7,7 +7,7 @@ use anyhow::Context;
 use arash_core::sim::Scenario;
 use arash_daemon::config::RtConfig;
 use arash_daemon::drive_config::DriveConfig;
-use arash_daemon::mock::{FaultPlan, MockMotor};
+use arash_daemon::mock::{pseudo_terminal, FaultPlan, MockMotor};
 use arash_daemon::rt::clock::{setup_realtime, RtPolicy};
 
 #[derive(clap::Args)]
@@ -65,9 +65,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
         motor.power_on(amps);
     }
-    let (mut master, slave) = serialport::TTYPort::pair().context("opening a pseudo-terminal")?;
-    serialport::SerialPort::set_timeout(&mut master, std::time::Duration::ZERO)?;
-    let path = serialport::SerialPort::name(&slave).context("the pseudo-terminal has no name")?;
+    let (master, slave, path) = pseudo_terminal()?;
     if let Some(link) = &args.link {
         let _ = std::fs::remove_file(link);
         std::os::unix::fs::symlink(&path, link).with_context(|| format!("linking {}", link.display()))?;
