@@ -12,6 +12,7 @@ pub mod base_parameters;
 pub mod blas_lapack;
 pub mod control;
 pub mod data;
+pub mod dense;
 pub mod diagnose;
 pub mod dynamics;
 pub mod effects;

@@ -2,7 +2,10 @@
 //! positive semidefinite (Wensing, Kim and Slotine 2018). Also the scales that make parameters
 //! of different units comparable, and the standard parameters nearest CAD behind a β.
 
+use faer::Mat;
+
 use crate::base_parameters::BaseParameters;
+use crate::dense;
 use crate::model::Model;
 use crate::spatial::pseudo_inertia;
 
@@ -75,15 +78,15 @@ pub fn nearest_standard_parameters(model: &Model, base: &BaseParameters, beta: &
     let (p, big_p) = (base.rank, base.num_params);
     let cad = model.cad_parameters();
     let s2: Vec<f64> = parameter_scales(model, DEFAULT_LENGTH_SCALE_M).iter().map(|s| s * s).collect();
-    let b = nalgebra::DMatrix::from_row_slice(p, big_p, &base.b);
-    let b_s2 = nalgebra::DMatrix::from_fn(p, big_p, |i, j| b[(i, j)] * s2[j]);
+    let b = Mat::from_fn(p, big_p, |i, j| base.b[i * big_p + j]);
+    let b_s2 = Mat::from_fn(p, big_p, |i, j| b[(i, j)] * s2[j]);
     let gram = &b_s2 * b.transpose();
     let mut beta_cad = vec![0.0; p];
     base.project(&cad, &mut beta_cad);
-    let gap = nalgebra::DVector::from_iterator(p, beta.iter().zip(&beta_cad).map(|(a, c)| a - c));
-    let y = gram.lu().solve(&gap).expect("B has full row rank");
+    let gap = Mat::from_fn(p, 1, |i, _| beta[i] - beta_cad[i]);
+    let y = dense::solve(gram.as_ref(), gap.as_ref()).expect("B has full row rank");
     let correction = b_s2.transpose() * y;
-    cad.iter().zip(correction.iter()).map(|(c, d)| c + d).collect()
+    cad.iter().enumerate().map(|(j, c)| c + correction[(j, 0)]).collect()
 }
 
 #[cfg(test)]

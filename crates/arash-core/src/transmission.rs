@@ -9,7 +9,9 @@
 //!
 //! Not on a real-time path: a log is mapped once, before preprocessing.
 
-use nalgebra::DMatrix;
+use faer::Mat;
+
+use crate::dense;
 
 /// Why a transmission cannot be used.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -37,8 +39,8 @@ pub enum TransmissionError {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Transmission {
     /// Motor radians per joint radian, `dof × dof`.
-    r: DMatrix<f64>,
-    r_inv: DMatrix<f64>,
+    r: Mat<f64>,
+    r_inv: Mat<f64>,
     offsets: Vec<f64>,
 }
 
@@ -62,7 +64,7 @@ impl Transmission {
         if let Some((k, &value)) = ratios.iter().enumerate().find(|(_, v)| !v.is_finite() || **v == 0.0) {
             return Err(TransmissionError::Ratio { joint: k + 1, value });
         }
-        let mut r = DMatrix::from_diagonal(&nalgebra::DVector::from_column_slice(ratios));
+        let mut r = Mat::from_fn(dof, dof, |i, j| if i == j { ratios[i] } else { 0.0 });
         for &(motor, joint, value) in coupling {
             let inside = |i: usize| (1..=dof).contains(&i);
             if !inside(motor) || !inside(joint) || motor == joint || !value.is_finite() {
@@ -78,17 +80,15 @@ impl Transmission {
     }
 
     /// A transmission from the whole matrix R (`dof × dof`, motor radians per joint radian).
-    pub fn from_matrix(r: DMatrix<f64>, offsets: Vec<f64>) -> Result<Self, TransmissionError> {
-        if r.iter().any(|v| !v.is_finite()) {
+    pub fn from_matrix(r: Mat<f64>, offsets: Vec<f64>) -> Result<Self, TransmissionError> {
+        if (0..r.ncols()).any(|j| r.col(j).iter().any(|v| !v.is_finite())) {
             return Err(TransmissionError::Singular { smallest: f64::NAN });
         }
-        let singular = r.singular_values();
-        let largest = singular.max();
-        let smallest = if largest > 0.0 && largest.is_finite() { singular.min() / largest } else { 0.0 };
+        let smallest = 1.0 / dense::condition_number(r.as_ref());
         if smallest.is_nan() || smallest < SINGULAR {
             return Err(TransmissionError::Singular { smallest });
         }
-        let r_inv = r.clone().try_inverse().ok_or(TransmissionError::Singular { smallest })?;
+        let r_inv = dense::inverse(r.as_ref()).ok_or(TransmissionError::Singular { smallest })?;
         Ok(Self { r, r_inv, offsets })
     }
 
@@ -97,7 +97,7 @@ impl Transmission {
     }
 
     /// R, motor radians per joint radian.
-    pub fn matrix(&self) -> &DMatrix<f64> {
+    pub fn matrix(&self) -> &Mat<f64> {
         &self.r
     }
 
@@ -180,7 +180,7 @@ mod tests {
         assert!(err(Transmission::new(2, &[1.0, 1.0], &[(3, 1, 2.0)], None)).contains("coupling (3, 1)"));
         // Joint 2 turns motor 1 exactly as joint 1 does, and motor 2 likewise: rank 1.
         assert!(err(Transmission::new(2, &[1.0, 1.0], &[(1, 2, 1.0), (2, 1, 1.0)], None)).contains("singular"));
-        let nan = DMatrix::from_element(2, 2, f64::NAN);
+        let nan = Mat::from_fn(2, 2, |_, _| f64::NAN);
         assert!(err(Transmission::from_matrix(nan, vec![0.0; 2])).contains("singular"));
         let t = tx40();
         assert!(t.to_joints(&[0.0; 7], &[0.0; 6]).unwrap_err().to_string().contains("motor angles"));

@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 /// arash-core, leaf first.
 const CORE: &[&str] = &[
     "blas_lapack",
+    "dense",
     "spatial",
     "transmission",
     "params",

@@ -380,7 +380,6 @@ impl<'a> Search<'a> {
             let tau_shifted = shifted_rows(&pre.tau, dof, &self.fit_rows, shift);
             let y: Vec<f64> = tau_shifted.iter().enumerate().map(|(i, t)| t * weights[i % dof]).collect();
             let Some(beta) = solve_scaled(&gram, &rhs(&refs, &y, dof, Rows::All)) else { return Ok(None) };
-            let beta: Vec<f64> = beta.iter().copied().collect();
             let predicted = predict(&predictors, &beta, dof, self.scored_rows.len(), &vec![1.0; dof]);
             let measured = shifted_rows(held.tau, dof, &self.scored_rows, shift);
             let fp = mean(&joint_metrics(&measured, &predicted, dof).fp_percent);

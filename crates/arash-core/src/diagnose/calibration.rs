@@ -10,17 +10,18 @@
 //! kilograms is then as uncertain as the gains that weighed it, and a common error of every gain
 //! moves its mass by the same share.
 
-use nalgebra::{DMatrix, DVector};
+use faer::Mat;
 
 use super::context::Context;
 use super::problem::Problem;
 use super::regression::{axpy, gram, rhs, solve_scaled, Column, Rows};
+use crate::dense;
 
 /// Per joint, the change of the weighted target per unit relative error of its gain, and the
 /// gains' relative covariance.
 pub(super) struct GainErrors {
     targets: Vec<Vec<f64>>,
-    covariance: DMatrix<f64>,
+    covariance: Mat<f64>,
 }
 
 impl GainErrors {
@@ -40,7 +41,7 @@ impl GainErrors {
             };
             c / (g.gains[i] * g.gains[j])
         };
-        let covariance = DMatrix::from_fn(dof, dof, relative);
+        let covariance = Mat::from_fn(dof, dof, relative);
         let targets = (0..dof)
             .map(|j| {
                 let mut v = vec![0.0; problem.tau.len()];
@@ -66,11 +67,11 @@ impl GainErrors {
             return Some(vec![]);
         }
         let g = gram(columns, dof, Rows::All);
-        let moves: Vec<DVector<f64>> =
+        let moves: Vec<Vec<f64>> =
             self.targets.iter().map(|v| solve_scaled(&g, &rhs(columns, v, dof, Rows::All))).collect::<Option<_>>()?;
-        let d = DMatrix::from_fn(columns.len(), moves.len(), |c, j| moves[j][c]);
+        let d = Mat::from_fn(columns.len(), moves.len(), |c, j| moves[j][c]);
         let variance = &d * &self.covariance * d.transpose();
-        Some(variance.diagonal().iter().map(|v| v.max(0.0).sqrt()).collect())
+        Some(dense::standard_deviations(variance.as_ref()))
     }
 }
 
@@ -85,7 +86,7 @@ mod tests {
         let (m, sigma_rel) = (2.0, 0.03);
         let g: Vec<f64> = (0..50).map(|s| (0.1 * s as f64).sin() + 0.2).collect();
         let tau: Vec<f64> = g.iter().map(|x| m * x).collect();
-        let errors = GainErrors { targets: vec![tau], covariance: DMatrix::from_element(1, 1, sigma_rel * sigma_rel) };
+        let errors = GainErrors { targets: vec![tau], covariance: Mat::from_fn(1, 1, |_, _| sigma_rel * sigma_rel) };
         let column = Column::dense(g, 1);
         let sigma = errors.sigma(&[&column], 1).unwrap();
         assert!((sigma[0] - m * sigma_rel).abs() < 1e-12, "{sigma:?}");

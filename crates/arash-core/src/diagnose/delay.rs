@@ -6,7 +6,9 @@ use super::context::Context;
 use super::findings::{rejection, Finding, Rejection, RejectionReason};
 use super::prepare::Prepared;
 use super::problem::{sse, Problem};
-use super::regression::{gram, least_squares, residual, rhs, solve_scaled, test_group, Column, Rows, Untested};
+use super::regression::{
+    least_squares, residual, rhs, solve_scaled, test_group, Column, NormalEquations, Rows, Untested,
+};
 use crate::effects::{EffectKind, EffectTerm};
 use crate::identify::signals::central_difference;
 
@@ -46,10 +48,10 @@ fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
         data.tau(d).iter().zip(fixed).enumerate().map(|(i, (t, f))| (t - f) * weights[i % dof]).collect()
     };
     let declared_refs: Vec<&Column> = zero.free_columns().collect();
-    let g = gram(&declared_refs, dof, Rows::All);
+    let declared = NormalEquations::over(declared_refs.clone(), &zero.y, dof, Rows::All);
     let total_sse = |y: &[f64]| -> f64 {
-        let x = solve_scaled(&g, &rhs(&declared_refs, y, dof, Rows::All))
-            .map_or_else(|| vec![0.0; declared_refs.len()], |x| x.iter().copied().collect());
+        let x = solve_scaled(&declared.gram, &rhs(&declared_refs, y, dof, Rows::All))
+            .unwrap_or_else(|| vec![0.0; declared_refs.len()]);
         sse(&declared_refs, &x, y, dof, Rows::All).iter().sum()
     };
     let scores: Vec<f64> = (-max_shift..=max_shift).map(|d| total_sse(&target(train, &fixed, d))).collect();
@@ -66,12 +68,12 @@ fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
         return Err((0, reject(&term, RejectionReason::AtSearchEdge { max_shift }, None, None)));
     }
     // The linearised test: τ(t − d) ≈ τ(t) − d·τ̇(t).
-    let x0 = least_squares(&declared_refs, &zero.y, dof, Rows::All).unwrap_or_else(|| vec![0.0; declared_refs.len()]);
+    let x0 = declared.solve().unwrap_or_else(|| vec![0.0; declared_refs.len()]);
     let e0 = residual(&declared_refs, &x0, &zero.y, dof);
     let predicted: Vec<f64> = zero.y.iter().zip(&e0).map(|(y, e)| y - e).collect();
     let h = train.stride() as f64 / train.fs;
     let column = Column::dense(central_difference(&predicted, dof, h, false), dof);
-    let test = match test_group(&declared_refs, &g, &e0, &[&column], ctx.batching, dof) {
+    let test = match test_group(&declared, &e0, &[&column], ctx.batching) {
         Ok(test) => test,
         Err(Untested::Dependent { .. }) => return Err((0, reject(&term, RejectionReason::Untestable, None, None))),
         Err(Untested::TooFewBatches { batches, columns }) => {

@@ -4,7 +4,7 @@
 use super::findings::ErrorSummary;
 use super::noise::NoiseFloor;
 use super::prepare::Prepared;
-use super::regression::{self, gram, least_squares, residual, rhs, Column, Rows};
+use super::regression::{least_squares, residual, Column, NormalEquations, Rows};
 use crate::effects::EffectTerm;
 use crate::identify::estimate::joint_metrics;
 use crate::model_file::Metrics;
@@ -188,24 +188,19 @@ pub(super) fn heldout_sse(problem: &Problem, heldout: &HeldOut, pool: &[Candidat
 /// The current model's fit on the rows it is trained on for held-out scoring, computed once per
 /// round so that each candidate costs only its own products with the model.
 pub(super) struct HeldOutBase<'a> {
-    cols: Vec<&'a Column>,
-    gram: nalgebra::DMatrix<f64>,
-    rhs: nalgebra::DVector<f64>,
+    training: NormalEquations<'a>,
     sse: Vec<f64>,
 }
 
 impl<'a> HeldOutBase<'a> {
-    pub(super) fn new(problem: &'a Problem, heldout: &HeldOut, pool: &'a [Candidate], chosen: &[usize]) -> Self {
-        let dof = problem.dof;
-        let cols = model_columns(problem, pool, chosen);
+    pub(super) fn new(problem: &'a Problem, heldout: &'a HeldOut, pool: &'a [Candidate], chosen: &[usize]) -> Self {
         let rows = match heldout {
             HeldOut::Blocks { train, .. } => Rows::Where(train),
             HeldOut::Validation(_) => Rows::All,
         };
-        let gram = gram(&cols, dof, rows);
-        let rhs = rhs(&cols, &problem.y, dof, rows);
+        let training = NormalEquations::over(model_columns(problem, pool, chosen), &problem.y, problem.dof, rows);
         let sse = heldout_sse(problem, heldout, pool, chosen);
-        Self { cols, gram, rhs, sse }
+        Self { training, sse }
     }
 
     /// Relative cut of the held-out squared error from adding candidate `i`: per joint, of the
@@ -220,15 +215,12 @@ impl<'a> HeldOutBase<'a> {
     ) -> (Vec<f64>, f64) {
         let dof = problem.dof;
         let group: Vec<&Column> = pool[i].columns.iter().collect();
-        let rows = match heldout {
-            HeldOut::Blocks { train, .. } => Rows::Where(train),
-            HeldOut::Validation(_) => Rows::All,
-        };
-        let after = match regression::fit_augmented(&self.cols, &self.gram, &self.rhs, &group, &problem.y, dof, rows) {
+        let after = match self.training.with_group(&group, &problem.y) {
             None => self.sse.clone(),
             Some(x) => match heldout {
                 HeldOut::Blocks { test, .. } => {
-                    let all: Vec<&Column> = self.cols.iter().copied().chain(group.iter().copied()).collect();
+                    let all: Vec<&Column> =
+                        self.training.columns.iter().copied().chain(group.iter().copied()).collect();
                     sse(&all, &x, &problem.y, dof, Rows::Where(test))
                 }
                 HeldOut::Validation(v) => {

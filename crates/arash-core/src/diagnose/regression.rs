@@ -6,8 +6,10 @@
 //! candidate effect usually acts on one joint, so storing only that joint's rows saves `dof`-fold
 //! memory and time on every product with it.
 
-use nalgebra::{DMatrix, DVector};
+use faer::{Mat, Scale};
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
+
+use crate::dense::{self, Unseen};
 
 /// One regressor column.
 #[derive(Clone, Debug)]
@@ -77,7 +79,7 @@ impl Rows<'_> {
 pub fn dot(a: &Column, b: &Column, dof: usize, rows: Rows) -> f64 {
     let masked = |x: &[f64], y: &[f64]| -> f64 {
         match rows {
-            Rows::All => x.iter().zip(y).map(|(a, b)| a * b).sum(),
+            Rows::All => dense::dot(x, y),
             Rows::Where(m) => x.iter().zip(y).zip(m).filter(|(_, t)| **t).map(|((a, b), _)| a * b).sum(),
         }
     };
@@ -98,7 +100,7 @@ pub fn dot(a: &Column, b: &Column, dof: usize, rows: Rows) -> f64 {
 /// `Σ a_i v_i` for a column and a dense row vector.
 pub fn dot_dense(a: &Column, v: &[f64], dof: usize, rows: Rows) -> f64 {
     match (a, rows) {
-        (Column::All { rows: x, .. }, Rows::All) => x.iter().zip(v).map(|(a, b)| a * b).sum(),
+        (Column::All { rows: x, .. }, Rows::All) => dense::dot(x, v),
         (Column::All { rows: x, .. }, Rows::Where(m)) => (0..v.len() / dof)
             .filter(|&s| m[s])
             .map(|s| (0..dof).map(|k| x[s * dof + k] * v[s * dof + k]).sum::<f64>())
@@ -110,7 +112,7 @@ pub fn dot_dense(a: &Column, v: &[f64], dof: usize, rows: Rows) -> f64 {
 /// `v += c·a` on every row.
 pub fn axpy(v: &mut [f64], c: f64, a: &Column, dof: usize) {
     match a {
-        Column::All { rows, .. } => v.iter_mut().zip(rows).for_each(|(v, x)| *v += c * x),
+        Column::All { rows, .. } => dense::axpy(v, c, rows),
         Column::Joint(k, x) => x.iter().enumerate().for_each(|(s, x)| v[s * dof + k] += c * x),
     }
 }
@@ -123,50 +125,67 @@ pub fn least_squares(columns: &[&Column], y: &[f64], dof: usize, rows: Rows) -> 
     if columns.is_empty() {
         return Some(vec![]);
     }
-    solve_scaled(&gram(columns, dof, rows), &rhs(columns, y, dof, rows)).map(|x| x.iter().copied().collect())
+    solve_scaled(&gram(columns, dof, rows), &rhs(columns, y, dof, rows))
 }
 
-/// Least squares of `y` on `base` plus `group` over `rows`, reusing `base`'s Gram matrix and
-/// `Xᵀy` there: coefficients of the base columns, then of the group.
-pub fn fit_augmented(
-    base: &[&Column],
-    base_gram: &DMatrix<f64>,
-    base_rhs: &DVector<f64>,
-    group: &[&Column],
-    y: &[f64],
-    dof: usize,
-    rows: Rows,
-) -> Option<Vec<f64>> {
-    let (p, k) = (base.len(), group.len());
-    let mut g = DMatrix::zeros(p + k, p + k);
-    g.view_mut((0, 0), (p, p)).copy_from(base_gram);
-    let mut b = DVector::zeros(p + k);
-    b.rows_mut(0, p).copy_from(base_rhs);
-    for (j, c) in group.iter().enumerate() {
-        for (i, x) in base.iter().enumerate() {
-            let v = dot(x, c, dof, rows);
-            g[(i, p + j)] = v;
-            g[(p + j, i)] = v;
-        }
-        for (i, d) in group.iter().enumerate().skip(j) {
-            let v = dot(c, d, dof, rows);
-            g[(p + i, p + j)] = v;
-            g[(p + j, p + i)] = v;
-        }
-        b[p + j] = dot_dense(c, y, dof, rows);
+/// The normal equations of a model's columns over some rows: `XᵀX` and `Xᵀy`. Formed once per
+/// model, they serve every group of columns tested or fitted alongside it, each of which then
+/// costs only its own products.
+pub struct NormalEquations<'a> {
+    pub columns: Vec<&'a Column>,
+    pub gram: Mat<f64>,
+    pub rhs: Vec<f64>,
+    pub rows: Rows<'a>,
+    pub dof: usize,
+}
+
+impl<'a> NormalEquations<'a> {
+    /// Of `columns` and the target `y` over `rows`.
+    pub fn over(columns: Vec<&'a Column>, y: &[f64], dof: usize, rows: Rows<'a>) -> Self {
+        let gram = gram(&columns, dof, rows);
+        let rhs = rhs(&columns, y, dof, rows);
+        Self { columns, gram, rhs, rows, dof }
     }
-    solve_scaled(&g, &b).map(|x| x.iter().copied().collect())
+
+    /// The model's least-squares coefficients; `None` when its columns are dependent.
+    pub fn solve(&self) -> Option<Vec<f64>> {
+        solve_scaled(&self.gram, &self.rhs)
+    }
+
+    /// Least squares of the same `y` on the model's columns plus `group`: coefficients of the
+    /// model's columns, then of the group.
+    pub fn with_group(&self, group: &[&Column], y: &[f64]) -> Option<Vec<f64>> {
+        let (p, k, dof, rows) = (self.columns.len(), group.len(), self.dof, self.rows);
+        let mut g = Mat::zeros(p + k, p + k);
+        g.submatrix_mut(0, 0, p, p).copy_from(&self.gram);
+        let mut b = self.rhs.clone();
+        b.resize(p + k, 0.0);
+        for (j, c) in group.iter().enumerate() {
+            for (i, x) in self.columns.iter().enumerate() {
+                let v = dot(x, c, dof, rows);
+                g[(i, p + j)] = v;
+                g[(p + j, i)] = v;
+            }
+            for (i, d) in group.iter().enumerate().skip(j) {
+                let v = dot(c, d, dof, rows);
+                g[(p + i, p + j)] = v;
+                g[(p + j, p + i)] = v;
+            }
+            b[p + j] = dot_dense(c, y, dof, rows);
+        }
+        solve_scaled(&g, &b)
+    }
 }
 
 /// `Xᵀy` over `rows`.
-pub fn rhs(columns: &[&Column], y: &[f64], dof: usize, rows: Rows) -> DVector<f64> {
-    DVector::from_iterator(columns.len(), columns.iter().map(|c| dot_dense(c, y, dof, rows)))
+pub fn rhs(columns: &[&Column], y: &[f64], dof: usize, rows: Rows) -> Vec<f64> {
+    columns.iter().map(|c| dot_dense(c, y, dof, rows)).collect()
 }
 
 /// `XᵀX` over `rows`.
-pub fn gram(columns: &[&Column], dof: usize, rows: Rows) -> DMatrix<f64> {
+pub fn gram(columns: &[&Column], dof: usize, rows: Rows) -> Mat<f64> {
     let p = columns.len();
-    let mut g = DMatrix::zeros(p, p);
+    let mut g = Mat::zeros(p, p);
     for i in 0..p {
         for j in i..p {
             let v = dot(columns[i], columns[j], dof, rows);
@@ -180,34 +199,22 @@ pub fn gram(columns: &[&Column], dof: usize, rows: Rows) -> DMatrix<f64> {
 /// Solve `G x = b` for a Gram matrix, scaled to unit diagonal; `None` if singular. A column
 /// that is exactly zero (a direction the data cannot see, such as a payload's first moment along
 /// a joint axis) is pinned: its coefficient is zero.
-pub fn solve_scaled(g: &DMatrix<f64>, b: &DVector<f64>) -> Option<DVector<f64>> {
-    let p = g.nrows();
-    let d: Vec<f64> = (0..p).map(|i| g[(i, i)].sqrt()).collect();
-    if d.iter().any(|x| x.is_nan() || *x < 0.0) {
-        return None;
-    }
-    let pinned = |i: usize| d[i] == 0.0;
-    let scaled = DMatrix::from_fn(p, p, |i, j| match (pinned(i), pinned(j)) {
-        (false, false) => g[(i, j)] / (d[i] * d[j]),
-        _ => f64::from(i == j),
-    });
-    let rhs = DVector::from_fn(p, |i, _| if pinned(i) { 0.0 } else { b[i] / d[i] });
-    let x = scaled.cholesky()?.solve(&rhs);
-    Some(DVector::from_fn(p, |i, _| if pinned(i) { 0.0 } else { x[i] / d[i] }))
+pub fn solve_scaled(g: &Mat<f64>, b: &[f64]) -> Option<Vec<f64>> {
+    dense::solve_gram(g.as_ref(), b, Unseen::Pinned)
 }
 
 /// The inverse of a Gram matrix on its non-zero columns; zero rows and columns stay zero.
-fn pinned_inverse(g: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+fn pinned_inverse(g: &Mat<f64>) -> Option<Mat<f64>> {
     let p = g.nrows();
     let pinned: Vec<bool> = (0..p).map(|i| g[(i, i)] == 0.0).collect();
     let mut h = g.clone();
     for i in (0..p).filter(|&i| pinned[i]) {
         h[(i, i)] = 1.0;
     }
-    let mut inv = h.try_inverse()?;
+    let mut inv = dense::inverse(h.as_ref())?;
     for i in (0..p).filter(|&i| pinned[i]) {
         inv.row_mut(i).fill(0.0);
-        inv.column_mut(i).fill(0.0);
+        inv.col_mut(i).fill(0.0);
     }
     Some(inv)
 }
@@ -273,16 +280,14 @@ pub enum Untested {
 /// length of seconds left a 9 s log four batches and no power, while a log whose residual is
 /// correlated over seconds gets batches of seconds.
 pub fn test_group(
-    base: &[&Column],
-    base_gram: &DMatrix<f64>,
+    base: &NormalEquations,
     e0: &[f64],
     group: &[&Column],
     batching: Batching,
-    dof: usize,
 ) -> Result<GroupTest, Untested> {
-    let k = group.len();
+    let (k, dof) = (group.len(), base.dof);
     let dependent = Untested::Dependent { unexplained: 0.0 };
-    let partialled = partial_out(base, base_gram, group, dof).ok_or(dependent)?;
+    let partialled = partial_out(base, group).ok_or(dependent)?;
     let unexplained = partialled
         .iter()
         .zip(group)
@@ -295,8 +300,8 @@ pub fn test_group(
             }
         })
         .fold(f64::INFINITY, f64::min);
-    let h = DMatrix::from_fn(k, k, |i, j| partialled[i].iter().zip(&partialled[j]).map(|(a, b)| a * b).sum());
-    let rhs = DVector::from_fn(k, |i, _| partialled[i].iter().zip(e0).map(|(a, b)| a * b).sum());
+    let h = Mat::from_fn(k, k, |i, j| dense::dot(&partialled[i], &partialled[j]));
+    let rhs: Vec<f64> = partialled.iter().map(|c| dense::dot(c, e0)).collect();
     let gamma = solve_scaled(&h, &rhs).ok_or(Untested::Dependent { unexplained })?;
     let h_inv = pinned_inverse(&h).ok_or(Untested::Dependent { unexplained })?;
     let scores = sample_scores(&partialled, e0, &gamma, dof);
@@ -304,9 +309,9 @@ pub fn test_group(
     let covariance = |length: usize| {
         let batches = samples / length;
         let meat = batch_meat(&scores, k, length, batches);
-        (batches, &h_inv * meat * &h_inv)
+        (batches, &h_inv * &meat * &h_inv)
     };
-    let wald = |cov: &DMatrix<f64>| solve_scaled(cov, &gamma).map_or(f64::INFINITY, |x| gamma.dot(&x));
+    let wald = |cov: &Mat<f64>| solve_scaled(cov, &gamma).map_or(f64::INFINITY, |x| dense::dot(&gamma, &x));
     let length = match batching {
         Batching::Fixed(n) => n.max(1),
         Batching::FromScores => {
@@ -341,20 +346,12 @@ pub fn test_group(
     let (df1, df2) = (k as f64, (batches - k) as f64);
     let f = wald * df2 / (df1 * (batches - 1) as f64);
     let p_value = FisherSnedecor::new(df1, df2).map_or(0.0, |d| d.sf(f));
-    Ok(GroupTest {
-        coefficients: gamma.iter().copied().collect(),
-        sigma,
-        f_statistic: f,
-        p_value,
-        unexplained,
-        batches,
-        batch_samples: length,
-    })
+    Ok(GroupTest { coefficients: gamma, sigma, f_statistic: f, p_value, unexplained, batches, batch_samples: length })
 }
 
 /// The joint fit's score of each sample, `c̃_sᵀ (e_s − C̃_s γ)` summed over the sample's joints:
 /// `samples × k`, row-major.
-fn sample_scores(partialled: &[Vec<f64>], e0: &[f64], gamma: &DVector<f64>, dof: usize) -> Vec<f64> {
+fn sample_scores(partialled: &[Vec<f64>], e0: &[f64], gamma: &[f64], dof: usize) -> Vec<f64> {
     let k = partialled.len();
     let mut scores = vec![0.0; e0.len() / dof * k];
     for (i, e) in e0.iter().enumerate() {
@@ -368,15 +365,15 @@ fn sample_scores(partialled: &[Vec<f64>], e0: &[f64], gamma: &DVector<f64>, dof:
 
 /// `Σ_b g_b g_bᵀ · B/(B − 1)` over `batches` runs of `length` samples; the last partial run
 /// joins the one before it.
-fn batch_meat(scores: &[f64], k: usize, length: usize, batches: usize) -> DMatrix<f64> {
-    let mut sums = DMatrix::<f64>::zeros(batches.max(1), k);
+fn batch_meat(scores: &[f64], k: usize, length: usize, batches: usize) -> Mat<f64> {
+    let mut sums = Mat::<f64>::zeros(batches.max(1), k);
     for (s, row) in scores.chunks_exact(k).enumerate() {
         let b = (s / length).min(batches.max(1) - 1);
         for j in 0..k {
             sums[(b, j)] += row[j];
         }
     }
-    sums.transpose() * &sums * (batches as f64 / (batches.max(2) - 1) as f64)
+    sums.transpose() * &sums * Scale(batches as f64 / (batches.max(2) - 1) as f64)
 }
 
 /// Blocking (Flyvbjerg and Petersen): the covariance from batches of 1, 2, 4, … samples grows
@@ -395,8 +392,9 @@ fn plateau(walds: &[(usize, f64)]) -> Option<usize> {
     (0..walds.len().saturating_sub(1)).find(|&i| settled(i))
 }
 
-/// `C − X (XᵀX)⁻¹ XᵀC` for each column of the group, dense over every row; `g` is `XᵀX`.
-fn partial_out(base: &[&Column], g: &DMatrix<f64>, group: &[&Column], dof: usize) -> Option<Vec<Vec<f64>>> {
+/// `C − X (XᵀX)⁻¹ XᵀC` for each column of the group, dense over every row.
+fn partial_out(base: &NormalEquations, group: &[&Column]) -> Option<Vec<Vec<f64>>> {
+    let dof = base.dof;
     let rows = match group.first()? {
         Column::All { rows, .. } => rows.len(),
         Column::Joint(_, v) => v.len() * dof,
@@ -406,12 +404,12 @@ fn partial_out(base: &[&Column], g: &DMatrix<f64>, group: &[&Column], dof: usize
         .map(|c| {
             let mut dense = vec![0.0; rows];
             axpy(&mut dense, 1.0, c, dof);
-            if base.is_empty() {
+            if base.columns.is_empty() {
                 return Some(dense);
             }
-            let rhs = DVector::from_iterator(base.len(), base.iter().map(|b| dot(b, c, dof, Rows::All)));
-            let a = solve_scaled(g, &rhs)?;
-            for (b, x) in base.iter().zip(a.iter()) {
+            let rhs: Vec<f64> = base.columns.iter().map(|b| dot(b, c, dof, Rows::All)).collect();
+            let a = solve_scaled(&base.gram, &rhs)?;
+            for (b, x) in base.columns.iter().zip(a.iter()) {
                 axpy(&mut dense, -x, b, dof);
             }
             Some(dense)
@@ -489,8 +487,8 @@ mod tests {
         let offset = Column::dense(vec![1.0; samples], 1);
         let mean = e.iter().sum::<f64>() / samples as f64;
         let e0: Vec<f64> = e.iter().map(|v| v - mean).collect();
-        let g = gram(&[&offset], 1, Rows::All);
-        test_group(&[&offset], &g, &e0, &[&Column::dense(c, 1)], batching, 1)
+        let base = NormalEquations::over(vec![&offset], &e0, 1, Rows::All);
+        test_group(&base, &e0, &[&Column::dense(c, 1)], batching)
     }
 
     fn rejection_rate(rho: f64, batching: Batching, alpha: f64) -> f64 {
@@ -559,9 +557,8 @@ mod tests {
                     let offset = Column::dense(vec![1.0; samples], 1);
                     let mean = e.iter().sum::<f64>() / samples as f64;
                     let e0: Vec<f64> = e.iter().map(|v| v - mean).collect();
-                    let g = gram(&[&offset], 1, Rows::All);
-                    test_group(&[&offset], &g, &e0, &[&Column::dense(c, 1)], batching, 1)
-                        .is_ok_and(|t| t.p_value < 0.05)
+                    let base = NormalEquations::over(vec![&offset], &e0, 1, Rows::All);
+                    test_group(&base, &e0, &[&Column::dense(c, 1)], batching).is_ok_and(|t| t.p_value < 0.05)
                 })
                 .count();
             below as f64 / trials as f64

@@ -12,7 +12,9 @@ use super::findings::{rejection, DiagnoseSettings, Diagnosis, Finding, Rejection
 use super::options::{DiagnoseError, DiagnoseOptions, PAYLOAD_MASS_SIGMAS};
 use super::outcome::{declared_model, series};
 use super::problem::{error_summary, model_columns, Candidate, HeldOut, HeldOutBase, Problem};
-use super::regression::{self, gram, least_squares, residual, rhs, test_group, Column, GroupTest, Rows, Untested};
+use super::regression::{
+    self, least_squares, residual, test_group, Column, GroupTest, NormalEquations, Rows, Untested,
+};
 use super::Runs;
 use crate::effects::{EffectKind, EffectTerm};
 use crate::identify::{Declared, Log};
@@ -115,17 +117,19 @@ impl Search<'_> {
     /// ones, and add the most useful. `false` when nothing was added.
     fn round(&self, round: usize, state: &mut State) -> Result<bool, DiagnoseError> {
         let dof = self.problem.dof;
-        let base_cols = model_columns(self.problem, self.pool, &state.chosen);
-        let base_gram = gram(&base_cols, dof, Rows::All);
-        let base_rhs = rhs(&base_cols, &self.problem.y, dof, Rows::All);
-        let coef = regression::solve_scaled(&base_gram, &base_rhs).ok_or(DiagnoseError::Singular)?;
-        let coef: Vec<f64> = coef.iter().copied().collect();
-        let e0 = residual(&base_cols, &coef, &self.problem.y, dof);
-        let tested = self.test_open(&base_cols, &base_gram, &e0, state);
+        let base = NormalEquations::over(
+            model_columns(self.problem, self.pool, &state.chosen),
+            &self.problem.y,
+            dof,
+            Rows::All,
+        );
+        let coef = base.solve().ok_or(DiagnoseError::Singular)?;
+        let e0 = residual(&base.columns, &coef, &self.problem.y, dof);
+        let tested = self.test_open(&base, &e0, state);
         if tested.is_empty() {
             return Ok(false);
         }
-        let (mut passing, lighter) = self.judge(round, &tested, (&base_cols, &coef), state);
+        let (mut passing, lighter) = self.judge(round, &tested, (&base.columns, &coef), state);
         // A mass taken off one body can look like a mass put on another (a parallelogram's links
         // pull against each other): the positive explanation stands unless the missing mass
         // explains clearly more, by the margin `most_useful` gives a simpler term.
@@ -141,7 +145,7 @@ impl Search<'_> {
                 return Ok(false);
             };
             let (i, t) = &tested[passing[best].test];
-            match self.flipped_by(*i, state, (&base_cols, &base_gram, &base_rhs)) {
+            match self.flipped_by(*i, state, &base) {
                 None => break passing.swap_remove(best),
                 Some((label, coefficient)) => {
                     let reason = RejectionReason::FlipsSign { p_value: t.p_value, label, coefficient };
@@ -185,20 +189,14 @@ impl Search<'_> {
 
     /// The block Wald test of every open candidate; those the model already explains are set
     /// aside as not identifiable.
-    fn test_open(
-        &self,
-        base_cols: &[&Column],
-        base_gram: &nalgebra::DMatrix<f64>,
-        e0: &[f64],
-        state: &mut State,
-    ) -> Vec<(usize, GroupTest)> {
+    fn test_open(&self, base: &NormalEquations, e0: &[f64], state: &mut State) -> Vec<(usize, GroupTest)> {
         let ctx = self.ctx;
         let open: Vec<usize> = (0..self.pool.len())
             .filter(|i| !state.chosen.contains(i) && state.status[*i].as_ref().is_none_or(|r| r.p_value.is_some()))
             .collect();
         let tests = parallel_map(open, |i| {
             let group: Vec<&Column> = self.pool[i].columns.iter().collect();
-            (i, test_group(base_cols, base_gram, e0, &group, ctx.batching, self.problem.dof))
+            (i, test_group(base, e0, &group, ctx.batching))
         });
         let mut tested = Vec::new();
         let max_vif = ctx.options.max_vif;
@@ -316,15 +314,10 @@ impl Search<'_> {
     /// can be reported as what it claims. Rotor inertia on every joint is left to its own test,
     /// which allows a nil joint within its σ. `base` is the round's model (its columns, Gram
     /// matrix and `Xᵀy`), to which the candidate's columns are added.
-    fn flipped_by(
-        &self,
-        candidate: usize,
-        state: &State,
-        (cols, gram, rhs): (&[&Column], &nalgebra::DMatrix<f64>, &nalgebra::DVector<f64>),
-    ) -> Option<(String, f64)> {
+    fn flipped_by(&self, candidate: usize, state: &State, base: &NormalEquations) -> Option<(String, f64)> {
         let (problem, pool) = (self.problem, self.pool);
         let group: Vec<&Column> = pool[candidate].columns.iter().collect();
-        let x = regression::fit_augmented(cols, gram, rhs, &group, &problem.y, problem.dof, Rows::All)?;
+        let x = base.with_group(&group, &problem.y)?;
         let chosen = state.chosen.iter().chain([&candidate]);
         let terms = chosen.map(|&i| (&pool[i].term, pool[i].columns.len()));
         let (term, coefficient) = first_flipped(terms, &x, problem.free_columns().count())?;
@@ -339,15 +332,19 @@ impl Search<'_> {
         let names = ctx.model.joint_names();
         let mut with_winner = state.chosen.clone();
         with_winner.push(winner);
-        let next_cols = model_columns(self.problem, self.pool, &with_winner);
-        let next_gram = gram(&next_cols, dof, Rows::All);
+        let next = NormalEquations::over(
+            model_columns(self.problem, self.pool, &with_winner),
+            &self.problem.y,
+            dof,
+            Rows::All,
+        );
         let mut aliases = Vec::new();
         for (j, t) in tested {
             if *j == winner || state.status[*j].is_some() {
                 continue;
             }
             let group: Vec<&Column> = self.pool[*j].columns.iter().collect();
-            let after = test_group(&next_cols, &next_gram, e0, &group, ctx.batching, dof);
+            let after = test_group(&next, e0, &group, ctx.batching);
             if after.ok().map_or(0.0, |a| a.unexplained / t.unexplained) < ALIAS_LEFT {
                 aliases.push(self.pool[*j].term.describe(&names));
                 let reason = RejectionReason::AliasOf { label: self.pool[winner].term.describe(&names) };

@@ -77,7 +77,8 @@ mod tests {
     #[test]
     fn the_motor_acts_on_every_joint_it_turns_with_through_the_transmission() {
         let (n, c, jm, bm, cm) = (40.0, -0.6, 2.0e-5, 3.0e-4, 0.05);
-        let r = nalgebra::DMatrix::from_row_slice(3, 3, &[1.0, 0.0, 0.0, 0.0, 25.0, 0.0, 0.0, n * c, n]);
+        let rows = [[1.0, 0.0, 0.0], [0.0, 25.0, 0.0], [0.0, n * c, n]];
+        let r = faer::Mat::from_fn(3, 3, |i, j| rows[i][j]);
         let r = crate::transmission::Transmission::from_matrix(r, vec![0.0; 3]).unwrap();
         let (m, g) = r.coupled_motors().pop().expect("motor 3 is coupled");
         let mut term = EffectTerm::new(EffectKind::CoupledRotor, Some(m));

@@ -25,8 +25,8 @@
 //! many instruments as parameters it is the IV estimate) and on `Z` itself for DIDIM.
 
 use super::options::{ConsistentOptions, PreprocessOptions};
-use faer::Mat;
-use nalgebra::{DMatrix, DVector};
+use faer::linalg::solvers::{DenseSolveCore, Solve};
+use faer::{Mat, Side};
 use serde::{Deserialize, Serialize};
 
 use super::consistent::identify_consistent;
@@ -35,6 +35,7 @@ use super::preprocess::{preprocess, PreprocessError, Preprocessed};
 use crate::base_parameters::BaseParameters;
 use crate::control::{controller_with_effects, Controller, ControllerKind, Desired, PdGains, PdGravity, RobustGains};
 use crate::data::Data;
+use crate::dense;
 use crate::dynamics::forward_dynamics;
 use crate::effects::EffectTerm;
 use crate::model::Model;
@@ -377,11 +378,13 @@ impl DryFriction {
         // physical cannot drive the plant) and gives the inverse the friction's impulses need.
         crate::dynamics::inverse_dynamics(model, data, q, qd, &self.zeros, &self.others, &mut self.bias);
         crate::dynamics::mass_matrix(model, data, q, &self.others, &mut self.mass);
-        let inverse = DMatrix::from_row_slice(n, n, &self.mass)
-            .cholesky()
-            .ok_or_else(|| "the mass matrix is not positive definite; the parameters are not physical".to_string())?
+        let mass = Mat::from_fn(n, n, |i, j| self.mass[i * n + j]);
+        let inverse = mass
+            .llt(Side::Lower)
+            .map_err(|_| "the mass matrix is not positive definite; the parameters are not physical".to_string())?
             .inverse();
-        let acceleration = &inverse * DVector::from_iterator(n, tau.iter().zip(&self.bias).map(|(t, b)| t - b));
+        let force: Vec<f64> = tau.iter().zip(&self.bias).map(|(t, b)| t - b).collect();
+        let acceleration = dense::times(inverse.as_ref(), &force);
         let free: Vec<f64> = (0..n).map(|k| qd[k] + h * acceleration[k]).collect();
         let velocity = stick_or_slip(&inverse, &free, &self.friction.iter().map(|f| h * f).collect::<Vec<_>>());
         qd.copy_from_slice(&velocity);
@@ -395,7 +398,7 @@ impl DryFriction {
 /// The velocity `v = v_free − M⁻¹ λ` with each friction impulse λ_k in [−impulse_k, impulse_k]
 /// that stops joint k where it can: projected Gauss–Seidel on λ, which converges for the
 /// positive-definite M⁻¹.
-fn stick_or_slip(inverse: &DMatrix<f64>, free: &[f64], impulse: &[f64]) -> Vec<f64> {
+fn stick_or_slip(inverse: &Mat<f64>, free: &[f64], impulse: &[f64]) -> Vec<f64> {
     let n = free.len();
     let mut lambda = vec![0.0; n];
     let largest = impulse.iter().copied().fold(0.0, f64::max);
@@ -618,23 +621,19 @@ pub fn closed_loop_fit(
 
 /// `(Zᵀ W)⁻¹ Zᵀ τ` from the products `(ZᵀW, Zᵀτ)`, with W's columns scaled to unit norm for
 /// the solve; `None` when singular.
-fn iv_solve((zw, zt): &(DMatrix<f64>, nalgebra::DVector<f64>), w: &Mat<f64>) -> Option<Vec<f64>> {
+fn iv_solve((zw, zt): &(Mat<f64>, Mat<f64>), w: &Mat<f64>) -> Option<Vec<f64>> {
     let p = zw.ncols();
     // β = D x with D = diag(1 / ‖W_j‖): Zᵀ W D has columns of like size.
     let scale: Vec<f64> = (0..p).map(|j| 1.0 / w.col(j).norm_l2().max(f64::MIN_POSITIVE)).collect();
-    let scaled = DMatrix::from_fn(p, p, |i, j| zw[(i, j)] * scale[j]);
-    let x = scaled.full_piv_lu().solve(zt)?;
-    let out: Vec<f64> = (0..p).map(|j| x[j] * scale[j]).collect();
-    out.iter().all(|v| v.is_finite()).then_some(out)
+    let scaled = Mat::from_fn(p, p, |i, j| zw[(i, j)] * scale[j]);
+    let x = dense::solve(scaled.as_ref(), zt.as_ref())?;
+    Some((0..p).map(|j| x[(j, 0)] * scale[j]).collect())
 }
 
-/// `Zᵀ W` and `Zᵀ τ`.
-fn cross(z: &Mat<f64>, w: &Mat<f64>, tau: &[f64]) -> (DMatrix<f64>, nalgebra::DVector<f64>) {
-    let zw = z.transpose() * w;
+/// `Zᵀ W` and `Zᵀ τ` (a column).
+fn cross(z: &Mat<f64>, w: &Mat<f64>, tau: &[f64]) -> (Mat<f64>, Mat<f64>) {
     let tau_mat = Mat::<f64>::from_fn(tau.len(), 1, |i, _| tau[i]);
-    let zt = z.transpose() * &tau_mat;
-    let p = zw.ncols();
-    (DMatrix::from_fn(p, p, |i, j| zw[(i, j)]), nalgebra::DVector::from_fn(p, |i, _| zt[(i, 0)]))
+    (z.transpose() * w, z.transpose() * &tau_mat)
 }
 
 /// The estimate `beta` as a [`Fit`]: σ from the sandwich `(ZᵀX)⁻¹ Ω (XᵀZ)⁻¹` (`zx` is ZᵀX, X
@@ -646,7 +645,7 @@ fn iv_fit(
     base: &BaseParameters,
     pre: &Preprocessed,
     (z, w, tau): (&Mat<f64>, &Mat<f64>, &[f64]),
-    (beta, zx): (&[f64], &DMatrix<f64>),
+    (beta, zx): (&[f64], &Mat<f64>),
     start: &Fit,
 ) -> Fit {
     let dof = model.dof();
@@ -655,10 +654,10 @@ fn iv_fit(
     let (m, p) = (w.nrows(), w.ncols());
     let sigma_p2 = residual.iter().map(|e| e * e).sum::<f64>() / (m - p) as f64;
     let meat_residual = estimate::unfiltered_residual(model, pre, &base.independent, beta);
-    let bread = zx.clone().try_inverse().unwrap_or_else(|| DMatrix::from_element(p, p, f64::NAN));
+    let bread = dense::inverse(zx.as_ref()).unwrap_or_else(|| Mat::from_fn(p, p, |_, _| f64::NAN));
     let block = ((2.0 * pre.rate_hz() / pre.cutoff_hz).ceil() as usize).max(1);
     let covariance = estimate::sandwich_covariance(z, &meat_residual, dof, block, &bread);
-    let sigma_beta = estimate::standard_deviations(&covariance);
+    let sigma_beta = dense::standard_deviations(covariance.as_ref());
     let sigma_percent = sigma_beta.iter().zip(beta).map(|(s, b)| 100.0 * s / b.abs()).collect();
     Fit {
         method: estimate::Method::Ols,
@@ -679,14 +678,12 @@ fn iv_fit(
 fn instrumented(w_full: &Mat<f64>, z: &Mat<f64>) -> Mat<f64> {
     let (p, big_p) = (z.ncols(), w_full.ncols());
     let gram = z.transpose() * z;
-    let gram = DMatrix::from_fn(p, p, |i, j| gram[(i, j)]);
-    let coefficients = z.transpose() * w_full;
-    let rhs = DMatrix::from_fn(p, big_p, |i, j| coefficients[(i, j)]);
-    let solved = match gram.clone().cholesky() {
-        Some(c) => c.solve(&rhs),
-        None => gram.full_piv_lu().solve(&rhs).unwrap_or_else(|| DMatrix::zeros(p, big_p)),
+    let rhs = z.transpose() * w_full;
+    let solved = match gram.llt(Side::Lower) {
+        Ok(c) => c.solve(&rhs),
+        Err(_) => dense::solve(gram.as_ref(), rhs.as_ref()).unwrap_or_else(|| Mat::zeros(p, big_p)),
     };
-    z * Mat::<f64>::from_fn(p, big_p, |i, j| solved[(i, j)])
+    z * solved
 }
 
 #[cfg(test)]
@@ -703,15 +700,15 @@ mod tests {
         let (mut stuck, mut slipping) = (0, 0);
         for _ in 0..200 {
             let n = 3;
-            let a = DMatrix::from_fn(n, n, |_, _| rng.random_range(-1.0..1.0));
-            let mass = &a * a.transpose() + DMatrix::identity(n, n) * 0.1;
-            let inverse = mass.clone().try_inverse().unwrap();
+            let a = Mat::from_fn(n, n, |_, _| rng.random_range(-1.0..1.0));
+            let mass = &a * a.transpose() + Mat::<f64>::identity(n, n) * faer::Scale(0.1);
+            let inverse = dense::inverse(mass.as_ref()).unwrap();
             let free: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
             let impulse: Vec<f64> =
                 (0..n).map(|k| if k == 2 && rng.random_bool(0.3) { 0.0 } else { rng.random_range(0.0..1.0) }).collect();
             let v = stick_or_slip(&inverse, &free, &impulse);
-            let dv = DVector::from_iterator(n, free.iter().zip(&v).map(|(f, v)| f - v));
-            let lambda = &mass * dv;
+            let dv: Vec<f64> = free.iter().zip(&v).map(|(f, v)| f - v).collect();
+            let lambda = dense::times(mass.as_ref(), &dv);
             for k in 0..n {
                 let tolerance = 1e-9 * (1.0 + impulse[k]);
                 assert!(lambda[k].abs() <= impulse[k] + tolerance, "joint {k}: λ {} beyond {}", lambda[k], impulse[k]);

@@ -11,14 +11,14 @@
 //! back to Householder QR (faer). Either way, `R` gives `(WᵀW)⁻¹ = R⁻¹R⁻ᵀ` for the covariance.
 
 use faer::prelude::*;
-use faer::Mat;
-use nalgebra::DMatrix;
+use faer::{Mat, Scale, Side};
 
 use super::filter::Butterworth;
 use super::preprocess::Preprocessed;
 use super::signals::filter_columns;
 use crate::base_parameters::BaseParameters;
 use crate::data::Data;
+use crate::dense::{self, dot};
 use crate::model::Model;
 use crate::model_file::Determination;
 use crate::regressor::{bodies_of_columns, regressor_of_bodies};
@@ -64,7 +64,7 @@ pub struct Fit {
     /// Standard deviation of each β̂ (eq. 16).
     pub sigma_beta: Vec<f64>,
     /// The covariance of β̂ whose diagonal `sigma_beta` is (the block sandwich).
-    pub covariance: DMatrix<f64>,
+    pub covariance: Mat<f64>,
     /// Relative standard deviation `100 σ_β / |β̂|` (eq. 15).
     pub sigma_percent: Vec<f64>,
     /// Residual variance of the (weighted) system (eq. 17).
@@ -326,7 +326,7 @@ fn fit_stacked_with(
     let weighted_residual: Vec<f64> =
         tau.iter().zip(&predicted).enumerate().map(|(i, (t, p))| (t - p) * weights[i % dof]).collect();
     let sigma_p2 = weighted_residual.iter().map(|e| e * e).sum::<f64>() / (m - p) as f64;
-    let r_inv = r_factor.clone().try_inverse().ok_or_else(|| EstimateError::IllConditioned {
+    let r_inv = dense::inverse(r_factor.as_ref()).ok_or_else(|| EstimateError::IllConditioned {
         condition: f64::INFINITY,
         limit: CONDITION_LIMIT,
         direction: "a combination the QR factor found exactly singular".into(),
@@ -338,7 +338,7 @@ fn fit_stacked_with(
         None => weighted_residual,
     };
     let covariance = block_sandwich_covariance(w, &meat_residual, &weights, dof, block_samples.max(1), &r_inv);
-    let sigma_beta = standard_deviations(&covariance);
+    let sigma_beta = dense::standard_deviations(covariance.as_ref());
     let sigma_percent = sigma_beta.iter().zip(&beta).map(|(s, b)| 100.0 * s / b.abs()).collect();
     let metrics = joint_metrics(tau, &predicted, dof);
     let determination = determination((&r_factor, &r_inv), column_over_torque(w, tau, dof), &beta);
@@ -361,14 +361,10 @@ fn fit_stacked_with(
 /// `1/(‖wᵢ‖²·(WᵀW)⁻¹ᵢᵢ)` is the squared part of column i outside the others' span. Regressing
 /// column i on the others gives column j the coefficient `−(WᵀW)⁻¹ᵢⱼ/(WᵀW)⁻¹ᵢᵢ`; scaled to
 /// unit columns, the largest names what it leans on. The torque shares are `beta`'s.
-fn determination(
-    (r, r_inv): (&DMatrix<f64>, &DMatrix<f64>),
-    column_over_torque: Vec<f64>,
-    beta: &[f64],
-) -> Vec<Determination> {
+fn determination((r, r_inv): (&Mat<f64>, &Mat<f64>), column_over_torque: Vec<f64>, beta: &[f64]) -> Vec<Determination> {
     let p = r.ncols();
     let inverse = r_inv * r_inv.transpose();
-    let norms: Vec<f64> = (0..p).map(|i| r.column(i).norm()).collect();
+    let norms: Vec<f64> = (0..p).map(|i| r.col(i).norm_l2()).collect();
     (0..p)
         .zip(column_over_torque)
         .map(|(i, column_over_torque)| {
@@ -400,7 +396,7 @@ fn column_over_torque(w: &Mat<f64>, tau: &[f64], dof: usize) -> Vec<f64> {
 
 /// Solve the row-weighted problem; return β, the triangular factor `R` (p × p) of the weighted
 /// `W`, and the condition number of `W` with unit-norm columns.
-fn solve(w: &Mat<f64>, tau: &[f64], weights: &[f64], dof: usize) -> (Vec<f64>, DMatrix<f64>, f64) {
+fn solve(w: &Mat<f64>, tau: &[f64], weights: &[f64], dof: usize) -> (Vec<f64>, Mat<f64>, f64) {
     let (m, p) = (w.nrows(), w.ncols());
     let weighted_owned;
     let w_t: &Mat<f64> = if weights.iter().all(|w| *w == 1.0) {
@@ -422,48 +418,46 @@ fn solve(w: &Mat<f64>, tau: &[f64], weights: &[f64], dof: usize) -> (Vec<f64>, D
 /// Squaring costs accuracy (κ² instead of κ), but the refinement step recovers QR's accuracy while
 /// κ²·ε stays well below 1; two steps are taken for margin. Returns `None` for κ > 10⁷
 /// (κ²·ε ≈ 10⁻²); the caller then uses Householder QR.
-fn corrected_semi_normal(w: &Mat<f64>, b: &Mat<f64>) -> Option<(Vec<f64>, DMatrix<f64>, f64)> {
+fn corrected_semi_normal(w: &Mat<f64>, b: &Mat<f64>) -> Option<(Vec<f64>, Mat<f64>, f64)> {
     let p = w.ncols();
     let gram = w.transpose() * w;
     let norms: Vec<f64> = (0..p).map(|j| gram[(j, j)].sqrt()).collect();
     if norms.contains(&0.0) {
         return None;
     }
-    let scaled_gram = DMatrix::from_fn(p, p, |i, j| gram[(i, j)] / (norms[i] * norms[j]));
-    let r_scaled = scaled_gram.cholesky()?.l().transpose();
-    let sv = r_scaled.singular_values();
-    let condition = sv.max() / sv.min();
+    let scaled_gram = Mat::from_fn(p, p, |i, j| gram[(i, j)] / (norms[i] * norms[j]));
+    let llt = scaled_gram.llt(Side::Lower).ok()?;
+    let r_scaled = llt.L().transpose();
+    let condition = dense::condition_number(r_scaled);
     if condition.is_nan() || condition > 1e7 {
         return None;
     }
     // R for the unscaled W: RᵀR = WᵀW.
-    let r_factor = DMatrix::from_fn(p, p, |i, j| r_scaled[(i, j)] * norms[j]);
-    let solve_normal = |rhs: &Mat<f64>| -> nalgebra::DVector<f64> {
-        let wt_rhs = w.transpose() * rhs;
-        let v = nalgebra::DVector::from_fn(p, |i, _| wt_rhs[(i, 0)]);
-        let y = r_factor.tr_solve_upper_triangular(&v).expect("non-singular R");
-        r_factor.solve_upper_triangular(&y).expect("non-singular R")
+    let r_factor = Mat::from_fn(p, p, |i, j| r_scaled[(i, j)] * norms[j]);
+    let solve_normal = |rhs: &Mat<f64>| -> Mat<f64> {
+        let mut v = w.transpose() * rhs;
+        r_factor.transpose().solve_lower_triangular_in_place(&mut v);
+        r_factor.solve_upper_triangular_in_place(&mut v);
+        v
     };
     let mut x = solve_normal(b);
     for _ in 0..2 {
-        let x_mat = Mat::<f64>::from_fn(p, 1, |i, _| x[i]);
-        let residual = b - w * &x_mat;
-        x += solve_normal(&residual);
+        let residual = b - w * &x;
+        x = &x + solve_normal(&residual);
     }
-    Some((x.iter().copied().collect(), r_factor, condition))
+    Some(((0..p).map(|i| x[(i, 0)]).collect(), r_factor, condition))
 }
 
 /// Householder QR (faer): the robust path for ill-conditioned `W`.
-fn householder_qr(w: &Mat<f64>, b: &Mat<f64>) -> (Vec<f64>, DMatrix<f64>, f64) {
+fn householder_qr(w: &Mat<f64>, b: &Mat<f64>) -> (Vec<f64>, Mat<f64>, f64) {
     let p = w.ncols();
     let qr = w.qr();
     let beta_mat = qr.solve_lstsq(b);
     let r = qr.thin_R();
-    let r_factor = DMatrix::from_fn(p, p, |i, j| if j >= i { r[(i, j)] } else { 0.0 });
-    let norms: Vec<f64> = (0..p).map(|j| r_factor.column(j).norm()).collect();
-    let scaled = DMatrix::from_fn(p, p, |i, j| r_factor[(i, j)] / norms[j]);
-    let sv = scaled.singular_values();
-    let condition = sv.max() / sv.min();
+    let r_factor = Mat::from_fn(p, p, |i, j| if j >= i { r[(i, j)] } else { 0.0 });
+    let norms: Vec<f64> = (0..p).map(|j| r_factor.col(j).norm_l2()).collect();
+    let scaled = Mat::from_fn(p, p, |i, j| r_factor[(i, j)] / norms[j]);
+    let condition = dense::condition_number(scaled.as_ref());
     ((0..p).map(|i| beta_mat[(i, 0)]).collect(), r_factor, condition)
 }
 
@@ -474,18 +468,13 @@ fn block_sandwich_covariance(
     weights: &[f64],
     dof: usize,
     block_samples: usize,
-    r_inv: &DMatrix<f64>,
-) -> DMatrix<f64> {
+    r_inv: &Mat<f64>,
+) -> Mat<f64> {
     // Row-weighted residuals once; each sample's score is then g_s = Σ_k W_(s,k)ᵀ e_(s,k).
     let e: Vec<f64> = weighted_residual.iter().enumerate().map(|(i, r)| r * weights[i % dof]).collect();
     // (W̃ᵀW̃)⁻¹ = R⁻¹R⁻ᵀ for the weighted W̃.
     let gram_inv = r_inv * r_inv.transpose();
     sandwich_covariance(w, &e, dof, block_samples, &gram_inv)
-}
-
-/// The square roots of a covariance's diagonal (a round-off negative reads as zero).
-pub fn standard_deviations(covariance: &DMatrix<f64>) -> Vec<f64> {
-    covariance.diagonal().iter().map(|v| v.max(0.0).sqrt()).collect()
 }
 
 /// The covariance from the sandwich `bread · Ω · breadᵀ`, with the small-sample factor `m / (m − p)`. Ω is
@@ -495,13 +484,7 @@ pub fn standard_deviations(covariance: &DMatrix<f64>) -> Vec<f64> {
 /// Disjoint blocks give an Ω of rank at most their number, which at a low cut-off (a few blocks
 /// per period) is below the number of parameters and under-states σ by a large factor; the
 /// overlapping runs keep its rank and the same bandwidth (Bartlett's kernel).
-pub fn sandwich_covariance(
-    x: &Mat<f64>,
-    e: &[f64],
-    dof: usize,
-    block_samples: usize,
-    bread: &DMatrix<f64>,
-) -> DMatrix<f64> {
+pub fn sandwich_covariance(x: &Mat<f64>, e: &[f64], dof: usize, block_samples: usize, bread: &Mat<f64>) -> Mat<f64> {
     let (m, p) = (x.nrows(), x.ncols());
     let samples = m / dof;
     let block = block_samples.clamp(1, samples.max(1));
@@ -525,8 +508,8 @@ pub fn sandwich_covariance(
     }
     let gram = sums.transpose() * &sums;
     let scale = samples as f64 / (block as f64 * runs as f64);
-    let meat = DMatrix::from_fn(p, p, |i, j| gram[(i, j)] * scale);
-    bread * meat * bread.transpose() * degrees_of_freedom_factor(m, p, samples, block)
+    let meat = Mat::from_fn(p, p, |i, j| gram[(i, j)] * scale);
+    bread * &meat * bread.transpose() * Scale(degrees_of_freedom_factor(m, p, samples, block))
 }
 
 /// The small-sample factor of the sandwich: `m_eff / (m_eff − p)` for residuals that carry
@@ -543,20 +526,6 @@ fn degrees_of_freedom_factor(m: usize, p: usize, samples: usize, block: usize) -
     // With fewer than two values per parameter left, the estimate of the noise is itself too
     // uncertain to correct further: the factor is capped at 2.
     (effective / (effective - p).max(0.5 * effective)).max(m / (m - p))
-}
-
-/// `x · y` in four interleaved partial sums: a single running sum cannot be vectorised, because
-/// reordering it would change the rounding.
-fn dot(x: &[f64], y: &[f64]) -> f64 {
-    let mut sums = [0.0; 4];
-    let (x4, y4) = (x.chunks_exact(4), y.chunks_exact(4));
-    let tail: f64 = x4.remainder().iter().zip(y4.remainder()).map(|(a, b)| a * b).sum();
-    for (a, b) in x4.zip(y4) {
-        for l in 0..4 {
-            sums[l] += a[l] * b[l];
-        }
-    }
-    (sums[0] + sums[1]) + (sums[2] + sums[3]) + tail
 }
 
 /// Refuse data in which some base parameter never acts.
@@ -578,14 +547,11 @@ fn check_excitation(w: &Mat<f64>, base: &BaseParameters) -> Result<(), EstimateE
 
 /// The combination of base parameters that the data sees least: the right singular vector of the
 /// column-scaled R for its smallest singular value, as readable terms.
-fn weakest_direction(r_factor: &DMatrix<f64>, base: &BaseParameters) -> String {
+fn weakest_direction(r_factor: &Mat<f64>, base: &BaseParameters) -> String {
     let p = r_factor.ncols();
-    let scaled = DMatrix::from_fn(p, p, |i, j| r_factor[(i, j)] / r_factor.column(j).norm().max(f64::MIN_POSITIVE));
-    let svd = scaled.svd(false, true);
-    let Some(v_t) = svd.v_t else { return "unknown".into() };
-    let weakest = svd.singular_values.imin();
-    let mut terms: Vec<(usize, f64)> =
-        v_t.row(weakest).iter().copied().enumerate().filter(|(_, c)| c.abs() > 0.1).collect();
+    let scaled = Mat::from_fn(p, p, |i, j| r_factor[(i, j)] / r_factor.col(j).norm_l2().max(f64::MIN_POSITIVE));
+    let Some(weakest) = dense::weakest_direction(scaled.as_ref()) else { return "unknown".into() };
+    let mut terms: Vec<(usize, f64)> = weakest.into_iter().enumerate().filter(|(_, c)| c.abs() > 0.1).collect();
     terms.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
     terms.iter().map(|(j, c)| format!("{c:+.2}·β{} ({})", j + 1, base.names[*j])).collect::<Vec<_>>().join(" ")
 }

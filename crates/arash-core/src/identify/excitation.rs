@@ -20,7 +20,7 @@
 
 use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
 use argmin::solver::neldermead::NelderMead;
-use nalgebra::DMatrix;
+use faer::Mat;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -28,6 +28,7 @@ use super::options::{ExcitationOptions, SettingError};
 use crate::base_parameters::{BaseParameterOptions, BaseParameters, LimitsError, ReachableLimits};
 use crate::control::fourier::Excitation;
 use crate::data::Data;
+use crate::dense;
 use crate::model::Model;
 use crate::regressor::regressor;
 
@@ -150,9 +151,7 @@ pub fn normalised_condition_number(
     samples: usize,
 ) -> f64 {
     let w = stacked(model, base, excitation, samples);
-    let scaled = normalise_columns(w);
-    let sv = scaled.singular_values();
-    sv.max() / sv.min()
+    dense::condition_number(normalise_columns(w).as_ref())
 }
 
 /// Each base parameter's σ factor over one period: √[(WₙᵀWₙ)⁻¹]ᵢᵢ for the column-normalised
@@ -166,15 +165,15 @@ pub fn sigma_factors(
     samples: usize,
 ) -> Option<Vec<f64>> {
     let w = normalise_columns(stacked(model, base, excitation, samples));
-    let inverse = (w.transpose() * &w).cholesky()?.inverse();
+    let inverse = dense::spd_inverse((w.transpose() * &w).as_ref())?;
     Some((0..base.rank).map(|i| inverse[(i, i)].sqrt()).collect())
 }
 
-fn stacked(model: &Model, base: &BaseParameters, excitation: &Excitation, samples: usize) -> DMatrix<f64> {
+fn stacked(model: &Model, base: &BaseParameters, excitation: &Excitation, samples: usize) -> Mat<f64> {
     let (n, big_p, p) = (model.dof(), model.num_params(), base.rank);
     let mut data = Data::new(model);
     let (mut y, mut y_r) = (vec![0.0; n * big_p], vec![0.0; n * p]);
-    let mut w = DMatrix::zeros(samples * n, p);
+    let mut w = Mat::zeros(samples * n, p);
     for s in 0..samples {
         let (q, qd, qdd) = excitation.state(excitation.period_s * s as f64 / samples as f64);
         regressor(model, &mut data, &q, &qd, &qdd, &mut y);
@@ -188,11 +187,11 @@ fn stacked(model: &Model, base: &BaseParameters, excitation: &Excitation, sample
     w
 }
 
-fn normalise_columns(mut w: DMatrix<f64>) -> DMatrix<f64> {
-    for mut column in w.column_iter_mut() {
-        let norm = column.norm();
+fn normalise_columns(mut w: Mat<f64>) -> Mat<f64> {
+    for j in 0..w.ncols() {
+        let norm = w.col(j).norm_l2();
         if norm > 0.0 {
-            column /= norm;
+            w.col_mut(j).iter_mut().for_each(|x| *x /= norm);
         }
     }
     w
@@ -255,8 +254,9 @@ impl Problem<'_> {
         // Gram of the column-normalised W: κ = √(λmax/λmin). Cheaper than an SVD per evaluation.
         let w = normalise_columns(stacked(self.model, self.base, excitation, self.options.samples));
         let gram = w.transpose() * &w;
-        let eig = gram.symmetric_eigenvalues();
-        (eig.max() / eig.min().max(1e-300)).sqrt()
+        let Ok(eig) = gram.self_adjoint_eigenvalues(faer::Side::Lower) else { return f64::INFINITY };
+        let (min, max) = eig.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), e| (a.min(*e), b.max(*e)));
+        (max / min.max(1e-300)).sqrt()
     }
 }
 

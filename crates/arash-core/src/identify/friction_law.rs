@@ -27,9 +27,10 @@ use super::estimate::{coulomb_positions, regressor_rows};
 use super::filter::Butterworth;
 use super::preprocess::{PreprocessError, Preprocessed};
 use crate::base_parameters::BaseParameters;
+use crate::dense::{self, dot, Unseen};
 use crate::effects::FRICTION_VELOCITY_SHARES;
 use crate::model::{CoulombLaws, CoulombShape, Model};
-use nalgebra::{DMatrix, DVector};
+use faer::Mat;
 use std::ops::Range;
 
 /// Contiguous stretches of the log, at most, each predicted by the fit on the others (fewer where
@@ -366,8 +367,8 @@ fn explain(
 /// `XᵀX` and `Xᵀy` of the problem's columns and `yᵀy` over a stretch of its samples.
 #[derive(Clone)]
 struct Gram {
-    g: DMatrix<f64>,
-    b: DVector<f64>,
+    g: Mat<f64>,
+    b: Vec<f64>,
     yy: f64,
 }
 
@@ -376,7 +377,7 @@ impl Gram {
         let p = problem.columns.len();
         let rows = samples.start * problem.dof..samples.end * problem.dof;
         let mut gram =
-            Self { g: DMatrix::zeros(p, p), b: DVector::zeros(p), yy: dot(&problem.y[rows.clone()], &problem.y[rows]) };
+            Self { g: Mat::zeros(p, p), b: vec![0.0; p], yy: dot(&problem.y[rows.clone()], &problem.y[rows]) };
         for c in 0..p {
             gram.replace(problem, samples, c);
         }
@@ -399,7 +400,7 @@ impl Gram {
 /// A candidate column's products with the problem over a stretch of samples: with every column
 /// (`xv`), with itself and with the target.
 struct Products {
-    xv: DVector<f64>,
+    xv: Vec<f64>,
     vv: f64,
     vy: f64,
 }
@@ -409,7 +410,7 @@ impl Products {
     fn over(problem: &LawProblem, (k, values): (usize, &[f64]), samples: &Range<usize>) -> Self {
         let dof = problem.dof;
         let on_joint = |x: &[f64]| samples.clone().map(|s| values[s] * x[s * dof + k]).sum::<f64>();
-        let xv = DVector::from_fn(problem.columns.len(), |i, _| on_joint(&problem.columns[i]));
+        let xv = problem.columns.iter().map(|c| on_joint(c)).collect();
         let vv = samples.clone().map(|s| values[s] * values[s]).sum();
         Self { xv, vv, vy: on_joint(&problem.y) }
     }
@@ -489,9 +490,10 @@ impl Folds {
                 let scored = Products::over(problem, candidate, interior);
                 // The fit on the other folds: the whole less this one.
                 let (matrix, rhs) = system(&kept, (whole, &all), Some((fold_gram, &left_out)));
-                let theta = solve_scaled(matrix, rhs)?;
+                let theta = dense::solve_gram(matrix.as_ref(), &rhs, Unseen::Refused)?;
                 let (h, r) = system(&kept, (interior_gram, &scored), None);
-                Some((interior_gram.yy - 2.0 * theta.dot(&r) + theta.dot(&(h * &theta))).max(0.0))
+                let fitted = dense::times(h.as_ref(), &theta);
+                Some((interior_gram.yy - 2.0 * dot(&theta, &r) + dot(&theta, &fitted)).max(0.0))
             })
             .collect()
     }
@@ -503,11 +505,11 @@ fn system(
     kept: &[usize],
     (gram, products): (&Gram, &Products),
     minus: Option<(&Gram, &Products)>,
-) -> (DMatrix<f64>, DVector<f64>) {
+) -> (Mat<f64>, Vec<f64>) {
     let p = kept.len();
     let less = |f: &dyn Fn(&Gram, &Products) -> f64| f(gram, products) - minus.map_or(0.0, |(g, x)| f(g, x));
-    let mut matrix = DMatrix::zeros(p + 1, p + 1);
-    let mut rhs = DVector::zeros(p + 1);
+    let mut matrix = Mat::zeros(p + 1, p + 1);
+    let mut rhs = vec![0.0; p + 1];
     for (i, &a) in kept.iter().enumerate() {
         for (j, &b) in kept.iter().enumerate() {
             matrix[(i, j)] = less(&|g, _| g.g[(a, b)]);
@@ -520,22 +522,6 @@ fn system(
     matrix[(p, p)] = less(&|_, x| x.vv);
     rhs[p] = less(&|_, x| x.vy);
     (matrix, rhs)
-}
-
-/// `matrix⁻¹ rhs` by Cholesky on the matrix scaled to a unit diagonal; `None` where it is singular.
-fn solve_scaled(matrix: DMatrix<f64>, rhs: DVector<f64>) -> Option<DVector<f64>> {
-    let n = matrix.nrows();
-    let scale: Vec<f64> = (0..n).map(|i| matrix[(i, i)].max(0.0).sqrt()).collect();
-    if scale.contains(&0.0) {
-        return None;
-    }
-    let scaled = DMatrix::from_fn(n, n, |i, j| matrix[(i, j)] / (scale[i] * scale[j]));
-    let z = scaled.cholesky()?.solve(&DVector::from_fn(n, |i, _| rhs[i] / scale[i]));
-    Some(DVector::from_fn(n, |i, _| z[i] / scale[i]))
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 #[cfg(test)]
@@ -645,9 +631,10 @@ mod tests {
         for (f, got) in got.iter().enumerate() {
             let (start, end) = (f * fold, (f + 1) * fold);
             let train: Vec<usize> = (0..2 * n).filter(|r| !(2 * start..2 * end).contains(r)).collect();
-            let x = DMatrix::from_fn(train.len(), 2, |r, j| [&a, &c][j][train[r]]);
-            let target = DVector::from_fn(train.len(), |r, _| y[train[r]]);
-            let beta = (x.transpose() * &x).cholesky().unwrap().solve(&(x.transpose() * target));
+            let x = Mat::from_fn(train.len(), 2, |r, j| [&a, &c][j][train[r]]);
+            let target = Mat::from_fn(train.len(), 1, |r, _| y[train[r]]);
+            let beta = dense::inverse((x.transpose() * &x).as_ref()).unwrap() * (x.transpose() * target);
+            let beta = [beta[(0, 0)], beta[(1, 0)]];
             let expected: f64 =
                 (2 * (start + 5)..2 * (end - 5)).map(|r| (y[r] - a[r] * beta[0] - c[r] * beta[1]).powi(2)).sum();
             assert!((got / expected - 1.0).abs() < 1e-9, "fold {f}: {got} against {expected}");

@@ -20,9 +20,10 @@
 //! problem is linear in `(β, δ, k)` and is solved by the least squares of [`super::estimate`], its
 //! σ the same block sandwich, its conditioning named by parameter where a gain is not fixed.
 
-use super::estimate::{fit_stacked, sandwich_covariance, stack, standard_deviations, EstimateError, Fit, Method};
+use super::estimate::{fit_stacked, sandwich_covariance, stack, EstimateError, Fit, Method};
 use super::preprocess::Preprocessed;
 use crate::base_parameters::BaseParameters;
+use crate::dense;
 use crate::model::Model;
 use crate::params::{body as body_params, PER_BODY};
 use faer::prelude::*;
@@ -472,11 +473,8 @@ fn total_least_squares(x: &Mat<f64>, y: &[f64]) -> Option<Vec<f64>> {
     norms.push(norm(&mut y.iter().copied()));
     let a = Mat::<f64>::from_fn(m, n + 1, |r, c| if c < n { x[(r, c)] } else { y[r] } / norms[c]);
     let r = a.qr().thin_R().to_owned();
-    let r = nalgebra::DMatrix::from_fn(n + 1, n + 1, |i, j| if j >= i { r[(i, j)] } else { 0.0 });
-    let svd = r.svd(false, true);
-    let v_t = svd.v_t?;
-    let smallest = svd.singular_values.argmin().0;
-    let v = v_t.row(smallest);
+    let r = Mat::from_fn(n + 1, n + 1, |i, j| if j >= i { r[(i, j)] } else { 0.0 });
+    let v = dense::weakest_direction(r.as_ref())?;
     if v[n].abs() < 1e-12 {
         return None;
     }
@@ -500,10 +498,9 @@ fn at_total_least_squares(
     let z = linear_target(&j, &point, &e);
     let mut fit = fit_stacked(&j, &z, dof, base, Method::Ols, block)?;
     let gram = j.transpose() * &j;
-    let gram = nalgebra::DMatrix::from_fn(q + dof, q + dof, |a, b| gram[(a, b)]);
-    let bread = gram.try_inverse().ok_or(GainsError::NoTotalLeastSquares)?;
+    let bread = dense::inverse(gram.as_ref()).ok_or(GainsError::NoTotalLeastSquares)?;
     fit.covariance = sandwich_covariance(&j, &e, dof, block, &bread);
-    fit.sigma_beta = standard_deviations(&fit.covariance);
+    fit.sigma_beta = dense::standard_deviations(fit.covariance.as_ref());
     fit.sigma_percent = fit.sigma_beta.iter().zip(&point).map(|(s, b)| 100.0 * s / b.abs()).collect();
     fit.beta = point;
     Ok(fit)
