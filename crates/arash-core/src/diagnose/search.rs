@@ -129,7 +129,7 @@ impl Search<'_> {
         if tested.is_empty() {
             return Ok(false);
         }
-        let (mut passing, lighter) = self.judge(round, &tested, (&base.columns, &coef), state);
+        let (mut passing, lighter) = self.judge(round, &tested, &base, &coef, state);
         // A mass taken off one body can look like a mass put on another (a parallelogram's links
         // pull against each other): the positive explanation stands unless the missing mass
         // explains clearly more, by the margin `most_useful` gives a simpler term.
@@ -223,9 +223,11 @@ impl Search<'_> {
         &self,
         round: usize,
         tested: &[(usize, GroupTest)],
-        (base_cols, coef): (&[&Column], &[f64]),
+        base: &NormalEquations,
+        coef: &[f64],
         state: &mut State,
     ) -> (Vec<Passed>, Option<(f64, TooHeavy)>) {
+        let base_cols = &base.columns;
         let (ctx, dof) = (self.ctx, self.problem.dof);
         let alpha = ctx.options.alpha;
         let p_values: Vec<f64> = tested.iter().map(|(_, t)| t.p_value).collect();

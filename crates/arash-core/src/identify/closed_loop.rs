@@ -541,17 +541,33 @@ impl Estimator {
     }
 }
 
-/// IDIM-IV or DIDIM (`estimator`) on a log preprocessed as `pre` (from `t`, `q`, `τ` with
-/// `options`), starting from the least-squares fit `start`.
+/// Where a closed-loop fit starts: the log's times, the log as preprocessed (with the options
+/// that preprocessed it, which the simulated logs get too), and the least-squares fit on it.
+pub struct ClosedLoopStart<'a> {
+    pub t: &'a [f64],
+    pub pre: &'a Preprocessed,
+    pub preprocess: &'a PreprocessOptions,
+    pub fit: &'a Fit,
+}
+
+/// How a closed-loop fit iterates: the estimator, its iterations, and the consistent fit a
+/// detour takes.
+pub struct ClosedLoopSettings<'a> {
+    pub estimator: Estimator,
+    pub iv: &'a IvOptions,
+    pub consistent: &'a ConsistentOptions,
+}
+
+/// IDIM-IV or DIDIM (`settings.estimator`) on the log of `start`, from its least-squares fit.
 pub fn closed_loop_fit(
-    (model, base): (&Model, &BaseParameters),
-    t: &[f64],
-    (pre, options): (&Preprocessed, &PreprocessOptions),
+    model: &Model,
+    base: &BaseParameters,
     closed_loop: &ClosedLoop,
-    start: &Fit,
-    estimator: Estimator,
-    (iv, consistent): (&IvOptions, &ConsistentOptions),
+    start: ClosedLoopStart,
+    settings: ClosedLoopSettings,
 ) -> Result<IvFit, ClosedLoopError> {
+    let ClosedLoopStart { t, pre, preprocess: options, fit: start } = start;
+    let ClosedLoopSettings { estimator, iv, consistent } = settings;
     iv.validate()?;
     check_reference(closed_loop, t.len(), model.dof())?;
     closed_loop.controller.build(model)?;
@@ -565,7 +581,7 @@ pub fn closed_loop_fit(
         // The log's resting rows are left out of the instruments too: DIDIM regresses the
         // measured torque, zero there, on them.
         let (mut z, mut unused) = stack(model, base, &simulated);
-        estimate::leave_out_rests(pre, (&mut z, &mut unused), pre.settled.clone());
+        estimate::leave_out_rests(pre, &mut z, &mut unused, pre.settled.clone());
         Ok(z)
     };
     // An estimate whose mass matrix is not positive definite somewhere on the way cannot drive a
@@ -579,7 +595,7 @@ pub fn closed_loop_fit(
             Err(ClosedLoopError::Diverged { time, why, .. }) => {
                 let w_full = w_full.get_or_init(|| {
                     let (mut w, mut tau) = stack_full(model, pre);
-                    estimate::leave_out_rests(pre, (&mut w, &mut tau), pre.settled.clone());
+                    estimate::leave_out_rests(pre, &mut w, &mut tau, pre.settled.clone());
                     w
                 });
                 let projected = z.map(|z| estimator.full(base, w_full, z));
@@ -601,7 +617,7 @@ pub fn closed_loop_fit(
         let change =
             next.iter().zip(&beta).zip(&sigma).map(|((a, b), s)| (a - b).abs() / s.max(1e-300)).fold(0.0, f64::max);
         beta = next;
-        let fit = iv_fit(model, base, pre, (&z, &w, &tau), (&beta, &products.0), start);
+        let fit = iv_fit(model, base, pre, Instrumented { z: &z, w: &w, tau: &tau }, (&beta, &products.0), start);
         sigma = fit.sigma_beta.clone();
         let converged = change <= iv.tolerance;
         if converged || iteration >= iv.max_iterations {
@@ -636,6 +652,14 @@ fn cross(z: &Mat<f64>, w: &Mat<f64>, tau: &[f64]) -> (Mat<f64>, Mat<f64>) {
     (z.transpose() * w, z.transpose() * &tau_mat)
 }
 
+/// The instrumental-variable problem: instruments `z`, regressor `w` and torque `tau`, row for
+/// row.
+struct Instrumented<'a> {
+    z: &'a Mat<f64>,
+    w: &'a Mat<f64>,
+    tau: &'a [f64],
+}
+
 /// The estimate `beta` as a [`Fit`]: σ from the sandwich `(ZᵀX)⁻¹ Ω (XᵀZ)⁻¹` (`zx` is ZᵀX, X
 /// the partner: W for IV, Z for DIDIM), Ω the long-run covariance of Z's scores on the unfiltered residual of
 /// the measured motion (the torque's noise), in blocks as least squares takes them
@@ -644,7 +668,7 @@ fn iv_fit(
     model: &Model,
     base: &BaseParameters,
     pre: &Preprocessed,
-    (z, w, tau): (&Mat<f64>, &Mat<f64>, &[f64]),
+    Instrumented { z, w, tau }: Instrumented,
     (beta, zx): (&[f64], &Mat<f64>),
     start: &Fit,
 ) -> Fit {

@@ -300,7 +300,7 @@ impl<'a> Search<'a> {
             };
             let filtered = filter_columns(&filter, &directions, dof, pre.periodic)?;
             put_coulomb(&mut w, dof, &positions, (&filtered, &rows));
-            leave_out_rests(&pre, (&mut w, &mut tau), rows.iter().copied());
+            leave_out_rests(&pre, &mut w, &mut tau, rows.iter().copied());
             // A velocity with which the parameters cannot be fitted is simply not a candidate.
             let Ok(fit) = fit_stacked(&w, &tau, dof, base, Method::Ols, block) else { continue };
             let training = fit.metrics.fp_percent.iter().sum::<f64>() / dof as f64;

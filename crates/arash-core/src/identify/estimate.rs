@@ -99,18 +99,14 @@ pub const CONDITION_LIMIT: f64 = 1e8;
 pub fn stack(model: &Model, base: &BaseParameters, data: &Preprocessed) -> (Mat<f64>, Vec<f64>) {
     let (mut w, mut tau) =
         (stack_columns(model, data, &base.independent), data.settled_rows(&data.tau, data.dof).to_vec());
-    leave_out_rests(data, (&mut w, &mut tau), data.settled.clone());
+    leave_out_rests(data, &mut w, &mut tau, data.settled.clone());
     (w, tau)
 }
 
 /// Zero the rows of `w` and the entries of `tau` (stacked at the samples `samples`, `dof` rows
 /// each) of every joint that rests there ([`Preprocessed::resting`]). A zero row adds nothing to
 /// the fit, its residual or σ's middle, and [`fit_stacked`] counts only the others.
-pub fn leave_out_rests(
-    data: &Preprocessed,
-    (w, tau): (&mut Mat<f64>, &mut [f64]),
-    samples: impl Iterator<Item = usize>,
-) {
+pub fn leave_out_rests(data: &Preprocessed, w: &mut Mat<f64>, tau: &mut [f64], samples: impl Iterator<Item = usize>) {
     let dof = data.dof;
     for (r, s) in samples.enumerate() {
         for k in (0..dof).filter(|&k| data.resting[s * dof + k]) {
@@ -175,7 +171,7 @@ pub fn regressor_rows(model: &Model, data: &Preprocessed, columns: &[usize], row
             let (band, tail) = rest.split_at_row_mut(samples.len() * n);
             rest = tail;
             let bodies = &bodies;
-            scope.spawn(move || fill_band(model, data, (columns, bodies), samples, band));
+            scope.spawn(move || fill_band(model, data, columns, bodies, samples, band));
         }
     });
     w
@@ -204,7 +200,8 @@ pub fn put_coulomb(w: &mut Mat<f64>, dof: usize, positions: &[(usize, usize)], (
 fn fill_band(
     model: &Model,
     data: &Preprocessed,
-    (columns, bodies): (&[usize], &[bool]),
+    columns: &[usize],
+    bodies: &[bool],
     samples: &[usize],
     mut band: faer::MatMut<'_, f64>,
 ) {
@@ -236,7 +233,7 @@ pub fn fit(model: &Model, base: &BaseParameters, data: &Preprocessed, method: Me
     let (w, tau) = stack(model, base, data);
     let block = ((2.0 * data.rate_hz() / data.cutoff_hz).ceil() as usize).max(1);
     let unfiltered = |beta: &[f64]| unfiltered_residual(model, data, &base.independent, beta);
-    fit_stacked_with(&w, &tau, (model.dof(), base), (method, block), Some(&unfiltered))
+    fit_stacked_with(&w, &tau, model.dof(), base, method, block, Some(&unfiltered))
 }
 
 /// The unfiltered torque less [`unfiltered_prediction`] on the [`Preprocessed::settled`] samples,
@@ -282,7 +279,7 @@ pub fn fit_stacked(
     method: Method,
     block_samples: usize,
 ) -> Result<Fit, EstimateError> {
-    fit_stacked_with(w, tau, (dof, base), (method, block_samples), None)
+    fit_stacked_with(w, tau, dof, base, method, block_samples, None)
 }
 
 /// The residual of the unfiltered torque given β, row for row with the stacked `W`.
@@ -293,8 +290,10 @@ type UnfilteredResidual<'a> = dyn Fn(&[f64]) -> Vec<f64> + 'a;
 fn fit_stacked_with(
     w: &Mat<f64>,
     tau: &[f64],
-    (dof, base): (usize, &BaseParameters),
-    (method, block_samples): (Method, usize),
+    dof: usize,
+    base: &BaseParameters,
+    method: Method,
+    block_samples: usize,
     unfiltered: Option<&UnfilteredResidual>,
 ) -> Result<Fit, EstimateError> {
     let (m, p) = (equations(w, tau), w.ncols());

@@ -489,9 +489,13 @@ impl Folds {
                 let left_out = Products::over(problem, candidate, fold);
                 let scored = Products::over(problem, candidate, interior);
                 // The fit on the other folds: the whole less this one.
-                let (matrix, rhs) = system(&kept, (whole, &all), Some((fold_gram, &left_out)));
+                let (matrix, rhs) = system(
+                    &kept,
+                    Sums { gram: whole, products: &all },
+                    Some(Sums { gram: fold_gram, products: &left_out }),
+                );
                 let theta = dense::solve_gram(matrix.as_ref(), &rhs, Unseen::Refused)?;
-                let (h, r) = system(&kept, (interior_gram, &scored), None);
+                let (h, r) = system(&kept, Sums { gram: interior_gram, products: &scored }, None);
                 let fitted = dense::times(h.as_ref(), &theta);
                 Some((interior_gram.yy - 2.0 * dot(&theta, &r) + dot(&theta, &fitted)).max(0.0))
             })
@@ -499,15 +503,19 @@ impl Folds {
     }
 }
 
-/// The normal equations over the `kept` columns and the candidate (last): of `gram` and the
-/// candidate's `products`, less those of `minus` where given.
-fn system(
-    kept: &[usize],
-    (gram, products): (&Gram, &Products),
-    minus: Option<(&Gram, &Products)>,
-) -> (Mat<f64>, Vec<f64>) {
+/// The sums of a stretch of samples: the problem's [`Gram`] and a candidate's [`Products`].
+#[derive(Clone, Copy)]
+struct Sums<'a> {
+    gram: &'a Gram,
+    products: &'a Products,
+}
+
+/// The normal equations over the `kept` columns and the candidate (last): of `sums`, less
+/// `minus` where given.
+fn system(kept: &[usize], sums: Sums, minus: Option<Sums>) -> (Mat<f64>, Vec<f64>) {
     let p = kept.len();
-    let less = |f: &dyn Fn(&Gram, &Products) -> f64| f(gram, products) - minus.map_or(0.0, |(g, x)| f(g, x));
+    let of = |s: Sums, f: &dyn Fn(&Gram, &Products) -> f64| f(s.gram, s.products);
+    let less = |f: &dyn Fn(&Gram, &Products) -> f64| of(sums, f) - minus.map_or(0.0, |m| of(m, f));
     let mut matrix = Mat::zeros(p + 1, p + 1);
     let mut rhs = vec![0.0; p + 1];
     for (i, &a) in kept.iter().enumerate() {

@@ -22,7 +22,7 @@ use crate::base_parameters::BaseParameters;
 use crate::model::Model;
 use crate::model_file::{DataSummary, Fitted, IdentifyMethod, Metrics, ModelFile, ModelFileError, Settings};
 use crate::physical::{min_pseudo_inertia_eigenvalues, nearest_standard_parameters};
-use closed_loop::{closed_loop_fit, ClosedLoopError};
+use closed_loop::{closed_loop_fit, ClosedLoopError, ClosedLoopSettings, ClosedLoopStart};
 use consistent::{identify_consistent, ConsistentError};
 use estimate::{fit, joint_metrics, stack_full, EstimateError, JointMetrics, Method};
 use preprocess::{preprocess, PreprocessError};
@@ -286,9 +286,9 @@ fn identify_with(
     let (ls, instruments) = match closed_loop.filter(|_| method.closed_loop()) {
         Some(closed_loop) => {
             let estimator = Estimator::of(method).expect("a closed-loop method names its estimator");
-            let settings = (&options.iv, &options.consistent);
-            let preprocessed = (&pre, &options.preprocess);
-            let iv = closed_loop_fit((model, base), log.t, preprocessed, &closed_loop, &ls, estimator, settings)?;
+            let start = ClosedLoopStart { t: log.t, pre: &pre, preprocess: &options.preprocess, fit: &ls };
+            let settings = ClosedLoopSettings { estimator, iv: &options.iv, consistent: &options.consistent };
+            let iv = closed_loop_fit(model, base, &closed_loop, start, settings)?;
             let name = estimator.name();
             pre.choices.reasons.push(format!(
                 "{name}: the closed loop simulated with the estimate, {} iteration(s); the last moved no β by more than \
@@ -315,7 +315,7 @@ fn identify_with(
     };
     let (beta, params, training, min_eig) = if method.consistent() {
         let (mut w, mut tau_f) = stack_full(model, &pre);
-        estimate::leave_out_rests(&pre, (&mut w, &mut tau_f), pre.settled.clone());
+        estimate::leave_out_rests(&pre, &mut w, &mut tau_f, pre.settled.clone());
         let projected = instruments.as_ref().map(|(estimator, z)| estimator.full(base, &w, z));
         let c = identify_consistent(model, projected.as_ref().unwrap_or(&w), &tau_f, &options.consistent)?;
         let predicted: Vec<f64> = estimate::apply(&w, &c.params);
