@@ -3,7 +3,7 @@
 
 use super::band::Band;
 use super::band_choice::BandChoice;
-use super::noise::NoiseFloor;
+use super::noise::{HeldOutTorque, NoiseFloor};
 use super::options::{DiagnoseError, DiagnoseOptions};
 use super::prepare::{prepare, term_columns, Prepared};
 use super::problem::{heldout_split, heldout_sse, Candidate, HeldOut, Problem, Split};
@@ -130,7 +130,7 @@ impl<'a> Context<'a> {
         let before_here = heldout_sse(&self.problem(&self.train, 0), &self.heldout(0), &[], &[]);
         let at_narrowest = self.white_floor(&train, validation.as_ref(), &split)?;
         let before_narrowest = heldout_sse(&self.problem(&train, 0), &heldout, &[], &[]);
-        Ok(here.above(&before_here, (&before_narrowest, &at_narrowest)))
+        Ok(here.above(&before_here, &before_narrowest, &at_narrowest))
     }
 
     /// The torque's white noise in `train`'s band on its held-out samples: the validation log's,
@@ -146,9 +146,17 @@ impl<'a> Context<'a> {
             None => (train, split.test.iter().filter(|t| **t).count()),
         };
         let duration_s = (samples * data.stride()) as f64 / data.fs;
-        let settings = (data.dof, data.fs, self.options.preprocess.order);
-        NoiseFloor::of(&data.pre.tau_unfiltered, settings, (data.pre.cutoff_hz, &self.weights), (samples, duration_s))
-            .map_err(|e| DiagnoseError::Training(e.into()))
+        NoiseFloor::of(HeldOutTorque {
+            tau: &data.pre.tau_unfiltered,
+            dof: data.dof,
+            fs: data.fs,
+            order: self.options.preprocess.order,
+            cutoff_hz: data.pre.cutoff_hz,
+            weights: &self.weights,
+            samples,
+            duration_s,
+        })
+        .map_err(|e| DiagnoseError::Training(e.into()))
     }
 
     /// The largest shift of the delay search (samples).

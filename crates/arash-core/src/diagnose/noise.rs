@@ -85,15 +85,24 @@ pub(super) struct NoiseFloor {
     independent: f64,
 }
 
+/// The held-out torque a noise floor is measured on: its unfiltered samples (`N × dof` at `fs`),
+/// the filter's `order` and `cutoff_hz`, the joints' row weights, and how many held-out samples
+/// the error is summed over, spanning `duration_s`.
+pub(super) struct HeldOutTorque<'a> {
+    pub tau: &'a [f64],
+    pub dof: usize,
+    pub fs: f64,
+    pub order: usize,
+    pub cutoff_hz: f64,
+    pub weights: &'a [f64],
+    pub samples: usize,
+    pub duration_s: f64,
+}
+
 impl NoiseFloor {
-    /// The floor of `samples` held-out samples spanning `duration_s`, filtered at `cutoff_hz`,
-    /// whose unfiltered torque (`N × dof` at `fs`) is `tau`; `weights` are the joints' row weights.
-    pub(super) fn of(
-        tau: &[f64],
-        (dof, fs, order): (usize, f64, usize),
-        (cutoff_hz, weights): (f64, &[f64]),
-        (samples, duration_s): (usize, f64),
-    ) -> Result<Self, FilterError> {
+    /// The floor of the held-out samples `held` describes.
+    pub(super) fn of(held: HeldOutTorque) -> Result<Self, FilterError> {
+        let HeldOutTorque { tau, dof, fs, order, cutoff_hz, weights, samples, duration_s } = held;
         let variance = white_noise_variance(tau, dof, fs, order)?;
         let in_band = white_noise_gain((fs, cutoff_hz), order, 0)?;
         let rms: Vec<f64> = variance.iter().map(|v| (v * in_band).sqrt()).collect();
@@ -119,7 +128,7 @@ impl NoiseFloor {
     /// one that predicts as well: `before` is the declared model's held-out squared error here,
     /// `narrowest` that band's (its own squared errors over its own held-out samples, and its
     /// white-noise floor), compared per held-out sample.
-    pub(super) fn above(mut self, before: &[f64], (narrowest, at_narrowest): (&[f64], &NoiseFloor)) -> Self {
+    pub(super) fn above(mut self, before: &[f64], narrowest: &[f64], at_narrowest: &NoiseFloor) -> Self {
         let per = |sse: f64, n: usize| sse / n.max(1) as f64;
         for k in 0..self.sse.len() {
             let explainable =

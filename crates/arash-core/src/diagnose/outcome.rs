@@ -4,7 +4,7 @@ use super::findings::Series;
 use super::options::DiagnoseError;
 use super::prepare::Prepared;
 use super::problem::{Candidate, Problem};
-use super::regression::{self, Column};
+use super::regression::{self, Fitted};
 use crate::base_parameters::BaseParameters;
 use crate::identify::IdentifyError;
 use crate::model::Model;
@@ -82,13 +82,14 @@ pub(super) fn declared_model(
 pub(super) fn series(
     data: &Prepared,
     problem: &Problem,
-    (before_cols, x_before): (&[&Column], &[f64]),
-    (after_cols, x_after): (&[&Column], &[f64]),
+    before: Fitted,
+    after: Fitted,
     pool: &[Candidate],
     chosen: &[usize],
 ) -> Series {
     let dof = data.dof;
     let mut contributions = Vec::new();
+    let (after_cols, x_after) = (after.columns, after.coefficients);
     let mut offset = after_cols.len() - chosen.iter().map(|&i| pool[i].columns.len()).sum::<usize>();
     for &i in chosen {
         let mut v = vec![0.0; data.samples() * dof];
@@ -105,7 +106,7 @@ pub(super) fn series(
         qd: data.at_kept(&data.pre.qd),
         qdd: data.at_kept(&data.pre.qdd),
         tau: problem.tau.clone(),
-        residual_before: problem.residual(before_cols, x_before),
+        residual_before: problem.residual(before.columns, before.coefficients),
         residual_after: problem.residual(after_cols, x_after),
         contributions,
     }

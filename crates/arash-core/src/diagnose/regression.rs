@@ -128,6 +128,13 @@ pub fn least_squares(columns: &[&Column], y: &[f64], dof: usize, rows: Rows) -> 
     solve_scaled(&gram(columns, dof, rows), &rhs(columns, y, dof, rows))
 }
 
+/// A model as fitted: its columns and their coefficients.
+#[derive(Clone, Copy)]
+pub struct Fitted<'a> {
+    pub columns: &'a [&'a Column],
+    pub coefficients: &'a [f64],
+}
+
 /// The normal equations of a model's columns over some rows: `XᵀX` and `Xᵀy`. Formed once per
 /// model, they serve every group of columns tested or fitted alongside it, each of which then
 /// costs only its own products.

@@ -13,7 +13,7 @@ use super::options::{DiagnoseError, DiagnoseOptions, PAYLOAD_MASS_SIGMAS};
 use super::outcome::{declared_model, series};
 use super::problem::{error_summary, model_columns, Candidate, HeldOut, HeldOutBase, Problem};
 use super::regression::{
-    self, least_squares, residual, test_group, Column, GroupTest, NormalEquations, Rows, Untested,
+    self, least_squares, residual, test_group, Column, Fitted, GroupTest, NormalEquations, Rows, Untested,
 };
 use super::Runs;
 use crate::effects::{EffectKind, EffectTerm};
@@ -391,8 +391,9 @@ impl Search<'_> {
             error_summary(&ctx.problem(&ctx.train, 0), &ctx.heldout(0), pool, &[])
         };
         let after = error_summary(problem, self.heldout, pool, &state.chosen);
-        let series =
-            series(&ctx.train, problem, (&declared_only, &x_before), (&final_cols, &x_after), pool, &state.chosen);
+        let declared_fit = Fitted { columns: &declared_only, coefficients: &x_before };
+        let final_fit = Fitted { columns: &final_cols, coefficients: &x_after };
+        let series = series(&ctx.train, problem, declared_fit, final_fit, pool, &state.chosen);
         let updated = self.updated_model(&state, &x_after, &series, urdf, samples_in)?;
         for (i, c) in pool.iter().enumerate().filter(|(i, _)| !state.chosen.contains(i)) {
             rejected.push(

@@ -617,7 +617,7 @@ pub fn closed_loop_fit(
         let change =
             next.iter().zip(&beta).zip(&sigma).map(|((a, b), s)| (a - b).abs() / s.max(1e-300)).fold(0.0, f64::max);
         beta = next;
-        let fit = iv_fit(model, base, pre, Instrumented { z: &z, w: &w, tau: &tau }, (&beta, &products.0), start);
+        let fit = iv_fit(model, base, pre, Instrumented { z: &z, w: &w, tau: &tau }, &beta, &products.0, start);
         sigma = fit.sigma_beta.clone();
         let converged = change <= iv.tolerance;
         if converged || iteration >= iv.max_iterations {
@@ -669,7 +669,8 @@ fn iv_fit(
     base: &BaseParameters,
     pre: &Preprocessed,
     Instrumented { z, w, tau }: Instrumented,
-    (beta, zx): (&[f64], &Mat<f64>),
+    beta: &[f64],
+    zx: &Mat<f64>,
     start: &Fit,
 ) -> Fit {
     let dof = model.dof();

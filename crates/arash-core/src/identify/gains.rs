@@ -197,8 +197,10 @@ pub fn fit_gains(
     model: &Model,
     base: &BaseParameters,
     runs: &[GainRun],
-    (load, body): (&KnownLoad, usize),
-    (method, estimator): (Method, GainEstimator),
+    load: &KnownLoad,
+    body: usize,
+    method: Method,
+    estimator: GainEstimator,
 ) -> Result<GainFit, GainsError> {
     let dof = model.dof();
     for (run, r) in runs.iter().enumerate() {
@@ -261,15 +263,16 @@ pub fn fit_gains(
     let rate = runs.iter().map(|r| r.data.rate_hz() / r.data.cutoff_hz).fold(1.0, f64::max);
     let block = (2.0 * rate).ceil() as usize;
     // The linear problem in torque units starts the fit in current units, whose σ is reported.
+    let problem = CurrentUnits { x: &x, y: &y, dof, q: p + unknown.len() };
     let fit = match estimator {
         GainEstimator::CurrentUnits => {
             let linear = fit_stacked(&x, &y, dof, &augmented, method, block)?;
-            let (j, z) = in_current_units(&x, &y, (dof, p + unknown.len()), &linear.beta);
+            let (j, z) = problem.solve_from(&linear.beta);
             fit_stacked(&j, &z, dof, &augmented, method, block)?
         }
         GainEstimator::TotalLeastSquares => {
             let theta = total_least_squares(&x, &y).ok_or(GainsError::NoTotalLeastSquares)?;
-            at_total_least_squares(&x, &y, (dof, p + unknown.len()), &theta, (&augmented, block))?
+            problem.at_total_least_squares(&theta, &augmented, block)?
         }
     };
     let theta = &fit.beta;
@@ -295,7 +298,7 @@ pub fn fit_gains(
         load_torque.iter().map(|(l, t)| if *t > 0.0 { (l / t).sqrt() } else { 0.0 }).collect();
     // What the model leaves unexplained on each joint, in torque: the residual in current units
     // times the gain, over every run, against the load's torque over the loaded runs.
-    let residual = residual_in_current_units(&x, &y, (dof, p + unknown.len()), theta);
+    let residual = problem.residual(theta);
     let loaded_rows: usize = stacked.iter().filter(|s| s.2).map(|s| s.0.nrows()).sum();
     let load_over_unexplained: Vec<f64> = (0..dof)
         .map(|k| {
@@ -309,10 +312,10 @@ pub fn fit_gains(
         .enumerate()
         .map(|(u, &c)| (format!("load.{}", LOAD_NAMES[c]), theta[p + u], fit.sigma_beta[p + u]))
         .collect();
-    let shares = (&load_torque_share[..], &load_over_unexplained[..]);
     let fixed: Vec<bool> =
-        (0..dof).map(|k| fixed(gains[k], gain_sigma[k], (load_torque_share[k], load_over_unexplained[k]))).collect();
-    let (reasons, warnings) = explain(model, (&gains, &gain_sigma), shares, &unknown, load);
+        (0..dof).map(|k| fixed(gains[k], gain_sigma[k], load_torque_share[k], load_over_unexplained[k])).collect();
+    let judged = Judged { gains: &gains, sigma: &gain_sigma, share: &load_torque_share, over: &load_over_unexplained };
+    let (reasons, warnings) = explain(model, judged, &unknown, load);
     Ok(GainFit {
         gain_sigma,
         gain_covariance,
@@ -395,70 +398,104 @@ pub struct Checked {
 /// solve of the stacked size.
 const GAUSS_NEWTON_STEPS: usize = 50;
 
-/// The problem refitted in current units: each row's residual `cⱼ τ̂ − i` with `cⱼ = 1/kⱼ`, where
-/// the torque-unit problem `x θ = y` (columns: the torque's `q` parameters, then `−diag(i)`) has the
-/// residual `kⱼ` times as large. In torque units a joint whose current the model explains poorly
-/// lowers that residual by lowering its gain: the least squares shrink the gain toward zero by
-/// `l²/(l² + 2u²)` for a load torque `l` and an unexplained torque `u` (the real KUKA's first joint
-/// came out at 17 % of its gain). In current units the unexplained current is the same whatever the
-/// gain, and only the load's current sets it: the errors-in-variables model of currents measured
-/// with noise. Solved by Gauss–Newton from the torque-unit fit `start`; returns the Jacobian at the
-/// optimum and the target `J θ* − e*`, whose least squares are `θ*` with the optimum's residual,
-/// so that [`fit_stacked`] gives its σ (the sandwich of the linearised problem) and conditioning.
-fn in_current_units(x: &Mat<f64>, y: &[f64], (dof, q): (usize, usize), start: &[f64]) -> (Mat<f64>, Vec<f64>) {
-    let largest = start[q..].iter().fold(0.0f64, |m, k| m.max(k.abs()));
-    let mut theta: Vec<f64> = start[..q].to_vec();
-    theta.extend(start[q..].iter().map(|k| 1.0 / k.abs().max(1e-3 * largest)));
-    let cost = |e: &[f64]| e.iter().map(|v| v * v).sum::<f64>();
-    let (mut j, mut e) = linearised(x, y, (dof, q), &theta);
-    for _ in 0..GAUSS_NEWTON_STEPS {
-        let rhs = Mat::<f64>::from_fn(j.nrows(), 1, |r, _| -e[r]);
-        let step = j.qr().solve_lstsq(&rhs);
-        // Halve the step until the cost falls: far from the optimum the linearisation overshoots.
-        let mut scale = 1.0;
-        let next = loop {
-            let trial: Vec<f64> = theta.iter().enumerate().map(|(i, t)| t + scale * step[(i, 0)]).collect();
-            if cost(&residual_in_current_units(x, y, (dof, q), &trial)) <= cost(&e) || scale < 1e-6 {
-                break trial;
+/// The drive-gain problem in current units: the stacked regressor `x` (the torque's `q`
+/// parameters, then one current column per joint) and the known load's torque `y`, row for row.
+struct CurrentUnits<'a> {
+    x: &'a Mat<f64>,
+    y: &'a [f64],
+    dof: usize,
+    q: usize,
+}
+
+impl CurrentUnits<'_> {
+    /// The problem refitted in current units: each row's residual `cⱼ τ̂ − i` with `cⱼ = 1/kⱼ`, where
+    /// the torque-unit problem `x θ = y` (columns: the torque's `q` parameters, then `−diag(i)`) has the
+    /// residual `kⱼ` times as large. In torque units a joint whose current the model explains poorly
+    /// lowers that residual by lowering its gain: the least squares shrink the gain toward zero by
+    /// `l²/(l² + 2u²)` for a load torque `l` and an unexplained torque `u` (the real KUKA's first joint
+    /// came out at 17 % of its gain). In current units the unexplained current is the same whatever the
+    /// gain, and only the load's current sets it: the errors-in-variables model of currents measured
+    /// with noise. Solved by Gauss–Newton from the torque-unit fit `start`; returns the Jacobian at the
+    /// optimum and the target `J θ* − e*`, whose least squares are `θ*` with the optimum's residual,
+    /// so that [`fit_stacked`] gives its σ (the sandwich of the linearised problem) and conditioning.
+    fn solve_from(&self, start: &[f64]) -> (Mat<f64>, Vec<f64>) {
+        let (dof, q) = (self.dof, self.q);
+        let largest = start[q..].iter().fold(0.0f64, |m, k| m.max(k.abs()));
+        let mut theta: Vec<f64> = start[..q].to_vec();
+        theta.extend(start[q..].iter().map(|k| 1.0 / k.abs().max(1e-3 * largest)));
+        let cost = |e: &[f64]| e.iter().map(|v| v * v).sum::<f64>();
+        let (mut j, mut e) = self.linearised(&theta);
+        for _ in 0..GAUSS_NEWTON_STEPS {
+            let rhs = Mat::<f64>::from_fn(j.nrows(), 1, |r, _| -e[r]);
+            let step = j.qr().solve_lstsq(&rhs);
+            // Halve the step until the cost falls: far from the optimum the linearisation overshoots.
+            let mut scale = 1.0;
+            let next = loop {
+                let trial: Vec<f64> = theta.iter().enumerate().map(|(i, t)| t + scale * step[(i, 0)]).collect();
+                if cost(&self.residual(&trial)) <= cost(&e) || scale < 1e-6 {
+                    break trial;
+                }
+                scale *= 0.5;
+            };
+            let moved = (q..q + dof).map(|i| ((next[i] - theta[i]) / theta[i]).abs()).fold(0.0, f64::max);
+            theta = next;
+            (j, e) = self.linearised(&theta);
+            if moved < 1e-10 {
+                break;
             }
-            scale *= 0.5;
-        };
-        let moved = (q..q + dof).map(|i| ((next[i] - theta[i]) / theta[i]).abs()).fold(0.0, f64::max);
-        theta = next;
-        (j, e) = linearised(x, y, (dof, q), &theta);
-        if moved < 1e-10 {
-            break;
         }
+        let z = linear_target(&j, &theta, &e);
+        (j, z)
     }
-    let z = linear_target(&j, &theta, &e);
-    (j, z)
+
+    /// Each row's residual in current units at `theta` (the torque's `q` parameters, then `cⱼ =
+    /// 1/kⱼ`): `cⱼ (x θ − y) − i`, the current being `−x` in the row's gain column.
+    fn residual(&self, theta: &[f64]) -> Vec<f64> {
+        let (x, dof, q) = (self.x, self.dof, self.q);
+        (0..x.nrows()).map(|r| theta[q + r % dof] * self.torque_at(theta, r) + x[(r, q + r % dof)]).collect()
+    }
+
+    /// The model's torque at row `r` beyond the known load's: `x θ − y` over the torque's columns.
+    fn torque_at(&self, theta: &[f64], r: usize) -> f64 {
+        (0..self.q).map(|c| self.x[(r, c)] * theta[c]).sum::<f64>() - self.y[r]
+    }
+
+    /// The Jacobian of [`CurrentUnits::residual`] at `theta`, and that residual.
+    fn linearised(&self, theta: &[f64]) -> (Mat<f64>, Vec<f64>) {
+        let (x, dof, q) = (self.x, self.dof, self.q);
+        let j = Mat::<f64>::from_fn(x.nrows(), q + dof, |r, c| match c < q {
+            true => theta[q + r % dof] * x[(r, c)],
+            false if c - q == r % dof => self.torque_at(theta, r),
+            false => 0.0,
+        });
+        (j, self.residual(theta))
+    }
+
+    /// The fit at the total-least-squares estimate `theta` (torque units: the parameters, then the
+    /// gains): the problem linearised in current units there, as [`CurrentUnits::solve_from`] linearises it
+    /// at its own optimum, for the conditioning; its σ the sandwich of that linearisation on the
+    /// residual at `theta`.
+    fn at_total_least_squares(&self, theta: &[f64], base: &BaseParameters, block: usize) -> Result<Fit, GainsError> {
+        let (dof, q) = (self.dof, self.q);
+        let mut point: Vec<f64> = theta[..q].to_vec();
+        point.extend(theta[q..].iter().map(|k| 1.0 / k));
+        let (j, e) = self.linearised(&point);
+        let z = linear_target(&j, &point, &e);
+        let mut fit = fit_stacked(&j, &z, dof, base, Method::Ols, block)?;
+        let gram = j.transpose() * &j;
+        let bread = dense::inverse(gram.as_ref()).ok_or(GainsError::NoTotalLeastSquares)?;
+        fit.covariance = sandwich_covariance(&j, &e, dof, block, &bread);
+        fit.sigma_beta = dense::standard_deviations(fit.covariance.as_ref());
+        fit.sigma_percent = fit.sigma_beta.iter().zip(&point).map(|(s, b)| 100.0 * s / b.abs()).collect();
+        fit.beta = point;
+        Ok(fit)
+    }
 }
 
 /// `J θ − e`: the target whose least squares on `J` is `θ` at a stationary point, with the
 /// residual `e`, so that [`fit_stacked`] gives the linearised problem's σ and conditioning.
 fn linear_target(j: &Mat<f64>, theta: &[f64], e: &[f64]) -> Vec<f64> {
     (0..j.nrows()).map(|r| (0..theta.len()).map(|c| j[(r, c)] * theta[c]).sum::<f64>() - e[r]).collect()
-}
-
-/// Each row's residual in current units at `theta` (the torque's `q` parameters, then `cⱼ =
-/// 1/kⱼ`): `cⱼ (x θ − y) − i`, the current being `−x` in the row's gain column.
-fn residual_in_current_units(x: &Mat<f64>, y: &[f64], (dof, q): (usize, usize), theta: &[f64]) -> Vec<f64> {
-    (0..x.nrows()).map(|r| theta[q + r % dof] * torque_at(x, y, q, theta, r) + x[(r, q + r % dof)]).collect()
-}
-
-/// The model's torque at row `r` beyond the known load's: `x θ − y` over the torque's columns.
-fn torque_at(x: &Mat<f64>, y: &[f64], q: usize, theta: &[f64], r: usize) -> f64 {
-    (0..q).map(|c| x[(r, c)] * theta[c]).sum::<f64>() - y[r]
-}
-
-/// The Jacobian of [`residual_in_current_units`] at `theta`, and that residual.
-fn linearised(x: &Mat<f64>, y: &[f64], (dof, q): (usize, usize), theta: &[f64]) -> (Mat<f64>, Vec<f64>) {
-    let j = Mat::<f64>::from_fn(x.nrows(), q + dof, |r, c| match c < q {
-        true => theta[q + r % dof] * x[(r, c)],
-        false if c - q == r % dof => torque_at(x, y, q, theta, r),
-        false => 0.0,
-    });
-    (j, residual_in_current_units(x, y, (dof, q), theta))
 }
 
 /// Total least squares of `x θ = y` (Golub and Van Loan): the smallest correction of `[x y]` in
@@ -479,31 +516,6 @@ fn total_least_squares(x: &Mat<f64>, y: &[f64]) -> Option<Vec<f64>> {
         return None;
     }
     Some((0..n).map(|c| -v[c] / v[n] * norms[n] / norms[c]).collect())
-}
-
-/// The fit at the total-least-squares estimate `theta` (torque units: the parameters, then the
-/// gains): the problem linearised in current units there, as [`in_current_units`] linearises it
-/// at its own optimum, for the conditioning; its σ the sandwich of that linearisation on the
-/// residual at `theta`.
-fn at_total_least_squares(
-    x: &Mat<f64>,
-    y: &[f64],
-    (dof, q): (usize, usize),
-    theta: &[f64],
-    (base, block): (&BaseParameters, usize),
-) -> Result<Fit, GainsError> {
-    let mut point: Vec<f64> = theta[..q].to_vec();
-    point.extend(theta[q..].iter().map(|k| 1.0 / k));
-    let (j, e) = linearised(x, y, (dof, q), &point);
-    let z = linear_target(&j, &point, &e);
-    let mut fit = fit_stacked(&j, &z, dof, base, Method::Ols, block)?;
-    let gram = j.transpose() * &j;
-    let bread = dense::inverse(gram.as_ref()).ok_or(GainsError::NoTotalLeastSquares)?;
-    fit.covariance = sandwich_covariance(&j, &e, dof, block, &bread);
-    fit.sigma_beta = dense::standard_deviations(fit.covariance.as_ref());
-    fit.sigma_percent = fit.sigma_beta.iter().zip(&point).map(|(s, b)| 100.0 * s / b.abs()).collect();
-    fit.beta = point;
-    Ok(fit)
 }
 
 /// How a model fitted by least squares on `data`'s torque `kⱼ iⱼ` moves with the gains: per
@@ -629,7 +641,7 @@ pub const NOT_FIXED: f64 = 0.05;
 /// which the noise's σ does not count: on the real KUKA a load 2 × the unexplained torque left a
 /// gain 68 % off with a σ of 5 %. A joint the load does not load is fixed, if at all, through the
 /// parameters it shares, and its σ says how well.
-pub fn fixed(gain: f64, sigma: f64, (share, over): (f64, f64)) -> bool {
+pub fn fixed(gain: f64, sigma: f64, share: f64, over: f64) -> bool {
     let loaded = share >= LOAD_SHARE_FLOOR;
     sigma <= NOT_FIXED * gain.abs() && (!loaded || over * NOT_FIXED >= 1.0)
 }
@@ -646,13 +658,17 @@ fn least_mass(mass: f64, gain: f64, sigma: f64, over: f64) -> f64 {
 
 /// The reasons (each gain with its σ, the load's share of each joint's torque, the joints the load
 /// barely reaches) and the warnings (the gains it does not fix).
-fn explain(
-    model: &Model,
-    (gains, sigma): (&[f64], &[f64]),
-    (share, over): (&[f64], &[f64]),
-    unknown: &[usize],
-    load: &KnownLoad,
-) -> (Vec<String>, Vec<String>) {
+/// Per joint, a gain as the fit judged it: its value and σ, the load's share of its joint's
+/// torque, and the load over what the model leaves unexplained there.
+struct Judged<'a> {
+    gains: &'a [f64],
+    sigma: &'a [f64],
+    share: &'a [f64],
+    over: &'a [f64],
+}
+
+fn explain(model: &Model, judged: Judged, unknown: &[usize], load: &KnownLoad) -> (Vec<String>, Vec<String>) {
+    let Judged { gains, sigma, share, over } = judged;
     let joints = model.joint_names();
     let each: Vec<String> = joints
         .iter()
@@ -675,7 +691,7 @@ fn explain(
         each.join("; ")
     )];
     let loose: Vec<String> = (0..joints.len())
-        .filter(|&j| !fixed(gains[j], sigma[j], (share[j], over[j])))
+        .filter(|&j| !fixed(gains[j], sigma[j], share[j], over[j]))
         .map(|j| {
             let least = match share[j] >= LOAD_SHARE_FLOOR {
                 true => format!(

@@ -153,7 +153,7 @@ pub fn identify_with_known_load(
     let gain_runs: Vec<gains::GainRun> =
         preprocessed.iter().zip(runs).map(|(data, (_, loaded))| gains::GainRun { data, loaded: *loaded }).collect();
     let ls = if method == IdentifyMethod::Wls { Method::Wls } else { Method::Ols };
-    let fit = gains::fit_gains(model, declared.base, &gain_runs, (load, body), (ls, estimator))?;
+    let fit = gains::fit_gains(model, declared.base, &gain_runs, load, body, ls, estimator)?;
     let dof = model.dof();
     let (mut reasons, mut warnings) = (fit.reasons.clone(), fit.warnings.clone());
     let (used, sigma, covariance, from_datasheet) = match datasheet {
