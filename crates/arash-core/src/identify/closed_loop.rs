@@ -25,7 +25,7 @@
 //! many instruments as parameters it is the IV estimate) and on `Z` itself for DIDIM.
 
 use super::options::{ConsistentOptions, PreprocessOptions};
-use faer::linalg::solvers::{DenseSolveCore, Solve};
+use faer::linalg::solvers::Solve;
 use faer::{Mat, Side};
 use serde::{Deserialize, Serialize};
 
@@ -379,10 +379,8 @@ impl DryFriction {
         crate::dynamics::inverse_dynamics(model, data, q, qd, &self.zeros, &self.others, &mut self.bias);
         crate::dynamics::mass_matrix(model, data, q, &self.others, &mut self.mass);
         let mass = Mat::from_fn(n, n, |i, j| self.mass[i * n + j]);
-        let inverse = mass
-            .llt(Side::Lower)
-            .map_err(|_| "the mass matrix is not positive definite; the parameters are not physical".to_string())?
-            .inverse();
+        let inverse = dense::spd_inverse(mass.as_ref())
+            .ok_or_else(|| "the mass matrix is not positive definite; the parameters are not physical".to_string())?;
         let force: Vec<f64> = tau.iter().zip(&self.bias).map(|(t, b)| t - b).collect();
         let acceleration = dense::times(inverse.as_ref(), &force);
         let free: Vec<f64> = (0..n).map(|k| qd[k] + h * acceleration[k]).collect();
