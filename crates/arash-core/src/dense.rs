@@ -8,7 +8,7 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
-use faer::linalg::solvers::{DenseSolveCore, Solve};
+use faer::linalg::solvers::Solve;
 use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
 use faer::{Mat, MatMut, MatRef, Par};
 
@@ -70,16 +70,11 @@ pub fn solve_gram(g: MatRef<'_, f64>, b: &[f64], unseen: Unseen) -> Option<Vec<f
 /// `m⁻¹` by LU with full pivoting; `None` where `m` is singular (a zero pivot) or the inverse
 /// is not finite.
 pub fn inverse(m: MatRef<'_, f64>) -> Option<Mat<f64>> {
-    let lu = m.full_piv_lu();
-    let u = lu.U();
-    if (0..u.nrows()).any(|i| u[(i, i)] == 0.0) {
-        return None;
-    }
-    let inverse = lu.inverse();
-    finite(inverse.as_ref()).then_some(inverse)
+    solve(m, Mat::identity(m.nrows(), m.nrows()).as_ref())
 }
 
-/// `m⁻¹ rhs` by LU with full pivoting; `None` where `m` is singular.
+/// `m⁻¹ rhs` by LU with full pivoting; `None` where `m` is singular (a zero pivot) or the result
+/// is not finite.
 pub fn solve(m: MatRef<'_, f64>, rhs: MatRef<'_, f64>) -> Option<Mat<f64>> {
     let lu = m.full_piv_lu();
     let u = lu.U();
@@ -102,7 +97,7 @@ pub fn spd_inverse(m: MatRef<'_, f64>) -> Option<Mat<f64>> {
 /// at every step of a simulated closed loop, where handing each to faer's thread pool cost more
 /// in waking threads than the factorisation itself (an IDIM-IV fit took 12 s of system time
 /// against 0.6 s).
-fn cholesky(m: MatRef<'_, f64>) -> Option<Mat<f64>> {
+pub fn cholesky(m: MatRef<'_, f64>) -> Option<Mat<f64>> {
     let n = m.nrows();
     let mut l = Mat::zeros(n, n);
     l.copy_from_triangular_lower(m);
@@ -112,7 +107,7 @@ fn cholesky(m: MatRef<'_, f64>) -> Option<Mat<f64>> {
 }
 
 /// `L Lᵀ x = b` in place, `L` from [`cholesky`].
-fn cholesky_solve(l: &Mat<f64>, mut b: MatMut<'_, f64>) {
+pub fn cholesky_solve(l: &Mat<f64>, mut b: MatMut<'_, f64>) {
     solve_lower_triangular_in_place(l.as_ref(), b.as_mut(), Par::Seq);
     solve_upper_triangular_in_place(l.transpose(), b, Par::Seq);
 }

@@ -6,9 +6,7 @@ use super::context::Context;
 use super::findings::{rejection, Finding, Rejection, RejectionReason};
 use super::prepare::Prepared;
 use super::problem::{sse, Problem};
-use super::regression::{
-    least_squares, residual, rhs, solve_scaled, test_group, Column, NormalEquations, Rows, Untested,
-};
+use super::regression::{least_squares, residual, test_group, Column, NormalEquations, Rows, Untested};
 use crate::effects::{EffectKind, EffectTerm};
 use crate::identify::signals::central_difference;
 
@@ -47,12 +45,11 @@ fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
     let target = |data: &Prepared, fixed: &[f64], d: isize| -> Vec<f64> {
         data.tau(d).iter().zip(fixed).enumerate().map(|(i, (t, f))| (t - f) * weights[i % dof]).collect()
     };
-    let declared_refs: Vec<&Column> = zero.free_columns().collect();
-    let declared = NormalEquations::over(declared_refs.clone(), &zero.y, dof, Rows::All);
+    let declared = NormalEquations::over(zero.free_columns().collect(), &zero.y, dof, Rows::All);
+    let declared_refs = &declared.columns;
     let total_sse = |y: &[f64]| -> f64 {
-        let x = solve_scaled(&declared.gram, &rhs(&declared_refs, y, dof, Rows::All))
-            .unwrap_or_else(|| vec![0.0; declared_refs.len()]);
-        sse(&declared_refs, &x, y, dof, Rows::All).iter().sum()
+        let x = declared.solve_for(y).unwrap_or_else(|| vec![0.0; declared_refs.len()]);
+        sse(declared_refs, &x, y, dof, Rows::All).iter().sum()
     };
     let scores: Vec<f64> = (-max_shift..=max_shift).map(|d| total_sse(&target(train, &fixed, d))).collect();
     let best = (0..scores.len()).min_by(|&a, &b| scores[a].total_cmp(&scores[b])).unwrap_or(max_shift as usize);
@@ -69,7 +66,7 @@ fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
     }
     // The linearised test: τ(t − d) ≈ τ(t) − d·τ̇(t).
     let x0 = declared.solve().unwrap_or_else(|| vec![0.0; declared_refs.len()]);
-    let e0 = residual(&declared_refs, &x0, &zero.y, dof);
+    let e0 = residual(declared_refs, &x0, &zero.y, dof);
     let predicted: Vec<f64> = zero.y.iter().zip(&e0).map(|(y, e)| y - e).collect();
     let h = train.stride() as f64 / train.fs;
     let column = Column::dense(central_difference(&predicted, dof, h, false), dof);
@@ -86,8 +83,7 @@ fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
             let vzero = Problem::new(v, v.tau(0), vfixed.clone(), weights, free);
             let vrefs: Vec<&Column> = vzero.free_columns().collect();
             let at = |d: isize| -> Vec<f64> {
-                let x = least_squares(&declared_refs, &target(train, &fixed, d), dof, Rows::All)
-                    .unwrap_or_else(|| vec![0.0; declared_refs.len()]);
+                let x = declared.solve_for(&target(train, &fixed, d)).unwrap_or_else(|| vec![0.0; declared_refs.len()]);
                 sse(&vrefs, &x, &target(v, &vfixed, d), dof, Rows::All)
             };
             ctx.floor.gains(&at(0), &at(shift))
@@ -96,9 +92,9 @@ fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
             let (train_rows, test_rows) = (&split.train, &split.test);
             let at = |d: isize| -> Vec<f64> {
                 let y = target(train, &fixed, d);
-                let x = least_squares(&declared_refs, &y, dof, Rows::Where(train_rows))
+                let x = least_squares(declared_refs, &y, dof, Rows::Where(train_rows))
                     .unwrap_or_else(|| vec![0.0; declared_refs.len()]);
-                sse(&declared_refs, &x, &y, dof, Rows::Where(test_rows))
+                sse(declared_refs, &x, &y, dof, Rows::Where(test_rows))
             };
             ctx.floor.gains(&at(0), &at(shift))
         }

@@ -159,6 +159,12 @@ impl<'a> NormalEquations<'a> {
         solve_scaled(&self.gram, &self.rhs)
     }
 
+    /// The least-squares coefficients of the same columns, over the same rows, for another
+    /// target `y`: only `Xᵀy` is formed again.
+    pub fn solve_for(&self, y: &[f64]) -> Option<Vec<f64>> {
+        solve_scaled(&self.gram, &rhs(&self.columns, y, self.dof, self.rows))
+    }
+
     /// Least squares of the same `y` on the model's columns plus `group`: coefficients of the
     /// model's columns, then of the group.
     pub fn with_group(&self, group: &[&Column], y: &[f64]) -> Option<Vec<f64>> {
@@ -414,7 +420,7 @@ fn partial_out(base: &NormalEquations, group: &[&Column]) -> Option<Vec<Vec<f64>
             if base.columns.is_empty() {
                 return Some(dense);
             }
-            let rhs: Vec<f64> = base.columns.iter().map(|b| dot(b, c, dof, Rows::All)).collect();
+            let rhs: Vec<f64> = base.columns.iter().map(|b| dot(b, c, dof, base.rows)).collect();
             let a = solve_scaled(&base.gram, &rhs)?;
             for (b, x) in base.columns.iter().zip(a.iter()) {
                 axpy(&mut dense, -x, b, dof);

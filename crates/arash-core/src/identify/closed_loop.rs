@@ -25,8 +25,7 @@
 //! many instruments as parameters it is the IV estimate) and on `Z` itself for DIDIM.
 
 use super::options::{ConsistentOptions, PreprocessOptions};
-use faer::linalg::solvers::Solve;
-use faer::{Mat, Side};
+use faer::Mat;
 use serde::{Deserialize, Serialize};
 
 use super::consistent::identify_consistent;
@@ -701,10 +700,13 @@ fn iv_fit(
 fn instrumented(w_full: &Mat<f64>, z: &Mat<f64>) -> Mat<f64> {
     let (p, big_p) = (z.ncols(), w_full.ncols());
     let gram = z.transpose() * z;
-    let rhs = z.transpose() * w_full;
-    let solved = match gram.llt(Side::Lower) {
-        Ok(c) => c.solve(&rhs),
-        Err(_) => dense::solve(gram.as_ref(), rhs.as_ref()).unwrap_or_else(|| Mat::zeros(p, big_p)),
+    let mut rhs = z.transpose() * w_full;
+    let solved = match dense::cholesky(gram.as_ref()) {
+        Some(l) => {
+            dense::cholesky_solve(&l, rhs.as_mut());
+            rhs
+        }
+        None => dense::solve(gram.as_ref(), rhs.as_ref()).unwrap_or_else(|| Mat::zeros(p, big_p)),
     };
     z * solved
 }

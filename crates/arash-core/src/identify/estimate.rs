@@ -11,7 +11,7 @@
 //! back to Householder QR (faer). Either way, `R` gives `(WᵀW)⁻¹ = R⁻¹R⁻ᵀ` for the covariance.
 
 use faer::prelude::*;
-use faer::{Mat, Scale, Side};
+use faer::{Mat, Scale};
 
 use super::filter::Butterworth;
 use super::preprocess::Preprocessed;
@@ -340,7 +340,7 @@ fn fit_stacked_with(
     let sigma_beta = dense::standard_deviations(covariance.as_ref());
     let sigma_percent = sigma_beta.iter().zip(&beta).map(|(s, b)| 100.0 * s / b.abs()).collect();
     let metrics = joint_metrics(tau, &predicted, dof);
-    let determination = determination((&r_factor, &r_inv), column_over_torque(w, tau, dof), &beta);
+    let determination = determination(&r_factor, &r_inv, column_over_torque(w, tau, dof), &beta);
     Ok(Fit {
         method,
         beta,
@@ -360,7 +360,7 @@ fn fit_stacked_with(
 /// `1/(‖wᵢ‖²·(WᵀW)⁻¹ᵢᵢ)` is the squared part of column i outside the others' span. Regressing
 /// column i on the others gives column j the coefficient `−(WᵀW)⁻¹ᵢⱼ/(WᵀW)⁻¹ᵢᵢ`; scaled to
 /// unit columns, the largest names what it leans on. The torque shares are `beta`'s.
-fn determination((r, r_inv): (&Mat<f64>, &Mat<f64>), column_over_torque: Vec<f64>, beta: &[f64]) -> Vec<Determination> {
+fn determination(r: &Mat<f64>, r_inv: &Mat<f64>, column_over_torque: Vec<f64>, beta: &[f64]) -> Vec<Determination> {
     let p = r.ncols();
     let inverse = r_inv * r_inv.transpose();
     let norms: Vec<f64> = (0..p).map(|i| r.col(i).norm_l2()).collect();
@@ -425,8 +425,8 @@ fn corrected_semi_normal(w: &Mat<f64>, b: &Mat<f64>) -> Option<(Vec<f64>, Mat<f6
         return None;
     }
     let scaled_gram = Mat::from_fn(p, p, |i, j| gram[(i, j)] / (norms[i] * norms[j]));
-    let llt = scaled_gram.llt(Side::Lower).ok()?;
-    let r_scaled = llt.L().transpose();
+    let l_scaled = dense::cholesky(scaled_gram.as_ref())?;
+    let r_scaled = l_scaled.transpose();
     let condition = dense::condition_number(r_scaled);
     if condition.is_nan() || condition > 1e7 {
         return None;

@@ -514,8 +514,9 @@ struct Sums<'a> {
 /// `minus` where given.
 fn system(kept: &[usize], sums: Sums, minus: Option<Sums>) -> (Mat<f64>, Vec<f64>) {
     let p = kept.len();
-    let of = |s: Sums, f: &dyn Fn(&Gram, &Products) -> f64| f(s.gram, s.products);
-    let less = |f: &dyn Fn(&Gram, &Products) -> f64| of(sums, f) - minus.map_or(0.0, |m| of(m, f));
+    let less = |f: &dyn Fn(&Gram, &Products) -> f64| {
+        f(sums.gram, sums.products) - minus.map_or(0.0, |m| f(m.gram, m.products))
+    };
     let mut matrix = Mat::zeros(p + 1, p + 1);
     let mut rhs = vec![0.0; p + 1];
     for (i, &a) in kept.iter().enumerate() {
