@@ -103,6 +103,10 @@ pub fn cholesky(m: MatRef<'_, f64>) -> Option<Mat<f64>> {
     l.copy_from_triangular_lower(m);
     let mut memory = MemBuffer::new(cholesky_in_place_scratch::<f64>(n, Par::Seq, Default::default()));
     cholesky_in_place(l.as_mut(), Default::default(), Par::Seq, MemStack::new(&mut memory), Default::default()).ok()?;
+    // The factorisation works in the strict upper triangle too; L is the lower one alone.
+    for j in 1..n {
+        l.col_mut(j).subrows_mut(0, j).fill(0.0);
+    }
     Some(l)
 }
 
@@ -157,6 +161,20 @@ mod tests {
         let pinned = solve_gram(with_zero.as_ref(), &[1.0, -2.0, 0.5, 7.0], Unseen::Pinned).unwrap();
         assert_eq!(pinned[3], 0.0);
         assert!(pinned[..3].iter().zip(&solution).all(|(a, b)| (a - b).abs() <= 1e-12 * b.abs().max(1.0)));
+    }
+
+    /// The factor is lower triangular and gives back the matrix, at a size where faer's
+    /// factorisation writes into the upper triangle as it works.
+    #[test]
+    fn the_cholesky_factor_is_lower_triangular_and_gives_the_matrix_back() {
+        let n = 40;
+        let x = Mat::from_fn(3 * n, n, |i, j| ((i * 7 + j * 13) as f64 * 0.61).sin() + f64::from(i == j));
+        let m = x.transpose() * &x;
+        let l = cholesky(m.as_ref()).unwrap();
+        assert!((0..n).all(|j| (0..j).all(|i| l[(i, j)] == 0.0)), "entries above the diagonal");
+        let back = &l * l.transpose();
+        let scale = (0..n).map(|i| m[(i, i)]).fold(0.0, f64::max);
+        assert!((0..n).all(|i| (0..n).all(|j| (back[(i, j)] - m[(i, j)]).abs() < 1e-12 * scale)));
     }
 
     #[test]
