@@ -217,11 +217,13 @@ def test_a_stuck_client_costs_no_cycles_and_its_losses_are_counted(tmp_path):
     base, base_logs = soak(tmp_path / "without", 30)
     live, live_logs = soak(tmp_path / "with", 30, "--live", "127.0.0.1:0", stuck=True)
     cycles = live["cycle"]
-    # Cycles missed on this shared machine without real-time scheduling are host noise: usually
-    # about 0.1 %, once 0.6 % (193 of 32,322 against 4 without the stream, CI on 944d967, the test
-    # run beside nothing of ours). A control thread that waited for the client would miss nearly
-    # every cycle once the client's queue filled, thousands in 30 s; 2 % tells the two apart.
-    assert live["missed_cycles"] <= base["missed_cycles"] + 0.02 * cycles, (base["missed_cycles"],
+    # Cycles missed on this shared machine without real-time scheduling are host noise, and it
+    # varies between runs of the same binary: 0.1 % on most days, 0.6 % once (193 of 32,322 against
+    # 4 without the stream, CI on 944d967), 2.1 % without the stream on an idle machine (690 of
+    # 32,276 on 2879ac0, against 499 with it). A control thread that waited for the client would
+    # stop once the client's socket filled, a few seconds in, and miss nearly every cycle after:
+    # more than half of them. 10 % tells the two apart with room for the host's noise.
+    assert live["missed_cycles"] <= base["missed_cycles"] + 0.10 * cycles, (base["missed_cycles"],
                                                                              live["missed_cycles"])
     assert live["log_dropped"] == 0
     stream = live["live"]

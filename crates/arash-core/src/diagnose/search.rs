@@ -485,15 +485,27 @@ impl Search<'_> {
 /// Two terms whose whole-robot held-out gains are within this ratio explain the data comparably.
 const COMPARABLE_GAIN: f64 = 0.9;
 
+/// Gains closer than this, relative to the larger, differ by round-off only: the two terms span
+/// the same columns on this data (an offset and a Coulomb asymmetry on a joint that never stops).
+const SAME_GAIN: f64 = 1e-9;
+
 /// Of the candidates that passed, the one to add: the largest whole-robot gain, except that a
 /// candidate with fewer columns within 10 % of it is preferred. A payload's four columns can
 /// mimic an offset on one joint; the simpler explanation should win when the data cannot tell
-/// them apart.
+/// them apart. Terms the data cannot tell apart at all go by the catalogue's order, which lists
+/// the plainer explanation first, so that round-off does not choose between them.
 fn most_useful(passing: &[Passed], width: impl Fn(usize) -> usize) -> Option<usize> {
     let best = passing.iter().map(|p| p.total).fold(f64::NEG_INFINITY, f64::max);
+    let by_gain = |a: f64, b: f64| {
+        if (a - b).abs() <= SAME_GAIN * a.abs().max(b.abs()) {
+            std::cmp::Ordering::Equal
+        } else {
+            b.total_cmp(&a)
+        }
+    };
     (0..passing.len()).filter(|&i| passing[i].total >= COMPARABLE_GAIN * best).min_by(|&a, &b| {
         let (a, b) = (&passing[a], &passing[b]);
-        width(a.test).cmp(&width(b.test)).then(b.total.total_cmp(&a.total))
+        width(a.test).cmp(&width(b.test)).then(by_gain(a.total, b.total)).then(a.test.cmp(&b.test))
     })
 }
 
@@ -590,6 +602,25 @@ mod tests {
         assert!((distance_m.unwrap() - 1.1).abs() < 1e-12 && (reach_m - 1.0).abs() < 1e-12);
         let offset = EffectTerm::new(EffectKind::Offset, Some(0));
         assert!(not_a_mass(&offset, &fit([0.0; 4], 1.0), &model).is_none());
+    }
+
+    /// The narrower of two comparable terms wins; of two the data cannot tell apart (gains equal
+    /// to round-off), the one the catalogue lists first, whichever round-off favours.
+    #[test]
+    fn ties_go_to_the_narrower_then_to_the_catalogue_order() {
+        let passed = |test, total| Passed { test, gain: total, gains: vec![total], total, threshold: 0.01 };
+        let one_column = |_| 1;
+        let tied = [passed(0, 0.5), passed(1, 0.5 * (1.0 + 1e-12))];
+        assert_eq!(most_useful(&tied, one_column), Some(0));
+        let tied = [passed(1, 0.5 * (1.0 + 1e-12)), passed(0, 0.5)];
+        assert_eq!(most_useful(&tied, one_column), Some(1), "by catalogue order, not by position");
+        let apart = [passed(0, 0.5), passed(1, 0.6)];
+        assert_eq!(most_useful(&apart, one_column), Some(1));
+        let payload_wide = |test| if test == 1 { 4 } else { 1 };
+        let comparable = [passed(0, 0.5), passed(1, 0.54)];
+        assert_eq!(most_useful(&comparable, payload_wide), Some(0), "the narrower within 10 %");
+        let clearly_more = [passed(0, 0.5), passed(1, 0.6)];
+        assert_eq!(most_useful(&clearly_more, payload_wide), Some(1));
     }
 
     /// The coefficients of a fit sit after the model's, each term's after the one before; the

@@ -60,7 +60,8 @@ pub enum EffectKind {
 }
 
 impl EffectKind {
-    /// Every effect, in the order the diagnosis tries a joint's candidates.
+    /// Every effect, in the order the diagnosis tries a joint's candidates: the plainer explanation
+    /// first, which is also how the search chooses between terms the data cannot tell apart.
     pub const ALL: [EffectKind; 16] = [
         Self::Offset,
         Self::CoulombAsymmetry,
