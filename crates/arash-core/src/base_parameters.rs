@@ -465,14 +465,15 @@ fn stacked_over_trajectories(
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
     let (mut y, mut y_r) = (vec![0.0; n * big_p], vec![0.0; n * p]);
     let mut w = Mat::<f64>::zeros(options.reach_trajectories * SAMPLES * n, p);
-    let (mut q, mut qd, mut qdd) = (vec![0.0; SAMPLES * n], vec![0.0; SAMPLES * n], vec![0.0; SAMPLES * n]);
+    let mut period_samples = PeriodSamples::new(SAMPLES, n);
     for trajectory in 0..options.reach_trajectories {
         let period = rng.random_range(5.0..30.0);
         for j in 0..n {
             let coefficients: Vec<(f64, f64)> =
                 (0..HARMONICS).map(|_| (rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0))).collect();
-            fill_scaled_fourier(&coefficients, period, limits, j, SAMPLES, n, (&mut q, &mut qd, &mut qdd));
+            period_samples.fill_scaled_fourier(j, &coefficients, period, limits);
         }
+        let PeriodSamples { q, qd, qdd, .. } = &period_samples;
         for s in 0..SAMPLES {
             let at = s * n..(s + 1) * n;
             regressor(model, &mut data, &q[at.clone()], &qd[at.clone()], &qdd[at], &mut y);
@@ -488,41 +489,47 @@ fn stacked_over_trajectories(
     w
 }
 
-/// Joint `j` of samples `(q, q̇, q̈)` (row-major `samples × n`): Σₗ aₗ/(ωl) sin(ωlt) − bₗ/(ωl)
-/// cos(ωlt) scaled by the largest factor that keeps range, speed and acceleration within
-/// `limits`, and centred in the position range.
-fn fill_scaled_fourier(
-    coefficients: &[(f64, f64)],
-    period: f64,
-    limits: &ReachableLimits,
-    j: usize,
+/// Positions, speeds and accelerations at evenly spaced instants of one period, row-major
+/// `samples × n`.
+struct PeriodSamples {
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    qdd: Vec<f64>,
     samples: usize,
     n: usize,
-    (q, qd, qdd): (&mut [f64], &mut [f64], &mut [f64]),
-) {
-    let w = 2.0 * std::f64::consts::PI / period;
-    for s in 0..samples {
-        let t = period * s as f64 / samples as f64;
-        let (mut x, mut v, mut a) = (0.0, 0.0, 0.0);
-        for (l, &(al, bl)) in coefficients.iter().enumerate() {
-            let wl = w * (l + 1) as f64;
-            let (sin, cos) = (wl * t).sin_cos();
-            x += (al * sin - bl * cos) / wl;
-            v += al * cos + bl * sin;
-            a += wl * (bl * cos - al * sin);
-        }
-        (q[s * n + j], qd[s * n + j], qdd[s * n + j]) = (x, v, a);
+}
+
+impl PeriodSamples {
+    fn new(samples: usize, n: usize) -> Self {
+        let zeros = || vec![0.0; samples * n];
+        Self { q: zeros(), qd: zeros(), qdd: zeros(), samples, n }
     }
-    let column = |x: &[f64]| (0..samples).map(|s| x[s * n + j]).collect::<Vec<f64>>();
-    let (x, v, a) = (column(q), column(qd), column(qdd));
-    let (lo, hi) =
-        (x.iter().copied().fold(f64::INFINITY, f64::min), x.iter().copied().fold(f64::NEG_INFINITY, f64::max));
-    let peak = |y: &[f64]| y.iter().fold(0.0_f64, |m, z| m.max(z.abs()));
-    let (scale, centre) = limits.fit(j, (lo, hi), peak(&v), peak(&a), 1.0);
-    for s in 0..samples {
-        q[s * n + j] = centre + scale * x[s];
-        qd[s * n + j] = scale * v[s];
-        qdd[s * n + j] = scale * a[s];
+
+    /// Joint `j`: Σₗ aₗ/(ωl) sin(ωlt) − bₗ/(ωl) cos(ωlt) scaled by the largest factor that keeps
+    /// range, speed and acceleration within `limits`, and centred in the position range.
+    fn fill_scaled_fourier(&mut self, j: usize, coefficients: &[(f64, f64)], period: f64, limits: &ReachableLimits) {
+        let (samples, n) = (self.samples, self.n);
+        let w = 2.0 * std::f64::consts::PI / period;
+        let (mut x, mut v, mut a) = (vec![0.0; samples], vec![0.0; samples], vec![0.0; samples]);
+        for s in 0..samples {
+            let t = period * s as f64 / samples as f64;
+            for (l, &(al, bl)) in coefficients.iter().enumerate() {
+                let wl = w * (l + 1) as f64;
+                let (sin, cos) = (wl * t).sin_cos();
+                x[s] += (al * sin - bl * cos) / wl;
+                v[s] += al * cos + bl * sin;
+                a[s] += wl * (bl * cos - al * sin);
+            }
+        }
+        let (lo, hi) =
+            (x.iter().copied().fold(f64::INFINITY, f64::min), x.iter().copied().fold(f64::NEG_INFINITY, f64::max));
+        let peak = |y: &[f64]| y.iter().fold(0.0_f64, |m, z| m.max(z.abs()));
+        let (scale, centre) = limits.fit(j, (lo, hi), peak(&v), peak(&a), 1.0);
+        for s in 0..samples {
+            self.q[s * n + j] = centre + scale * x[s];
+            self.qd[s * n + j] = scale * v[s];
+            self.qdd[s * n + j] = scale * a[s];
+        }
     }
 }
 

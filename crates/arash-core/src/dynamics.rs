@@ -164,21 +164,29 @@ pub fn forward_dynamics(
     params: &[f64],
     qdd: &mut [f64],
 ) -> Result<(), DynamicsError> {
-    forward_dynamics_with_armature(model, data, (q, qd), tau, params, None, qdd)
+    forward_dynamics_with_armature(model, data, q, qd, tau, Parameters { params, armature: None }, qdd)
 }
 
-/// Forward dynamics with a diagonal `armature` added to `M` (reflected rotor inertia, kg·m² or
-/// kg per joint) at the state `(q, q̇)`: `q̈ = (M + diag(armature))⁻¹ (τ − C q̇ − g − friction −
-/// elastic)`.
+/// The parameters of a forward-dynamics call: π, and a reflected rotor inertia per joint (kg·m²
+/// or kg) added to `M`'s diagonal, if any.
+#[derive(Clone, Copy, Debug)]
+pub struct Parameters<'a> {
+    pub params: &'a [f64],
+    pub armature: Option<&'a [f64]>,
+}
+
+/// Forward dynamics with the armature added to `M` at the state `(q, q̇)`:
+/// `q̈ = (M + diag(armature))⁻¹ (τ − C q̇ − g − friction − elastic)`.
 pub fn forward_dynamics_with_armature(
     model: &Model,
     data: &mut Data,
-    (q, qd): (&[f64], &[f64]),
+    q: &[f64],
+    qd: &[f64],
     tau: &[f64],
-    params: &[f64],
-    armature: Option<&[f64]>,
+    parameters: Parameters,
     qdd: &mut [f64],
 ) -> Result<(), DynamicsError> {
+    let Parameters { params, armature } = parameters;
     let n = model.dof();
     assert!(tau.len() == n && qdd.len() == n, "τ and q̈ must have {n} entries");
     let zeros = std::mem::take(&mut data.zeros);

@@ -434,7 +434,9 @@ impl ModelFile {
     /// A model file of this version for the robot `model` (its base parameters `base`, from the
     /// URDF text `urdf`), holding `fitted`, made with `settings` from `data`; no effects yet.
     pub fn new(
-        (model, base, urdf): (&Model, &BaseParameters, &str),
+        model: &Model,
+        base: &BaseParameters,
+        urdf: &str,
         fitted: Fitted,
         settings: Settings,
         data: DataSummary,

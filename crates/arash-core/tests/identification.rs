@@ -243,9 +243,11 @@ fn drawn_truth(seed: u64) -> (Model, BaseParameters, Vec<f64>, Fourier, ChaCha8R
 /// identified model is judged against. `fitted` is `model` with the Coulomb laws `beta` was fitted with (the file's, where they were
 /// chosen from the data).
 fn predicted_and_true(
-    (model, fitted): (&Model, &Model),
+    model: &Model,
+    fitted: &Model,
     base: &BaseParameters,
-    (pi, beta): (&[f64], &[f64]),
+    pi: &[f64],
+    beta: &[f64],
     states: impl Fn(f64) -> (Vec<f64>, Vec<f64>, Vec<f64>),
 ) -> Vec<([f64; 3], [f64; 3])> {
     let mut data = Data::new(model);
@@ -275,7 +277,7 @@ fn the_preprocessing_pipeline_and_ols_recover_the_model() {
     let fit = fit(&model, &base, &pre, Method::Ols).unwrap();
     // Predict the noise-free torque on the true (unfiltered) states of one period.
     let (mut worst, mut scale) = ([0.0f64; 3], [0.0f64; 3]);
-    for (predicted, exact) in predicted_and_true((&model, &model), &base, (&pi, &fit.beta), |t| traj.at(t)) {
+    for (predicted, exact) in predicted_and_true(&model, &model, &base, &pi, &fit.beta, |t| traj.at(t)) {
         for k in 0..3 {
             worst[k] = worst[k].max((predicted[k] - exact[k]).abs());
             scale[k] = scale[k].max(exact[k].abs());
@@ -493,8 +495,7 @@ fn a_closed_loop_log_does_not_lead_the_cutoff_into_the_encoders_noise() {
     let reasons = file.settings.reasons.join("\n");
     // Predict the noise-free torque on the true states of one period.
     let (mut error, mut power) = ([0.0f64; 3], [0.0f64; 3]);
-    for (predicted, exact) in predicted_and_true((&model, &file.with_its_law(&model)), &base, (&pi, &file.beta), states)
-    {
+    for (predicted, exact) in predicted_and_true(&model, &file.with_its_law(&model), &base, &pi, &file.beta, states) {
         for k in 0..3 {
             error[k] += (predicted[k] - exact[k]).powi(2);
             power[k] += exact[k].powi(2);
@@ -532,7 +533,8 @@ struct LoopLog {
 fn closed_loop_log(
     model: &Model,
     pi: &[f64],
-    (traj, seconds): (&Fourier, f64),
+    traj: &Fourier,
+    seconds: f64,
     noise: LoopNoise,
     rng: &mut ChaCha8Rng,
 ) -> LoopLog {
@@ -619,8 +621,7 @@ fn closed_loop_truth(seed: u64) -> (Model, BaseParameters, Vec<f64>, Fourier, Ch
 fn the_loop_idim_iv_simulates_follows_a_noise_free_closed_loop_log() {
     use arash_core::identify::closed_loop::{simulate_loop, ClosedLoop};
     let (model, _, pi, traj, mut rng) = closed_loop_truth(41);
-    let log =
-        closed_loop_log(&model, &pi, (&traj, 10.0), LoopNoise { disturbance: 0.0, encoder_counts: None }, &mut rng);
+    let log = closed_loop_log(&model, &pi, &traj, 10.0, LoopNoise { disturbance: 0.0, encoder_counts: None }, &mut rng);
     let closed_loop = ClosedLoop::new(&log.reference, &log.controller);
     let (q, tau) = simulate_loop(&model, &pi, &closed_loop, &log.t).unwrap();
     let n = model.dof();
@@ -662,7 +663,7 @@ fn closed_loop_coverage(method: arash_core::model_file::IdentifyMethod) {
     for seed in 0..4 {
         let (model, base, pi, traj, mut rng) = closed_loop_truth(100 + seed);
         let noise = LoopNoise { disturbance: 0.1, encoder_counts: Some(0.0) };
-        let log = closed_loop_log(&model, &pi, (&traj, 40.0), noise, &mut rng);
+        let log = closed_loop_log(&model, &pi, &traj, 40.0, noise, &mut rng);
         let mut beta_true = vec![0.0; base.rank];
         base.project(&pi, &mut beta_true);
         let closed_loop = ClosedLoop::new(&log.reference, &log.controller);
@@ -696,13 +697,8 @@ fn idim_iv_names_what_its_closed_loop_lacks() {
     use arash_core::identify::{identify, identify_in_closed_loop, Declared, IdentifyOptions, Log};
     use arash_core::model_file::IdentifyMethod;
     let (model, base, pi, traj, mut rng) = closed_loop_truth(7);
-    let log = closed_loop_log(
-        &model,
-        &pi,
-        (&traj, 20.0),
-        LoopNoise { disturbance: 0.0, encoder_counts: Some(1.0) },
-        &mut rng,
-    );
+    let log =
+        closed_loop_log(&model, &pi, &traj, 20.0, LoopNoise { disturbance: 0.0, encoder_counts: Some(1.0) }, &mut rng);
     let declared = Declared { model: &model, base: &base, urdf: "" };
     let data = Log { t: &log.t, q: &log.q, tau: &log.tau };
     let options = IdentifyOptions::default();

@@ -150,8 +150,16 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     write_outputs(&args.output, &diagnosis, &report)?;
     if args.consistent {
         let train = Log { t: &train.t, q: &train.q, tau: &train.tau };
-        let cutoff_hz = args.consistent_cutoff.unwrap_or(diagnosis.settings.cutoff_hz);
-        let (refit, _) = write_consistent(&args.output, &model, &base, train, &diagnosis, &options, (cutoff_hz, None))?;
+        let main_hz = args.consistent_cutoff.unwrap_or(diagnosis.settings.cutoff_hz);
+        let (refit, _) = write_consistent(
+            &args.output,
+            &model,
+            &base,
+            train,
+            &diagnosis,
+            &options,
+            Cutoffs { main_hz, friction_hz: None },
+        )?;
         println!("{}", consistent_summary(&refit, &model.joint_names()));
     }
     println!("wrote {}/ (report.txt, diagnosis.json, model.json, figures)", args.output.display());
@@ -192,9 +200,16 @@ fn options(args: &Args, model: &arash_core::Model) -> anyhow::Result<DiagnoseOpt
     Ok(options)
 }
 
+/// The cut-offs a consistent fit with the effects filters at (Hz): the main one, and the friction
+/// velocity's (`None` keeps the options').
+#[derive(Clone, Copy, Debug)]
+pub struct Cutoffs {
+    pub main_hz: f64,
+    pub friction_hz: Option<f64>,
+}
+
 /// Fit the physically consistent model together with the effects `diagnosis` found, on `train`
-/// filtered at `cutoffs` (the main one, and the friction velocity's: `None` keeps the options'),
-/// and write it to `dir/model_consistent.json`; returns it and the path.
+/// filtered at `cutoffs`, and write it to `dir/model_consistent.json`; returns it and the path.
 pub fn write_consistent(
     dir: &Path,
     model: &arash_core::Model,
@@ -202,11 +217,11 @@ pub fn write_consistent(
     train: Log,
     diagnosis: &Diagnosis,
     options: &DiagnoseOptions,
-    (cutoff_hz, friction_cutoff_hz): (f64, Option<f64>),
+    cutoffs: Cutoffs,
 ) -> anyhow::Result<(ModelFile, PathBuf)> {
     let preprocess = PreprocessOptions {
-        cutoff_hz: Some(cutoff_hz),
-        friction_cutoff_hz: friction_cutoff_hz.or(options.preprocess.friction_cutoff_hz),
+        cutoff_hz: Some(cutoffs.main_hz),
+        friction_cutoff_hz: cutoffs.friction_hz.or(options.preprocess.friction_cutoff_hz),
         ..options.preprocess.clone()
     };
     let options = DiagnoseOptions { preprocess, ..options.clone() };

@@ -385,7 +385,8 @@ pub fn write(
     excitation: &Excitation,
     calibration: &Calibration,
     diagnosis: &Diagnosis,
-    (tracking, real): (&Tracking, Option<&RealRobot>),
+    tracking: &Tracking,
+    real: Option<&RealRobot>,
 ) -> anyhow::Result<usize> {
     let names = model.joint_names();
     let dof = names.len();

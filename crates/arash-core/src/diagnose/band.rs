@@ -35,7 +35,7 @@ pub(super) struct Chosen {
 pub(super) struct Positions<'a> {
     q: &'a [f64],
     dof: usize,
-    fs: f64,
+    pub(super) fs: f64,
     steps: Vec<Option<f64>>,
     floor: f64,
     /// The motion's bandwidth read from the positions' spectrum (Hz), if any joint moves.
@@ -43,7 +43,7 @@ pub(super) struct Positions<'a> {
 }
 
 impl<'a> Positions<'a> {
-    pub(super) fn of(q: &'a [f64], (dof, fs): (usize, f64)) -> Self {
+    pub(super) fn of(q: &'a [f64], dof: usize, fs: f64) -> Self {
         let length = lowest_cutoff_hz(q.len() / dof, fs, false);
         let bandwidth_hz = bandwidth(q, dof, fs, false);
         let floor = bandwidth_hz.map_or(0.0, |b| CUTOFF_PER_BANDWIDTH * b).max(length);
@@ -79,7 +79,7 @@ pub(super) fn velocity_resolved_cutoff(
     let mut at_band: Option<NoiseShare> = None;
     let mut candidate = cutoff;
     loop {
-        let share = velocity_noise(positions, (candidate, order))?;
+        let share = velocity_noise(positions, candidate, order)?;
         let first = *at_band.get_or_insert(share);
         let narrower = candidate * 0.5_f64.powf(1.0 / STEPS_PER_OCTAVE as f64);
         if share.value <= MAX_VELOCITY_NOISE || narrower < floor {
@@ -112,13 +112,13 @@ pub(super) fn velocity_resolved_cutoff(
 /// The largest share of a joint's RMS speed that its encoder step's quantisation makes up in
 /// the velocity filtered at `cutoff` (the step's Δ²/12, white, through the filter and one central
 /// difference), over the joints that show a step.
-fn velocity_noise(positions: &Positions, (cutoff, order): (f64, usize)) -> Result<NoiseShare, FilterError> {
+fn velocity_noise(positions: &Positions, cutoff: f64, order: usize) -> Result<NoiseShare, FilterError> {
     let Positions { q, dof, fs, ref steps, .. } = *positions;
     let mut worst = NoiseShare { joint: 0, value: 0.0 };
     let n = q.len() / dof;
     let edge = ((EDGE_CUTOFF_PERIODS * fs / cutoff).ceil() as usize).min(n / 4);
-    let gain = white_noise_gain((fs, cutoff), order, 1)?;
-    let v = differenced(q, (dof, fs), cutoff, order, 1)?;
+    let gain = white_noise_gain(fs, cutoff, order, 1)?;
+    let v = differenced(q, dof, fs, cutoff, order, 1)?;
     for (j, step) in steps.iter().enumerate().filter_map(|(j, s)| s.map(|s| (j, s))) {
         let speed = (edge..n - edge).map(|k| v[k * dof + j].powi(2)).sum::<f64>() / (n - 2 * edge).max(1) as f64;
         let noise = step * step / 12.0 * gain;
@@ -146,7 +146,8 @@ impl NoiseShare {
 /// central-differenced `times` times.
 fn differenced(
     q: &[f64],
-    (dof, fs): (usize, f64),
+    dof: usize,
+    fs: f64,
     cutoff: f64,
     order: usize,
     times: usize,
@@ -161,12 +162,12 @@ fn differenced(
 /// The variance the position filtered at `cutoff` (`times` = 0), q̇ (1) or q̈ (2) gets from unit
 /// white noise on the position: the sum of
 /// squares of the impulse response of the filter at `cutoff` and the central differences.
-pub(super) fn white_noise_gain((fs, cutoff): (f64, f64), order: usize, times: usize) -> Result<f64, FilterError> {
+pub(super) fn white_noise_gain(fs: f64, cutoff: f64, order: usize, times: usize) -> Result<f64, FilterError> {
     let filter = Butterworth::lowpass(order, cutoff, fs)?;
     let n = 2 * filter.padlen() + (40.0 * fs / cutoff).ceil() as usize;
     let mut impulse = vec![0.0; n];
     impulse[n / 2] = 1.0;
-    let response = differenced(&impulse, (1, fs), cutoff, order, times)?;
+    let response = differenced(&impulse, 1, fs, cutoff, order, times)?;
     Ok(response.iter().map(|r| r * r).sum())
 }
 
@@ -236,7 +237,7 @@ mod tests {
         let q = rig_log(fs, 60.0, bits, 0.0);
         let band = 20.0;
         let Chosen { cutoff_hz: friction, reason, .. } =
-            velocity_resolved_cutoff(&Positions::of(&q, (3, fs)), band, 5).unwrap();
+            velocity_resolved_cutoff(&Positions::of(&q, 3, fs), band, 5).unwrap();
         let amplitude = [0.3, 0.2, 0.02];
         let share = |c: f64| {
             (0..3)
@@ -254,18 +255,18 @@ mod tests {
         assert!(share(friction) < 1.2 * MAX_VELOCITY_NOISE, "{friction} Hz: {}", share(friction));
         assert!(share(wider) > 0.8 * MAX_VELOCITY_NOISE, "{wider} Hz: {}", share(wider));
         // 12 bits would need a velocity slower than the motion allows: it stops there, and says so.
-        let coarse = velocity_resolved_cutoff(&Positions::of(&rig_log(fs, 60.0, 12, 0.0), (3, fs)), band, 5).unwrap();
+        let coarse = velocity_resolved_cutoff(&Positions::of(&rig_log(fs, 60.0, 12, 0.0), 3, fs), band, 5).unwrap();
         assert!(
             coarse.cutoff_hz < friction && coarse.reason.contains("the lowest the motion allows"),
             "{}",
             coarse.reason
         );
         let fine = rig_log(fs, 60.0, 20, 0.0);
-        let kept = velocity_resolved_cutoff(&Positions::of(&fine, (3, fs)), band, 5).unwrap();
+        let kept = velocity_resolved_cutoff(&Positions::of(&fine, 3, fs), band, 5).unwrap();
         assert_eq!(kept.cutoff_hz, band, "{}", kept.reason);
         // Positions on no grid (filtered, or a smooth real log): no step to blame, the band stays.
         let smooth: Vec<f64> = q.iter().enumerate().map(|(k, x)| x + 1e-7 * (0.1234 * k as f64).sin()).collect();
-        let unstepped = velocity_resolved_cutoff(&Positions::of(&smooth, (3, fs)), band, 5).unwrap();
+        let unstepped = velocity_resolved_cutoff(&Positions::of(&smooth, 3, fs), band, 5).unwrap();
         assert!(unstepped.cutoff_hz == band && unstepped.reason.contains("no joint's"), "{}", unstepped.reason);
     }
 
@@ -305,7 +306,7 @@ mod tests {
     fn the_white_noise_gain_is_close_to_the_ideal_low_pass() {
         let (fs, c) = (1000.0, 20.0_f64);
         let exact = 2.0 / fs * TAU.powi(4) * c.powi(5) / 5.0 * FRAC_PI_4;
-        let gain = white_noise_gain((fs, c), 5, 2).unwrap();
+        let gain = white_noise_gain(fs, c, 5, 2).unwrap();
         assert!((gain / exact - 1.0).abs() < 0.02, "{gain} against {exact}");
     }
 
@@ -315,7 +316,7 @@ mod tests {
     fn the_velocitys_white_noise_gain_is_close_to_the_ideal_low_pass() {
         let (fs, c) = (1000.0, 20.0_f64);
         let exact = 2.0 / fs * TAU.powi(2) * c.powi(3) * 0.07 * PI / (0.3 * PI).sin();
-        let gain = white_noise_gain((fs, c), 5, 1).unwrap();
+        let gain = white_noise_gain(fs, c, 5, 1).unwrap();
         assert!((gain / exact - 1.0).abs() < 0.02, "{gain} against {exact}");
     }
 }

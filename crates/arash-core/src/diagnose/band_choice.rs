@@ -73,7 +73,8 @@ pub(super) struct BandChoice {
 pub(super) fn choose_band(
     model: &Model,
     base: &BaseParameters,
-    (train, validation): (Log, Option<&Runs>),
+    train: Log,
+    validation: Option<&Runs>,
     options: &DiagnoseOptions,
     choose_laws: bool,
 ) -> Result<BandChoice, DiagnoseError> {
@@ -82,9 +83,9 @@ pub(super) fn choose_band(
     if let Some(c) = options.preprocess.cutoff_hz.filter(|c| !crate::identify::filter::below_nyquist(*c, fs)) {
         return Err(DiagnoseError::BandAboveNyquist { cutoff_hz: c, nyquist_hz: 0.5 * fs });
     }
-    let positions = Positions::of(train.q, (dof, fs));
+    let positions = Positions::of(train.q, dof, fs);
     let order = options.preprocess.order;
-    let search = Search::new(model, base, (train, validation), options, (&positions, fs))?;
+    let search = Search::new(model, base, train, validation, options, &positions)?;
     // The laws are chosen at the widest band first, so that the candidates are judged with them,
     // and again at the band chosen.
     let mut model = Cow::Borrowed(model);
@@ -174,11 +175,12 @@ impl<'a> Search<'a> {
     fn new(
         model: &Model,
         base: &'a BaseParameters,
-        (train, validation): (Log<'a>, Option<&'a Runs<'a>>),
+        train: Log<'a>,
+        validation: Option<&'a Runs<'a>>,
         options: &'a DiagnoseOptions,
-        (positions, fs): (&'a Positions<'a>, f64),
+        positions: &'a Positions<'a>,
     ) -> Result<Self, DiagnoseError> {
-        let dof = model.dof();
+        let (dof, fs) = (model.dof(), positions.fs);
         let whole = train;
         let train = first(train, dof, MOST_SEARCHED);
         let validation = validation.map(|v| Runs {
@@ -224,14 +226,13 @@ impl<'a> Search<'a> {
         let reference = filtered(train, model.dof(), options, Band { cutoff_hz: lowest, friction_hz: lowest })
             .map_err(DiagnoseError::Training)?;
         let margin = options.max_delay_s;
-        let kept =
-            kept_samples(&reference, (margin, &[]), stride(options, fs, top)).map_err(DiagnoseError::Training)?;
+        let kept = kept_samples(&reference, margin, &[], stride(options, fs, top)).map_err(DiagnoseError::Training)?;
         let memory = Butterworth::lowpass(order, lowest, fs).map_err(training)?.memory_s(fs);
         let (fit_rows, scored_rows) = match &validation {
             Some(runs) => {
                 let held = filtered(runs.log, model.dof(), options, Band { cutoff_hz: lowest, friction_hz: lowest })
                     .map_err(DiagnoseError::Validation)?;
-                let scored = kept_samples(&held, (margin, runs.starts), stride(options, fs, top))
+                let scored = kept_samples(&held, margin, runs.starts, stride(options, fs, top))
                     .map_err(DiagnoseError::Validation)?;
                 (thin(kept, MOST_FITTED), thin(scored, MOST_SCORED))
             }

@@ -19,7 +19,8 @@ use crate::transmission::Transmission;
 pub(super) fn candidates(
     model: &Model,
     train: &Prepared,
-    (options, laws_chosen): (&DiagnoseOptions, bool),
+    options: &DiagnoseOptions,
+    laws_chosen: bool,
 ) -> (Vec<EffectTerm>, Vec<Rejection>) {
     let dof = model.dof();
     let mut terms = Vec::new();

@@ -46,19 +46,20 @@ impl<'a> Context<'a> {
         train: Log,
         validation: Option<Runs>,
         given: Option<&'a ModelFile>,
-        (options, choice): (&'a DiagnoseOptions, &BandChoice),
+        options: &'a DiagnoseOptions,
+        choice: &BandChoice,
     ) -> Result<Self, DiagnoseError> {
         let margin = options.max_delay_s;
         let band = choice.band;
         let (train_log, validation_runs) = (train, validation);
-        let mut train = prepare(model, base, train.into(), (options, band), margin).map_err(DiagnoseError::Training)?;
+        let mut train = prepare(model, base, train.into(), options, band, margin).map_err(DiagnoseError::Training)?;
         let choices = &mut train.pre.choices;
         choices.reasons.retain(|r| !r.starts_with("cut-off") && !r.starts_with("Coulomb"));
         choices.reasons.extend(choice.reasons.iter().cloned());
         choices.warnings.extend(choice.warnings.iter().cloned());
         // The held-out log is filtered in the band chosen on the training log.
         let validation = validation
-            .map(|v| prepare(model, base, v, (options, band), margin))
+            .map(|v| prepare(model, base, v, options, band, margin))
             .transpose()
             .map_err(DiagnoseError::Validation)?;
         if let Some(g) = given {
@@ -112,11 +113,11 @@ impl<'a> Context<'a> {
             return Ok(here);
         }
         let (options, margin) = (self.options, self.options.max_delay_s);
-        let train = prepare(self.model, self.base, logs.0.into(), (options, narrowest), margin)
+        let train = prepare(self.model, self.base, logs.0.into(), options, narrowest, margin)
             .map_err(DiagnoseError::Training)?;
         let validation = logs
             .1
-            .map(|v| prepare(self.model, self.base, v, (options, narrowest), margin))
+            .map(|v| prepare(self.model, self.base, v, options, narrowest, margin))
             .transpose()
             .map_err(DiagnoseError::Validation)?;
         let memory = Butterworth::lowpass(options.preprocess.order, narrowest.cutoff_hz, train.fs)

@@ -104,7 +104,7 @@ impl NoiseFloor {
     pub(super) fn of(held: HeldOutTorque) -> Result<Self, FilterError> {
         let HeldOutTorque { tau, dof, fs, order, cutoff_hz, weights, samples, duration_s } = held;
         let variance = white_noise_variance(tau, dof, fs, order)?;
-        let in_band = white_noise_gain((fs, cutoff_hz), order, 0)?;
+        let in_band = white_noise_gain(fs, cutoff_hz, order, 0)?;
         let rms: Vec<f64> = variance.iter().map(|v| (v * in_band).sqrt()).collect();
         let sse = rms.iter().zip(weights).map(|(r, w)| samples as f64 * (r * w).powi(2)).collect();
         let independent = (2.0 * cutoff_hz * duration_s).max(1.0);

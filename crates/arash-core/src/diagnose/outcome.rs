@@ -49,7 +49,9 @@ pub(super) fn declared_model(
         determination: fit.determination.clone(),
     };
     Ok(ModelFile::new(
-        (model, base, urdf),
+        model,
+        base,
+        urdf,
         fitted,
         Settings {
             method: IdentifyMethod::Ols,

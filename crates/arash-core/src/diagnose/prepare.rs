@@ -69,7 +69,8 @@ impl Prepared {
     pub(super) fn new(
         model: &Model,
         base: &BaseParameters,
-        (pre, q_raw): (Preprocessed, &[f64]),
+        pre: Preprocessed,
+        q_raw: &[f64],
         kept: Vec<usize>,
     ) -> Self {
         let fs = pre.sample_rate_hz;
@@ -96,7 +97,8 @@ pub(super) fn filtered(
 /// (held-out runs joined end to end).
 pub(super) fn kept_samples(
     pre: &Preprocessed,
-    (margin_s, starts): (f64, &[usize]),
+    margin_s: f64,
+    starts: &[usize],
     stride: usize,
 ) -> Result<Vec<usize>, PreprocessError> {
     let n = pre.samples();
@@ -121,15 +123,16 @@ pub(super) fn prepare(
     model: &Model,
     base: &BaseParameters,
     Runs { log, starts }: Runs,
-    (options, band): (&DiagnoseOptions, Band),
+    options: &DiagnoseOptions,
+    band: Band,
     margin_s: f64,
 ) -> Result<Prepared, PreprocessError> {
     let dof = model.dof();
     crate::identify::preprocess::validate_log(log.t, log.q, log.tau, dof)?;
     let pre = filtered(log, dof, options, band)?;
     let stride = stride(options, pre.sample_rate_hz, pre.cutoff_hz);
-    let kept = kept_samples(&pre, (margin_s, starts), stride)?;
-    Ok(Prepared::new(model, base, (pre, log.q), kept))
+    let kept = kept_samples(&pre, margin_s, starts, stride)?;
+    Ok(Prepared::new(model, base, pre, log.q, kept))
 }
 
 /// The fewest samples a diagnosis keeps.

@@ -188,6 +188,10 @@ pub(super) fn heldout_sse(problem: &Problem, heldout: &HeldOut, pool: &[Candidat
 /// The current model's fit on the rows it is trained on for held-out scoring, computed once per
 /// round so that each candidate costs only its own products with the model.
 pub(super) struct HeldOutBase<'a> {
+    problem: &'a Problem,
+    heldout: &'a HeldOut,
+    pool: &'a [Candidate],
+    chosen: Vec<usize>,
     training: NormalEquations<'a>,
     sse: Vec<f64>,
 }
@@ -200,19 +204,14 @@ impl<'a> HeldOutBase<'a> {
         };
         let training = NormalEquations::over(model_columns(problem, pool, chosen), &problem.y, problem.dof, rows);
         let sse = heldout_sse(problem, heldout, pool, chosen);
-        Self { training, sse }
+        Self { problem, heldout, pool, chosen: chosen.to_vec(), training, sse }
     }
 
     /// Relative cut of the held-out squared error from adding candidate `i`: per joint, of the
     /// error above the noise `floor` ([`NoiseFloor::gains`]), and over all joints together (in
     /// the weighted units, where every joint counts by its noise).
-    pub(super) fn gain(
-        &self,
-        (problem, heldout, floor): (&Problem, &HeldOut, &NoiseFloor),
-        pool: &[Candidate],
-        chosen: &[usize],
-        i: usize,
-    ) -> (Vec<f64>, f64) {
+    pub(super) fn gain(&self, floor: &NoiseFloor, i: usize) -> (Vec<f64>, f64) {
+        let (problem, heldout, pool, chosen) = (self.problem, self.heldout, self.pool, &self.chosen[..]);
         let dof = problem.dof;
         let group: Vec<&Column> = pool[i].columns.iter().collect();
         let after = match self.training.with_group(&group, &problem.y) {

@@ -46,7 +46,7 @@ pub fn consistent_with_effects(
     };
     let band = Band { cutoff_hz, friction_hz };
     let mut data =
-        prepare(model, base, train.into(), (options, band), options.max_delay_s).map_err(DiagnoseError::Training)?;
+        prepare(model, base, train.into(), options, band, options.max_delay_s).map_err(DiagnoseError::Training)?;
     // What a drive gain scales: the found model's declared torque.
     let mut predicted = vec![0.0; data.samples() * dof];
     for (column, b) in data.declared.iter().zip(&found.beta) {

@@ -38,11 +38,11 @@ pub fn diagnose(
     let mut model = given.map_or(Cow::Borrowed(declared.model), |file| file.with_its_law(declared.model));
     let refit = given.is_none() || options.refit;
     let choose_laws = refit && !model.coulomb_laws.is_declared();
-    let choice = choose_band(&model, declared.base, (train, validation.as_ref()), options, choose_laws)?;
+    let choice = choose_band(&model, declared.base, train, validation.as_ref(), options, choose_laws)?;
     if let Some(chosen) = &choice.laws {
         model.to_mut().coulomb_laws = chosen.laws.clone();
     }
-    let ctx = Context::new(&model, declared.base, train, validation, given, (options, &choice))?;
+    let ctx = Context::new(&model, declared.base, train, validation, given, options, &choice)?;
     // 1. Delay.
     let (delay, delay_outcome) = if options.effects.contains(&EffectKind::Delay) && ctx.max_shift() > 0 {
         let (delay, outcome) = search_delay(&ctx);
@@ -60,7 +60,7 @@ pub fn diagnose(
     // 2. Forward selection.
     let problem = ctx.problem(&ctx.train, delay);
     let heldout = ctx.heldout(delay);
-    let (templates, not_searched) = candidates(&model, &ctx.train, (options, choice.laws.is_some()));
+    let (templates, not_searched) = candidates(&model, &ctx.train, options, choice.laws.is_some());
     skipped.extend(not_searched);
     let pool = ctx.pool(templates, &problem, &heldout);
     let gain_errors = GainErrors::of(&ctx, &problem);
@@ -259,8 +259,7 @@ impl Search<'_> {
                 }
                 let scoring = scoring
                     .get_or_insert_with(|| HeldOutBase::new(self.problem, self.heldout, self.pool, &state.chosen));
-                let on = (self.problem, self.heldout, &ctx.floor);
-                let (gains, total) = scoring.gain(on, self.pool, &state.chosen, *i);
+                let (gains, total) = scoring.gain(&ctx.floor, *i);
                 // Accepted on the joint it helps most, ranked by what it does for the whole
                 // robot, so that an effect acting on several joints competes fairly with
                 // one-joint terms.

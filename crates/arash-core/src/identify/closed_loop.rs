@@ -254,13 +254,12 @@ pub fn simulate_loop(
     let samples = t.len();
     let mut controller = closed_loop.controller.build(model).map_err(|e| (t[0], e.to_string()))?;
     let mut data = Data::new(model);
-    let mut q = closed_loop.q_des[..n].to_vec();
-    let mut qd = closed_loop.qd_des[..n].to_vec();
+    let mut plant = PlantState { q: closed_loop.q_des[..n].to_vec(), qd: closed_loop.qd_des[..n].to_vec() };
     let mut q_out = Vec::with_capacity(samples * n);
     let mut tau_out = Vec::with_capacity(samples * n);
     let mut tau = vec![0.0; n];
     let mut stages = Stages::new(n);
-    let mut dry = DryFriction::of(model, &mut data, (params, &q));
+    let mut dry = DryFriction::of(model, &mut data, params, &plant.q);
     for i in 0..samples {
         let range = i * n..(i + 1) * n;
         let desired = Desired {
@@ -269,11 +268,11 @@ pub fn simulate_loop(
             qdd: &closed_loop.qdd_des[range],
         };
         let dt = if i + 1 < samples { t[i + 1] - t[i] } else { t[i] - t[i.saturating_sub(1)] };
-        controller.step(dt, &q, &qd, &desired, &mut tau);
+        controller.step(dt, &plant.q, &plant.qd, &desired, &mut tau);
         if let Some(x) = tau.iter().find(|x| !x.is_finite()) {
             return Err((t[i], format!("the controller commanded {x}")));
         }
-        q_out.extend_from_slice(&q);
+        q_out.extend_from_slice(&plant.q);
         tau_out.extend_from_slice(&tau);
         if i + 1 == samples {
             break;
@@ -283,22 +282,28 @@ pub fn simulate_loop(
                 let substeps = (dt / RK4_STEP_S).ceil().max(1.0) as usize;
                 let h = dt / substeps as f64;
                 for _ in 0..substeps {
-                    stages.rk4(model, &mut data, params, &tau, h, (&mut q, &mut qd)).map_err(|why| (t[i], why))?;
+                    stages.rk4(model, &mut data, params, &tau, h, &mut plant).map_err(|why| (t[i], why))?;
                 }
             }
             Some(dry) => {
                 let substeps = (dt / DryFriction::MAX_STEP_S).ceil().max(1.0) as usize;
                 let h = dt / substeps as f64;
                 for _ in 0..substeps {
-                    dry.step(model, &mut data, &tau, h, (&mut q, &mut qd)).map_err(|why| (t[i], why))?;
+                    dry.step(model, &mut data, &tau, h, &mut plant).map_err(|why| (t[i], why))?;
                 }
             }
         }
-        if q.iter().chain(&qd).any(|x| !x.is_finite()) {
+        if plant.q.iter().chain(&plant.qd).any(|x| !x.is_finite()) {
             return Err((t[i], "the state is no longer finite".into()));
         }
     }
     Ok((q_out, tau_out))
+}
+
+/// The simulated plant's positions and velocities.
+struct PlantState {
+    q: Vec<f64>,
+    qd: Vec<f64>,
 }
 
 /// The longest RK4 step of the simulated plant.
@@ -336,7 +341,7 @@ impl DryFriction {
     /// real axis, 2.785, the explicit step chatters as under sign(q̇); the law is then stepped as
     /// its limit. (The laws chosen from a sign-law closed loop come out that sharp: 2·10⁻⁵ m/s on
     /// its insertion.)
-    fn of(model: &Model, data: &mut Data, (params, q): (&[f64], &[f64])) -> Option<Self> {
+    fn of(model: &Model, data: &mut Data, params: &[f64], q: &[f64]) -> Option<Self> {
         let (n, layout) = (model.dof(), model.layout());
         let mut mass = vec![0.0; n * n];
         crate::dynamics::mass_matrix(model, data, q, params, &mut mass);
@@ -370,8 +375,9 @@ impl DryFriction {
         data: &mut Data,
         tau: &[f64],
         h: f64,
-        (q, qd): (&mut [f64], &mut [f64]),
+        plant: &mut PlantState,
     ) -> Result<(), String> {
+        let PlantState { q, qd } = plant;
         let n = q.len();
         // One mass matrix per step: its Cholesky factor both checks it (an estimate that is not
         // physical cannot drive the plant) and gives the inverse the friction's impulses need.
@@ -442,8 +448,9 @@ impl Stages {
         params: &[f64],
         tau: &[f64],
         h: f64,
-        (q, qd): (&mut [f64], &mut [f64]),
+        plant: &mut PlantState,
     ) -> Result<(), String> {
+        let PlantState { q, qd } = plant;
         let n = q.len();
         for stage in 0..4 {
             let a = [0.0, 0.5, 0.5, 1.0][stage] * h;

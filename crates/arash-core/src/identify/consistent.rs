@@ -140,9 +140,10 @@ pub fn identify_consistent_signed(
 fn constraints(
     model: &Model,
     p: usize,
-    (ke_lo, ke_hi): (f64, f64),
+    stiffness_bounds: (f64, f64),
     extra_signs: &[Option<f64>],
 ) -> (CscMatrix<f64>, Vec<f64>, Vec<SupportedConeT<f64>>) {
+    let (ke_lo, ke_hi) = stiffness_bounds;
     let (mut rows, mut cols, mut vals, mut b) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut push = |row: usize, col: usize, val: f64, rows: &mut Vec<usize>, cols: &mut Vec<usize>| {
         rows.push(row);

@@ -142,7 +142,7 @@ pub fn preprocess_for_fit(
     // The period, the rate and the spectral rule, found once; every candidate keeps the period.
     let reference = preprocess(log.t, log.q, log.tau, dof, &PreprocessOptions { decimate: 1, ..options.clone() })?;
     let fixed = PreprocessOptions { period_s: reference.period_s, periods: Some(1), decimate: 1, ..options.clone() };
-    let search = Search::new((declared, log), (&reference, &fixed), against);
+    let search = Search::new(declared, log, &reference, &fixed, against);
     let cutoffs = match options.cutoff_hz {
         Some(cutoff) => vec![cutoff],
         None => search.grid.iter().copied().take_while(|c| *c <= search.top * (1.0 + 1e-9)).collect(),
@@ -164,7 +164,7 @@ pub fn preprocess_for_fit(
         ..fixed
     };
     let mut pre = preprocess(log.t, log.q, log.tau, dof, &chosen)?;
-    pre.choices = explain(&reference, &pre.choices, options, &trials, (&best, search.length_limited));
+    pre.choices = explain(&reference, &pre.choices, options, &trials, &best, search.length_limited);
     Ok(pre)
 }
 
@@ -218,8 +218,10 @@ impl Folds {
 
 impl<'a> Search<'a> {
     fn new(
-        (declared, log): (Declared<'a>, Log<'a>),
-        (reference, fixed): (&'a Preprocessed, &'a PreprocessOptions),
+        declared: Declared<'a>,
+        log: Log<'a>,
+        reference: &'a Preprocessed,
+        fixed: &'a PreprocessOptions,
         against: Against,
     ) -> Self {
         let fs = reference.sample_rate_hz;
@@ -246,7 +248,7 @@ impl<'a> Search<'a> {
         if let Some(d) = self.directions[i].get() {
             return Ok(d);
         }
-        let velocity = self.raw_velocity.filtered((self.reference.order, self.grid[i]), 1)?;
+        let velocity = self.raw_velocity.filtered(self.reference.order, self.grid[i], 1)?;
         Ok(self.directions[i].get_or_init(|| velocity.directions(&self.declared.model.coulomb_laws)))
     }
 
@@ -296,10 +298,10 @@ impl<'a> Search<'a> {
         for (friction_hz, at) in self.frictions(cutoff, user_friction) {
             let directions: Cow<[f64]> = match at {
                 Some(i) => self.directions(i)?.into(),
-                None => self.raw_velocity.filtered((pre.order, friction_hz), 1)?.directions(&model.coulomb_laws).into(),
+                None => self.raw_velocity.filtered(pre.order, friction_hz, 1)?.directions(&model.coulomb_laws).into(),
             };
             let filtered = filter_columns(&filter, &directions, dof, pre.periodic)?;
-            put_coulomb(&mut w, dof, &positions, (&filtered, &rows));
+            put_coulomb(&mut w, dof, &positions, &filtered, &rows);
             leave_out_rests(&pre, &mut w, &mut tau, rows.iter().copied());
             // A velocity with which the parameters cannot be fitted is simply not a candidate.
             let Ok(fit) = fit_stacked(&w, &tau, dof, base, Method::Ols, block) else { continue };
@@ -312,7 +314,7 @@ impl<'a> Search<'a> {
         let Some((friction_hz, training_fp, beta, directions)) = best else { return Ok(None) };
         let scored_columns = |motion: &Preprocessed| {
             let mut v = regressor_rows(model, motion, columns, &self.scored);
-            put_coulomb(&mut v, dof, &positions, (&directions, &self.scored));
+            put_coulomb(&mut v, dof, &positions, &directions, &self.scored);
             v
         };
         let (predicted_fp, errors) = match &self.folds {
@@ -324,7 +326,7 @@ impl<'a> Search<'a> {
                 for (half, other) in [(0, 1), (1, 0)] {
                     let half_q = &folds.positions[half];
                     (moved.q, moved.qd, moved.qdd) =
-                        filtered_motion(&filter, half_q, (dof, 1.0 / fs), true, self.fixed.filter_derivatives)?;
+                        filtered_motion(&filter, half_q, dof, 1.0 / fs, true, self.fixed.filter_derivatives)?;
                     scores.push(self.unfiltered_fit(
                         &folds.torques[other],
                         &scored_columns(&moved),
@@ -447,7 +449,8 @@ fn explain(
     last: &Choices,
     options: &PreprocessOptions,
     trials: &[Trial],
-    (best, length_limited): (&Trial, bool),
+    best: &Trial,
+    length_limited: bool,
 ) -> Choices {
     let from_last = |r: &String| r.starts_with("Coulomb") || r.contains("left out of the fit");
     let mut reasons: Vec<String> = reference.choices.reasons.iter().filter(|r| !from_last(r)).cloned().collect();

@@ -132,7 +132,7 @@ fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f
     let every: Vec<usize> = (0..data.samples()).collect();
     let mut w = regressor_rows(model, data, columns, &every);
     let positions = coulomb_positions(model, columns);
-    put_coulomb(&mut w, data.dof, &positions, (&data.friction.directions(&model.coulomb_laws), &every));
+    put_coulomb(&mut w, data.dof, &positions, &data.friction.directions(&model.coulomb_laws), &every);
     let filter = Butterworth::lowpass(data.order, data.cutoff_hz, data.rate_hz()).expect("the torque was filtered so");
     filter_each_column(&mut w, data.dof, &filter, data.periodic);
     let n = data.dof;
@@ -187,7 +187,7 @@ pub fn coulomb_positions(model: &Model, columns: &[usize]) -> Vec<(usize, usize)
 
 /// Write `coulomb` (`samples × dof`: the Coulomb columns, filtered like the torque or not) at
 /// the samples `rows` into the Coulomb `positions` of `w`, stacked at those rows.
-pub fn put_coulomb(w: &mut Mat<f64>, dof: usize, positions: &[(usize, usize)], (coulomb, rows): (&[f64], &[usize])) {
+pub fn put_coulomb(w: &mut Mat<f64>, dof: usize, positions: &[(usize, usize)], coulomb: &[f64], rows: &[usize]) {
     for &(k, c) in positions {
         for (r, &s) in rows.iter().enumerate() {
             w[(r * dof + k, c)] = coulomb[s * dof + k];
@@ -256,7 +256,7 @@ pub fn unfiltered_prediction(model: &Model, data: &Preprocessed, columns: &[usiz
     let mut predicted = Vec::with_capacity(rows.len() * data.dof);
     for band in rows.chunks(8192) {
         let mut w = regressor_rows(model, data, columns, band);
-        put_coulomb(&mut w, data.dof, &positions, (&directions, band));
+        put_coulomb(&mut w, data.dof, &positions, &directions, band);
         predicted.extend(apply(&w, beta));
     }
     predicted

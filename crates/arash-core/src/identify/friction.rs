@@ -25,22 +25,6 @@ pub struct FrictionVelocity {
 }
 
 impl FrictionVelocity {
-    /// The velocity of the raw positions `q` (`N × dof`) by central differences filtered at
-    /// `cutoff_hz` (Butterworth of `order`, forward and backward), each series then thinned to
-    /// every `decimate`-th sample. With `averaging`, the log's whole periods, resampled as the
-    /// positions are, are placed end to end, which is itself a periodic signal, and differenced
-    /// and filtered circularly; `dt` is then the resampled step.
-    pub fn of_log(
-        q: &[f64],
-        dof: usize,
-        averaging: Option<Averaging>,
-        (dt, order): (f64, usize),
-        cutoff_hz: f64,
-        decimate: usize,
-    ) -> Result<Self, FilterError> {
-        RawVelocity::of_log(q, dof, averaging, dt).filtered((order, cutoff_hz), decimate)
-    }
-
     /// The velocity averaged over the periods (`samples × dof`): what the averaged positions'
     /// own difference would give, without the friction law.
     pub fn mean(&self) -> Vec<f64> {
@@ -88,7 +72,10 @@ pub struct RawVelocity {
 }
 
 impl RawVelocity {
-    /// See [`FrictionVelocity::of_log`].
+    /// The velocity of the raw positions `q` (`N × dof`) by central differences, to be filtered
+    /// ([`Self::filtered`]). With `averaging`, the log's whole periods, resampled as the positions
+    /// are, are placed end to end, which is itself a periodic signal, and differenced (and later
+    /// filtered) circularly; `dt` is then the resampled step.
     pub fn of_log(q: &[f64], dof: usize, averaging: Option<Averaging>, dt: f64) -> Self {
         let (difference, per) = match averaging {
             None => (central_difference(q, dof, dt, false), None),
@@ -97,8 +84,9 @@ impl RawVelocity {
         Self { dof, dt, difference, per }
     }
 
-    /// The velocity filtered at `cutoff_hz`, split into its periods and thinned.
-    pub fn filtered(&self, (order, cutoff_hz): (usize, f64), decimate: usize) -> Result<FrictionVelocity, FilterError> {
+    /// The velocity filtered at `cutoff_hz` (Butterworth of `order`, forward and backward), split
+    /// into its periods, each thinned to every `decimate`-th sample.
+    pub fn filtered(&self, order: usize, cutoff_hz: f64, decimate: usize) -> Result<FrictionVelocity, FilterError> {
         let filter = Butterworth::lowpass(order, cutoff_hz, 1.0 / self.dt)?;
         let dof = self.dof;
         let v = filter_columns(&filter, &self.difference, dof, self.per.is_some())?;
@@ -128,7 +116,7 @@ mod tests {
             }
         }
         let averaging = Some(Averaging { count: 2, samples: per as f64 });
-        let v = FrictionVelocity::of_log(&q, 1, averaging, (dt, 5), 100.0, 1).unwrap();
+        let v = RawVelocity::of_log(&q, 1, averaging, dt).filtered(5, 100.0, 1).unwrap();
         let directions = v.directions(&CoulombLaws::undeclared(1));
         let of_mean: Vec<f64> = v.mean().iter().map(|x| CoulombShape::Sign.eval(*x)).collect();
         // Every direction is a mean of two signs; somewhere near the zero crossings (t = 0.5 s,

@@ -116,8 +116,10 @@ pub fn choose_laws(
     for sweep in 0..LAW_SWEEPS {
         let coulomb = problem.coulomb.clone();
         for (&(k, c), laws) in coulomb.iter().zip(&candidates) {
-            let predicted: Vec<Option<Vec<f64>>> =
-                laws.iter().map(|(_, v)| folds.heldout_errors(&problem, c, (k, v))).collect();
+            let predicted: Vec<Option<Vec<f64>>> = laws
+                .iter()
+                .map(|(_, v)| folds.heldout_errors(&problem, c, JointColumn { joint: k, values: v }))
+                .collect();
             let total = |e: &Option<Vec<f64>>| e.as_ref().map_or(f64::INFINITY, |e| e.iter().sum::<f64>());
             let errors: Vec<f64> = predicted.iter().map(total).collect();
             let on_grid =
@@ -129,7 +131,7 @@ pub fn choose_laws(
                     let around = (laws[(i - 1).max(1)].0, laws[(i + 1).min(laws.len() - 1)].0);
                     let error_at = |law: CoulombShape| {
                         let values = weighted(column(k, law), problem.weights[k]);
-                        (folds.heldout_errors(&problem, c, (k, &values)), values)
+                        (folds.heldout_errors(&problem, c, JointColumn { joint: k, values: &values }), values)
                     };
                     refine(around, (laws[i].0, predicted[i].clone()), error_at)
                 }
@@ -141,7 +143,7 @@ pub fn choose_laws(
                 false => (fittest_law, &fittest_column),
             };
             shapes[k] = law;
-            put(&mut problem, (c, k), values);
+            put(&mut problem, c, k, values);
             folds.replace(&problem, c);
             if sweep + 1 == LAW_SWEEPS {
                 let sign = errors[0].max(f64::MIN_POSITIVE);
@@ -316,7 +318,7 @@ fn refine(
 }
 
 /// Joint `k`'s rows of column `c` set to `values`.
-fn put(problem: &mut LawProblem, (c, k): (usize, usize), values: &[f64]) {
+fn put(problem: &mut LawProblem, c: usize, k: usize, values: &[f64]) {
     for (s, v) in values.iter().enumerate() {
         problem.columns[c][s * problem.dof + k] = *v;
     }
@@ -405,10 +407,16 @@ struct Products {
     vy: f64,
 }
 
+/// A candidate column that lives on one joint's rows: one value per sample.
+#[derive(Clone, Copy)]
+struct JointColumn<'a> {
+    joint: usize,
+    values: &'a [f64],
+}
+
 impl Products {
-    /// Joint `k`'s candidate `values` (one per sample) over `samples`.
-    fn over(problem: &LawProblem, (k, values): (usize, &[f64]), samples: &Range<usize>) -> Self {
-        let dof = problem.dof;
+    fn over(problem: &LawProblem, candidate: JointColumn, samples: &Range<usize>) -> Self {
+        let (dof, k, values) = (problem.dof, candidate.joint, candidate.values);
         let on_joint = |x: &[f64]| samples.clone().map(|s| values[s] * x[s * dof + k]).sum::<f64>();
         let xv = problem.columns.iter().map(|c| on_joint(c)).collect();
         let vv = samples.clone().map(|s| values[s] * values[s]).sum();
@@ -478,7 +486,7 @@ impl Folds {
     /// Each fold's weighted squared error on its interior, predicted by the fit on the other folds
     /// of every column but `c` and joint `k`'s candidate column `values`; `None` where a fit's
     /// columns are dependent.
-    fn heldout_errors(&self, problem: &LawProblem, c: usize, candidate: (usize, &[f64])) -> Option<Vec<f64>> {
+    fn heldout_errors(&self, problem: &LawProblem, c: usize, candidate: JointColumn) -> Option<Vec<f64>> {
         let whole = &self.whole.1;
         let kept: Vec<usize> = (0..whole.g.nrows()).filter(|&i| i != c && whole.g[(i, i)] > 0.0).collect();
         let all = Products::over(problem, candidate, &self.whole.0);
@@ -630,7 +638,9 @@ mod tests {
             weights: vec![1.0; 2],
             guard: 5,
         };
-        let got = Folds::of(&problem, LAW_FOLDS).heldout_errors(&problem, 1, (1, &candidate)).unwrap();
+        let got = Folds::of(&problem, LAW_FOLDS)
+            .heldout_errors(&problem, 1, JointColumn { joint: 1, values: &candidate })
+            .unwrap();
         assert_eq!(got.len(), LAW_FOLDS);
         let mut c = vec![0.0; 2 * n];
         for s in 0..n {

@@ -133,7 +133,7 @@ pub fn identify_with_known_load(
         return Err(gains::GainsError::MissingRuns("loaded").into());
     }
     let against = cutoff::Against::Regressor;
-    let (pre_first, laws) = preprocess_with_laws((declared, runs[first].0), &options.preprocess, against)?;
+    let (pre_first, laws) = preprocess_with_laws(declared, runs[first].0, &options.preprocess, against)?;
     let with_laws;
     let model = match laws {
         Some(laws) => {
@@ -210,7 +210,8 @@ fn weak_reason(base: &BaseParameters) -> String {
 /// cut-offs chosen under sign(q̇) gave a law of 1.2 mm/s and a model that predicted the paper's
 /// trajectories at 46 % on the insertion (docs/identification.md).
 fn preprocess_with_laws(
-    (declared, log): (Declared, Log),
+    declared: Declared,
+    log: Log,
     options: &PreprocessOptions,
     against: cutoff::Against,
 ) -> Result<(preprocess::Preprocessed, Option<crate::model::CoulombLaws>), IdentifyError> {
@@ -260,7 +261,7 @@ fn identify_with(
         (true, Some(_)) => cutoff::Against::SimulatedLoop,
         _ => cutoff::Against::Regressor,
     };
-    let (mut pre, laws) = preprocess_with_laws((declared, log), &options.preprocess, against)?;
+    let (mut pre, laws) = preprocess_with_laws(declared, log, &options.preprocess, against)?;
     let Declared { model, base, urdf } = declared;
     // A robot that declares no Coulomb law gets each joint's from the data, which the fit, the
     // closed-loop simulation and the model file all use.
@@ -339,7 +340,9 @@ fn identify_with(
         determination: ls.determination.clone(),
     };
     Ok(ModelFile::new(
-        (model, base, urdf),
+        model,
+        base,
+        urdf,
         fitted,
         Settings {
             method,

@@ -289,7 +289,8 @@ fn choose_periods(
     q: &[f64],
     dof: usize,
     fs: f64,
-    (periods, period): (Option<usize>, Option<f64>),
+    periods: Option<usize>,
+    period: Option<f64>,
     choices: &mut Choices,
 ) -> Result<Option<Averaging>, PreprocessError> {
     let n = q.len() / dof;
@@ -357,7 +358,8 @@ fn choose_periods(
 fn choose_cutoff(
     q: &[f64],
     periods: Option<&[Vec<f64>]>,
-    (dof, fs): (usize, f64),
+    dof: usize,
+    fs: f64,
     user: Option<f64>,
     choices: &mut Choices,
 ) -> (f64, Option<f64>) {
@@ -421,7 +423,7 @@ pub fn preprocess(
             1.0 / dt
         ));
     }
-    let averaging = choose_periods(q, dof, 1.0 / dt, (options.periods, options.period_s), &mut choices)?;
+    let averaging = choose_periods(q, dof, 1.0 / dt, options.periods, options.period_s, &mut choices)?;
     let periodic = averaging.is_some();
     let (raw_q, raw_dt) = (q, dt);
     // A period that is not a whole number of samples is resampled to the nearest whole number.
@@ -432,12 +434,12 @@ pub fn preprocess(
         Some(a) => {
             // The periods one by one only where the spectral rule reads their scatter.
             let cutoff = match options.cutoff_hz {
-                Some(_) => choose_cutoff(&[], None, (dof, fs), options.cutoff_hz, &mut choices),
-                None => choose_cutoff(&[], Some(&periods_of(q, dof, a)), (dof, fs), None, &mut choices),
+                Some(_) => choose_cutoff(&[], None, dof, fs, options.cutoff_hz, &mut choices),
+                None => choose_cutoff(&[], Some(&periods_of(q, dof, a)), dof, fs, None, &mut choices),
             };
             (averaged(q, dof, averaging), cutoff)
         }
-        None => (std::borrow::Cow::Borrowed(q), choose_cutoff(q, None, (dof, fs), options.cutoff_hz, &mut choices)),
+        None => (std::borrow::Cow::Borrowed(q), choose_cutoff(q, None, dof, fs, options.cutoff_hz, &mut choices)),
     };
     let n = q.len() / dof;
     let filter = Butterworth::lowpass(options.order, cutoff_hz, fs)?;
@@ -478,12 +480,15 @@ pub fn preprocess(
             None => "the main cut-off",
         }
     ));
-    let positions = || filtered_motion(&filter, &q, (dof, dt), periodic, options.filter_derivatives);
+    let positions = || filtered_motion(&filter, &q, dof, dt, periodic, options.filter_derivatives);
     let torque_and_friction = || -> Result<_, FilterError> {
         let tau_avg = averaged(tau, dof, averaging);
         let tau_f = filter_columns(&filter, &tau_avg, dof, periodic)?;
-        let friction =
-            FrictionVelocity::of_log(raw_q, dof, averaging, (dt, options.order), friction_cutoff_hz, options.decimate)?;
+        let friction = RawVelocity::of_log(raw_q, dof, averaging, dt).filtered(
+            options.order,
+            friction_cutoff_hz,
+            options.decimate,
+        )?;
         Ok((tau_avg.into_owned(), tau_f, friction))
     };
     // The two chains are independent; on two cores they take the time of the longer one.
@@ -533,7 +538,8 @@ pub(super) type Motion = (Vec<f64>, Vec<f64>, Vec<f64>);
 pub(super) fn filtered_motion(
     filter: &Butterworth,
     q: &[f64],
-    (dof, dt): (usize, f64),
+    dof: usize,
+    dt: f64,
     periodic: bool,
     filter_derivatives: bool,
 ) -> Result<Motion, FilterError> {

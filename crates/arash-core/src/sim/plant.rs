@@ -13,7 +13,7 @@
 use super::scenario::{Integrator, Scenario};
 use super::truth::{add_payload, true_parameters};
 use crate::data::Data;
-use crate::dynamics::{forward_dynamics_with_armature, kinetic_energy, potential_energy, DynamicsError};
+use crate::dynamics::{forward_dynamics_with_armature, kinetic_energy, potential_energy, DynamicsError, Parameters};
 use crate::model::{CoulombLaws, CoulombShape, Model};
 
 /// The simulated robot: true parameters, undeclared effects and the integrator state.
@@ -277,17 +277,9 @@ impl Plant {
                 }
             }
         }
-        let armature = self.armature.as_deref();
-        forward_dynamics_with_armature(
-            &self.model,
-            &mut self.data,
-            (q, qd),
-            &self.tau_joint,
-            &self.params,
-            armature,
-            &mut self.acc,
-        )
-        .map_err(|source| PlantError::Dynamics { time: self.time, source })?;
+        let parameters = Parameters { params: &self.params, armature: self.armature.as_deref() };
+        forward_dynamics_with_armature(&self.model, &mut self.data, q, qd, &self.tau_joint, parameters, &mut self.acc)
+            .map_err(|source| PlantError::Dynamics { time: self.time, source })?;
         dx[..n].copy_from_slice(qd);
         dx[n..2 * n].copy_from_slice(&self.acc);
         Ok(())

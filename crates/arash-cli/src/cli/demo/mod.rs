@@ -7,6 +7,7 @@
 //! through identification and the diagnosis, and write a report with figures. Everything goes
 //! to `logs/<run>/`.
 
+use super::diagnose::Cutoffs;
 use crate::report::demo as report;
 mod rig;
 mod tx40;
@@ -190,7 +191,8 @@ fn steps(args: &Args, plan: &Plan) -> anyhow::Result<()> {
             scenario_effects(&scenario)
         ),
     }
-    let outcome = experiment(args, plan, (&model, &diagnosed), &urdf, &base, &rig, truth);
+    let robot = DemoRobot { model: &model, diagnosed: &diagnosed, urdf: &urdf, base: &base };
+    let outcome = experiment(args, plan, robot, &rig, truth);
     rig.stop()?;
     let (excitation, calibration, diagnosis, tracking) = outcome?;
 
@@ -199,7 +201,7 @@ fn steps(args: &Args, plan: &Plan) -> anyhow::Result<()> {
 
     println!("\n[8/8] report");
     let written =
-        report::write(&dir.join("report"), &model, &excitation, &calibration, &diagnosis, (&tracking, Some(&real)))?;
+        report::write(&dir.join("report"), &model, &excitation, &calibration, &diagnosis, &tracking, Some(&real))?;
     println!("    {} figures and report.md in {}", written, dir.join("report").display());
     Ok(())
 }
@@ -212,16 +214,19 @@ struct Truth {
     epsilon: f64,
 }
 
+/// The robot the demo runs on: the declared model, the same with the rig's Coulomb law as the
+/// diagnosis is told it, its URDF text and its base parameters.
+#[derive(Clone, Copy)]
+struct DemoRobot<'a> {
+    model: &'a Model,
+    diagnosed: &'a Model,
+    urdf: &'a str,
+    base: &'a BaseParameters,
+}
+
 /// Steps 2–6, with the rig running.
-fn experiment(
-    args: &Args,
-    plan: &Plan,
-    (model, diagnosed): (&Model, &Model),
-    urdf: &str,
-    base: &BaseParameters,
-    rig: &Rig,
-    truth: Option<Truth>,
-) -> anyhow::Result<Outcome> {
+fn experiment(args: &Args, plan: &Plan, robot: DemoRobot, rig: &Rig, truth: Option<Truth>) -> anyhow::Result<Outcome> {
+    let DemoRobot { model, diagnosed, urdf, base } = robot;
     let dir = &plan.dir;
     println!(
         "\n[2/8] excitation design: L = {}, T = {} s, {} restart(s), seed {}",
@@ -253,7 +258,7 @@ fn experiment(
         .into_iter()
         .map(|(omega, path)| Ok((omega, runlog::read(&path, model, false, runlog::Effort::Torque)?)))
         .collect::<anyhow::Result<_>>()?;
-    let mut calibration = calibrate(model, urdf, base, plan, (&training, &training_log), &validation)?;
+    let mut calibration = calibrate(model, urdf, base, plan, &training, &training_log, &validation)?;
     let truth_file = match &truth {
         Some(truth) => Some(truth_file(dir, model, base, &calibration.consistent, truth, &training_log)?),
         None => None,
@@ -264,14 +269,14 @@ fn experiment(
     println!("\n[5/8] diagnosis of the residual");
     let diagnosis_dir = dir.join("report").join("diagnosis");
     let settings = &calibration.consistent.settings;
-    let cutoffs = (settings.cutoff_hz, settings.friction_cutoff_hz);
+    let cutoffs = Cutoffs { main_hz: settings.cutoff_hz, friction_hz: settings.friction_cutoff_hz };
     // The diagnosis fits the exact base parameters (`BaseParameterOptions::diagnosed`): the
     // calibration's regrouping would be a bias an effect could take up.
     let exact = BaseParameters::compute(model, &BaseParameterOptions::diagnosed())?;
     let held_out = validation.into_iter().map(|(_, log)| log).collect::<Vec<_>>();
     let held_out = (!held_out.is_empty()).then(|| runlog::concatenate(held_out));
-    let logs = (&training_log, held_out.as_ref());
-    let (diagnosis, with_effects) = diagnose_run(diagnosed, urdf, &exact, logs, cutoffs, &diagnosis_dir)?;
+    let (diagnosis, with_effects) =
+        diagnose_run(diagnosed, urdf, &exact, &training_log, held_out.as_ref(), cutoffs, &diagnosis_dir)?;
     rig::check_interrupt()?;
 
     println!("\n[6/8] tracking the validation trajectory at ω = {} rad/s through the daemon", args.tracking_omega);
@@ -368,7 +373,8 @@ fn calibrate(
     urdf: &str,
     base: &BaseParameters,
     plan: &Plan,
-    (training, log): (&Path, &runlog::Log),
+    training: &Path,
+    log: &runlog::Log,
     validation: &[(f64, runlog::Log)],
 ) -> anyhow::Result<report::Calibration> {
     // Every preprocessing choice is left to the data, as for a user's first log; the table
@@ -438,19 +444,18 @@ fn calibrate(
 /// N/m (the rig's: 2), passed the held-out gain and made the insertion track 4.6 times worse than
 /// CAD over its whole range (docs/demo.md).
 ///
-/// The diagnosis filters at its own default (20 Hz, where its false-positive rate was
-/// measured); the consistent fit with the effects at the calibration's cut-offs (the main one
-/// and the friction velocity's), so that the controller's model sees the data as the calibrated
-/// one did. (At 20 Hz that fit trades
-/// Stribeck friction for a viscous coefficient many times the true one, which the controller
-/// then applies to a noisy velocity; at the calibration's cut-off the diagnosis itself names
-/// Stribeck friction on a rig without it.)
+/// The diagnosis chooses its own band from the data (its report says which, and why); the
+/// consistent fit with the effects is made at the calibration's cut-offs (the main one and the
+/// friction velocity's), so that the controller's model sees the data as the calibrated one did.
+/// (At the diagnosis's former fixed 20 Hz that fit traded Stribeck friction for a viscous
+/// coefficient many times the true one, which the controller then applied to a noisy velocity.)
 fn diagnose_run(
     model: &Model,
     urdf: &str,
     base: &BaseParameters,
-    (log, held_out): (&runlog::Log, Option<&runlog::Log>),
-    cutoffs: (f64, Option<f64>),
+    log: &runlog::Log,
+    held_out: Option<&runlog::Log>,
+    cutoffs: Cutoffs,
     out: &Path,
 ) -> anyhow::Result<(Diagnosis, PathBuf)> {
     let log = Log { t: &log.t, q: &log.q, tau: &log.tau };
