@@ -714,12 +714,31 @@ fn the_daemon_commands_currents_through_a_models_identified_drive_gains() {
     ];
     let b = fitted(&by_model, "b.json", &choices);
     let values = |m: &serde_json::Value, key: &str| serde_json::from_value::<Vec<f64>>(m[key].clone()).unwrap();
-    let (beta_a, beta_b, sigma_a) = (values(&a, "beta"), values(&b, "beta"), values(&a, "sigma_percent"));
-    let sure: Vec<usize> = (0..beta_a.len()).filter(|&i| sigma_a[i] < 3.0).collect();
-    assert!(sure.len() >= 4, "{sigma_a:?}");
-    for i in sure {
+    let (beta_a, beta_b) = (values(&a, "beta"), values(&b, "beta"));
+    let (sigma_a, sigma_b) = (values(&a, "sigma_percent"), values(&b, "sigma_percent"));
+    // The gains scale every parameter alike. The scale that maps the second fit's β onto the
+    // first's, each parameter weighted by both fits' precision, is the datasheet's 0.8. All the
+    // parameters take part: which of them the data determine well depends on the cut-off they
+    // choose (at 4.8 Hz, on one CI run, only three were below 3 %).
+    let (mut moment, mut weight) = (0.0, 0.0);
+    for i in 0..beta_a.len() {
+        let (ea, eb) = (sigma_a[i] / 100.0 * beta_a[i].abs(), sigma_b[i] / 100.0 * beta_b[i].abs());
+        let w = 1.0 / (ea * ea + 0.64 * eb * eb);
+        if w.is_finite() {
+            moment += w * beta_a[i] * beta_b[i];
+            weight += w * beta_b[i] * beta_b[i];
+        }
+    }
+    let (scale, scale_sigma) = (moment / weight, weight.sqrt().recip());
+    eprintln!("β by the datasheet over β by the model's gains: {scale:.4} ± {scale_sigma:.4}");
+    assert!(scale_sigma < 0.01, "the two logs determine the scale only to ±{scale_sigma}: {sigma_a:?}");
+    assert!((scale - 0.8).abs() < 0.04, "scale {scale} ± {scale_sigma}");
+    // Each well-determined parameter on its own, within 3 standard deviations of its ratio.
+    for i in (0..beta_a.len()).filter(|&i| sigma_a[i] < 3.0) {
+        let ratio = beta_a[i] / beta_b[i];
+        let sigma = 0.8 * (sigma_a[i].powi(2) + sigma_b[i].powi(2)).sqrt() / 100.0;
         eprintln!("β{}: {:.4e} by the datasheet, {:.4e} by the model's gains", i + 1, beta_a[i], beta_b[i]);
-        assert!((beta_a[i] / beta_b[i] - 0.8).abs() < 0.04, "β{}: {} against {}", i + 1, beta_a[i], beta_b[i]);
+        assert!((ratio - 0.8).abs() < (3.0 * sigma).max(0.04), "β{}: ratio {ratio} ± {sigma}", i + 1);
     }
     let flight = read_log(&by_model).unwrap();
     assert_eq!(serde_json::from_str::<Vec<f64>>(&flight.metadata["torque_constant"]).unwrap(), truth);
