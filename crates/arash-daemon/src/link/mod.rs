@@ -2,14 +2,20 @@
 //!
 //! - [`frame`]: the serial protocol's frames (COBS, CRC-16, sequence numbers, time stamps);
 //! - [`serial`]: that protocol over a byte stream (a serial port, or a pseudo-terminal);
-//! - [`can`]: the same commands and telemetry as classic CAN frames.
+//! - [`can`]: the same commands and telemetry as classic CAN frames;
+//! - [`slcan`]: CAN frames over a serial line in the Lawicel ASCII protocol (USB adapters);
+//! - [`canopen`] and [`cia402`]: the CANopen frames and the CiA 402 axis supervision a master of
+//!   standard drives needs (sans-I/O; issue 47 puts a master on them).
 //!
 //! Both transports implement [`MotorLink`]; the control cycle sees only the trait. Neither
 //! blocks or allocates in `send` or `poll`.
 
 pub mod can;
+pub mod canopen;
+pub mod cia402;
 pub mod frame;
 pub mod serial;
+pub mod slcan;
 
 pub use frame::{Command, Telemetry, MAX_JOINTS};
 

@@ -1,0 +1,389 @@
+//! A CiA 402 drive axis in cyclic synchronous torque mode, as the master sees it: the
+//! statusword's states, the controlword's commands, the process data of one SYNC cycle, and the
+//! axis's own supervision, with faults that latch until the operator resets them. Sans-I/O:
+//! statuswords in, controlwords and frames out.
+//!
+//! The process data:
+//!
+//! | PDO | COB-ID | content |
+//! |---|---|---|
+//! | RPDO1 | `0x200 + node` | 0x6040 controlword (u16), 0x6071 target torque (i16, ‰ of 0x6076) |
+//! | TPDO1 | `0x180 + node` | 0x6041 statusword (u16), 0x6064 position (i32, counts), 0x6077 torque actual (i16, ‰) |
+
+use super::can::CanFrame;
+use super::canopen::{NodeId, RPDO1_BASE, TPDO1_BASE};
+
+/// The states of the drive's power state machine (CiA 402, figure 8), read from the statusword.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum State {
+    NotReadyToSwitchOn,
+    SwitchOnDisabled,
+    ReadyToSwitchOn,
+    SwitchedOn,
+    OperationEnabled,
+    QuickStopActive,
+    FaultReactionActive,
+    Fault,
+    /// A statusword that matches no state.
+    Unknown(u16),
+}
+
+impl State {
+    /// The state a statusword reports (CiA 402, table 30: bits 0–3, 5 and 6).
+    pub fn of(statusword: u16) -> Self {
+        match (statusword & 0x4F, statusword & 0x6F) {
+            (0x00, _) => Self::NotReadyToSwitchOn,
+            (0x40, _) => Self::SwitchOnDisabled,
+            (_, 0x21) => Self::ReadyToSwitchOn,
+            (_, 0x23) => Self::SwitchedOn,
+            (_, 0x27) => Self::OperationEnabled,
+            (_, 0x07) => Self::QuickStopActive,
+            (0x0F, _) => Self::FaultReactionActive,
+            (0x08, _) => Self::Fault,
+            _ => Self::Unknown(statusword),
+        }
+    }
+
+    pub fn is_fault(self) -> bool {
+        matches!(self, Self::Fault | Self::FaultReactionActive)
+    }
+}
+
+/// Controlword commands (CiA 402, table 28).
+pub mod controlword {
+    pub const DISABLE_VOLTAGE: u16 = 0x0000;
+    pub const QUICK_STOP: u16 = 0x0002;
+    pub const SHUTDOWN: u16 = 0x0006;
+    pub const SWITCH_ON: u16 = 0x0007;
+    pub const ENABLE_OPERATION: u16 = 0x000F;
+    /// Bit 7: a fault reset on its rising edge.
+    pub const FAULT_RESET: u16 = 0x0080;
+}
+
+/// Statusword bit 12 in the cyclic synchronous modes: the drive follows the target.
+pub const FOLLOWS_TARGET: u16 = 1 << 12;
+
+/// The controlword that moves a drive in `state` one step towards operation enabled.
+pub fn towards_enabled(state: State) -> u16 {
+    match state {
+        State::SwitchOnDisabled => controlword::SHUTDOWN,
+        State::ReadyToSwitchOn => controlword::SWITCH_ON,
+        State::SwitchedOn | State::OperationEnabled => controlword::ENABLE_OPERATION,
+        // Quick stop ends in switch on disabled; the others wait for the drive, or for a reset.
+        State::QuickStopActive
+        | State::NotReadyToSwitchOn
+        | State::FaultReactionActive
+        | State::Fault
+        | State::Unknown(_) => controlword::DISABLE_VOLTAGE,
+    }
+}
+
+/// Drive torque in ‰ of its rated torque (0x6076), limited to 0x6072.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TorqueScale {
+    /// 0x6076 in N·m (the drive reports mN·m).
+    pub rated_nm: f64,
+    /// 0x6072, ‰ of the rated torque.
+    pub max_permille: u16,
+}
+
+/// A torque that is not a number, refused before it reaches a drive.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("torque {0} N·m is not finite")]
+pub struct NotFinite(pub f64);
+
+impl TorqueScale {
+    /// From 0x6076 (mN·m, as the drive reports it) and 0x6072 (‰). `None` when the rated torque
+    /// is zero: every target would be zero or infinite.
+    pub fn new(rated_mnm: u32, max_permille: u16) -> Option<Self> {
+        (rated_mnm > 0).then(|| Self { rated_nm: f64::from(rated_mnm) / 1000.0, max_permille })
+    }
+
+    /// The target torque (0x6071) for `torque_nm`, saturated at ±0x6072.
+    pub fn permille(&self, torque_nm: f64) -> Result<i16, NotFinite> {
+        if !torque_nm.is_finite() {
+            return Err(NotFinite(torque_nm));
+        }
+        let limit = f64::from(self.max_permille.min(i16::MAX as u16));
+        Ok((1000.0 * torque_nm / self.rated_nm).round().clamp(-limit, limit) as i16)
+    }
+
+    /// The torque (N·m) of a value in ‰ (0x6077, torque actual).
+    pub fn newton_metres(&self, permille: i16) -> f64 {
+        f64::from(permille) * self.rated_nm / 1000.0
+    }
+}
+
+/// RPDO1 to `node`: controlword and target torque.
+pub fn rpdo1(node: NodeId, controlword: u16, torque_permille: i16) -> CanFrame {
+    let (c, t) = (controlword.to_le_bytes(), torque_permille.to_le_bytes());
+    CanFrame { id: RPDO1_BASE + u32::from(node.get()), len: 4, data: [c[0], c[1], t[0], t[1], 0, 0, 0, 0] }
+}
+
+/// TPDO1 from a drive: statusword, position and torque actual.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Tpdo1 {
+    pub node: NodeId,
+    pub statusword: u16,
+    pub position: i32,
+    pub torque_permille: i16,
+}
+
+impl Tpdo1 {
+    /// `None` for any frame that is not an 8-byte TPDO1.
+    pub fn parse(frame: &CanFrame) -> Option<Self> {
+        let node = NodeId::of(frame, TPDO1_BASE)?;
+        let d = frame.data;
+        (frame.len == 8).then(|| Self {
+            node,
+            statusword: u16::from_le_bytes([d[0], d[1]]),
+            position: i32::from_le_bytes([d[2], d[3], d[4], d[5]]),
+            torque_permille: i16::from_le_bytes([d[6], d[7]]),
+        })
+    }
+
+    /// The frame a drive sends for these values (the simulator's side, and the tests').
+    pub fn frame(&self) -> CanFrame {
+        let (s, p, t) =
+            (self.statusword.to_le_bytes(), self.position.to_le_bytes(), self.torque_permille.to_le_bytes());
+        CanFrame {
+            id: TPDO1_BASE + u32::from(self.node.get()),
+            len: 8,
+            data: [s[0], s[1], p[0], p[1], p[2], p[3], t[0], t[1]],
+        }
+    }
+}
+
+/// Why an axis is latched off.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AxisFault {
+    /// The drive reported a fault in its statusword.
+    Drive { statusword: u16 },
+    /// The master latched it: an EMCY, a lost heartbeat, missed TPDOs, an SDO abort, bus-off.
+    Master,
+}
+
+/// The operator asked to enable an axis that is latched off.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("the axis is latched off ({0:?}): reset it first")]
+pub struct Latched(pub AxisFault);
+
+/// One axis's supervision: the state its drive last reported, whether the operator wants it
+/// enabled, and a latched fault. A fault disables the axis and clears the operator's request, so
+/// that nothing re-enables it by itself; a fault reset is sent only on the operator's [`reset`]
+/// as one rising edge of bit 7.
+///
+/// [`reset`]: Axis::reset
+#[derive(Debug, Clone, Copy)]
+pub struct Axis {
+    state: State,
+    wanted: bool,
+    latched: Option<AxisFault>,
+    reset: ResetEdge,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum ResetEdge {
+    Idle,
+    /// Send bit 7 low for a cycle, then high for one.
+    Low,
+    High,
+}
+
+impl Default for Axis {
+    fn default() -> Self {
+        Self { state: State::NotReadyToSwitchOn, wanted: false, latched: None, reset: ResetEdge::Idle }
+    }
+}
+
+impl Axis {
+    pub fn state(&self) -> State {
+        self.state
+    }
+
+    pub fn latched(&self) -> Option<AxisFault> {
+        self.latched
+    }
+
+    /// The drive's statusword of this cycle. A fault latches, and only the operator's reset
+    /// clears the latch: a drive that recovers by itself stays latched off.
+    pub fn observe(&mut self, statusword: u16) {
+        self.state = State::of(statusword);
+        if self.state.is_fault() && self.latched.is_none() && self.reset == ResetEdge::Idle {
+            self.latch(AxisFault::Drive { statusword });
+        }
+    }
+
+    /// Latch the axis off: disable it, and forget the operator's request.
+    pub fn latch(&mut self, fault: AxisFault) {
+        self.latched.get_or_insert(fault);
+        self.wanted = false;
+    }
+
+    /// The operator's `enable`; refused while latched.
+    pub fn enable(&mut self) -> Result<(), Latched> {
+        match self.latched {
+            Some(fault) => Err(Latched(fault)),
+            None => {
+                self.wanted = true;
+                Ok(())
+            }
+        }
+    }
+
+    /// The operator's `disable`.
+    pub fn disable(&mut self) {
+        self.wanted = false;
+    }
+
+    /// The operator's `reset`: clear the latch and, if the drive is in fault, send it one fault
+    /// reset edge. The axis stays disabled until the operator enables it again.
+    pub fn reset(&mut self) {
+        self.wanted = false;
+        self.latched = None;
+        if self.state.is_fault() {
+            self.reset = ResetEdge::Low;
+        }
+    }
+
+    /// Whether the drive may be given a torque this cycle.
+    pub fn torque_allowed(&self) -> bool {
+        self.wanted && self.latched.is_none() && self.state == State::OperationEnabled
+    }
+
+    /// This cycle's controlword.
+    pub fn controlword(&mut self) -> u16 {
+        match self.reset {
+            ResetEdge::Low => {
+                self.reset = ResetEdge::High;
+                return controlword::DISABLE_VOLTAGE;
+            }
+            ResetEdge::High => {
+                self.reset = ResetEdge::Idle;
+                return controlword::FAULT_RESET;
+            }
+            ResetEdge::Idle => {}
+        }
+        match (self.wanted, self.latched) {
+            (true, None) => towards_enabled(self.state),
+            _ => controlword::DISABLE_VOLTAGE,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Statuswords as CiA 402 defines them and drive manuals (maxon's EPOS4 firmware
+    /// specification, for one) list them: bit 4 (voltage enabled), 9 (remote) and the others
+    /// above bit 6 do not change the state.
+    #[test]
+    fn statuswords_read_as_the_standards_states() {
+        let cases = [
+            (0x0000, State::NotReadyToSwitchOn),
+            (0x0250, State::SwitchOnDisabled),
+            (0x0221, State::ReadyToSwitchOn),
+            (0x0231, State::ReadyToSwitchOn),
+            (0x0233, State::SwitchedOn),
+            (0x0237, State::OperationEnabled),
+            (0x1637, State::OperationEnabled),
+            (0x0217, State::QuickStopActive),
+            (0x021F, State::FaultReactionActive),
+            (0x0218, State::Fault),
+            (0x0208, State::Fault),
+        ];
+        for (statusword, state) in cases {
+            assert_eq!(State::of(statusword), state, "{statusword:#06x}");
+        }
+        assert_eq!(State::of(0x0001), State::Unknown(0x0001));
+    }
+
+    /// Figure 8's transitions 2, 3 and 4 (shutdown, switch on, enable operation) from switch on
+    /// disabled, one per cycle as the drive answers.
+    #[test]
+    fn enabling_walks_the_state_machine_only_when_asked() {
+        let mut axis = Axis::default();
+        axis.observe(0x0250);
+        assert_eq!(axis.controlword(), controlword::DISABLE_VOLTAGE, "not asked: stays disabled");
+        axis.enable().unwrap();
+        let mut sent = Vec::new();
+        for statusword in [0x0250, 0x0231, 0x0233, 0x0237, 0x0237] {
+            axis.observe(statusword);
+            sent.push(axis.controlword());
+        }
+        assert_eq!(sent, [0x06, 0x07, 0x0F, 0x0F, 0x0F]);
+        assert!(axis.torque_allowed());
+        axis.disable();
+        assert_eq!(axis.controlword(), controlword::DISABLE_VOLTAGE);
+        assert!(!axis.torque_allowed());
+    }
+
+    #[test]
+    fn a_fault_latches_disables_and_never_re_enables_by_itself() {
+        let mut axis = Axis::default();
+        axis.enable().unwrap();
+        axis.observe(0x0237);
+        axis.observe(0x0218);
+        assert_eq!(axis.latched(), Some(AxisFault::Drive { statusword: 0x0218 }));
+        assert!(!axis.torque_allowed());
+        // The drive recovers by itself: the latch holds, and so does the disable.
+        axis.observe(0x0250);
+        assert_eq!(axis.controlword(), controlword::DISABLE_VOLTAGE);
+        assert!(matches!(axis.enable(), Err(Latched(_))));
+        // A master fault latches alike.
+        let mut other = Axis::default();
+        other.enable().unwrap();
+        other.observe(0x0237);
+        other.latch(AxisFault::Master);
+        assert_eq!(other.controlword(), controlword::DISABLE_VOLTAGE);
+        assert!(!other.torque_allowed());
+    }
+
+    /// A fault reset is one rising edge of bit 7 on the operator's reset, and the axis stays
+    /// disabled until the operator enables it again.
+    #[test]
+    fn the_operators_reset_sends_one_edge_and_leaves_the_axis_disabled() {
+        let mut axis = Axis::default();
+        axis.enable().unwrap();
+        axis.observe(0x0218);
+        assert_eq!(axis.controlword(), 0x0000);
+        axis.reset();
+        let sent = [axis.controlword(), axis.controlword(), axis.controlword()];
+        assert_eq!(sent, [0x0000, 0x0080, 0x0000]);
+        axis.observe(0x0250);
+        assert_eq!(axis.latched(), None);
+        assert_eq!(axis.controlword(), controlword::DISABLE_VOLTAGE, "not re-enabled by the reset");
+        axis.enable().unwrap();
+        axis.observe(0x0250);
+        assert_eq!(axis.controlword(), controlword::SHUTDOWN);
+    }
+
+    #[test]
+    fn torque_is_permille_of_the_rated_saturated_and_never_nan() {
+        // A rated torque of 0.5 N·m (500 mN·m in 0x6076), limited to 150 % (0x6072 = 1500).
+        let scale = TorqueScale::new(500, 1500).unwrap();
+        assert_eq!(scale.permille(0.25), Ok(500));
+        assert_eq!(scale.permille(-0.1), Ok(-200));
+        assert_eq!(scale.permille(10.0), Ok(1500));
+        assert_eq!(scale.permille(-10.0), Ok(-1500));
+        assert!(scale.permille(f64::NAN).is_err());
+        assert!(scale.permille(f64::INFINITY).is_err());
+        assert!((scale.newton_metres(-200) + 0.1).abs() < 1e-12);
+        assert_eq!(TorqueScale::new(0, 1000), None);
+    }
+
+    #[test]
+    fn process_data_frames_carry_the_mapped_objects_little_endian() {
+        let node = NodeId::try_from(4).unwrap();
+        let rpdo = rpdo1(node, controlword::ENABLE_OPERATION, -300);
+        assert_eq!((rpdo.id, rpdo.len), (0x204, 4));
+        assert_eq!(&rpdo.data[..4], &[0x0F, 0x00, 0xD4, 0xFE]);
+        let tpdo = Tpdo1 { node, statusword: 0x1637, position: -70000, torque_permille: 123 };
+        let frame = tpdo.frame();
+        assert_eq!((frame.id, frame.len), (0x184, 8));
+        assert_eq!(frame.data, [0x37, 0x16, 0x90, 0xEE, 0xFE, 0xFF, 123, 0]);
+        assert_eq!(Tpdo1::parse(&frame), Some(tpdo));
+        assert_eq!(Tpdo1::parse(&CanFrame { len: 6, ..frame }), None);
+    }
+}
