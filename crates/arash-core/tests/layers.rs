@@ -88,7 +88,7 @@ const DAEMON: &[&str] = &["exit", "link", "drive_config", "ctl", "rt", "live", "
 
 /// The files of arash-daemon's folder modules, leaf first.
 const DAEMON_FOLDERS: &[(&str, &[&str])] = &[
-    ("link", &["frame", "serial", "can", "slcan", "canopen", "cia402"]),
+    ("link", &["frame", "serial", "can", "slcan", "canopen", "cia402", "master"]),
     ("rt", &["clock", "memory", "reference", "cycle", "runner"]),
     ("live", &["window", "server"]),
     ("daemon", &["startup", "requests", "server"]),

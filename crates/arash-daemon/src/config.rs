@@ -8,6 +8,7 @@ use arash_core::control::SafetyLimits;
 use arash_core::Model;
 
 use crate::drive_config::DriveConfig;
+use crate::link::master::CanopenConfig;
 use crate::live::LiveConfig;
 use crate::logger::LogConfig;
 use crate::rt::clock::RtPolicy;
@@ -18,6 +19,8 @@ pub struct DaemonConfig {
     /// The robot's URDF; default: the bundled ARASH:ASiST.
     pub robot: Option<PathBuf>,
     pub link: LinkConfig,
+    /// The drives of `link.kind = "canopen"`.
+    pub canopen: CanopenConfig,
     pub drive: DriveConfig,
     pub control: ControlConfig,
     pub safety: SafetyConfig,
@@ -27,11 +30,15 @@ pub struct DaemonConfig {
     pub live: LiveConfig,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum LinkKind {
+    /// arash's own protocol on a serial line (docs/protocol.md).
     Serial,
+    /// arash's own protocol on SocketCAN.
     Can,
+    /// CiA 402 drives over CANopen (docs/canopen.md), configured by `[canopen]`.
+    Canopen,
 }
 
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -212,6 +219,9 @@ impl DaemonConfig {
         self.controller()?;
         self.control.gain_units.parse::<arash_core::control::gains::PaperUnits>().map_err(ConfigError::GainUnits)?;
         self.drive.validate(dof)?;
+        if self.link.kind == LinkKind::Canopen {
+            self.canopen.validate(dof)?;
+        }
         self.safety_limits(model)?.validate(dof)?;
         self.following_error(model)?;
         Ok(())
@@ -312,6 +322,8 @@ pub enum ConfigError {
     GainUnits(String),
     #[error(transparent)]
     Drive(#[from] crate::drive_config::DriveConfigError),
+    #[error(transparent)]
+    Canopen(#[from] crate::link::master::CanopenConfigError),
     #[error("safety: {0}")]
     Safety(#[from] arash_core::control::LimitsError),
     #[error("{key} has {got} entries; the robot has {dof} joints")]

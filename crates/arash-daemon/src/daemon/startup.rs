@@ -50,6 +50,8 @@ pub enum StartupError {
     Link(std::io::Error),
     #[error("link.kind = \"can\" needs Linux SocketCAN")]
     NoSocketCan,
+    #[error("the CANopen drives: {0}")]
+    Drives(#[from] crate::link::master::StartupError),
     #[error("binding the live stream to live.address {address}")]
     LiveBind { address: std::net::SocketAddr, source: std::io::Error },
     #[error("the live stream's socket: {0}")]
@@ -150,7 +152,43 @@ pub(super) fn open_link(config: &DaemonConfig, dof: usize) -> Result<Box<dyn Mot
             #[cfg(not(target_os = "linux"))]
             Err(StartupError::NoSocketCan)
         }
+        LinkKind::Canopen => open_canopen(config),
     }
+}
+
+/// The CiA 402 master on the transport `[canopen]` names, with its drives configured.
+fn open_canopen(config: &DaemonConfig) -> Result<Box<dyn MotorLink>, StartupError> {
+    use crate::link::master::Transport;
+    use crate::link::slcan::SlcanBus;
+    let c = &config.canopen;
+    match c.transport {
+        Transport::Slcan => {
+            let port =
+                crate::link::serial::open_port(&config.link.port, config.link.baud).map_err(StartupError::Link)?;
+            let bus = SlcanBus::open(port, c.bit_rate).map_err(StartupError::Link)?;
+            start_drives(bus, config)
+        }
+        #[cfg(target_os = "linux")]
+        Transport::Socketcan => {
+            let bus = crate::link::can::SocketCan::open(&config.link.interface).map_err(StartupError::Link)?;
+            start_drives(bus, config)
+        }
+        #[cfg(not(target_os = "linux"))]
+        Transport::Socketcan => Err(StartupError::NoSocketCan),
+    }
+}
+
+fn start_drives<B: crate::link::can::CanBus + 'static>(
+    mut bus: B,
+    config: &DaemonConfig,
+) -> Result<Box<dyn MotorLink>, StartupError> {
+    use crate::link::master::{configure, CanopenLink};
+    let period = std::time::Duration::from_secs_f64(1.0 / config.control.rate_hz);
+    let drives = configure(&mut bus, &config.canopen, period)?;
+    for d in &drives {
+        eprintln!("arash-daemon: CiA 402 drive {d}; cyclic synchronous torque, disabled");
+    }
+    Ok(Box::new(CanopenLink::new(bus, &config.canopen, &drives)))
 }
 
 /// Bind the live stream's socket (before the control thread starts, so that a taken port stops
@@ -210,9 +248,12 @@ pub struct DaemonArgs {
     /// Configuration file (TOML); every key has a default.
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Serial port of the motor drives (overrides link.port).
+    /// Serial port of the motor drives, or of the slcan adapter (overrides link.port).
     #[arg(long)]
     pub port: Option<String>,
+    /// The motor link: serial, can or canopen (overrides link.kind).
+    #[arg(long, value_enum)]
+    pub link: Option<LinkKind>,
     /// Real-time set-up: `require` refuses to start without SCHED_FIFO and mlockall; `ignore`
     /// runs without them and logs that it does.
     #[arg(long, value_parser = RtPolicy::from_str)]
@@ -252,6 +293,9 @@ pub fn options(args: DaemonArgs) -> Result<DaemonOptions, StartupError> {
     };
     if let Some(p) = args.port {
         config.link.port = p;
+    }
+    if let Some(kind) = args.link {
+        config.link.kind = kind;
     }
     if let Some(rt) = args.rt {
         config.rt.policy = rt;

@@ -31,6 +31,11 @@ pub trait CanBus: Send {
     fn send(&mut self, frame: &CanFrame) -> std::io::Result<()>;
     /// The next received frame, if any.
     fn receive(&mut self) -> std::io::Result<Option<CanFrame>>;
+    /// Errors the CAN controller or adapter reported since the bus was opened (refused
+    /// transmissions, error frames, bus-off), counted; a bus that cannot tell reports none.
+    fn errors(&self) -> u64 {
+        0
+    }
 }
 
 /// The frames that carry `command` with sequence number `seq`, into `out`; returns how many.
@@ -192,6 +197,8 @@ impl CanBus for InProcessBus {
 #[cfg(target_os = "linux")]
 pub struct SocketCan {
     fd: std::os::fd::OwnedFd,
+    /// Error frames received (the kernel sends them only to sockets that ask).
+    errors: u64,
 }
 
 #[cfg(target_os = "linux")]
@@ -226,7 +233,22 @@ impl SocketCan {
         if bound < 0 {
             return Err(context(std::io::Error::last_os_error()));
         }
-        Ok(Self { fd })
+        // Error frames for bus-off, controller problems and a missing acknowledgement (no other
+        // node on the bus): a master of drives must see them.
+        let mask: libc::can_err_mask_t = libc::CAN_ERR_BUSOFF | libc::CAN_ERR_CRTL | libc::CAN_ERR_ACK;
+        let set = unsafe {
+            libc::setsockopt(
+                raw,
+                libc::SOL_CAN_RAW,
+                libc::CAN_RAW_ERR_FILTER,
+                (&mask as *const libc::can_err_mask_t).cast(),
+                std::mem::size_of::<libc::can_err_mask_t>() as libc::socklen_t,
+            )
+        };
+        if set < 0 {
+            return Err(context(std::io::Error::last_os_error()));
+        }
+        Ok(Self { fd, errors: 0 })
     }
 }
 
@@ -258,11 +280,16 @@ impl CanBus for SocketCan {
             let e = std::io::Error::last_os_error();
             return if e.kind() == std::io::ErrorKind::WouldBlock { Ok(None) } else { Err(e) };
         }
+        self.errors += u64::from(raw.can_id & libc::CAN_ERR_FLAG != 0);
         if n as usize != size || raw.can_id & (libc::CAN_EFF_FLAG | libc::CAN_RTR_FLAG | libc::CAN_ERR_FLAG) != 0 {
             // Error, remote and extended frames are not ours; report them as foreign frames.
             return Ok(Some(CanFrame { id: u32::MAX, len: 0, data: [0; 8] }));
         }
         Ok(Some(CanFrame { id: raw.can_id & libc::CAN_SFF_MASK, len: raw.can_dlc, data: raw.data }))
+    }
+
+    fn errors(&self) -> u64 {
+        self.errors
     }
 }
 

@@ -188,6 +188,9 @@ enum ResetEdge {
     /// Send bit 7 low for a cycle, then high for one.
     Low,
     High,
+    /// The edge was sent: the drive's fault does not latch again until it has left the fault
+    /// (its statusword lags the controlword by a cycle or more).
+    Sent,
 }
 
 impl Default for Axis {
@@ -209,6 +212,9 @@ impl Axis {
     /// clears the latch: a drive that recovers by itself stays latched off.
     pub fn observe(&mut self, statusword: u16) {
         self.state = State::of(statusword);
+        if self.reset == ResetEdge::Sent && !self.state.is_fault() {
+            self.reset = ResetEdge::Idle;
+        }
         if self.state.is_fault() && self.latched.is_none() && self.reset == ResetEdge::Idle {
             self.latch(AxisFault::Drive { statusword });
         }
@@ -246,9 +252,15 @@ impl Axis {
         }
     }
 
-    /// Whether the drive may be given a torque this cycle.
+    /// Whether the drive may be given a torque this cycle: enabled, or being enabled by this
+    /// cycle's controlword. The target travels with "enable operation", so that a joint under
+    /// gravity is held from the first SYNC its drive is enabled at, not one round trip later
+    /// (a drive applies its target only in operation enabled).
     pub fn torque_allowed(&self) -> bool {
-        self.wanted && self.latched.is_none() && self.state == State::OperationEnabled
+        self.wanted
+            && self.latched.is_none()
+            && self.reset == ResetEdge::Idle
+            && matches!(self.state, State::SwitchedOn | State::OperationEnabled)
     }
 
     /// This cycle's controlword.
@@ -259,10 +271,10 @@ impl Axis {
                 return controlword::DISABLE_VOLTAGE;
             }
             ResetEdge::High => {
-                self.reset = ResetEdge::Idle;
+                self.reset = ResetEdge::Sent;
                 return controlword::FAULT_RESET;
             }
-            ResetEdge::Idle => {}
+            ResetEdge::Idle | ResetEdge::Sent => {}
         }
         match (self.wanted, self.latched) {
             (true, None) => towards_enabled(self.state),

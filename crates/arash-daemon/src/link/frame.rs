@@ -59,10 +59,15 @@ pub mod drive_fault {
     /// No valid host frame within the drive's own watchdog time.
     pub const HOST_TIMEOUT: u8 = 1 << 3;
     pub const UNDERVOLTAGE: u8 = 1 << 4;
+    /// A CiA 402 drive in fault, or an emergency of no class above (link/master.rs).
+    pub const DRIVE: u8 = 1 << 5;
+    /// The CANopen bus: a lost heartbeat, a drive that left operational, bus errors.
+    pub const FIELDBUS: u8 = 1 << 6;
 
     /// Names of the bits set in `faults`, for status and reports.
     pub fn names(faults: u8) -> Vec<&'static str> {
-        const NAMES: [&str; 5] = ["overcurrent", "encoder", "overtemperature", "host timeout", "undervoltage"];
+        const NAMES: [&str; 7] =
+            ["overcurrent", "encoder", "overtemperature", "host timeout", "undervoltage", "drive", "fieldbus"];
         let unknown = faults >> NAMES.len() != 0;
         let known = NAMES.iter().enumerate().filter(|(i, _)| faults & (1 << i) != 0).map(|(_, n)| *n);
         known.chain(unknown.then_some("unknown")).collect()

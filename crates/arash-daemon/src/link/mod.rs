@@ -5,15 +5,17 @@
 //! - [`can`]: the same commands and telemetry as classic CAN frames;
 //! - [`slcan`]: CAN frames over a serial line in the Lawicel ASCII protocol (USB adapters);
 //! - [`canopen`] and [`cia402`]: the CANopen frames and the CiA 402 axis supervision a master of
-//!   standard drives needs (sans-I/O; issue 47 puts a master on them).
+//!   standard drives needs (sans-I/O);
+//! - [`master`]: a CANopen master of CiA 402 drives on any CAN transport (SocketCAN, slcan).
 //!
-//! Both transports implement [`MotorLink`]; the control cycle sees only the trait. Neither
-//! blocks or allocates in `send` or `poll`.
+//! The three links (serial, CAN, CANopen) implement [`MotorLink`]; the control cycle sees only
+//! the trait. None blocks or allocates in `send` or `poll`.
 
 pub mod can;
 pub mod canopen;
 pub mod cia402;
 pub mod frame;
+pub mod master;
 pub mod serial;
 pub mod slcan;
 

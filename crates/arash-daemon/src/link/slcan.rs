@@ -196,7 +196,12 @@ pub struct AdapterCounts {
     pub overrun: u64,
     /// The last status flags the adapter sent.
     pub status: u8,
+    /// Status reports with the error-passive or the bus-error flag (bits 5 and 7).
+    pub bus_errors: u64,
 }
+
+/// The status flags that report the bus in trouble: error passive (bit 5), bus error (bit 7).
+const BUS_ERROR_FLAGS: u8 = 0b1010_0000;
 
 /// A [`CanBus`] on an slcan adapter behind a byte stream (a serial port set non-blocking, or a
 /// pseudo-terminal).
@@ -204,11 +209,18 @@ pub struct SlcanBus<P> {
     port: P,
     decoder: Decoder,
     received: std::collections::VecDeque<CanFrame>,
+    /// Lines (or their ends) the port would not take yet: a non-blocking port may write part of
+    /// a line, and the rest must follow before any other line, or the adapter reads garbage.
+    unsent: std::collections::VecDeque<u8>,
     counts: AdapterCounts,
 }
 
 /// Frames held between two `receive` calls: a 1 kHz cycle reads a few per joint.
 const QUEUE: usize = 256;
+
+/// Bytes held for a port that is slow to take them: 4 kB, some 180 frames, or 18 cycles of a
+/// master of eight drives. A frame that does not fit is refused whole.
+const UNSENT: usize = 4096;
 
 impl<P: Read + Write + Send> SlcanBus<P> {
     /// Set the adapter to `bit_rate` and open the bus.
@@ -222,12 +234,28 @@ impl<P: Read + Write + Send> SlcanBus<P> {
             port,
             decoder: Decoder::default(),
             received: std::collections::VecDeque::with_capacity(QUEUE),
+            unsent: std::collections::VecDeque::with_capacity(UNSENT),
             counts: AdapterCounts::default(),
         })
     }
 
     pub fn counts(&self) -> AdapterCounts {
         self.counts
+    }
+
+    /// Write what the port takes now of the lines held back, in order.
+    fn flush_unsent(&mut self) -> std::io::Result<()> {
+        while !self.unsent.is_empty() {
+            let (head, _) = self.unsent.as_slices();
+            match self.port.write(head) {
+                Ok(0) => return Ok(()),
+                Ok(n) => drop(self.unsent.drain(..n)),
+                Err(e) if e.kind() == ErrorKind::WouldBlock => return Ok(()),
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(e) => return Err(e),
+            }
+        }
+        Ok(())
     }
 
     /// Read what the port holds now and decode it.
@@ -248,7 +276,10 @@ impl<P: Read + Write + Send> SlcanBus<P> {
                     Some(Event::Refused) => self.counts.refused += 1,
                     Some(Event::Malformed) => self.counts.malformed += 1,
                     Some(Event::Foreign) => self.counts.foreign += 1,
-                    Some(Event::Status(flags)) => self.counts.status = flags,
+                    Some(Event::Status(flags)) => {
+                        self.counts.status = flags;
+                        self.counts.bus_errors += u64::from(flags & BUS_ERROR_FLAGS != 0);
+                    }
                     Some(Event::Accepted) | None => {}
                 }
             }
@@ -263,7 +294,12 @@ impl<P: Read + Write + Send> CanBus for SlcanBus<P> {
     fn send(&mut self, frame: &CanFrame) -> std::io::Result<()> {
         let mut line = [0u8; MAX_ENCODED];
         let n = encode(frame, &mut line).map_err(|e| std::io::Error::new(ErrorKind::InvalidInput, e))?;
-        self.port.write_all(&line[..n])
+        self.flush_unsent()?;
+        if self.unsent.len() + n > UNSENT {
+            return Err(std::io::Error::new(ErrorKind::WouldBlock, "the slcan adapter takes no more lines"));
+        }
+        self.unsent.extend(&line[..n]);
+        self.flush_unsent()
     }
 
     fn receive(&mut self) -> std::io::Result<Option<CanFrame>> {
@@ -271,6 +307,11 @@ impl<P: Read + Write + Send> CanBus for SlcanBus<P> {
             self.fill()?;
         }
         Ok(self.received.pop_front())
+    }
+
+    /// Frames the adapter refused (`BEL`), and its reports of a bus in error.
+    fn errors(&self) -> u64 {
+        self.counts.refused + self.counts.bus_errors
     }
 }
 
@@ -383,6 +424,57 @@ mod tests {
         fn flush(&mut self) -> std::io::Result<()> {
             Ok(())
         }
+    }
+
+    /// A port that takes at most `room` bytes per call, and nothing while `room` is zero.
+    struct Slow {
+        room: usize,
+        output: Vec<u8>,
+    }
+
+    impl Read for Slow {
+        fn read(&mut self, _: &mut [u8]) -> std::io::Result<usize> {
+            Err(ErrorKind::WouldBlock.into())
+        }
+    }
+
+    impl Write for Slow {
+        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+            if self.room == 0 {
+                return Err(ErrorKind::WouldBlock.into());
+            }
+            let n = buf.len().min(self.room);
+            self.output.extend_from_slice(&buf[..n]);
+            Ok(n)
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    /// A port that takes part of a line leaves the adapter a whole line later, never a line cut
+    /// by another; when nothing more fits, a frame is refused whole.
+    #[test]
+    fn a_slow_port_gets_whole_lines_in_order_and_a_full_one_refuses_whole_frames() {
+        let mut bus = SlcanBus::open(Slow { room: 64, output: Vec::new() }, 1_000_000).unwrap();
+        bus.port.output.clear();
+        bus.port.room = 5;
+        let frame = |id| CanFrame { id, len: 2, data: [0xAB, 0xCD, 0, 0, 0, 0, 0, 0] };
+        bus.send(&frame(0x201)).unwrap();
+        bus.send(&frame(0x202)).unwrap();
+        bus.port.room = 0;
+        let mut refused = 0;
+        for _ in 0..UNSENT {
+            refused += usize::from(bus.send(&frame(0x203)).is_err());
+        }
+        assert!(refused > 0 && bus.unsent.len() <= UNSENT);
+        bus.port.room = usize::MAX;
+        bus.flush_unsent().unwrap();
+        let text = String::from_utf8(bus.port.output.clone()).unwrap();
+        let lines: Vec<&str> = text.split_terminator('\r').collect();
+        assert_eq!(&lines[..2], ["t2012ABCD", "t2022ABCD"]);
+        assert!(lines[2..].iter().all(|l| *l == "t2032ABCD"), "{lines:?}");
+        assert_eq!(lines.len(), 2 + UNSENT - refused, "every accepted frame, whole");
     }
 
     #[test]

@@ -1,0 +1,449 @@
+"""CiA 402 drives on a simulated CAN bus, reached through a pseudo-terminal that plays an slcan
+(Lawicel) USB adapter: the independent far end of arash's CANopen master.
+
+Written from the standards (CiA 301 for the object dictionary, SDO, NMT, heartbeat and EMCY; CiA
+402 for the drive's state machine and cyclic synchronous torque mode), not from arash's code:
+the `canopen` package serves each drive's object dictionary over SDO (a ``LocalNode`` per
+drive), answers NMT and produces the heartbeat and emergencies; python-can's virtual bus
+carries the frames. What `canopen` has no slave for is ours here: the CiA 402 state machine,
+the process data by the mapping the master wrote, the consumer heartbeat and its abort
+reaction (0x1016, 0x6007), and a plant behind the drives.
+
+Fault injection: a silent heartbeat, an EMCY, a drive fault, dropped TPDOs, a bus-off adapter
+that refuses every frame, one adapter error (BEL), and at construction a drive that ignores
+the mode, one without CST, one whose PDOs hold fewer objects, one that is not a CiA 402 drive
+and nodes that do not answer.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import struct
+import threading
+import time
+import tty
+from dataclasses import dataclass, field
+
+import can
+import canopen
+from canopen.objectdictionary import (INTEGER8, INTEGER16, INTEGER32, UNSIGNED8, UNSIGNED16, UNSIGNED32,
+                                      ODArray, ODRecord, ODVariable, ObjectDictionary)
+from canopen.sdo import SdoAbortedError
+
+# Statuswords of CiA 402's states (bit 9 "remote" set, as drives under a master report it).
+SWITCH_ON_DISABLED = 0x0250
+READY_TO_SWITCH_ON = 0x0231
+SWITCHED_ON = 0x0233
+OPERATION_ENABLED = 0x1237  # bit 12: the drive follows the target in the cyclic synchronous modes
+QUICK_STOP_ACTIVE = 0x0217
+FAULT = 0x0218
+
+CST = 10
+CST_SUPPORTED = 1 << 9
+ALL_CSP_CSV_CST = (1 << 7) | (1 << 8) | CST_SUPPORTED
+CIA402_DEVICE = 0x00020192
+
+# The abort codes of CiA 301 the drives use.
+MAPPING_TOO_LONG = 0x06040042
+CANNOT_MAP = 0x06040041
+INCOMPATIBLE = 0x06040043
+INVALID_VALUE = 0x06090030
+
+
+@dataclass
+class DriveSpec:
+    """One drive: its node ID, its motor's ratings and what is wrong with it."""
+    node: int
+    rated_current_ma: int = 5000
+    rated_torque_mnm: int = 138
+    # Joint torque per ampere (N·m/A or N/A) and encoder counts per joint unit (rad or m): the
+    # motor and transmission between the drive and the plant.
+    joint_torque_per_amp: float = 0.3312
+    counts_per_unit: float = 8192 / (2 * 3.141592653589793 * 0.08333333333333333)
+    device_type: int = CIA402_DEVICE
+    supported_modes: int = ALL_CSP_CSV_CST
+    ignores_mode: bool = False
+    max_mapped: int = 8
+    answers: bool = True
+
+
+@dataclass
+class Injected:
+    """Faults switched on while the drive runs."""
+    silent_heartbeat: bool = False
+    drop_tpdos: bool = False
+
+
+def _var(name, index, sub, data_type, access="rw", default=None):
+    v = ODVariable(name, index, sub)
+    v.data_type, v.access_type, v.default = data_type, access, default
+    return v
+
+
+def object_dictionary(spec: DriveSpec) -> ObjectDictionary:
+    """The objects a CST drive has (CiA 301 communication area, CiA 402 device profile)."""
+    od = ObjectDictionary()
+    for index, name, data_type, access, default in [
+        (0x1000, "device type", UNSIGNED32, "ro", spec.device_type),
+        (0x1001, "error register", UNSIGNED8, "ro", 0),
+        (0x1006, "communication cycle period", UNSIGNED32, "rw", 0),
+        (0x1017, "producer heartbeat time", UNSIGNED16, "rw", 0),
+        (0x6007, "abort connection option code", INTEGER16, "rw", 1),
+        (0x6040, "controlword", UNSIGNED16, "rw", 0),
+        (0x6041, "statusword", UNSIGNED16, "ro", SWITCH_ON_DISABLED),
+        (0x6060, "modes of operation", INTEGER8, "rw", 0),
+        (0x6061, "modes of operation display", INTEGER8, "ro", 0),
+        (0x6064, "position actual value", INTEGER32, "ro", 0),
+        (0x6071, "target torque", INTEGER16, "rw", 0),
+        (0x6072, "max torque", UNSIGNED16, "rw", 1000),
+        (0x6075, "motor rated current", UNSIGNED32, "rw", spec.rated_current_ma),
+        (0x6076, "motor rated torque", UNSIGNED32, "rw", spec.rated_torque_mnm),
+        (0x6077, "torque actual value", INTEGER16, "ro", 0),
+        (0x6502, "supported drive modes", UNSIGNED32, "ro", spec.supported_modes),
+    ]:
+        od.add_object(_var(name, index, 0, data_type, access, default))
+    consumer = ODArray("consumer heartbeat time", 0x1016)
+    consumer.add_member(_var("number of entries", 0x1016, 0, UNSIGNED8, "ro", 1))
+    consumer.add_member(_var("consumer heartbeat time 1", 0x1016, 1, UNSIGNED32, "rw", 0))
+    od.add_object(consumer)
+    identity = ODRecord("identity", 0x1018)
+    for sub, name, default in [(0, "highest sub-index", 4), (1, "vendor-ID", 0x000000FB),
+                               (2, "product code", 0x00402402), (3, "revision", 1), (4, "serial number", spec.node)]:
+        identity.add_member(_var(name, 0x1018, sub, UNSIGNED8 if sub == 0 else UNSIGNED32, "ro", default))
+    od.add_object(identity)
+    for communication, mapping, base in [(0x1400, 0x1600, 0x200), (0x1800, 0x1A00, 0x180)]:
+        comm = ODRecord(f"PDO communication {communication:#x}", communication)
+        comm.add_member(_var("highest sub-index", communication, 0, UNSIGNED8, "ro", 2))
+        comm.add_member(_var("COB-ID", communication, 1, UNSIGNED32, "rw", (1 << 31) | (base + spec.node)))
+        comm.add_member(_var("transmission type", communication, 2, UNSIGNED8, "rw", 255))
+        od.add_object(comm)
+        entries = ODRecord(f"PDO mapping {mapping:#x}", mapping)
+        entries.add_member(_var("number of mapped objects", mapping, 0, UNSIGNED8, "rw", 0))
+        for sub in range(1, 9):
+            entries.add_member(_var(f"mapped object {sub}", mapping, sub, UNSIGNED32, "rw", 0))
+        od.add_object(entries)
+    return od
+
+
+MAPPABLE_RX = {0x6040, 0x6071}
+MAPPABLE_TX = {0x6041, 0x6064, 0x6077}
+
+
+class Drive:
+    """One CiA 402 drive in CST: a LocalNode for the communication, the state machine and the
+    process data here. The plant is stepped by the simulator at each SYNC."""
+
+    def __init__(self, spec: DriveSpec, network: canopen.Network, log):
+        self.spec = spec
+        self.node = canopen.LocalNode(spec.node, object_dictionary(spec))
+        self.injected = Injected()
+        self.log = log
+        self.state = SWITCH_ON_DISABLED
+        self.controlword = 0
+        self.target = 0
+        self.torque = 0
+        self.mode_display = 0
+        self.position = 0
+        self.host_seen = None
+        self.lock = threading.Lock()
+        if spec.answers:
+            network.add_node(self.node)
+            self.node.add_write_callback(self._on_write)
+            self.node.add_read_callback(self._on_read)
+            network.subscribe(0x200 + spec.node, self._on_rpdo)
+            self.node.nmt.state = "PRE-OPERATIONAL"
+            self.node.nmt.start_heartbeat(100)
+
+    # --- the object dictionary -------------------------------------------------------------
+    def stored(self, index, sub=0):
+        try:
+            raw = self.node.data_store[index][sub]
+        except KeyError:
+            return self.node.object_dictionary[index].default if sub == 0 and isinstance(
+                self.node.object_dictionary[index], ODVariable) else self.node.object_dictionary[index][sub].default
+        obj = self.node.object_dictionary[index]
+        obj = obj if isinstance(obj, ODVariable) else obj[sub]
+        return obj.decode_raw(raw)
+
+    def _on_read(self, index, subindex, od):
+        live = {0x6041: self.state, 0x6061: self.mode_display, 0x6064: self.position, 0x6077: self.torque,
+                0x6040: self.controlword}
+        return live.get(index)
+
+    def _on_write(self, index, subindex, od, data):
+        value = od.decode_raw(data)
+        self.log.append(("sdo-write", self.spec.node, index, subindex, value))
+        if index in (0x1600, 0x1A00):
+            self._check_mapping(index, subindex, value)
+        elif index == 0x6060:
+            if value == CST and not self.spec.supported_modes & CST_SUPPORTED:
+                raise SdoAbortedError(INVALID_VALUE)
+            if not self.spec.ignores_mode:
+                self.mode_display = value
+        elif index == 0x6040:
+            self._command(value)
+
+    def _check_mapping(self, index, sub, value):
+        communication = 0x1400 if index == 0x1600 else 0x1800
+        if not self.stored(communication, 1) & (1 << 31):
+            raise SdoAbortedError(INCOMPATIBLE)  # a valid PDO's mapping is not changed
+        if sub == 0:
+            if value > self.spec.max_mapped:
+                raise SdoAbortedError(MAPPING_TOO_LONG)
+            bits = sum(self.stored(index, s) & 0xFF for s in range(1, value + 1))
+            if bits > 64:
+                raise SdoAbortedError(MAPPING_TOO_LONG)
+        elif value >> 16 not in (MAPPABLE_RX if index == 0x1600 else MAPPABLE_TX):
+            raise SdoAbortedError(CANNOT_MAP)
+
+    def mapping(self, index):
+        return [self.stored(index, s) for s in range(1, self.stored(index, 0) + 1)]
+
+    # --- CiA 402 ---------------------------------------------------------------------------
+    def _command(self, word):
+        """The state machine of CiA 402's figure 8, one controlword at a time."""
+        with self.lock:
+            previous, self.controlword = self.controlword, word
+            s = self.state
+            if s == FAULT:
+                if word & 0x80 and not previous & 0x80:
+                    self.state = SWITCH_ON_DISABLED
+                return
+            if word & 0x02 == 0:  # disable voltage
+                self.state = SWITCH_ON_DISABLED
+            elif word & 0x04 == 0:  # quick stop
+                self.state = QUICK_STOP_ACTIVE if s == OPERATION_ENABLED else SWITCH_ON_DISABLED
+            elif word & 0x8F == 0x06:  # shutdown
+                if s in (SWITCH_ON_DISABLED, SWITCHED_ON, OPERATION_ENABLED):
+                    self.state = READY_TO_SWITCH_ON
+            elif word & 0x8F == 0x07:  # switch on, or disable operation
+                if s in (READY_TO_SWITCH_ON, OPERATION_ENABLED):
+                    self.state = SWITCHED_ON
+            elif word & 0x8F == 0x0F:  # enable operation (from ready: switch on first)
+                if s == READY_TO_SWITCH_ON:
+                    self.state = SWITCHED_ON
+                elif s == SWITCHED_ON and self.mode_display == CST:
+                    self.state = OPERATION_ENABLED
+
+    def fault(self, code=0x2310):
+        """An internal fault: the drive drops its torque, reports it and sends an EMCY."""
+        with self.lock:
+            self.state = FAULT
+            self.torque = 0
+        self.node.emcy.send(code, 0x03)
+
+    def abort_connection(self):
+        """The reaction of 0x6007 when the master's heartbeat is lost."""
+        option = self.stored(0x6007)
+        self.node.emcy.send(0x8130, 0x11)
+        with self.lock:
+            if option == 1:
+                self.state = FAULT
+            elif self.state in (OPERATION_ENABLED, SWITCHED_ON, READY_TO_SWITCH_ON, QUICK_STOP_ACTIVE):
+                self.state = SWITCH_ON_DISABLED
+            self.torque = 0
+
+    def _on_rpdo(self, can_id, data, timestamp):
+        if self.node.nmt.state != "OPERATIONAL" or self.stored(0x1400, 1) & (1 << 31):
+            return
+        offset = 0
+        for entry in self.mapping(0x1600):
+            index, bits = entry >> 16, entry & 0xFF
+            chunk = bytes(data[offset // 8:(offset + bits) // 8])
+            value = int.from_bytes(chunk, "little", signed=index == 0x6071)
+            offset += bits
+            if index == 0x6040:
+                if value != self.controlword:
+                    self._command(value)
+            elif index == 0x6071:
+                self.target = value
+
+    def joint_torque(self):
+        """The torque the motor applies to the plant (joint side), from the target at this SYNC."""
+        with self.lock:
+            if self.state != OPERATION_ENABLED:
+                self.torque = 0
+            else:
+                limit = self.stored(0x6072)
+                self.torque = max(-limit, min(limit, self.target))
+            amps = self.torque / 1000 * self.spec.rated_current_ma / 1000
+        return amps * self.spec.joint_torque_per_amp
+
+    def tpdo(self):
+        """TPDO1 by the mapping the master wrote, or None when it is not to be sent."""
+        if (self.node.nmt.state != "OPERATIONAL" or self.stored(0x1800, 1) & (1 << 31)
+                or self.injected.drop_tpdos):
+            return None
+        values = {0x6041: (self.state, "<H"), 0x6064: (self.position, "<i"), 0x6077: (self.torque, "<h")}
+        payload = b"".join(struct.pack(values[e >> 16][1], values[e >> 16][0]) for e in self.mapping(0x1A00))
+        return self.stored(0x1800, 1) & 0x7FF, payload
+
+
+class SlcanAdapter:
+    """A pseudo-terminal that answers as an slcan USB adapter: `O`, `C`, `Sn` and `F` commands,
+    `t` frames onto the bus and the bus's frames back as `t` lines."""
+
+    def __init__(self, bus: can.BusABC):
+        self.bus = bus
+        self.master, slave = os.openpty()
+        tty.setraw(slave)
+        self.path = os.ttyname(slave)
+        self._slave = slave
+        self.open = False
+        self.bus_off = False
+        self.sent = []  # (time, id, bytes) the host put on the bus
+        self._write_lock = threading.Lock()
+        self._stop = threading.Event()
+        self._threads = [threading.Thread(target=self._from_host, daemon=True),
+                         threading.Thread(target=self._to_host, daemon=True)]
+        for t in self._threads:
+            t.start()
+
+    def _write(self, data: bytes):
+        with self._write_lock:
+            try:
+                os.write(self.master, data)
+            except OSError:
+                pass
+
+    def adapter_error(self):
+        """One BEL, as an adapter sends when it refuses a command or frame."""
+        self._write(b"\a")
+
+    def _line(self, line: bytes):
+        if not line:
+            return
+        kind = line[:1]
+        if kind == b"t":
+            if self.bus_off or not self.open:
+                self._write(b"\a")
+                return
+            ident, length = int(line[1:4], 16), int(line[4:5])
+            data = bytes.fromhex(line[5:5 + 2 * length].decode())
+            self.sent.append((time.monotonic(), ident, data))
+            self.bus.send(can.Message(arbitration_id=ident, data=data, is_extended_id=False))
+            self._write(b"z\r")
+        elif kind in (b"O", b"C", b"S"):
+            self.open = kind == b"O" or (self.open and kind == b"S")
+            self._write(b"\r")
+        elif kind == b"F":
+            self._write(b"FA0\r" if self.bus_off else b"F00\r")
+        else:
+            self._write(b"\a")
+
+    def _from_host(self):
+        pending = b""
+        while not self._stop.is_set():
+            ready, _, _ = select.select([self.master], [], [], 0.05)
+            if not ready:
+                continue
+            try:
+                pending += os.read(self.master, 4096)
+            except OSError:
+                time.sleep(0.01)
+                continue
+            *lines, pending = pending.split(b"\r")
+            for line in lines:
+                self._line(line)
+
+    def _to_host(self):
+        while not self._stop.is_set():
+            message = self.bus.recv(0.05)
+            if message is None or self.bus_off or not self.open:
+                continue
+            data = bytes(message.data)
+            self._write(b"t%03X%d%s\r" % (message.arbitration_id, len(data), data.hex().upper().encode()))
+
+    def close(self):
+        self._stop.set()
+        for t in self._threads:
+            t.join(1)
+        os.close(self.master)
+        os.close(self._slave)
+
+
+@dataclass
+class Plant:
+    """The joints behind the drives: ``step(q, qd, tau, dt)`` returns the next (q, qd)."""
+    step: object
+    q: list = field(default_factory=list)
+    qd: list = field(default_factory=list)
+
+
+class Simulator:
+    """Drives (one per ``DriveSpec``) on a virtual CAN bus, an slcan adapter on a pty, and a
+    plant stepped at each SYNC by the SYNC period the master wrote (0x1006)."""
+
+    def __init__(self, specs, plant: Plant, channel=None):
+        channel = channel or f"arash-cia402-{os.getpid()}-{id(self)}"
+        self.network = canopen.Network()
+        self.network.connect(interface="virtual", channel=channel)
+        self.log = []
+        self.drives = [Drive(s, self.network, self.log) for s in specs]
+        self.plant = plant
+        self.adapter = SlcanAdapter(can.Bus(interface="virtual", channel=channel))
+        self.syncs = 0
+        self.network.subscribe(0x080, self._on_sync)
+        self._master_heartbeat = {}
+        for cob in range(0x701, 0x780):
+            self.network.subscribe(cob, self._on_heartbeat)
+        self._stop = threading.Event()
+        self._watch = threading.Thread(target=self._watch_master, daemon=True)
+        self._watch.start()
+
+    @property
+    def path(self):
+        return self.adapter.path
+
+    def drive(self, node) -> Drive:
+        return next(d for d in self.drives if d.spec.node == node)
+
+    def _on_sync(self, can_id, data, timestamp):
+        self.syncs += 1
+        period = (self.drives[0].stored(0x1006) or 1000) * 1e-6
+        tau = [d.joint_torque() for d in self.drives]
+        q, qd = self.plant.step(self.plant.q, self.plant.qd, tau, period)
+        # A drive that is not enabled holds its joint's brake, as drives of arms under gravity do.
+        for j, d in enumerate(self.drives):
+            if d.state != OPERATION_ENABLED:
+                q[j], qd[j] = self.plant.q[j], 0.0
+        self.plant.q, self.plant.qd = q, qd
+        for d, qj in zip(self.drives, q):
+            d.position = int(round(qj * d.spec.counts_per_unit))
+            pdo = d.tpdo()
+            if pdo is not None:
+                self.network.send_message(*pdo)
+
+    def _on_heartbeat(self, can_id, data, timestamp):
+        self._master_heartbeat[can_id - 0x700] = time.monotonic()
+
+    def _watch_master(self):
+        """Each drive's consumer heartbeat (0x1016:1): from the master's first beat on, a gap
+        longer than its time aborts the connection once (0x6007)."""
+        tripped = set()
+        while not self._stop.wait(0.005):
+            now = time.monotonic()
+            for d in self.drives:
+                entry = d.stored(0x1016, 1) if d.spec.answers else 0
+                master, limit_ms = entry >> 16 & 0x7F, entry & 0xFFFF
+                seen = self._master_heartbeat.get(master)
+                if not limit_ms or seen is None:
+                    continue
+                late = now - seen > limit_ms / 1000
+                if late and d.spec.node not in tripped:
+                    tripped.add(d.spec.node)
+                    d.abort_connection()
+                elif not late:
+                    tripped.discard(d.spec.node)
+
+    def silence_heartbeat(self, node):
+        self.drive(node).node.nmt.stop_heartbeat()
+
+    def close(self):
+        self._stop.set()
+        self._watch.join(1)
+        for d in self.drives:
+            d.node.nmt.stop_heartbeat()
+        self.adapter.close()
+        self.network.disconnect()

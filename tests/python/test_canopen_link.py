@@ -1,0 +1,328 @@
+"""The daemon as a CANopen master of CiA 402 drives (`link.kind = "canopen"`), against drives
+simulated from the standards (support/cia402_drive.py: the `canopen` package's SDO server, NMT
+and heartbeat, and a CiA 402 state machine of its own) behind a pseudo-terminal that plays an
+slcan adapter, with ARASH:ASiST's rigid-body dynamics from Pinocchio behind the drives.
+
+Every frame the master sends is decoded here from CiA 301's bytes, not by arash's code."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("can", reason="python-can is needed for the drive simulator (requirements-dev.txt)")
+pytest.importorskip("canopen", reason="canopen is needed for the drive simulator (requirements-dev.txt)")
+
+import arash  # noqa: E402
+from support.cia402_drive import (FAULT, OPERATION_ENABLED, SWITCH_ON_DISABLED, DriveSpec, Plant,  # noqa: E402
+                                  Simulator)
+from support.independent import Expanded  # noqa: E402
+from support.paths import ARASH, ROBOT_FILES  # noqa: E402
+
+# The rig's motors and transmissions, as deploy/daemon.toml's [drive] states them.
+COUNTS_PER_REV = 8192
+TRANSMISSION = [1 / 12, 1 / 12, 0.0025]
+TORQUE_PER_AMP = [0.3312, 0.3312, 11.04]
+NODES = [1, 2, 3]
+MASTER = 127
+
+
+def specs(changed=None):
+    """One drive per joint; ``changed`` maps a node to the DriveSpec fields it differs in."""
+    changed = changed or {}
+    return [DriveSpec(node=n, joint_torque_per_amp=k, counts_per_unit=COUNTS_PER_REV / (2 * math.pi * r),
+                      **changed.get(n, {}))
+            for n, k, r in zip(NODES, TORQUE_PER_AMP, TRANSMISSION)]
+
+
+# The rig's joint friction, as the simulated rig has it (scenarios/nominal.toml): viscous and a
+# smooth Coulomb law; the insertion's cable drive dominates.
+VISCOUS = np.array([0.006, 0.004, 2.6])
+COULOMB = np.array([0.012, 0.009, 0.22])
+
+
+def arash_plant():
+    """ARASH:ASiST's CAD rigid-body dynamics (Pinocchio) with the rig's friction, at rest in the
+    middle of its range, integrated semi-implicitly in two steps per SYNC."""
+    robot = arash.Robot.arash_asist()
+    expanded = Expanded(ROBOT_FILES["arash_asist"], robot)
+    lower, upper = (np.array(v) for v in zip(*robot.position_limits()))
+    q0 = (lower + upper) / 2
+
+    def step(q, qd, tau, dt):
+        q, qd = np.asarray(q, float), np.asarray(qd, float)
+        for _ in range(2):
+            bias = expanded.torque(q, qd, np.zeros(3))
+            friction = VISCOUS * qd + COULOMB * np.tanh(qd / 1e-3)
+            qdd = np.linalg.solve(expanded.mass_matrix(q), np.asarray(tau) - bias - friction)
+            qd = qd + dt / 2 * qdd
+            q = q + dt / 2 * qd
+        return q, qd
+
+    return Plant(step=step, q=q0, qd=np.zeros(3))
+
+
+def config(**canopen):
+    table = {"nodes": NODES, "master_node": MASTER, **canopen}
+    lines = "\n".join(f"{k} = {json.dumps(v)}" for k, v in table.items())
+    return f'[link]\nkind = "canopen"\n\n[canopen]\n{lines}\n'
+
+
+class Rig:
+    """The simulated drives and `arash daemon --link canopen` on their adapter."""
+
+    def __init__(self, d, drive_specs=None, **canopen):
+        self.d = d
+        self.sim = Simulator(drive_specs or specs(), arash_plant())
+        (d / "daemon.toml").write_text(config(**canopen))
+        self.sock = d / "s.sock"
+        self.daemon = None
+
+    def start(self, wait=True):
+        self.err = open(self.d / "daemon.err", "a")
+        self.daemon = subprocess.Popen(
+            [ARASH, "daemon", "--rt", "ignore", "--port", self.sim.path, "--config", self.d / "daemon.toml",
+             "--socket", self.sock, "--log-dir", self.d / "logs"], stderr=self.err)
+        if wait:
+            deadline = time.monotonic() + 20
+            while not self.sock.exists():
+                assert self.daemon.poll() is None, self.stderr()
+                assert time.monotonic() < deadline, self.stderr()
+                time.sleep(0.02)
+        return self
+
+    def stderr(self):
+        return (self.d / "daemon.err").read_text()
+
+    def ctl(self, *args, check=True):
+        out = subprocess.run([ARASH, "ctl", "--socket", self.sock, *args], capture_output=True, text=True)
+        if check:
+            assert out.returncode == 0, out.stderr + self.stderr()
+            return json.loads(out.stdout) if out.stdout.strip().startswith("{") else out.stdout
+        return out
+
+    def wait(self, what, condition, timeout=5.0):
+        deadline = time.monotonic() + timeout
+        while not condition():
+            assert time.monotonic() < deadline, f"timed out waiting for {what}\n{self.stderr()}"
+            time.sleep(0.005)
+        return time.monotonic()
+
+    def enable(self):
+        self.ctl("enable")
+        self.wait("the drives enabled", lambda: all(d.state == OPERATION_ENABLED for d in self.sim.drives))
+        self.wait("the daemon enabled", lambda: self.ctl("status")["mode"] == "enabled")
+
+    def stop(self):
+        if self.daemon and self.daemon.poll() is None:
+            self.daemon.send_signal(signal.SIGTERM)
+            self.daemon.wait(timeout=20)
+        self.sim.close()
+
+
+@pytest.fixture
+def rig(tmp_path):
+    rigs = []
+
+    def make(**kwargs):
+        r = Rig(tmp_path, **kwargs)
+        rigs.append(r)
+        return r
+
+    yield make
+    for r in rigs:
+        r.stop()
+
+
+def sdo_requests(sent, node):
+    """The SDO requests to ``node`` decoded from CiA 301's bytes: ("w", index, sub, value) for an
+    expedited download (its size from the command byte), ("r", index, sub) for an upload."""
+    out = []
+    for _, ident, data in sent:
+        if ident != 0x600 + node:
+            continue
+        command, index, sub = data[0], data[1] | data[2] << 8, data[3]
+        if command == 0x40:
+            out.append(("r", index, sub))
+        else:
+            assert command & 0xE3 == 0x23, f"not an expedited download with its size: {command:#x}"
+            size = 4 - (command >> 2 & 3)
+            out.append(("w", index, sub, int.from_bytes(data[4:4 + size], "little")))
+    return out
+
+
+def expected_start_up(node, period_us=1000, heartbeat=50, master_timeout=150, abort=3, max_torque=1000):
+    """CiA 301 and 402's start-up of a CST drive, as issue 47 lists it."""
+    rpdo, tpdo = 0x200 + node, 0x180 + node
+    pdo = lambda comm, mapping, cob, entries: [  # noqa: E731
+        ("w", comm, 1, cob | 1 << 31), ("w", mapping, 0, 0),
+        *[("w", mapping, i + 1, e) for i, e in enumerate(entries)],
+        ("w", mapping, 0, len(entries)), ("w", comm, 2, 1), ("w", comm, 1, cob)]
+    return [
+        ("w", 0x6040, 0, 0),
+        ("r", 0x1000, 0), ("r", 0x1018, 1), ("r", 0x1018, 2), ("r", 0x6502, 0),
+        *pdo(0x1400, 0x1600, rpdo, [0x60400010, 0x60710010]),
+        *pdo(0x1800, 0x1A00, tpdo, [0x60410010, 0x60640020, 0x60770010]),
+        ("w", 0x6060, 0, 10), ("r", 0x6061, 0),
+        ("r", 0x6075, 0), ("r", 0x6076, 0), ("w", 0x6072, 0, max_torque),
+        ("w", 0x1006, 0, period_us), ("w", 0x1017, 0, heartbeat), ("w", 0x1016, 1, MASTER << 16 | master_timeout),
+        ("w", 0x6007, 0, abort), ("r", 0x6041, 0),
+    ]
+
+
+def controlwords(sent, node):
+    return [d[0] | d[1] << 8 for _, ident, d in sent if ident == 0x200 + node]
+
+
+def test_start_up_is_the_standards_sequence_and_nothing_is_enabled_until_the_operator_asks(rig):
+    r = rig().start()
+    sent = r.sim.adapter.sent
+    for node in NODES:
+        assert sdo_requests(sent, node) == expected_start_up(node)
+    # Pre-operational for all first; each node started after its configuration.
+    nmt = [(i, d) for i, (_, ident, d) in enumerate(sent) if ident == 0]
+    assert nmt[0][1] == bytes([0x80, 0])
+    last_sdo = max(i for i, (_, ident, _) in enumerate(sent) if 0x600 < ident < 0x680)
+    assert sorted(d[1] for i, d in nmt if d[0] == 0x01 and i > last_sdo) == NODES
+    for d in r.sim.drives:
+        assert d.node.nmt.state == "OPERATIONAL"
+        assert d.mapping(0x1600) == [0x60400010, 0x60710010]
+        assert d.mapping(0x1A00) == [0x60410010, 0x60640020, 0x60770010]
+    # SYNC at the control rate, and every RPDO a "disable voltage" with no torque until `enable`.
+    syncs = r.sim.syncs
+    time.sleep(1.0)
+    rate = r.sim.syncs - syncs
+    assert 500 < rate <= 1100, rate
+    status = r.ctl("status")
+    assert status["mode"] == "disabled" and status["telemetry"], status
+    for node in NODES:
+        words = controlwords(r.sim.adapter.sent, node)
+        assert len(words) > 500 and set(words) == {0}, set(words)
+        assert r.sim.drive(node).state == SWITCH_ON_DISABLED
+    # On the operator's enable: shutdown, switch on, enable operation, and the arm is held.
+    r.enable()
+    for node in NODES:
+        walk = [w for w in dict.fromkeys(controlwords(r.sim.adapter.sent, node))]
+        assert walk[:4] == [0x00, 0x06, 0x07, 0x0F], walk
+    time.sleep(1.0)
+    status = r.ctl("status")
+    assert status["mode"] == "enabled" and not status["faults"], status
+    assert any(d.torque != 0 for d in r.sim.drives), "the arm is held against gravity"
+
+
+FAULTS = {
+    # name: (inject, the telemetry fault the daemon names, its bound in s)
+    "emcy": (lambda sim: sim.drive(2).node.emcy.send(0x4210, 0x09), "overtemperature", 0.1),
+    "fault_bit": (lambda sim: sim.drive(1).fault(0x5113), "drive", 0.1),
+    "silent_heartbeat": (lambda sim: sim.silence_heartbeat(3), "fieldbus", 0.15 + 0.1),
+    "dropped_tpdos": (lambda sim: setattr(sim.drive(3).injected, "drop_tpdos", True), None, 0.02 + 0.1),
+    "bus_off": (lambda sim: setattr(sim.adapter, "bus_off", True), None, 0.1),
+    "adapter_error": (lambda sim: sim.adapter.adapter_error(), "fieldbus", 0.1),
+}
+
+
+@pytest.mark.parametrize("name", list(FAULTS))
+def test_each_fault_latches_within_its_bound_zeroes_the_torque_and_disables_every_drive(rig, name):
+    inject, named, bound = FAULTS[name]
+    r = rig().start()
+    r.enable()
+    time.sleep(0.3)
+    injected = time.monotonic()
+    inject(r.sim)
+    latched = r.wait("the fault latched", lambda: r.ctl("status")["mode"] == "faulted", timeout=3)
+    status = r.ctl("status")
+    # `ctl status` is polled: the latch is no later than the first answer that shows it.
+    assert latched - injected < bound + 0.1, (latched - injected, status)
+    if named:
+        assert named in status["drive"]["faults"], status
+    if name != "bus_off":
+        # Every drive disabled (a bus-off adapter passes nothing: the drives' own watchdog on the
+        # master's heartbeat stops them, below).
+        r.wait("every drive disabled", lambda: all(d.state in (SWITCH_ON_DISABLED, FAULT) for d in r.sim.drives),
+               timeout=0.5)
+        assert all(d.torque == 0 for d in r.sim.drives)
+    else:
+        r.wait("the drives' watchdog", lambda: all(d.state != OPERATION_ENABLED for d in r.sim.drives), timeout=1)
+    # Latched: enabling is refused, and nothing re-enables a drive by itself.
+    assert r.ctl("enable", check=False).returncode != 0
+    time.sleep(0.3)
+    assert all(d.state != OPERATION_ENABLED for d in r.sim.drives)
+
+
+def test_a_fault_clears_only_on_the_operators_reset_with_one_edge_and_stays_disabled(rig):
+    r = rig().start()
+    r.enable()
+    r.sim.drive(1).fault(0x2310)
+    r.wait("the fault latched", lambda: r.ctl("status")["mode"] == "faulted")
+    time.sleep(0.3)
+    assert r.sim.drive(1).state == FAULT
+    assert 0x80 not in {w & 0x80 for w in controlwords(r.sim.adapter.sent, 1)}, "no reset before the operator's"
+    r.ctl("reset")
+    r.wait("the drive reset", lambda: r.sim.drive(1).state == SWITCH_ON_DISABLED)
+    r.wait("the daemon disabled", lambda: r.ctl("status")["mode"] == "disabled")
+    words = controlwords(r.sim.adapter.sent, 1)
+    edges = sum(1 for a, b in zip(words, words[1:]) if b & 0x80 and not a & 0x80)
+    assert edges == 1, edges
+    time.sleep(0.3)
+    assert all(d.state == SWITCH_ON_DISABLED for d in r.sim.drives), "the reset enables nothing"
+    r.enable()
+
+
+def test_a_daemon_restarted_while_the_drives_are_enabled_disables_them_first(rig):
+    # The drives' watch on the master's heartbeat long enough that the restart falls inside it.
+    r = rig(master_heartbeat_timeout_ms=10000).start()
+    r.enable()
+    r.daemon.send_signal(signal.SIGKILL)
+    r.daemon.wait()
+    time.sleep(0.1)  # what the killed daemon had written reaches the adapter
+    assert all(d.state == OPERATION_ENABLED for d in r.sim.drives), "still enabled: the case to test"
+    before = len(r.sim.adapter.sent)
+    os.unlink(r.sock)
+    r.start()
+    restart = r.sim.adapter.sent[before:]
+    for node in NODES:
+        first = next(data for _, ident, data in restart if ident in (0x600 + node, 0x200 + node))
+        assert first[:4] == bytes([0x2B, 0x40, 0x60, 0x00]) and first[4:6] == bytes(2), first.hex()
+        assert r.sim.drive(node).state == SWITCH_ON_DISABLED
+    time.sleep(0.5)
+    assert r.ctl("status")["mode"] != "enabled"
+    assert all(d.state != OPERATION_ENABLED for d in r.sim.drives)
+
+
+BAD = {
+    "a node that does not answer": (dict(drive_specs={3: dict(answers=False)}), {},
+                                    ["node 3", "did not answer", "0x6040:0"]),
+    "a drive without CST": (dict(drive_specs={2: dict(supported_modes=1 << 7)}), {},
+                            ["node 2", "cyclic synchronous torque", "0x6502"]),
+    "a drive that ignores the mode": (dict(drive_specs={1: dict(ignores_mode=True)}), {},
+                                      ["node 1", "0x6061", "mode 0"]),
+    "PDOs shorter than the mapping": (dict(drive_specs={2: dict(max_mapped=2)}), {},
+                                      ["node 2", "0x1a00:0", "exceed the PDO length"]),
+    "not a CiA 402 drive": (dict(drive_specs={1: dict(device_type=0x191)}), {}, ["node 1", "0x1000", "402"]),
+    "a node-ID clash": ({}, dict(nodes=[1, 2, 2]), ["canopen.nodes", "node 2", "twice"]),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD))
+def test_bad_drives_and_settings_are_refused_by_name_before_anything_is_enabled(rig, case):
+    drives, canopen, words = BAD[case]
+    changed = drives.get("drive_specs", {})
+    r = rig(drive_specs=specs(changed), **canopen)
+    r.start(wait=False)
+    code = r.daemon.wait(timeout=30)
+    err = r.stderr()
+    assert code != 0, err
+    for w in words:
+        assert w in err, (w, err)
+    assert all(d.state == SWITCH_ON_DISABLED for d in r.sim.drives)
+    for node in NODES:
+        assert set(controlwords(r.sim.adapter.sent, node)) <= {0}
+        assert all(v == 0 for (kind, index, *rest) in sdo_requests(r.sim.adapter.sent, node)
+                   if kind == "w" and index == 0x6040 for v in rest[1:])
