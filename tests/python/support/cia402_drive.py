@@ -20,6 +20,7 @@ from __future__ import annotations
 import os
 import select
 import struct
+import sys
 import threading
 import time
 import tty
@@ -153,7 +154,8 @@ class Drive:
             self.node.add_read_callback(self._on_read)
             network.subscribe(0x200 + spec.node, self._on_rpdo)
             self.node.nmt.state = "PRE-OPERATIONAL"
-            self.node.nmt.start_heartbeat(100)
+        self.heartbeat_ms = 100
+        self.last_beat = 0.0
 
     # --- the object dictionary -------------------------------------------------------------
     def stored(self, index, sub=0):
@@ -174,7 +176,12 @@ class Drive:
     def _on_write(self, index, subindex, od, data):
         value = od.decode_raw(data)
         self.log.append(("sdo-write", self.spec.node, index, subindex, value))
-        if index in (0x1600, 0x1A00):
+        if index == 0x1017:
+            # The simulator's clock thread produces the heartbeat (see Simulator._clock), not
+            # canopen's own timer thread, which a loaded host can stall.
+            self.node.nmt.stop_heartbeat()
+            self.heartbeat_ms = value
+        elif index in (0x1600, 0x1A00):
             self._check_mapping(index, subindex, value)
         elif index == 0x6060:
             if value == CST and not self.spec.supported_modes & CST_SUPPORTED:
@@ -225,6 +232,17 @@ class Drive:
                     self.state = SWITCHED_ON
                 elif s == SWITCHED_ON and self.mode_display == CST:
                     self.state = OPERATION_ENABLED
+
+    NMT_STATES = {"INITIALISING": 0x00, "STOPPED": 0x04, "OPERATIONAL": 0x05, "PRE-OPERATIONAL": 0x7F}
+
+    def heartbeat(self, now):
+        """The heartbeat frame (COB-ID and data) if one is due at ``now``."""
+        if not self.spec.answers or self.injected.silent_heartbeat or not self.heartbeat_ms:
+            return None
+        if now - self.last_beat < self.heartbeat_ms / 1000:
+            return None
+        self.last_beat = now
+        return 0x700 + self.spec.node, bytes([self.NMT_STATES.get(self.node.nmt.state, 0x7F)])
 
     def fault(self, code=0x2310):
         """An internal fault: the drive drops its torque, reports it and sends an EMCY."""
@@ -280,6 +298,22 @@ class Drive:
         return self.stored(0x1800, 1) & 0x7FF, payload
 
 
+# The drives answer each SYNC within a cycle on real hardware. Here the threads that carry the
+# frames and step the plant run at a real-time priority below the daemon's (80) where the host
+# allows it, and Python switches threads every 0.2 ms instead of 5, so that a loaded test host
+# does not stall the drives past the master's link timeout.
+SIM_PRIORITY = 70
+SWITCH_INTERVAL_S = 2e-4
+
+
+def real_time_thread():
+    """Raise the calling thread to SCHED_FIFO at SIM_PRIORITY; ordinary scheduling if refused."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(SIM_PRIORITY))
+    except (PermissionError, OSError):
+        pass
+
+
 class SlcanAdapter:
     """A pseudo-terminal that answers as an slcan USB adapter: `O`, `C`, `Sn` and `F` commands,
     `t` frames onto the bus and the bus's frames back as `t` lines."""
@@ -333,6 +367,7 @@ class SlcanAdapter:
             self._write(b"\a")
 
     def _from_host(self):
+        real_time_thread()
         pending = b""
         while not self._stop.is_set():
             ready, _, _ = select.select([self.master], [], [], 0.05)
@@ -348,6 +383,7 @@ class SlcanAdapter:
                 self._line(line)
 
     def _to_host(self):
+        real_time_thread()
         while not self._stop.is_set():
             message = self.bus.recv(0.05)
             if message is None or self.bus_off or not self.open:
@@ -377,6 +413,9 @@ class Simulator:
 
     def __init__(self, specs, plant: Plant, channel=None):
         channel = channel or f"arash-cia402-{os.getpid()}-{id(self)}"
+        self._switch_interval = sys.getswitchinterval()
+        sys.setswitchinterval(SWITCH_INTERVAL_S)
+        self._raised = False
         self.network = canopen.Network()
         self.network.connect(interface="virtual", channel=channel)
         self.log = []
@@ -389,7 +428,7 @@ class Simulator:
         for cob in range(0x701, 0x780):
             self.network.subscribe(cob, self._on_heartbeat)
         self._stop = threading.Event()
-        self._watch = threading.Thread(target=self._watch_master, daemon=True)
+        self._watch = threading.Thread(target=self._clock, daemon=True)
         self._watch.start()
 
     @property
@@ -400,6 +439,9 @@ class Simulator:
         return next(d for d in self.drives if d.spec.node == node)
 
     def _on_sync(self, can_id, data, timestamp):
+        if not self._raised:  # the network's notifier thread, which runs every callback
+            real_time_thread()
+            self._raised = True
         self.syncs += 1
         period = (self.drives[0].stored(0x1006) or 1000) * 1e-6
         tau = [d.joint_torque() for d in self.drives]
@@ -418,12 +460,18 @@ class Simulator:
     def _on_heartbeat(self, can_id, data, timestamp):
         self._master_heartbeat[can_id - 0x700] = time.monotonic()
 
-    def _watch_master(self):
-        """Each drive's consumer heartbeat (0x1016:1): from the master's first beat on, a gap
-        longer than its time aborts the connection once (0x6007)."""
+    def _clock(self):
+        """Every millisecond: each drive's heartbeat when due (0x1017), and its consumer
+        heartbeat (0x1016:1): from the master's first beat on, a gap longer than its time aborts
+        the connection once (0x6007)."""
+        real_time_thread()
         tripped = set()
-        while not self._stop.wait(0.005):
+        while not self._stop.wait(0.001):
             now = time.monotonic()
+            for d in self.drives:
+                beat = d.heartbeat(now)
+                if beat is not None:
+                    self.network.send_message(*beat)
             for d in self.drives:
                 entry = d.stored(0x1016, 1) if d.spec.answers else 0
                 master, limit_ms = entry >> 16 & 0x7F, entry & 0xFFFF
@@ -438,12 +486,11 @@ class Simulator:
                     tripped.discard(d.spec.node)
 
     def silence_heartbeat(self, node):
-        self.drive(node).node.nmt.stop_heartbeat()
+        self.drive(node).injected.silent_heartbeat = True
 
     def close(self):
         self._stop.set()
         self._watch.join(1)
-        for d in self.drives:
-            d.node.nmt.stop_heartbeat()
         self.adapter.close()
         self.network.disconnect()
+        sys.setswitchinterval(self._switch_interval)

@@ -400,6 +400,13 @@ impl MasterFault {
     }
 }
 
+/// SYNCs whose times are kept: far more than the sets in flight on a bus at 1 kHz.
+const SYNC_RING: usize = 64;
+
+/// Cycles between two fault-reset edges to a drive that stays in fault during the operator's
+/// reset: long enough for its statusword to come back (a round trip is one or two cycles).
+const RESET_RETRY_CYCLES: u32 = 5;
+
 /// The drives of [`configure`], run once per control cycle.
 pub struct CanopenLink<B> {
     bus: B,
@@ -420,10 +427,17 @@ pub struct CanopenLink<B> {
     sets: u16,
     zero: [i32; MAX_JOINTS],
     opened: Instant,
-    sync_time_us: u32,
+    /// When each of the last SYNCs was sent (µs since the link opened), by SYNC number: a set
+    /// of TPDOs is stamped with the time of the SYNC it answers, at which the drives sampled it,
+    /// not with the time it arrived.
+    sync_times: [u32; SYNC_RING],
+    syncs_sent: u32,
+    /// The number of the SYNC the next complete set answers.
+    answered: u32,
     bus_errors: u64,
     latched: Option<MasterFault>,
-    clearing: bool,
+    /// Cycles of the operator's reset so far (consecutive CLEAR_FAULT commands); 0 when none.
+    clearing: u32,
     stats: LinkStats,
 }
 
@@ -460,10 +474,12 @@ impl<B: CanBus> CanopenLink<B> {
             sets: 0,
             zero: [0; MAX_JOINTS],
             opened: now,
-            sync_time_us: 0,
+            sync_times: [0; SYNC_RING],
+            syncs_sent: 0,
+            answered: 0,
             bus_errors,
             latched: None,
-            clearing: false,
+            clearing: 0,
             stats: LinkStats::default(),
         }
     }
@@ -497,6 +513,17 @@ impl<B: CanBus> CanopenLink<B> {
         }
     }
 
+    /// A drive still in fault some cycles into the operator's reset gets another edge: the
+    /// frame of the first may have been lost (a full adapter, an error frame on the bus). The
+    /// cycle bounds the whole reset (link.timeout_ms) and latches again at its end.
+    fn reset_again(&mut self) {
+        for axis in &mut self.axes[..self.joints] {
+            if axis.state().is_fault() {
+                axis.reset();
+            }
+        }
+    }
+
     /// The target torque of joint `j` for `amps`, zero unless its axis may have one.
     fn permille(&mut self, j: usize, amps: f32) -> i16 {
         let amps = f64::from(amps);
@@ -524,6 +551,7 @@ impl<B: CanBus> CanopenLink<B> {
             // The last set never completed: a TPDO was missed.
             self.stats.lost += 1;
             self.have = 0;
+            self.answered = self.answered.wrapping_add(1);
         }
         self.partial.counts[j] = pdo.position.wrapping_sub(self.zero[j]);
         self.partial.amps[j] = (f64::from(pdo.torque_permille) * self.amps_per_permille[j]) as f32;
@@ -563,12 +591,25 @@ impl<B: CanBus> CanopenLink<B> {
         false
     }
 
+    /// The time of the SYNC the set just completed answers. Sets answer SYNCs in order; one
+    /// that would answer a SYNC not yet sent, or one older than the ring holds, answers the
+    /// last one sent.
+    fn answered_sync_time(&mut self) -> u32 {
+        let behind = self.syncs_sent.wrapping_sub(self.answered);
+        if behind == 0 || behind as usize > SYNC_RING {
+            self.answered = self.syncs_sent.wrapping_sub(1);
+        }
+        let time = self.sync_times[self.answered as usize % SYNC_RING];
+        self.answered = self.answered.wrapping_add(1);
+        time
+    }
+
     /// The telemetry of a complete set.
     fn finish(&mut self, out: &mut Telemetry) {
         let enabled = self.axes[..self.joints].iter().all(|a| a.state() == super::cia402::State::OperationEnabled);
         self.partial.seq = self.sets;
         self.partial.ack_seq = self.sets;
-        self.partial.device_time_us = self.sync_time_us;
+        self.partial.device_time_us = self.answered_sync_time();
         self.partial.status = if enabled { status::ENABLED } else { 0 };
         self.partial.faults = self.fault_bits();
         *out = self.partial;
@@ -598,11 +639,16 @@ impl<B: CanBus> CanopenLink<B> {
 
 impl<B: CanBus> MotorLink for CanopenLink<B> {
     fn send(&mut self, command: &Command) -> std::io::Result<()> {
-        let clearing = matches!(command, Command::ClearFault);
-        if clearing && !self.clearing {
-            self.reset();
+        if matches!(command, Command::ClearFault) {
+            if self.clearing == 0 {
+                self.reset();
+            } else if self.clearing % RESET_RETRY_CYCLES == 0 {
+                self.reset_again();
+            }
+            self.clearing += 1;
+        } else {
+            self.clearing = 0;
         }
-        self.clearing = clearing;
         match command {
             Command::Enable => {
                 for axis in &mut self.axes[..self.joints] {
@@ -629,7 +675,8 @@ impl<B: CanBus> MotorLink for CanopenLink<B> {
             result = result.and(self.send_frame(&frame));
         }
         let now = Instant::now();
-        self.sync_time_us = now.duration_since(self.opened).as_micros() as u32;
+        self.sync_times[self.syncs_sent as usize % SYNC_RING] = now.duration_since(self.opened).as_micros() as u32;
+        self.syncs_sent = self.syncs_sent.wrapping_add(1);
         result = result.and(self.send_frame(&sync()));
         if now.duration_since(self.master_sent) >= self.master_period {
             self.master_sent = now;
