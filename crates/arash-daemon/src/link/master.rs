@@ -642,7 +642,7 @@ impl<B: CanBus> MotorLink for CanopenLink<B> {
         if matches!(command, Command::ClearFault) {
             if self.clearing == 0 {
                 self.reset();
-            } else if self.clearing % RESET_RETRY_CYCLES == 0 {
+            } else if self.clearing.is_multiple_of(RESET_RETRY_CYCLES) {
                 self.reset_again();
             }
             self.clearing += 1;
