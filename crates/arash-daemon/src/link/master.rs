@@ -468,7 +468,8 @@ impl<B: CanBus> CanopenLink<B> {
                 data: [0x05, 0, 0, 0, 0, 0, 0, 0],
             },
             master_period: Duration::from_millis(u64::from(config.master_heartbeat_ms)),
-            master_sent: now - Duration::from_secs(1),
+            // The first cycle sends the master's first heartbeat.
+            master_sent: now.checked_sub(Duration::from_secs(1)).unwrap_or(now),
             partial: Telemetry::new(drives.len()),
             have: 0,
             sets: 0,
