@@ -395,6 +395,7 @@ class SlcanAdapter:
         self._stop.set()
         for t in self._threads:
             t.join(1)
+        self.bus.shutdown()
         os.close(self.master)
         os.close(self._slave)
 
