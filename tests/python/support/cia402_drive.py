@@ -159,14 +159,13 @@ class Drive:
 
     # --- the object dictionary -------------------------------------------------------------
     def stored(self, index, sub=0):
-        try:
-            raw = self.node.data_store[index][sub]
-        except KeyError:
-            return self.node.object_dictionary[index].default if sub == 0 and isinstance(
-                self.node.object_dictionary[index], ODVariable) else self.node.object_dictionary[index][sub].default
+        """An object's value as the master last wrote it, or its default."""
         obj = self.node.object_dictionary[index]
         obj = obj if isinstance(obj, ODVariable) else obj[sub]
-        return obj.decode_raw(raw)
+        try:
+            return obj.decode_raw(self.node.data_store[index][sub])
+        except KeyError:
+            return obj.default
 
     def _on_read(self, index, subindex, od):
         live = {0x6041: self.state, 0x6061: self.mode_display, 0x6064: self.position, 0x6077: self.torque,

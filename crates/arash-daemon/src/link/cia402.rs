@@ -78,39 +78,43 @@ pub fn towards_enabled(state: State) -> u16 {
     }
 }
 
-/// Drive torque in ‰ of its rated torque (0x6076), limited to 0x6072.
+/// A drive's torque in ‰ of its rating, limited to 0x6072. CiA 402 gives the target (0x6071) and
+/// the actual torque (0x6077) in ‰ of the rated torque (0x6076), which is the torque at the
+/// rated current (0x6075): the same ‰ scale a current in ‰ of the rated current, and the master
+/// uses it so (the daemon commands currents).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TorqueScale {
-    /// 0x6076 in N·m (the drive reports mN·m).
-    pub rated_nm: f64,
-    /// 0x6072, ‰ of the rated torque.
+pub struct RatedScale {
+    /// The rating in the unit the value is given in: 0x6076 in N·m, or 0x6075 in A (the drive
+    /// reports mN·m and mA).
+    pub rated: f64,
+    /// 0x6072, ‰ of the rating.
     pub max_permille: u16,
 }
 
-/// A torque that is not a number, refused before it reaches a drive.
+/// A torque or current that is not a number, refused before it reaches a drive.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
-#[error("torque {0} N·m is not finite")]
+#[error("a torque or current of {0} is not finite")]
 pub struct NotFinite(pub f64);
 
-impl TorqueScale {
-    /// From 0x6076 (mN·m, as the drive reports it) and 0x6072 (‰). `None` when the rated torque
-    /// is zero: every target would be zero or infinite.
-    pub fn new(rated_mnm: u32, max_permille: u16) -> Option<Self> {
-        (rated_mnm > 0).then(|| Self { rated_nm: f64::from(rated_mnm) / 1000.0, max_permille })
+impl RatedScale {
+    /// From a rating in thousandths of its unit (0x6076 in mN·m, 0x6075 in mA) and 0x6072 (‰).
+    /// `None` when the rating is zero: every target would be zero or infinite.
+    pub fn new(rated_milli: u32, max_permille: u16) -> Option<Self> {
+        (rated_milli > 0).then(|| Self { rated: f64::from(rated_milli) / 1000.0, max_permille })
     }
 
-    /// The target torque (0x6071) for `torque_nm`, saturated at ±0x6072.
-    pub fn permille(&self, torque_nm: f64) -> Result<i16, NotFinite> {
-        if !torque_nm.is_finite() {
-            return Err(NotFinite(torque_nm));
+    /// The target (0x6071) for `value`, saturated at ±0x6072.
+    pub fn permille(&self, value: f64) -> Result<i16, NotFinite> {
+        if !value.is_finite() {
+            return Err(NotFinite(value));
         }
         let limit = f64::from(self.max_permille.min(i16::MAX as u16));
-        Ok((1000.0 * torque_nm / self.rated_nm).round().clamp(-limit, limit) as i16)
+        Ok((1000.0 * value / self.rated).round().clamp(-limit, limit) as i16)
     }
 
-    /// The torque (N·m) of a value in ‰ (0x6077, torque actual).
-    pub fn newton_metres(&self, permille: i16) -> f64 {
-        f64::from(permille) * self.rated_nm / 1000.0
+    /// The value of a target or actual in ‰ (0x6077, torque actual).
+    pub fn value(&self, permille: i16) -> f64 {
+        f64::from(permille) * self.rated / 1000.0
     }
 }
 
@@ -252,6 +256,14 @@ impl Axis {
         }
     }
 
+    /// The frame that carried this axis's fault-reset edge was refused by the bus: send the
+    /// edge again (low for a cycle, then high).
+    pub fn edge_lost(&mut self) {
+        if self.reset == ResetEdge::Sent {
+            self.reset = ResetEdge::Low;
+        }
+    }
+
     /// Whether the drive may be given a torque this cycle: enabled, or being enabled by this
     /// cycle's controlword. The target travels with "enable operation", so that a joint under
     /// gravity is held from the first SYNC its drive is enabled at, not one round trip later
@@ -371,18 +383,32 @@ mod tests {
         assert_eq!(axis.controlword(), controlword::SHUTDOWN);
     }
 
+    /// An edge whose frame the bus refused goes again, once; a delivered one does not.
+    #[test]
+    fn a_refused_reset_edge_is_sent_again() {
+        let mut axis = Axis::default();
+        axis.observe(0x0218);
+        axis.reset();
+        assert_eq!([axis.controlword(), axis.controlword()], [0x0000, 0x0080]);
+        axis.edge_lost();
+        assert_eq!([axis.controlword(), axis.controlword(), axis.controlword()], [0x0000, 0x0080, 0x0000]);
+        axis.observe(0x0250);
+        axis.edge_lost();
+        assert_eq!([axis.controlword(), axis.controlword()], [0x0000; 2], "the drive left its fault: no edge after it");
+    }
+
     #[test]
     fn torque_is_permille_of_the_rated_saturated_and_never_nan() {
         // A rated torque of 0.5 N·m (500 mN·m in 0x6076), limited to 150 % (0x6072 = 1500).
-        let scale = TorqueScale::new(500, 1500).unwrap();
+        let scale = RatedScale::new(500, 1500).unwrap();
         assert_eq!(scale.permille(0.25), Ok(500));
         assert_eq!(scale.permille(-0.1), Ok(-200));
         assert_eq!(scale.permille(10.0), Ok(1500));
         assert_eq!(scale.permille(-10.0), Ok(-1500));
         assert!(scale.permille(f64::NAN).is_err());
         assert!(scale.permille(f64::INFINITY).is_err());
-        assert!((scale.newton_metres(-200) + 0.1).abs() < 1e-12);
-        assert_eq!(TorqueScale::new(0, 1000), None);
+        assert!((scale.value(-200) + 0.1).abs() < 1e-12);
+        assert_eq!(RatedScale::new(0, 1000), None);
     }
 
     #[test]

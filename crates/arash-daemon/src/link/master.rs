@@ -13,7 +13,8 @@
 //! Any fault (a fault statusword, an EMCY, a lost heartbeat, a node that reboots, bus errors, a
 //! torque that is not a number) zeroes every torque, disables every axis and latches; telemetry
 //! reports it as a fault bit, so that the cycle latches too. Only the operator's reset (the
-//! first CLEAR_FAULT after another command) clears it, with one fault-reset edge per drive.
+//! first CLEAR_FAULT after another command) clears it, with one fault-reset edge per drive in
+//! fault (sent again only if the bus refused its frame).
 //! Missed TPDOs are missing telemetry: the cycle's link timeout latches them.
 
 use std::time::{Duration, Instant};
@@ -23,7 +24,7 @@ use super::canopen::{
     heartbeat, map_pdo, nmt, sdo_reply, sync, Emergency, NmtCommand, NmtState, NodeId, Object, SdoError, SdoReply,
     SdoRequest, HEARTBEAT_BASE, RPDO1_BASE, TPDO1_BASE,
 };
-use super::cia402::{rpdo1, Axis, AxisFault, Tpdo1};
+use super::cia402::{controlword, rpdo1, Axis, AxisFault, RatedScale, Tpdo1};
 use super::frame::{drive_fault, status, Command, Telemetry, MAX_JOINTS};
 use super::{LinkStats, MotorLink};
 
@@ -403,19 +404,14 @@ impl MasterFault {
 /// SYNCs whose times are kept: far more than the sets in flight on a bus at 1 kHz.
 const SYNC_RING: usize = 64;
 
-/// Cycles between two fault-reset edges to a drive that stays in fault during the operator's
-/// reset: long enough for its statusword to come back (a round trip is one or two cycles).
-const RESET_RETRY_CYCLES: u32 = 5;
-
 /// The drives of [`configure`], run once per control cycle.
 pub struct CanopenLink<B> {
     bus: B,
     nodes: [Option<NodeId>; MAX_JOINTS],
     joints: usize,
     axes: [Axis; MAX_JOINTS],
-    /// mA per ‰ of each drive's rated current, divided by 1000: amperes per ‰.
-    amps_per_permille: [f64; MAX_JOINTS],
-    max_permille: f64,
+    /// Each drive's currents in ‰ of its rated current (0x6075), limited to 0x6072.
+    scales: [Option<RatedScale>; MAX_JOINTS],
     last_heartbeat: [Instant; MAX_JOINTS],
     heartbeat_timeout: Duration,
     master_heartbeat: CanFrame,
@@ -436,8 +432,8 @@ pub struct CanopenLink<B> {
     answered: u32,
     bus_errors: u64,
     latched: Option<MasterFault>,
-    /// Cycles of the operator's reset so far (consecutive CLEAR_FAULT commands); 0 when none.
-    clearing: u32,
+    /// The last command was CLEAR_FAULT: the operator's reset is under way.
+    clearing: bool,
     stats: LinkStats,
 }
 
@@ -447,10 +443,11 @@ impl<B: CanBus> CanopenLink<B> {
         assert!(drives.len() <= MAX_JOINTS && drives.len() == config.nodes.len());
         let now = Instant::now();
         let mut nodes = [None; MAX_JOINTS];
-        let mut amps_per_permille = [0.0; MAX_JOINTS];
+        let mut scales = [None; MAX_JOINTS];
         for (j, d) in drives.iter().enumerate() {
             nodes[j] = Some(d.node);
-            amps_per_permille[j] = f64::from(d.rated_current_ma) * 1e-6;
+            scales[j] = RatedScale::new(d.rated_current_ma, config.max_torque_permille);
+            assert!(scales[j].is_some(), "configure refuses a drive rated for no current");
         }
         let bus_errors = bus.errors();
         Self {
@@ -458,8 +455,7 @@ impl<B: CanBus> CanopenLink<B> {
             nodes,
             joints: drives.len(),
             axes: [Axis::default(); MAX_JOINTS],
-            amps_per_permille,
-            max_permille: f64::from(config.max_torque_permille),
+            scales,
             last_heartbeat: [now; MAX_JOINTS],
             heartbeat_timeout: Duration::from_millis(u64::from(config.heartbeat_timeout_ms)),
             master_heartbeat: CanFrame {
@@ -480,7 +476,7 @@ impl<B: CanBus> CanopenLink<B> {
             answered: 0,
             bus_errors,
             latched: None,
-            clearing: 0,
+            clearing: false,
             stats: LinkStats::default(),
         }
     }
@@ -514,28 +510,20 @@ impl<B: CanBus> CanopenLink<B> {
         }
     }
 
-    /// A drive still in fault some cycles into the operator's reset gets another edge: the
-    /// frame of the first may have been lost (a full adapter, an error frame on the bus). The
-    /// cycle bounds the whole reset (link.timeout_ms) and latches again at its end.
-    fn reset_again(&mut self) {
-        for axis in &mut self.axes[..self.joints] {
-            if axis.state().is_fault() {
-                axis.reset();
+    /// The target torque of joint `j` for `amps`, zero unless its axis may have one.
+    fn permille(&mut self, j: usize, amps: f32) -> i16 {
+        match self.scale(j).permille(f64::from(amps)) {
+            Err(_) => {
+                self.latch(MasterFault::NotFinite);
+                0
             }
+            Ok(_) if !self.axes[j].torque_allowed() => 0,
+            Ok(permille) => permille,
         }
     }
 
-    /// The target torque of joint `j` for `amps`, zero unless its axis may have one.
-    fn permille(&mut self, j: usize, amps: f32) -> i16 {
-        let amps = f64::from(amps);
-        if !amps.is_finite() {
-            self.latch(MasterFault::NotFinite);
-            return 0;
-        }
-        if !self.axes[j].torque_allowed() {
-            return 0;
-        }
-        (amps / self.amps_per_permille[j]).round().clamp(-self.max_permille, self.max_permille) as i16
+    fn scale(&self, j: usize) -> RatedScale {
+        self.scales[j].expect("a scale per joint")
     }
 
     fn send_frame(&mut self, frame: &CanFrame) -> std::io::Result<()> {
@@ -555,7 +543,7 @@ impl<B: CanBus> CanopenLink<B> {
             self.answered = self.answered.wrapping_add(1);
         }
         self.partial.counts[j] = pdo.position.wrapping_sub(self.zero[j]);
-        self.partial.amps[j] = (f64::from(pdo.torque_permille) * self.amps_per_permille[j]) as f32;
+        self.partial.amps[j] = self.scale(j).value(pdo.torque_permille) as f32;
         self.have |= 1 << j;
         self.have == (1 << self.joints) - 1
     }
@@ -612,7 +600,6 @@ impl<B: CanBus> CanopenLink<B> {
         self.partial.ack_seq = self.sets;
         self.partial.device_time_us = self.answered_sync_time();
         self.partial.status = if enabled { status::ENABLED } else { 0 };
-        self.partial.faults = self.fault_bits();
         *out = self.partial;
         self.stats.frames_received += 1;
     }
@@ -640,16 +627,11 @@ impl<B: CanBus> CanopenLink<B> {
 
 impl<B: CanBus> MotorLink for CanopenLink<B> {
     fn send(&mut self, command: &Command) -> std::io::Result<()> {
-        if matches!(command, Command::ClearFault) {
-            if self.clearing == 0 {
-                self.reset();
-            } else if self.clearing.is_multiple_of(RESET_RETRY_CYCLES) {
-                self.reset_again();
-            }
-            self.clearing += 1;
-        } else {
-            self.clearing = 0;
+        let clearing = matches!(command, Command::ClearFault);
+        if clearing && !self.clearing {
+            self.reset();
         }
+        self.clearing = clearing;
         match command {
             Command::Enable => {
                 for axis in &mut self.axes[..self.joints] {
@@ -672,8 +654,13 @@ impl<B: CanBus> MotorLink for CanopenLink<B> {
         let mut result = Ok(());
         for (j, &a) in amps.iter().enumerate().take(self.joints) {
             let torque = self.permille(j, a);
-            let frame = rpdo1(self.nodes[j].expect("a node per joint"), self.axes[j].controlword(), torque);
-            result = result.and(self.send_frame(&frame));
+            let word = self.axes[j].controlword();
+            let sent = self.send_frame(&rpdo1(self.nodes[j].expect("a node per joint"), word, torque));
+            if sent.is_err() && word & controlword::FAULT_RESET != 0 {
+                // A refused frame never reached the bus: the edge goes again.
+                self.axes[j].edge_lost();
+            }
+            result = result.and(sent);
         }
         let now = Instant::now();
         self.sync_times[self.syncs_sent as usize % SYNC_RING] = now.duration_since(self.opened).as_micros() as u32;
@@ -695,7 +682,8 @@ impl<B: CanBus> MotorLink for CanopenLink<B> {
         }
         self.check_watchdogs();
         if fresh {
-            // A fault found after the set completed is reported with it.
+            // After every frame and watchdog of this poll: a fault found after the set completed
+            // is reported with it.
             out.faults = self.fault_bits();
         }
         Ok(fresh)
