@@ -236,6 +236,8 @@ impl SocketCan {
         // Error frames for bus-off, controller problems and a missing acknowledgement (no other
         // node on the bus): a master of drives must see them.
         let mask: libc::can_err_mask_t = libc::CAN_ERR_BUSOFF | libc::CAN_ERR_CRTL | libc::CAN_ERR_ACK;
+        // SAFETY: a valid socket descriptor, and a pointer to the mask with its size, as
+        // CAN_RAW_ERR_FILTER takes.
         let set = unsafe {
             libc::setsockopt(
                 raw,
