@@ -17,6 +17,7 @@ and nodes that do not answer.
 
 from __future__ import annotations
 
+import gc
 import os
 import select
 import struct
@@ -415,6 +416,11 @@ class Simulator:
         channel = channel or f"arash-cia402-{os.getpid()}-{id(self)}"
         self._switch_interval = sys.getswitchinterval()
         sys.setswitchinterval(SWITCH_INTERVAL_S)
+        # A full collection in a test process that holds much (a whole suite's imports and
+        # data) holds the interpreter for tens of milliseconds: the drives would stop answering
+        # and heartbeating. The simulator makes little garbage; collections wait until close.
+        self._collecting = gc.isenabled()
+        gc.disable()
         self._raised = False
         self.network = canopen.Network()
         self.network.connect(interface="virtual", channel=channel)
@@ -494,3 +500,5 @@ class Simulator:
         self.adapter.close()
         self.network.disconnect()
         sys.setswitchinterval(self._switch_interval)
+        if self._collecting:
+            gc.enable()
