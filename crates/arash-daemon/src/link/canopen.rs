@@ -155,23 +155,73 @@ impl Emergency {
     }
 
     /// The error code's class, from its high byte (CiA 301, table 21).
-    pub fn class(&self) -> &'static str {
-        match self.code >> 8 {
-            0x00 => "no error",
-            0x10 => "generic error",
-            0x20..=0x23 => "current",
-            0x30..=0x33 => "voltage",
-            0x40..=0x42 => "temperature",
-            0x50 => "device hardware",
-            0x60..=0x63 => "device software",
-            0x70 => "additional modules",
-            0x80 => "monitoring (communication)",
-            0x81 => "communication",
-            0x82 => "protocol error",
-            0x90 => "external error",
-            0xF0 => "additional functions",
-            0xFF => "device specific",
-            _ => "unknown class",
+    pub fn class(&self) -> ErrorClass {
+        ErrorClass::of(self.code)
+    }
+}
+
+/// The classes of emergency error codes, by the code's high byte (CiA 301, table 21; 0x73,
+/// sensor, from CiA 402).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ErrorClass {
+    NoError,
+    Generic,
+    Current,
+    Voltage,
+    Temperature,
+    DeviceHardware,
+    DeviceSoftware,
+    AdditionalModules,
+    Sensor,
+    Monitoring,
+    Communication,
+    Protocol,
+    External,
+    AdditionalFunctions,
+    DeviceSpecific,
+    Unknown,
+}
+
+impl ErrorClass {
+    pub fn of(code: u16) -> Self {
+        match code >> 8 {
+            0x00 => Self::NoError,
+            0x10 => Self::Generic,
+            0x20..=0x23 => Self::Current,
+            0x30..=0x33 => Self::Voltage,
+            0x40..=0x42 => Self::Temperature,
+            0x50 => Self::DeviceHardware,
+            0x60..=0x63 => Self::DeviceSoftware,
+            0x70 => Self::AdditionalModules,
+            0x73 => Self::Sensor,
+            0x80 => Self::Monitoring,
+            0x81 => Self::Communication,
+            0x82 => Self::Protocol,
+            0x90 => Self::External,
+            0xF0 => Self::AdditionalFunctions,
+            0xFF => Self::DeviceSpecific,
+            _ => Self::Unknown,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::NoError => "no error",
+            Self::Generic => "generic error",
+            Self::Current => "current",
+            Self::Voltage => "voltage",
+            Self::Temperature => "temperature",
+            Self::DeviceHardware => "device hardware",
+            Self::DeviceSoftware => "device software",
+            Self::AdditionalModules => "additional modules",
+            Self::Sensor => "sensor",
+            Self::Monitoring => "monitoring (communication)",
+            Self::Communication => "communication",
+            Self::Protocol => "protocol error",
+            Self::External => "external error",
+            Self::AdditionalFunctions => "additional functions",
+            Self::DeviceSpecific => "device specific",
+            Self::Unknown => "unknown class",
         }
     }
 }
@@ -374,7 +424,8 @@ mod tests {
         let e = Emergency::parse(&emcy).unwrap();
         assert_eq!((e.node, e.code, e.register, e.manufacturer), (node(2), 0x2310, 0x03, [1, 2, 3, 4, 5]));
         assert!(e.is_error());
-        assert_eq!(e.class(), "current");
+        assert_eq!(e.class(), ErrorClass::Current);
+        assert_eq!(e.class().name(), "current");
         assert_eq!(Emergency::parse(&sync()), None);
         let reset = CanFrame { data: [0; 8], ..emcy };
         assert!(!Emergency::parse(&reset).unwrap().is_error());

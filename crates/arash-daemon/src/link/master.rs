@@ -21,8 +21,8 @@ use std::time::{Duration, Instant};
 
 use super::can::{CanBus, CanFrame};
 use super::canopen::{
-    heartbeat, map_pdo, nmt, sdo_reply, sync, Emergency, NmtCommand, NmtState, NodeId, Object, SdoError, SdoReply,
-    SdoRequest, HEARTBEAT_BASE, RPDO1_BASE, TPDO1_BASE,
+    heartbeat, map_pdo, nmt, sdo_reply, sync, Emergency, ErrorClass, NmtCommand, NmtState, NodeId, Object, SdoError,
+    SdoReply, SdoRequest, HEARTBEAT_BASE, RPDO1_BASE, TPDO1_BASE,
 };
 use super::cia402::{controlword, rpdo1, Axis, AxisFault, RatedScale, Tpdo1};
 use super::frame::{drive_fault, status, Command, Telemetry, MAX_JOINTS};
@@ -387,12 +387,12 @@ impl MasterFault {
     /// The telemetry fault bit: the EMCY's class where it has one of the drive's.
     pub fn bits(self) -> u8 {
         match self {
-            Self::Emergency { code, .. } => match code >> 8 {
-                0x20..=0x23 => drive_fault::OVERCURRENT,
-                0x30..=0x33 => drive_fault::UNDERVOLTAGE,
-                0x40..=0x42 => drive_fault::OVERTEMPERATURE,
-                0x73 => drive_fault::ENCODER,
-                0x81 | 0x82 => drive_fault::FIELDBUS,
+            Self::Emergency { code, .. } => match ErrorClass::of(code) {
+                ErrorClass::Current => drive_fault::OVERCURRENT,
+                ErrorClass::Voltage => drive_fault::UNDERVOLTAGE,
+                ErrorClass::Temperature => drive_fault::OVERTEMPERATURE,
+                ErrorClass::Sensor => drive_fault::ENCODER,
+                ErrorClass::Communication | ErrorClass::Protocol => drive_fault::FIELDBUS,
                 _ => drive_fault::DRIVE,
             },
             Self::Drive(_) | Self::NotFinite => drive_fault::DRIVE,
