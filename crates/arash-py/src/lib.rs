@@ -6,6 +6,7 @@
 //! - `batching`: evaluation over a batch on all cores;
 //! - `robot`: `Robot` and `BaseParameters`;
 //! - `filters`: `butter` and `filtfilt`;
+//! - `motors`: `SimulatedMotors`, the simulated rig a cycle at a time;
 //! - `identify`, `diagnose`, `simulate`, `transmission`: the rest of the API.
 
 use pyo3::prelude::*;
@@ -15,6 +16,7 @@ mod convert;
 mod diagnose;
 mod filters;
 mod identify;
+mod motors;
 mod robot;
 mod simulate;
 mod transmission;
@@ -29,6 +31,7 @@ fn _arash(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(filters::filtfilt, module)?)?;
     module.add_class::<robot::Robot>()?;
     module.add_class::<robot::BaseParameters>()?;
+    module.add_class::<motors::SimulatedMotors>()?;
     module.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

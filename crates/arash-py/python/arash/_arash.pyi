@@ -17,6 +17,7 @@ __all__ = [
     "Excitation",
     "Identification",
     "Robot",
+    "SimulatedMotors",
     "Transmission",
     "__version__",
     "_design_excitation",
@@ -104,6 +105,26 @@ class Robot:
         weak combinations no trajectory within the limits separates (then Y π = Y_r β on such
         trajectories, to their residual), the set ``identify`` fits by default (``diagnose`` fits
         the exact ones)."""
+
+@final
+class SimulatedMotors:
+    """The simulated rig's motor side (plant, amplifiers, encoders, current sensing), one control
+    cycle at a time: what ``arash mock-motor`` serves, for a drive simulator to put behind its
+    process data. ``scenario`` is a scenario's TOML ("" for the nominal rig)."""
+
+    def __new__(
+        cls,
+        robot: Robot,
+        scenario: str,
+        counts_per_rev: Sequence[float],
+        transmission: Sequence[float],
+        seed: Optional[int] = None,
+    ) -> SimulatedMotors: ...
+    def apply(self, dt: float, tau: Sequence[float]) -> None: ...
+    def encoder_counts(self) -> list[int]: ...
+    def measured_torque(self) -> list[float]: ...
+    def q(self) -> list[float]: ...
+    def time(self) -> float: ...
 
 @final
 class BaseParameters:

@@ -33,7 +33,7 @@ use arash_daemon::rt::clock::RtPolicy;
 
 use crate::runlog;
 use report::{Tracking, TrackingRun};
-use rig::{Motors, Rig};
+use rig::{Link, Motors, Rig};
 
 /// The demo's rig: the nominal rig plus a wiring disturbance on ψ and Stribeck friction.
 const DEMO_SCENARIO: &str = include_str!("../../../../../scenarios/demo.toml");
@@ -62,6 +62,11 @@ pub struct Args {
     /// The rig's serial port (or a pseudo-terminal): drive real motors instead of the mock.
     #[arg(long)]
     port: Option<String>,
+    /// The motor link: `serial` (arash's protocol; the mock is `arash mock-motor`) or `canopen`
+    /// (CiA 402 drives through an slcan adapter on --port; the mock is the simulated rig
+    /// behind simulated drives, `python -m arash.cia402_sim`; docs/canopen.md).
+    #[arg(long, value_enum, default_value = "serial")]
+    link: Link,
     /// Real-time set-up of the daemon; default ignore with the mock, require with --port.
     #[arg(long)]
     rt: Option<RtPolicy>,
@@ -175,7 +180,7 @@ fn steps(args: &Args, plan: &Plan) -> anyhow::Result<()> {
         Some(port) => (Motors::Port(port), args.rt.unwrap_or(RtPolicy::Require)),
         None => (Motors::Mock { scenario: &scenario, seed: args.seed }, args.rt.unwrap_or(RtPolicy::Ignore)),
     };
-    let mut rig = Rig::start(dir, motors, rt, args.live.as_ref())?;
+    let mut rig = Rig::start(dir, motors, args.link, rt, args.live.as_ref())?;
     if args.live.is_some() {
         // The daemon's own answer: the address it bound (port 0 picks one).
         let status = rig.call(&arash_daemon::ctl::CtlRequest::Status)?;
@@ -185,7 +190,11 @@ fn steps(args: &Args, plan: &Plan) -> anyhow::Result<()> {
     match &args.port {
         Some(_) => println!("    daemon on {}; motors disabled", rig.port),
         None => println!(
-            "    mock motor on {} (scenario {}, undeclared: {}); daemon started, motors disabled",
+            "    {} on {} (scenario {}, undeclared: {}); daemon started, motors disabled",
+            match args.link {
+                Link::Serial => "mock motor",
+                Link::Canopen => "simulated CiA 402 drives",
+            },
             rig.port,
             scenario.display(),
             scenario_effects(&scenario)

@@ -1,6 +1,7 @@
-//! The rig the demo drives: `arash mock-motor` on a pseudo-terminal (or a real port), and
-//! `arash daemon` on it, both child processes of the demo, commanded over the daemon's socket
-//! exactly as `arash ctl` does.
+//! The rig the demo drives: `arash mock-motor` on a pseudo-terminal (arash's serial protocol),
+//! `python -m arash.cia402_sim` on one (the same simulated rig behind CiA 402 drives, reached
+//! as an slcan adapter), or a real port; and `arash daemon` on it. Both are child processes of
+//! the demo, commanded over the daemon's socket exactly as `arash ctl` does.
 //!
 //! The children run in their own process groups, so a Ctrl-C at the terminal reaches only the
 //! demo: it then disables the motors through the daemon, stops the daemon with SIGTERM (which
@@ -39,10 +40,48 @@ pub fn check_interrupt() -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Where the motors are: the mock (scenario file and seed) or a real port.
+/// Where the motors are: a simulated rig (scenario file and seed) or a real port.
 pub enum Motors<'a> {
     Mock { scenario: &'a Path, seed: u64 },
     Port(&'a str),
+}
+
+/// The motor link the daemon speaks (`arash daemon --link`), and with it the simulator a mock
+/// rig is served by.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Link {
+    /// arash's own protocol on a serial line; the simulated rig is `arash mock-motor`.
+    Serial,
+    /// CiA 402 drives over CANopen through an slcan adapter; the simulated rig is
+    /// `python -m arash.cia402_sim` (Python with arash, python-can and canopen: `ARASH_PYTHON`,
+    /// default `python3`).
+    Canopen,
+}
+
+impl Link {
+    fn daemon_flag(self) -> &'static str {
+        match self {
+            Link::Serial => "serial",
+            Link::Canopen => "canopen",
+        }
+    }
+
+    /// The command that serves the simulated rig on a pseudo-terminal and prints its path.
+    fn simulator(self, exe: &Path, scenario: &Path, seed: u64, rt: &str) -> Command {
+        match self {
+            Link::Serial => {
+                let mut c = Command::new(exe);
+                c.arg("mock-motor").arg("--scenario").arg(scenario).args(["--seed", &seed.to_string(), "--rt", rt]);
+                c
+            }
+            Link::Canopen => {
+                let python = std::env::var_os("ARASH_PYTHON").unwrap_or_else(|| "python3".into());
+                let mut c = Command::new(python);
+                c.args(["-m", "arash.cia402_sim", "--scenario"]).arg(scenario).args(["--seed", &seed.to_string()]);
+                c
+            }
+        }
+    }
 }
 
 pub struct Rig {
@@ -57,7 +96,13 @@ impl Rig {
     /// Start the motors and the daemon (idc with CAD, motors disabled) with its logs in
     /// `dir/logs` and its standard error in `dir/daemon.log`; `live` streams it (an address, or
     /// the daemon's default).
-    pub fn start(dir: &Path, motors: Motors, rt: RtPolicy, live: Option<&Option<String>>) -> anyhow::Result<Self> {
+    pub fn start(
+        dir: &Path,
+        motors: Motors,
+        link: Link,
+        rt: RtPolicy,
+        live: Option<&Option<String>>,
+    ) -> anyhow::Result<Self> {
         let rt = match rt {
             RtPolicy::Require => "require",
             RtPolicy::Ignore => "ignore",
@@ -68,24 +113,21 @@ impl Rig {
             Motors::Port(port) => port.to_string(),
             Motors::Mock { scenario, seed } => {
                 let log = std::fs::File::create(dir.join("mock-motor.log"))?;
-                let mut child = Command::new(&exe)
-                    .arg("mock-motor")
-                    .arg("--scenario")
-                    .arg(scenario)
-                    .args(["--seed", &seed.to_string(), "--rt", rt])
+                let mut simulator = link.simulator(&exe, scenario, seed, rt);
+                let mut child = simulator
                     .stdout(Stdio::piped())
                     .stderr(log)
                     .process_group(0)
                     .spawn()
-                    .context("starting arash mock-motor")?;
+                    .with_context(|| format!("starting {:?}", simulator.get_program()))?;
                 let mut line = String::new();
                 BufReader::new(child.stdout.take().expect("piped")).read_line(&mut line)?;
                 rig.mock = Some(child);
-                anyhow::ensure!(
-                    !line.trim().is_empty(),
-                    "the mock motor did not start; see {}/mock-motor.log",
-                    dir.display()
-                );
+                if line.trim().is_empty() {
+                    let log = std::fs::read_to_string(dir.join("mock-motor.log")).unwrap_or_default();
+                    let last = log.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("").trim();
+                    anyhow::bail!("the simulated rig did not start: {last} (see {}/mock-motor.log)", dir.display());
+                }
                 line.trim().to_string()
             }
         };
@@ -94,7 +136,7 @@ impl Rig {
         let _ = std::fs::remove_file(&rig.socket);
         let log = std::fs::File::create(dir.join("daemon.log"))?;
         let mut daemon = Command::new(&exe);
-        daemon.args(["daemon", "--rt", rt, "--port", &rig.port, "--config"]).arg(&config);
+        daemon.args(["daemon", "--rt", rt, "--link", link.daemon_flag(), "--port", &rig.port, "--config"]).arg(&config);
         if let Some(address) = live {
             daemon.arg("--live").args(address.iter());
         }

@@ -1,5 +1,8 @@
 """CiA 402 drives on a simulated CAN bus, reached through a pseudo-terminal that plays an slcan
-(Lawicel) USB adapter: the independent far end of arash's CANopen master.
+(Lawicel) USB adapter: the independent far end of arash's CANopen master, for its tests and for
+``arash demo --link canopen`` (``python -m arash.cia402_sim`` serves the simulated rig, as
+``arash mock-motor`` does over arash's own protocol). Needs python-can and canopen
+(``pip install python-can canopen``).
 
 Written from the standards (CiA 301 for the object dictionary, SDO, NMT, heartbeat and EMCY; CiA
 402 for the drive's state machine and cyclic synchronous torque mode), not from arash's code:
@@ -9,6 +12,12 @@ carries the frames. What `canopen` has no slave for is ours here: the CiA 402 st
 the process data by the mapping the master wrote, the consumer heartbeat and its abort
 reaction (0x1016, 0x6007), and a plant behind the drives.
 
+A drive answers each SYNC within the cycle: it applies the target received before the SYNC and
+sends its TPDO at once. Here the process data (SYNC and RPDOs) are handled on the adapter's own
+thread as the host's line arrives, not through the virtual bus and canopen's notifier thread,
+which answered one to three cycles late and made the paper's robust law swing. SDO, NMT,
+heartbeats and EMCY go through the bus.
+
 Fault injection: a silent heartbeat, an EMCY, a drive fault, dropped TPDOs, a bus-off adapter
 that refuses every frame, one adapter error (BEL), and at construction a drive that ignores
 the mode, one without CST, one whose PDOs hold fewer objects, one that is not a CiA 402 drive
@@ -17,9 +26,14 @@ and nodes that do not answer.
 
 from __future__ import annotations
 
+import argparse
+import array
 import gc
+import json
+import math
 import os
 import select
+import signal
 import struct
 import sys
 import threading
@@ -153,7 +167,6 @@ class Drive:
             network.add_node(self.node)
             self.node.add_write_callback(self._on_write)
             self.node.add_read_callback(self._on_read)
-            network.subscribe(0x200 + spec.node, self._on_rpdo)
             self.node.nmt.state = "PRE-OPERATIONAL"
         self.heartbeat_ms = 100
         self.last_beat = 0.0
@@ -262,7 +275,8 @@ class Drive:
                 self.state = SWITCH_ON_DISABLED
             self.torque = 0
 
-    def _on_rpdo(self, can_id, data, timestamp):
+    def on_rpdo(self, data):
+        """RPDO1 by the mapping the master wrote (the adapter's thread, see Simulator._fast)."""
         if self.node.nmt.state != "OPERATIONAL" or self.stored(0x1400, 1) & (1 << 31):
             return
         offset = 0
@@ -288,6 +302,15 @@ class Drive:
             amps = self.torque / 1000 * self.spec.rated_current_ma / 1000
         return amps * self.spec.joint_torque_per_amp
 
+    def sense(self, position, torque):
+        """The plant's state at this SYNC: the joint's position (rad or m) and, where the plant
+        senses it, the joint torque its current makes (0x6077 then reports it, in ‰ of the rated
+        current; otherwise the target applied)."""
+        self.position = int(round(position * self.spec.counts_per_unit))
+        if torque is not None:
+            amps = torque / self.spec.joint_torque_per_amp if self.state == OPERATION_ENABLED else 0.0
+            self.torque = max(-32768, min(32767, int(round(amps / self.spec.rated_current_ma * 1e6))))
+
     def tpdo(self):
         """TPDO1 by the mapping the master wrote, or None when it is not to be sent."""
         if (self.node.nmt.state != "OPERATIONAL" or self.stored(0x1800, 1) & (1 << 31)
@@ -303,6 +326,8 @@ class Drive:
 # allows it, and Python switches threads every 0.2 ms instead of 5, so that a loaded test host
 # does not stall the drives past the master's link timeout.
 SIM_PRIORITY = 70
+# The bus's bit rate, for its load (docs/canopen.md: 1 Mbit/s).
+BIT_RATE = 1_000_000
 SWITCH_INTERVAL_S = 2e-4
 
 
@@ -314,19 +339,45 @@ def real_time_thread():
         pass
 
 
+def frame_bits(ident, data):
+    """The bits a data frame with an 11-bit identifier takes on the bus: its fields from the
+    start of frame to the CRC with the stuff bits they get (one after five equal bits, CAN
+    2.0A), then the CRC delimiter, acknowledgement, end of frame and intermission (13 bits)."""
+    bits = [0] + [ident >> (10 - i) & 1 for i in range(11)] + [0, 0, 0]  # SOF, ID, RTR, IDE, r0
+    bits += [len(data) >> (3 - i) & 1 for i in range(4)]
+    bits += [byte >> (7 - i) & 1 for byte in data for i in range(8)]
+    crc = 0
+    for b in bits:
+        crc = ((crc << 1) ^ (0x4599 if (crc >> 14) ^ b else 0)) & 0x7FFF
+    bits += [crc >> (14 - i) & 1 for i in range(15)]
+    stuffed, run, last = 0, 0, None
+    for b in bits:
+        run = run + 1 if b == last else 1
+        last = b
+        if run == 5:
+            stuffed += 1
+            run, last = 1, 1 - b  # the stuff bit starts the next run
+    return len(bits) + stuffed + 13
+
+
 class SlcanAdapter:
     """A pseudo-terminal that answers as an slcan USB adapter: `O`, `C`, `Sn` and `F` commands,
     `t` frames onto the bus and the bus's frames back as `t` lines."""
 
-    def __init__(self, bus: can.BusABC):
+    def __init__(self, bus: can.BusABC, fast=None, record=True):
         self.bus = bus
+        # fast(ident, data): the frames to answer a host frame with at once, or None to put it
+        # on the bus.
+        self.fast = fast
         self.master, slave = os.openpty()
         tty.setraw(slave)
         self.path = os.ttyname(slave)
         self._slave = slave
         self.open = False
         self.bus_off = False
-        self.sent = []  # (time, id, bytes) the host put on the bus
+        # (time, id, bytes) the host put on the bus, when recorded
+        self.sent: list[tuple[float, int, bytes]] | None = [] if record else None
+        self.bits = 0  # on the bus, both ways, stuff bits counted (frame_bits)
         self._write_lock = threading.Lock()
         self._stop = threading.Event()
         self._threads = [threading.Thread(target=self._from_host, daemon=True),
@@ -355,9 +406,14 @@ class SlcanAdapter:
                 return
             ident, length = int(line[1:4], 16), int(line[4:5])
             data = bytes.fromhex(line[5:5 + 2 * length].decode())
-            self.sent.append((time.monotonic(), ident, data))
-            self.bus.send(can.Message(arbitration_id=ident, data=data, is_extended_id=False))
-            self._write(b"z\r")
+            if self.sent is not None:
+                self.sent.append((time.monotonic(), ident, data))
+            self.bits += frame_bits(ident, data)
+            answer = self.fast(ident, data) if self.fast else None
+            self.bits += sum(frame_bits(i, d) for i, d in answer or ())
+            if answer is None:
+                self.bus.send(can.Message(arbitration_id=ident, data=data, is_extended_id=False))
+            self._write(b"z\r" + b"".join(self.frame_line(i, d) for i, d in answer or ()))
         elif kind in (b"O", b"C", b"S"):
             self.open = kind == b"O" or (self.open and kind == b"S")
             self._write(b"\r")
@@ -389,7 +445,12 @@ class SlcanAdapter:
             if message is None or self.bus_off or not self.open:
                 continue
             data = bytes(message.data)
-            self._write(b"t%03X%d%s\r" % (message.arbitration_id, len(data), data.hex().upper().encode()))
+            self.bits += frame_bits(message.arbitration_id, data)
+            self._write(self.frame_line(message.arbitration_id, data))
+
+    @staticmethod
+    def frame_line(ident, data):
+        return b"t%03X%d%s\r" % (ident, len(data), data.hex().upper().encode())
 
     def close(self):
         self._stop.set()
@@ -402,17 +463,48 @@ class SlcanAdapter:
 
 @dataclass
 class Plant:
-    """The joints behind the drives: ``step(q, qd, tau, dt)`` returns the next (q, qd)."""
+    """The joints behind the drives: ``step(q, qd, tau, dt)`` returns the next (q, qd). A drive
+    that is not enabled holds its joint's brake, as drives of arms under gravity do."""
     step: object
     q: list = field(default_factory=list)
     qd: list = field(default_factory=list)
+
+    def cycle(self, tau, enabled, dt):
+        """One SYNC period: the joints' positions, and no sensed torque."""
+        q, qd = self.step(self.q, self.qd, tau, dt)
+        q, qd = list(q), list(qd)
+        for j, on in enumerate(enabled):
+            if not on:
+                q[j], qd[j] = self.q[j], 0.0
+        self.q, self.qd = q, qd
+        return q, None
+
+
+class RigPlant:
+    """arash's simulated rig behind the drives (``arash.SimulatedMotors``: the plant, encoders
+    and current sensing that ``arash mock-motor`` serves), so that a run through CiA 402 and one
+    through arash's serial protocol drive the same rig. Like the mock's power stage it moves only
+    while every drive is enabled."""
+
+    def __init__(self, motors, resolution):
+        self.motors, self.resolution = motors, list(resolution)
+
+    def cycle(self, tau, enabled, dt):
+        n = len(self.resolution)
+        if all(enabled):
+            self.motors.apply(dt, list(tau))
+            torque = self.motors.measured_torque()
+        else:
+            torque = [0.0] * n
+        counts = self.motors.encoder_counts()
+        return [c * r for c, r in zip(counts, self.resolution)], torque
 
 
 class Simulator:
     """Drives (one per ``DriveSpec``) on a virtual CAN bus, an slcan adapter on a pty, and a
     plant stepped at each SYNC by the SYNC period the master wrote (0x1006)."""
 
-    def __init__(self, specs, plant: Plant, channel=None):
+    def __init__(self, specs, plant: Plant, channel=None, record=True):
         channel = channel or f"arash-cia402-{os.getpid()}-{id(self)}"
         self._switch_interval = sys.getswitchinterval()
         sys.setswitchinterval(SWITCH_INTERVAL_S)
@@ -421,16 +513,17 @@ class Simulator:
         # and heartbeating. The simulator makes little garbage; collections wait until close.
         self._collecting = gc.isenabled()
         gc.disable()
-        self._raised = False
         self.network = canopen.Network()
         self.network.connect(interface="virtual", channel=channel)
-        self.log = []
+        self.log: list[tuple] = []
         self.drives = [Drive(s, self.network, self.log) for s in specs]
         self.plant = plant
-        self.adapter = SlcanAdapter(can.Bus(interface="virtual", channel=channel))
+        self._rpdo = {0x200 + d.spec.node: d for d in self.drives if d.spec.answers}
+        self.adapter = SlcanAdapter(can.Bus(interface="virtual", channel=channel), fast=self._fast, record=record)
         self.syncs = 0
-        self.network.subscribe(0x080, self._on_sync)
-        self._master_heartbeat = {}
+        self.sync_times = array.array("d")  # when each SYNC arrived (time.monotonic)
+        self._master_heartbeat: dict[int, float] = {}
+        self._notifier_raised = False
         for cob in range(0x701, 0x780):
             self.network.subscribe(cob, self._on_heartbeat)
         self._stop = threading.Event()
@@ -444,26 +537,38 @@ class Simulator:
     def drive(self, node) -> Drive:
         return next(d for d in self.drives if d.spec.node == node)
 
-    def _on_sync(self, can_id, data, timestamp):
-        if not self._raised:  # the network's notifier thread, which runs every callback
-            real_time_thread()
-            self._raised = True
+    def _fast(self, ident, data):
+        """The process data, on the adapter's thread: an RPDO is taken, a SYNC steps the plant
+        and is answered with every drive's TPDO. Anything else goes on the bus."""
+        if ident == 0x080:
+            return self._on_sync()
+        drive = self._rpdo.get(ident)
+        if drive is None:
+            return None
+        drive.on_rpdo(data)
+        return []
+
+    def _on_sync(self):
         self.syncs += 1
+        self.sync_times.append(time.monotonic())
         period = (self.drives[0].stored(0x1006) or 1000) * 1e-6
         tau = [d.joint_torque() for d in self.drives]
-        q, qd = self.plant.step(self.plant.q, self.plant.qd, tau, period)
-        # A drive that is not enabled holds its joint's brake, as drives of arms under gravity do.
+        positions, torques = self.plant.cycle(tau, [d.state == OPERATION_ENABLED for d in self.drives], period)
+        frames = []
         for j, d in enumerate(self.drives):
-            if d.state != OPERATION_ENABLED:
-                q[j], qd[j] = self.plant.q[j], 0.0
-        self.plant.q, self.plant.qd = q, qd
-        for d, qj in zip(self.drives, q):
-            d.position = int(round(qj * d.spec.counts_per_unit))
+            d.sense(positions[j], None if torques is None else torques[j])
             pdo = d.tpdo()
             if pdo is not None:
-                self.network.send_message(*pdo)
+                frames.append(pdo)
+        return frames
 
     def _on_heartbeat(self, can_id, data, timestamp):
+        # The network's notifier thread, which runs every callback (SDO and NMT too). It holds
+        # the interpreter while it runs: at ordinary priority a busy host could preempt it
+        # there and stall the drives' threads behind it.
+        if not self._notifier_raised:
+            real_time_thread()
+            self._notifier_raised = True
         self._master_heartbeat[can_id - 0x700] = time.monotonic()
 
     def _clock(self):
@@ -491,6 +596,20 @@ class Simulator:
                 elif not late:
                     tripped.discard(d.spec.node)
 
+    def statistics(self):
+        """What the drives saw: SYNCs, their intervals (µs: median, 99th percentile, largest),
+        late SYNCs (an interval over 1.5 periods of 0x1006: a cycle the drives held the old
+        target) and the bus load (the bits of every frame over the bit rate and the time)."""
+        times = self.sync_times
+        period_us = (self.drives[0].stored(0x1006) or 1000)
+        gaps = sorted((b - a) * 1e6 for a, b in zip(times, times[1:]))
+        span = times[-1] - times[0] if len(times) > 1 else 0.0
+        quantile = (lambda f: round(gaps[min(len(gaps) - 1, int(f * len(gaps)))], 1)) if gaps else (lambda f: None)
+        return {"syncs": len(times), "sync_interval_p50_us": quantile(0.5), "sync_interval_p99_us": quantile(0.99),
+                "sync_interval_max_us": round(gaps[-1], 1) if gaps else None,
+                "late_syncs": sum(g > 1.5 * period_us for g in gaps),
+                "bus_load_percent": round(100 * self.adapter.bits / (BIT_RATE * span), 1) if span else None}
+
     def silence_heartbeat(self, node):
         self.drive(node).injected.silent_heartbeat = True
 
@@ -502,3 +621,65 @@ class Simulator:
         sys.setswitchinterval(self._switch_interval)
         if self._collecting:
             gc.enable()
+
+
+# The rig's encoders, transmissions and motors as the daemon's [drive] table has them by default
+# (deploy/daemon.toml), and the drives' rated currents (0x6075): targets are in ‰ of them.
+RIG_COUNTS_PER_REV = [8192.0, 8192.0, 8192.0]
+RIG_TRANSMISSION = [1 / 12, 1 / 12, 0.0025]
+RIG_TORQUE_PER_AMP = [0.3312, 0.3312, 11.04]
+RIG_RATED_CURRENT_MA = [5000, 5000, 1000]
+
+
+def rig_simulator(scenario=None, seed=None, nodes=(1, 2, 3), record=True):
+    """The simulated ARASH:ASiST (a scenario file, or the nominal rig) behind CiA 402 drives."""
+    from . import Robot, SimulatedMotors
+
+    text = "" if scenario is None else open(scenario, encoding="utf-8").read()
+    motors = SimulatedMotors(Robot.arash_asist(), text, RIG_COUNTS_PER_REV, RIG_TRANSMISSION, seed)
+    resolution = [2 * math.pi * r / c for r, c in zip(RIG_TRANSMISSION, RIG_COUNTS_PER_REV)]
+    specs = [DriveSpec(node=n, joint_torque_per_amp=k, counts_per_unit=1 / res, rated_current_ma=i)
+             for n, k, res, i in zip(nodes, RIG_TORQUE_PER_AMP, resolution, RIG_RATED_CURRENT_MA)]
+    return Simulator(specs, RigPlant(motors, resolution), record=record)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(
+        prog="python -m arash.cia402_sim",
+        description="The simulated ARASH:ASiST behind three CiA 402 drives in CST, on a pseudo-terminal that "
+                    "plays an slcan adapter: `arash daemon --link canopen --port <the printed path>`.")
+    parser.add_argument("--scenario", help="scenario TOML of the simulated rig (default: the nominal rig)")
+    parser.add_argument("--seed", type=int, help="override the scenario's seed")
+    parser.add_argument("--nodes", default="1,2,3", help="the drives' node IDs, in joint order (default 1,2,3)")
+    parser.add_argument("--link", help="also make this path a symbolic link to the pseudo-terminal")
+    args = parser.parse_args(argv)
+    try:
+        nodes = [int(n) for n in args.nodes.split(",")]
+    except ValueError:
+        parser.error(f"--nodes takes node IDs separated by commas, got {args.nodes!r}")
+    if len(nodes) != 3 or not all(1 <= n <= 127 for n in nodes):
+        parser.error(f"--nodes takes three node IDs from 1 to 127, one per joint, got {args.nodes!r}")
+    sim = rig_simulator(args.scenario, args.seed, nodes, record=False)
+    if args.link:
+        if os.path.lexists(args.link):
+            os.remove(args.link)
+        os.symlink(sim.path, args.link)
+    # This thread too takes the interpreter now and then; at ordinary priority it could be
+    # preempted holding it (see Simulator._on_heartbeat).
+    real_time_thread()
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+    print(sim.path, flush=True)
+    print(f"arash.cia402_sim: drives {nodes} serving {sim.path}; Ctrl-C to stop", file=sys.stderr, flush=True)
+    try:
+        while not stop.wait(0.2):
+            pass
+    finally:
+        sim.close()
+        print("arash.cia402_sim: " + json.dumps(sim.statistics()), file=sys.stderr, flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
