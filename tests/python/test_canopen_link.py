@@ -323,6 +323,8 @@ BAD = {
                                       ["node 2", "0x1a00:0", "exceed the PDO length"]),
     "not a CiA 402 drive": (dict(drive_specs={1: dict(device_type=0x191)}), {}, ["node 1", "0x1000", "402"]),
     "a node-ID clash": ({}, dict(nodes=[1, 2, 2]), ["canopen.nodes", "node 2", "twice"]),
+    "two drives at one node ID": (dict(extra=[DriveSpec(node=2, serial=0x2002)]), {},
+                                  ["node 2", "2 devices answer as this node", "0x1018:4"]),
 }
 
 
@@ -330,7 +332,7 @@ BAD = {
 def test_bad_drives_and_settings_are_refused_by_name_before_anything_is_enabled(rig, case):
     drives, canopen, words = BAD[case]
     changed = drives.get("drive_specs", {})
-    r = rig(drive_specs=specs(changed), **canopen)
+    r = rig(drive_specs=specs(changed) + drives.get("extra", []), **canopen)
     r.start(wait=False)
     code = r.daemon.wait(timeout=30)
     err = r.stderr()

@@ -175,6 +175,11 @@ pub enum StartupError {
     NoRating { node: NodeId, what: &'static str, object: Object },
     #[error("{node} sent no heartbeat in operational state within {wait_ms} ms of its NMT start")]
     NotStarted { node: NodeId, wait_ms: u64 },
+    #[error(
+        "{node}: {answers} devices answer as this node (one read of 0x1018:4, answered {answers} times): give each drive \
+         its own node ID (docs/canopen.md, \"Node IDs\")"
+    )]
+    NodeClash { node: NodeId, answers: usize },
     #[error("the CAN bus: {0}")]
     Bus(std::io::Error),
 }
@@ -213,6 +218,7 @@ mod od {
     pub const DEVICE_TYPE: Object = o(0x1000, 0);
     pub const VENDOR: Object = o(0x1018, 1);
     pub const PRODUCT: Object = o(0x1018, 2);
+    pub const SERIAL: Object = o(0x1018, 4);
     pub const SYNC_PERIOD: Object = o(0x1006, 0);
     pub const CONSUMER_HEARTBEAT: Object = o(0x1016, 1);
     pub const PRODUCER_HEARTBEAT: Object = o(0x1017, 0);
@@ -260,6 +266,41 @@ pub fn transfer<B: CanBus>(
         if Instant::now() >= deadline {
             let timeout_ms = timeout.as_millis().min(u128::from(u32::MAX)) as u32;
             return Err(SdoError::Timeout { node, object: request.object(), timeout_ms }.into());
+        }
+        std::thread::sleep(Duration::from_micros(200));
+    }
+}
+
+/// How long the master listens for more answers after the first to one request at start-up: a
+/// second device at the same node ID answers within its own SDO latency, a millisecond or two.
+const CLASH_LISTEN: Duration = Duration::from_millis(20);
+
+/// How many devices answer as `node`: one read of `object` (the serial number, 0x1018:4, which
+/// differs between two devices, so that both answers reach the bus), the answers counted for
+/// [`CLASH_LISTEN`] after the first. An abort counts as an answer. Two answers of the same bits
+/// merge on a real bus into one and are not seen.
+fn answers_to<B: CanBus>(bus: &mut B, node: NodeId, object: Object, timeout: Duration) -> Result<usize, StartupError> {
+    let request = SdoRequest::Read(object);
+    bus.send(&request.frame(node)).map_err(StartupError::Bus)?;
+    let deadline = Instant::now() + timeout;
+    let mut answers = 0;
+    let mut listen_until = deadline;
+    loop {
+        while let Some(frame) = bus.receive().map_err(StartupError::Bus)? {
+            if sdo_reply(&frame, node, &request).is_some() {
+                if answers == 0 {
+                    listen_until = Instant::now() + CLASH_LISTEN;
+                }
+                answers += 1;
+            }
+        }
+        let now = Instant::now();
+        if answers > 0 && now >= listen_until {
+            return Ok(answers);
+        }
+        if answers == 0 && now >= deadline {
+            let timeout_ms = timeout.as_millis().min(u128::from(u32::MAX)) as u32;
+            return Err(SdoError::Timeout { node, object, timeout_ms }.into());
         }
         std::thread::sleep(Duration::from_micros(200));
     }
@@ -325,6 +366,12 @@ fn configure_drive<B: CanBus>(
     };
     // A drive left enabled by a daemon that crashed is switched off before anything else.
     write(bus, od::CONTROLWORD, 0, 2)?;
+    // Drives often leave the factory at the same node ID; two on one bus would both take every
+    // command meant for one joint.
+    let answers = answers_to(bus, node, od::SERIAL, timeout)?;
+    if answers > 1 {
+        return Err(StartupError::NodeClash { node, answers });
+    }
     let device_type = read(bus, od::DEVICE_TYPE)?;
     if device_type & 0xFFFF != CIA402 {
         return Err(StartupError::NotCia402 { node, value: device_type });
@@ -691,5 +738,34 @@ impl<B: CanBus> MotorLink for CanopenLink<B> {
 
     fn stats(&self) -> LinkStats {
         self.stats
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::link::can::InProcessBus;
+    use crate::link::canopen::SDO_REPLY_BASE;
+
+    /// An expedited upload answer of 0x1018:4 from `node` (CiA 301: command 0x43, four bytes).
+    fn serial_answer(node: NodeId, serial: u32) -> CanFrame {
+        let [a, b, c, d] = serial.to_le_bytes();
+        CanFrame { id: SDO_REPLY_BASE + u32::from(node.get()), len: 8, data: [0x43, 0x18, 0x10, 4, a, b, c, d] }
+    }
+
+    fn answers(serials: &[u32]) -> Result<usize, StartupError> {
+        let node = NodeId::try_from(2).unwrap();
+        let (mut host, mut drives) = InProcessBus::pair(16);
+        for &s in serials {
+            drives.send(&serial_answer(node, s)).unwrap();
+        }
+        answers_to(&mut host, node, od::SERIAL, Duration::from_millis(50))
+    }
+
+    #[test]
+    fn every_device_that_answers_as_a_node_is_counted() {
+        assert_eq!(answers(&[7]).unwrap(), 1);
+        assert_eq!(answers(&[7, 9]).unwrap(), 2);
+        assert!(matches!(answers(&[]), Err(StartupError::Sdo(SdoError::Timeout { .. }))));
     }
 }

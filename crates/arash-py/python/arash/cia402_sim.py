@@ -82,6 +82,7 @@ class DriveSpec:
     ignores_mode: bool = False
     max_mapped: int = 8
     answers: bool = True
+    serial: int | None = None  # 0x1018:4; default the node ID
 
 
 @dataclass
@@ -125,7 +126,8 @@ def object_dictionary(spec: DriveSpec) -> ObjectDictionary:
     od.add_object(consumer)
     identity = ODRecord("identity", 0x1018)
     for sub, name, default in [(0, "highest sub-index", 4), (1, "vendor-ID", 0x000000FB),
-                               (2, "product code", 0x00402402), (3, "revision", 1), (4, "serial number", spec.node)]:
+                               (2, "product code", 0x00402402), (3, "revision", 1),
+                               (4, "serial number", spec.node if spec.serial is None else spec.serial)]:
         identity.add_member(_var(name, 0x1018, sub, UNSIGNED8 if sub == 0 else UNSIGNED32, "ro", default))
     od.add_object(identity)
     for communication, mapping, base in [(0x1400, 0x1600, 0x200), (0x1800, 0x1A00, 0x180)]:
@@ -163,8 +165,13 @@ class Drive:
         self.position = 0
         self.host_seen = None
         self.lock = threading.Lock()
-        if spec.answers:
+        if spec.answers and spec.node in network.nodes:
+            # A second device at a node ID already on the bus: canopen's Network keeps one node
+            # per ID, so this one is put on the bus beside it, where both answer.
+            self.node.associate_network(network)
+        elif spec.answers:
             network.add_node(self.node)
+        if spec.answers:
             self.node.add_write_callback(self._on_write)
             self.node.add_read_callback(self._on_read)
             self.node.nmt.state = "PRE-OPERATIONAL"
@@ -360,6 +367,13 @@ def frame_bits(ident, data):
     return len(bits) + stuffed + 13
 
 
+# A data frame's bits without stuff bits besides its data: 47 (docs/canopen.md).
+NOMINAL_BITS = 47
+# One frame in this many has its stuff bits counted; a prime, so that the sample does not lock
+# onto one frame of the cycle's fixed pattern (RPDOs, SYNC, TPDOs).
+STUFF_SAMPLE = 61
+
+
 class SlcanAdapter:
     """A pseudo-terminal that answers as an slcan USB adapter: `O`, `C`, `Sn` and `F` commands,
     `t` frames onto the bus and the bus's frames back as `t` lines."""
@@ -377,13 +391,23 @@ class SlcanAdapter:
         self.bus_off = False
         # (time, id, bytes) the host put on the bus, when recorded
         self.sent: list[tuple[float, int, bytes]] | None = [] if record else None
-        self.bits = 0  # on the bus, both ways, stuff bits counted (frame_bits)
+        self.bits = 0  # on the bus, both ways (count_frame)
+        self.frames = 0
         self._write_lock = threading.Lock()
         self._stop = threading.Event()
         self._threads = [threading.Thread(target=self._from_host, daemon=True),
                          threading.Thread(target=self._to_host, daemon=True)]
         for t in self._threads:
             t.start()
+
+    def count_frame(self, ident, data):
+        """A frame's bits on the bus: exactly without stuff bits, and the stuff bits of every
+        STUFF_SAMPLE-th frame counted for all of them (frame_bits costs some 20 µs of the
+        thread that answers the SYNC; counting every frame made answers late)."""
+        self.bits += NOMINAL_BITS + 8 * len(data)
+        self.frames += 1
+        if self.frames % STUFF_SAMPLE == 0:
+            self.bits += STUFF_SAMPLE * (frame_bits(ident, data) - NOMINAL_BITS - 8 * len(data))
 
     def _write(self, data: bytes):
         with self._write_lock:
@@ -408,9 +432,10 @@ class SlcanAdapter:
             data = bytes.fromhex(line[5:5 + 2 * length].decode())
             if self.sent is not None:
                 self.sent.append((time.monotonic(), ident, data))
-            self.bits += frame_bits(ident, data)
+            self.count_frame(ident, data)
             answer = self.fast(ident, data) if self.fast else None
-            self.bits += sum(frame_bits(i, d) for i, d in answer or ())
+            for i, d in answer or ():
+                self.count_frame(i, d)
             if answer is None:
                 self.bus.send(can.Message(arbitration_id=ident, data=data, is_extended_id=False))
             self._write(b"z\r" + b"".join(self.frame_line(i, d) for i, d in answer or ()))
@@ -445,7 +470,7 @@ class SlcanAdapter:
             if message is None or self.bus_off or not self.open:
                 continue
             data = bytes(message.data)
-            self.bits += frame_bits(message.arbitration_id, data)
+            self.count_frame(message.arbitration_id, data)
             self._write(self.frame_line(message.arbitration_id, data))
 
     @staticmethod
@@ -517,8 +542,12 @@ class Simulator:
         self.network.connect(interface="virtual", channel=channel)
         self.log: list[tuple] = []
         self.drives = [Drive(s, self.network, self.log) for s in specs]
+        # The drives that turn the joints, in order: the first at each node ID. A second device
+        # at an ID already taken is on the bus and answers, but turns nothing.
+        taken = set()
+        self.axes = [d for d in self.drives if not (d.spec.node in taken or taken.add(d.spec.node))]
         self.plant = plant
-        self._rpdo = {0x200 + d.spec.node: d for d in self.drives if d.spec.answers}
+        self._rpdo = {0x200 + d.spec.node: d for d in self.axes if d.spec.answers}
         self.adapter = SlcanAdapter(can.Bus(interface="virtual", channel=channel), fast=self._fast, record=record)
         self.syncs = 0
         self.sync_times = array.array("d")  # when each SYNC arrived (time.monotonic)
@@ -552,10 +581,10 @@ class Simulator:
         self.syncs += 1
         self.sync_times.append(time.monotonic())
         period = (self.drives[0].stored(0x1006) or 1000) * 1e-6
-        tau = [d.joint_torque() for d in self.drives]
-        positions, torques = self.plant.cycle(tau, [d.state == OPERATION_ENABLED for d in self.drives], period)
+        tau = [d.joint_torque() for d in self.axes]
+        positions, torques = self.plant.cycle(tau, [d.state == OPERATION_ENABLED for d in self.axes], period)
         frames = []
-        for j, d in enumerate(self.drives):
+        for j, d in enumerate(self.axes):
             d.sense(positions[j], None if torques is None else torques[j])
             pdo = d.tpdo()
             if pdo is not None:
