@@ -171,14 +171,15 @@ def sdo_requests(sent, node):
 
 
 def expected_start_up(node, period_us=1000, heartbeat=50, master_timeout=150, abort=3, max_torque=1000):
-    """CiA 301 and 402's start-up of a CST drive, as issue 47 lists it."""
+    """CiA 301 and 402's start-up of a CST drive, as issue 47 lists it, with one read of the
+    serial number (0x1018:4) whose answers are counted: two devices at one node ID answer twice."""
     rpdo, tpdo = 0x200 + node, 0x180 + node
     pdo = lambda comm, mapping, cob, entries: [  # noqa: E731
         ("w", comm, 1, cob | 1 << 31), ("w", mapping, 0, 0),
         *[("w", mapping, i + 1, e) for i, e in enumerate(entries)],
         ("w", mapping, 0, len(entries)), ("w", comm, 2, 1), ("w", comm, 1, cob)]
     return [
-        ("w", 0x6040, 0, 0),
+        ("w", 0x6040, 0, 0), ("r", 0x1018, 4),
         ("r", 0x1000, 0), ("r", 0x1018, 1), ("r", 0x1018, 2), ("r", 0x6502, 0),
         *pdo(0x1400, 0x1600, rpdo, [0x60400010, 0x60710010]),
         *pdo(0x1800, 0x1A00, tpdo, [0x60410010, 0x60640020, 0x60770010]),
