@@ -544,8 +544,10 @@ class Simulator:
         self.drives = [Drive(s, self.network, self.log) for s in specs]
         # The drives that turn the joints, in order: the first at each node ID. A second device
         # at an ID already taken is on the bus and answers, but turns nothing.
-        taken = set()
-        self.axes = [d for d in self.drives if not (d.spec.node in taken or taken.add(d.spec.node))]
+        firsts: dict[int, Drive] = {}
+        for d in self.drives:
+            firsts.setdefault(d.spec.node, d)
+        self.axes = list(firsts.values())
         self.plant = plant
         self._rpdo = {0x200 + d.spec.node: d for d in self.axes if d.spec.answers}
         self.adapter = SlcanAdapter(can.Bus(interface="virtual", channel=channel), fast=self._fast, record=record)
@@ -628,7 +630,8 @@ class Simulator:
     def statistics(self):
         """What the drives saw: SYNCs, their intervals (µs: median, 99th percentile, largest),
         late SYNCs (an interval over 1.5 periods of 0x1006: a cycle the drives held the old
-        target) and the bus load (the bits of every frame over the bit rate and the time)."""
+        target) and the bus load (the bits of every frame over the bit rate and the time), and
+        the bits per SYNC, which cycles the host missed do not lower."""
         times = self.sync_times
         period_us = (self.drives[0].stored(0x1006) or 1000)
         gaps = sorted((b - a) * 1e6 for a, b in zip(times, times[1:]))
@@ -637,7 +640,8 @@ class Simulator:
         return {"syncs": len(times), "sync_interval_p50_us": quantile(0.5), "sync_interval_p99_us": quantile(0.99),
                 "sync_interval_max_us": round(gaps[-1], 1) if gaps else None,
                 "late_syncs": sum(g > 1.5 * period_us for g in gaps),
-                "bus_load_percent": round(100 * self.adapter.bits / (BIT_RATE * span), 1) if span else None}
+                "bus_load_percent": round(100 * self.adapter.bits / (BIT_RATE * span), 1) if span else None,
+                "bits_per_sync": round(self.adapter.bits / len(times)) if times else None}
 
     def silence_heartbeat(self, node):
         self.drive(node).injected.silent_heartbeat = True
