@@ -255,20 +255,7 @@ pub fn transfer<B: CanBus>(
     request: SdoRequest,
     timeout: Duration,
 ) -> Result<SdoReply, StartupError> {
-    bus.send(&request.frame(node)).map_err(StartupError::Bus)?;
-    let deadline = Instant::now() + timeout;
-    loop {
-        while let Some(frame) = bus.receive().map_err(StartupError::Bus)? {
-            if let Some(answer) = sdo_reply(&frame, node, &request) {
-                return Ok(answer?);
-            }
-        }
-        if Instant::now() >= deadline {
-            let timeout_ms = timeout.as_millis().min(u128::from(u32::MAX)) as u32;
-            return Err(SdoError::Timeout { node, object: request.object(), timeout_ms }.into());
-        }
-        std::thread::sleep(Duration::from_micros(200));
-    }
+    Ok(exchange(bus, node, request, timeout, Duration::ZERO)?.0?)
 }
 
 /// How long the master listens for more answers after the first to one request at start-up: a
@@ -280,27 +267,42 @@ const CLASH_LISTEN: Duration = Duration::from_millis(20);
 /// [`CLASH_LISTEN`] after the first. An abort counts as an answer. Two answers of the same bits
 /// merge on a real bus into one and are not seen.
 fn answers_to<B: CanBus>(bus: &mut B, node: NodeId, object: Object, timeout: Duration) -> Result<usize, StartupError> {
-    let request = SdoRequest::Read(object);
+    Ok(exchange(bus, node, SdoRequest::Read(object), timeout, CLASH_LISTEN)?.1)
+}
+
+/// Send `request` to `node`, wait up to `timeout` for the first answer, then listen `listen`
+/// longer: the first answer and how many came.
+fn exchange<B: CanBus>(
+    bus: &mut B,
+    node: NodeId,
+    request: SdoRequest,
+    timeout: Duration,
+    listen: Duration,
+) -> Result<(Result<SdoReply, SdoError>, usize), StartupError> {
     bus.send(&request.frame(node)).map_err(StartupError::Bus)?;
     let deadline = Instant::now() + timeout;
+    let mut first = None;
     let mut answers = 0;
     let mut listen_until = deadline;
     loop {
         while let Some(frame) = bus.receive().map_err(StartupError::Bus)? {
-            if sdo_reply(&frame, node, &request).is_some() {
-                if answers == 0 {
-                    listen_until = Instant::now() + CLASH_LISTEN;
+            if let Some(answer) = sdo_reply(&frame, node, &request) {
+                if first.is_none() {
+                    first = Some(answer);
+                    listen_until = Instant::now() + listen;
                 }
                 answers += 1;
             }
         }
-        let now = Instant::now();
-        if answers > 0 && now >= listen_until {
-            return Ok(answers);
-        }
-        if answers == 0 && now >= deadline {
-            let timeout_ms = timeout.as_millis().min(u128::from(u32::MAX)) as u32;
-            return Err(SdoError::Timeout { node, object, timeout_ms }.into());
+        // Without an answer `listen_until` is the deadline.
+        if Instant::now() >= listen_until {
+            return match first.take() {
+                Some(answer) => Ok((answer, answers)),
+                None => {
+                    let timeout_ms = timeout.as_millis().min(u128::from(u32::MAX)) as u32;
+                    Err(SdoError::Timeout { node, object: request.object(), timeout_ms }.into())
+                }
+            };
         }
         std::thread::sleep(Duration::from_micros(200));
     }
