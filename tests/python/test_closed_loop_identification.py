@@ -192,6 +192,36 @@ def sign_law_closed_loop():
     return robot, truth, log
 
 
+@pytest.fixture(scope="module")
+def noisy_sign_law_closed_loop():
+    """The sign-law closed loop with the drive's white noise at 2 % of each joint's RMS torque:
+    the insertion rests at about half the samples, and identification filters the velocity that
+    switches friction at 0.79 Hz, where the motion's band is 6.3 Hz."""
+    robot = arash.Robot.from_urdf(ROBOT_FILES["arash_asist"])
+    truth = true_parameters(robot, np.random.default_rng(0))
+    condition = Condition("arash_asist", 1000, 16, 0.0, "sign", 4, 60.0, seed=0, designed=True)
+    robot, log, _, _ = pd_gravity_log(condition, truth, actuator_noise=0.02, law="sign", substeps=10, declare=False)
+    return robot, truth, log
+
+
+def test_a_noisy_sign_law_closed_loop_keeps_sign_where_a_smooth_law_would_fit_the_filter(noisy_sign_law_closed_loop):
+    """Left to the data, the insertion's friction velocity filtered at 0.79 Hz strays by more
+    than a smooth law's own v where that law acts, and a law that narrow is a law of the filter's
+    slow passage through zero, not of the joint: sign(q̇) is kept and says why, and the model
+    predicts the true robot at FP% ≥ 95 on every joint. (Kept, tanh(q̇/1.2·10⁻⁴) validated the
+    insertion at 94.7 %; docs/identification.md, "A sign-law closed loop".)"""
+    robot, truth, log = noisy_sign_law_closed_loop
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        model = arash.identify(robot, *log)
+    laws = next(r for r in model.settings["reasons"] if r.startswith("Coulomb laws chosen"))
+    validation = paper_validation_fp(model.robot, model, truth, "sign")
+    print(f"{laws}\nFP% on the paper's trajectories:\n{np.round(validation, 2)}")
+    assert model.robot.friction_velocities[2] is None, laws
+    assert "joint 2's fittest tanh" in laws and "law of the filter" in laws, laws
+    assert np.all(validation >= 95.0), validation
+
+
 @pytest.mark.parametrize("declared", [True, False], ids=["sign declared", "laws chosen from the data"])
 def test_a_closed_loop_that_sticks_validates_with_its_resting_samples_left_out(sign_law_closed_loop, declared):
     """Where a joint rests, its friction is whatever holds it, no law of its velocity; identification

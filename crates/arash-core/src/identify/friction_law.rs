@@ -88,6 +88,7 @@ pub fn choose_laws(
     rms_speed: &[f64],
     start: &CoulombLaws,
     column: impl Fn(usize, CoulombShape) -> Vec<f64>,
+    resolves: impl Fn(usize, f64) -> Resolution,
 ) -> ChosenLaws {
     let mut shapes: Vec<CoulombShape> = start.shapes().to_vec();
     let samples = problem.y.len() / problem.dof.max(1);
@@ -113,6 +114,7 @@ pub fn choose_laws(
         .collect();
     let mut folds = Folds::of(&problem, fold_total);
     let mut scores = Vec::new();
+    let mut unresolved = Vec::new();
     for sweep in 0..LAW_SWEEPS {
         let coulomb = problem.coulomb.clone();
         for (&(k, c), laws) in coulomb.iter().zip(&candidates) {
@@ -137,11 +139,19 @@ pub fn choose_laws(
                 }
             };
             let fittest_error = total(&fittest_folds);
-            // sign(q̇) unless the fittest law predicts better by more than the margin.
-            let (law, values) = match within_margin(&predicted[0], &fittest_folds) {
-                true => (laws[0].0, &laws[0].1),
-                false => (fittest_law, &fittest_column),
+            let resolution = fittest_law.epsilon().map(|v| (v, resolves(k, v)));
+            let resolved = resolution.is_none_or(|(v, r)| r.resolves(v));
+            // sign(q̇) unless the fittest law predicts better by more than the margin, and is a
+            // law of the motion rather than of the filter.
+            let (law, values) = match resolved && !within_margin(&predicted[0], &fittest_folds) {
+                false => (laws[0].0, &laws[0].1),
+                true => (fittest_law, &fittest_column),
             };
+            if sweep + 1 == LAW_SWEEPS && !resolved {
+                if let Some((v, r)) = resolution {
+                    unresolved.push((k, v, r));
+                }
+            }
             shapes[k] = law;
             put(&mut problem, c, k, values);
             folds.replace(&problem, c);
@@ -155,8 +165,69 @@ pub fn choose_laws(
         }
     }
     let laws = CoulombLaws::declared(shapes);
-    let reason = explain(&laws, &scores, rms_speed, fold_total);
+    let mut reason = explain(&laws, &scores, rms_speed, fold_total);
+    for (k, v, r) in unresolved {
+        reason.push_str(&format!(
+            "; joint {k}'s fittest tanh(q̇/{v:.3e}) not kept: where it acts, its friction velocity strays from the \
+             velocity at the main cut-off by {:.3e} RMS ({} samples), more than the law's v, so it is a law of the \
+             filter, not of the motion",
+            r.stray, r.samples
+        ));
+    }
     ChosenLaws { laws, scores, reason }
+}
+
+/// Where a smooth law acts: the moving samples whose velocity is below this many times the law's
+/// v (tanh(3) = 0.995: faster, the law is sign(q̇) to half a per cent).
+pub const LAW_ACTS_BELOW: f64 = 3.0;
+
+/// How far a joint's friction velocity (the velocity its Coulomb column switches with), filtered
+/// below the main cut-off, strays from the velocity at the main cut-off where a law of friction
+/// velocity v acts: the RMS of their difference over the moving samples where either velocity is
+/// below [`LAW_ACTS_BELOW`]·v. There the law's column leaves sign(q̇)'s (the friction velocity is
+/// slow), or the motion is in the law's transition (the velocity at the main cut-off is): its
+/// shape is read from both, and both must agree to within v.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Resolution {
+    pub stray: f64,
+    pub samples: usize,
+}
+
+impl Resolution {
+    /// Nothing strays (the friction velocity is the main cut-off's, or the law acts on no
+    /// moving sample).
+    pub const EXACT: Resolution = Resolution { stray: 0.0, samples: 0 };
+
+    /// Whether a law of friction velocity `v` is told apart from sign(q̇) on this velocity. A
+    /// friction velocity filtered well below the motion's band moves slowly into and out of every
+    /// rest, and a law narrower than that drift fits the filter's passage through zero, not the
+    /// joint's friction: its coefficients do not carry over to the true velocity
+    /// (docs/identification.md, "A sign-law closed loop").
+    pub fn resolves(&self, v: f64) -> bool {
+        self.stray <= v
+    }
+
+    /// Joint `k`'s resolution of a law of friction velocity `v` in `data`, over its settled
+    /// samples. A friction velocity filtered at or above the main cut-off is the wider-band of
+    /// the two velocities, the closer to the motion's own, and is taken as exact.
+    pub fn of(data: &Preprocessed, k: usize, v: f64) -> Self {
+        if data.friction_cutoff_hz >= data.cutoff_hz {
+            return Self::EXACT;
+        }
+        let dof = data.dof;
+        let (mut sum, mut samples) = (0.0, 0);
+        for i in data.settled.clone().map(|s| s * dof + k) {
+            let slow = data.qd_friction[i].abs().min(data.qd[i].abs()) < LAW_ACTS_BELOW * v;
+            if !data.resting[i] && slow {
+                sum += (data.qd_friction[i] - data.qd[i]).powi(2);
+                samples += 1;
+            }
+        }
+        match samples {
+            0 => Self::EXACT,
+            n => Self { stray: (sum / n as f64).sqrt(), samples: n },
+        }
+    }
 }
 
 /// Standard errors by which the best smooth law must predict better than `sign(q̇)` to be kept:
@@ -265,12 +336,11 @@ pub fn laws_for_fit(
         Butterworth::lowpass(data.order, data.cutoff_hz, data.rate_hz()).map_or(0.0, |f| f.memory_s(data.rate_hz()));
     let guard = (memory_s * data.rate_hz() / step as f64).ceil() as usize;
     let problem = LawProblem { columns: stacked, y, dof, coulomb: positions, weights, guard };
-    let chosen = choose_laws(problem, &rms_speed, &model.coulomb_laws, |k, law| {
-        match cache.get(&(k, law.epsilon().map(f64::to_bits))) {
-            Some(values) => values.clone(),
-            None => column(k, law).expect("a column of the same length filtered before"),
-        }
-    });
+    let column = |k, law: CoulombShape| match cache.get(&(k, law.epsilon().map(f64::to_bits))) {
+        Some(values) => values.clone(),
+        None => column(k, law).expect("a column of the same length filtered before"),
+    };
+    let chosen = choose_laws(problem, &rms_speed, &model.coulomb_laws, column, |k, v| Resolution::of(data, k, v));
     Ok(Some(chosen))
 }
 
@@ -569,7 +639,7 @@ mod tests {
                 weights: vec![1.0],
                 guard: 20,
             };
-            let chosen = choose_laws(problem, &[rms], &CoulombLaws::undeclared(1), column);
+            let chosen = choose_laws(problem, &[rms], &CoulombLaws::undeclared(1), column, |_, _| Resolution::EXACT);
             match (truth.epsilon(), chosen.laws.shape(0).epsilon()) {
                 (Some(v), Some(found)) => {
                     assert!((found / v - 1.0).abs() < 0.03, "{found} against {v}: {}", chosen.reason)
@@ -579,6 +649,35 @@ mod tests {
             }
             assert!(chosen.laws.is_declared());
         }
+    }
+
+    /// The smooth law the data fit is kept only where the velocity it switches with strays from
+    /// the motion's by less than its friction velocity: a stray of twice v keeps sign(q̇) and
+    /// names the stray, one of half v keeps the law.
+    #[test]
+    fn a_law_narrower_than_its_velocitys_stray_keeps_sign_and_says_so() {
+        let n = 4000;
+        let velocity: Vec<f64> = (0..n).map(|i| 0.3 * (i as f64 * 0.01).sin()).collect();
+        let rms = (velocity.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
+        let truth = CoulombShape::Tanh { epsilon: 0.05 * rms };
+        let y: Vec<f64> = velocity.iter().map(|v| 2.0 * v + 0.7 * truth.eval(*v)).collect();
+        let column = |_: usize, law: CoulombShape| velocity.iter().map(|v| law.eval(*v)).collect::<Vec<f64>>();
+        let problem = || LawProblem {
+            columns: vec![velocity.clone(), column(0, CoulombShape::Sign)],
+            y: y.clone(),
+            dof: 1,
+            coulomb: vec![(0, 1)],
+            weights: vec![1.0],
+            guard: 20,
+        };
+        let stray = |share: f64| move |_: usize, v: f64| Resolution { stray: share * v, samples: 50 };
+        let refused = choose_laws(problem(), &[rms], &CoulombLaws::undeclared(1), column, stray(2.0));
+        assert_eq!(refused.laws.shape(0), CoulombShape::Sign, "{}", refused.reason);
+        assert!(refused.reason.contains("joint 0's fittest tanh") && refused.reason.contains("(50 samples)"));
+        let kept = choose_laws(problem(), &[rms], &CoulombLaws::undeclared(1), column, stray(0.5));
+        let found = kept.laws.shape(0).epsilon().expect("the smooth law is kept");
+        assert!((found / truth.epsilon().unwrap() - 1.0).abs() < 0.03, "{}", kept.reason);
+        assert!(!kept.reason.contains("not kept"), "{}", kept.reason);
     }
 
     /// A log too short, for its filter's memory, to hold [`LAW_MIN_FOLDS`] stretches that share no
@@ -604,10 +703,12 @@ mod tests {
             &[rms],
             &CoulombLaws::undeclared(1),
             column,
+            |_, _| Resolution::EXACT,
         );
         assert_eq!(short.laws.shape(0), CoulombShape::Sign, "{}", short.reason);
         assert!(short.reason.contains(&format!("fewer than the {LAW_MIN_FOLDS}")), "{}", short.reason);
-        let long_enough = choose_laws(problem(5), &[rms], &CoulombLaws::undeclared(1), column);
+        let long_enough =
+            choose_laws(problem(5), &[rms], &CoulombLaws::undeclared(1), column, |_, _| Resolution::EXACT);
         assert!(long_enough.laws.shape(0).epsilon().is_some(), "{}", long_enough.reason);
     }
 
