@@ -31,6 +31,7 @@ use crate::dense::{self, dot, Unseen};
 use crate::effects::FRICTION_VELOCITY_SHARES;
 use crate::model::{CoulombLaws, CoulombShape, Model};
 use faer::Mat;
+use std::collections::HashMap;
 use std::ops::Range;
 
 /// Contiguous stretches of the log, at most, each predicted by the fit on the others (fewer where
@@ -80,16 +81,17 @@ pub fn candidate_laws(rms_speed: f64) -> Vec<CoulombShape> {
 
 /// Each joint's law: the candidate ([`candidate_laws`] of `rms_speed[k]`) whose fit, every other
 /// column refitted, predicts the held-out folds best.
-/// `column(k, law)` gives joint `k`'s Coulomb column under `law` at the problem's samples,
-/// unweighted, as the fit filters it; `start` are the laws the problem's columns hold. Joints
-/// without a Coulomb column keep theirs.
-pub fn choose_laws(
+/// `columns(k, laws)` gives joint `k`'s Coulomb column under each of `laws` at the problem's
+/// samples, unweighted, as the fit filters them (several at a time: a filter runs
+/// [`super::filter::LANES`] columns side by side for the time of one); `start` are the laws the
+/// problem's columns hold. Joints without a Coulomb column keep theirs.
+pub fn choose_laws<E>(
     mut problem: LawProblem,
     rms_speed: &[f64],
     start: &CoulombLaws,
-    column: impl Fn(usize, CoulombShape) -> Vec<f64>,
+    columns: impl Fn(usize, &[CoulombShape]) -> Result<Vec<Vec<f64>>, E>,
     resolves: impl Fn(usize, f64) -> Resolution,
-) -> ChosenLaws {
+) -> Result<ChosenLaws, E> {
     let mut shapes: Vec<CoulombShape> = start.shapes().to_vec();
     let samples = problem.y.len() / problem.dof.max(1);
     let fold_total = fold_count(samples, problem.guard);
@@ -101,41 +103,38 @@ pub fn choose_laws(
             CoulombLaws::declared(shapes.clone()),
             problem.guard
         );
-        return ChosenLaws { laws: CoulombLaws::declared(shapes), scores: Vec::new(), reason };
+        return Ok(ChosenLaws { laws: CoulombLaws::declared(shapes), scores: Vec::new(), reason });
     }
-    // Each Coulomb joint's candidate laws with their weighted columns.
-    let candidates: Vec<Vec<Candidate>> = problem
-        .coulomb
-        .iter()
-        .map(|&(k, _)| {
-            let laws = candidate_laws(rms_speed[k]);
-            laws.into_iter().map(|law| (law, weighted(column(k, law), problem.weights[k]))).collect()
-        })
-        .collect();
+    // Each Coulomb joint's candidate laws, their weighted columns filtered together.
+    let grids: Vec<Vec<CoulombShape>> = problem.coulomb.iter().map(|&(k, _)| candidate_laws(rms_speed[k])).collect();
+    let mut cache = ColumnCache { columns, weights: problem.weights.clone(), kept: HashMap::new() };
+    for (&(k, _), laws) in problem.coulomb.iter().zip(&grids) {
+        cache.fetch(k, laws)?;
+    }
     let mut folds = Folds::of(&problem, fold_total);
     let mut scores = Vec::new();
     let mut unresolved = Vec::new();
     for sweep in 0..LAW_SWEEPS {
         let coulomb = problem.coulomb.clone();
-        for (&(k, c), laws) in coulomb.iter().zip(&candidates) {
+        for (&(k, c), laws) in coulomb.iter().zip(&grids) {
             let predicted: Vec<Option<Vec<f64>>> = laws
                 .iter()
-                .map(|(_, v)| folds.heldout_errors(&problem, c, JointColumn { joint: k, values: v }))
+                .map(|law| folds.heldout_errors(&problem, c, JointColumn { joint: k, values: cache.get(k, *law) }))
                 .collect();
             let total = |e: &Option<Vec<f64>>| e.as_ref().map_or(f64::INFINITY, |e| e.iter().sum::<f64>());
             let errors: Vec<f64> = predicted.iter().map(total).collect();
             let on_grid =
                 (0..laws.len()).min_by(|&a, &b| errors[a].total_cmp(&errors[b])).expect("sign is a candidate");
             // Between the grid's neighbours of the best smooth law, to a fraction of a per cent.
-            let (fittest_law, fittest_column, fittest_folds) = match on_grid {
-                0 => (laws[0].0, laws[0].1.clone(), predicted[0].clone()),
+            let (fittest_law, fittest_folds) = match on_grid {
+                0 => (laws[0], predicted[0].clone()),
                 i => {
-                    let around = (laws[(i - 1).max(1)].0, laws[(i + 1).min(laws.len() - 1)].0);
-                    let error_at = |law: CoulombShape| {
-                        let values = weighted(column(k, law), problem.weights[k]);
-                        (folds.heldout_errors(&problem, c, JointColumn { joint: k, values: &values }), values)
+                    let around = (laws[(i - 1).max(1)], laws[(i + 1).min(laws.len() - 1)]);
+                    let error_at = |law: CoulombShape, ahead: &[CoulombShape]| {
+                        cache.fetch_with(k, law, ahead)?;
+                        Ok(folds.heldout_errors(&problem, c, JointColumn { joint: k, values: cache.get(k, law) }))
                     };
-                    refine(around, (laws[i].0, predicted[i].clone()), error_at)
+                    refine(around, (laws[i], predicted[i].clone()), error_at)?
                 }
             };
             let fittest_error = total(&fittest_folds);
@@ -143,9 +142,9 @@ pub fn choose_laws(
             let resolved = resolution.is_none_or(|(v, r)| r.resolves(v));
             // sign(q̇) unless the fittest law predicts better by more than the margin, and is a
             // law of the motion rather than of the filter.
-            let (law, values) = match resolved && !within_margin(&predicted[0], &fittest_folds) {
-                false => (laws[0].0, &laws[0].1),
-                true => (fittest_law, &fittest_column),
+            let law = match resolved && !within_margin(&predicted[0], &fittest_folds) {
+                false => laws[0],
+                true => fittest_law,
             };
             if sweep + 1 == LAW_SWEEPS && !resolved {
                 if let Some((v, r)) = resolution {
@@ -153,12 +152,12 @@ pub fn choose_laws(
                 }
             }
             shapes[k] = law;
-            put(&mut problem, c, k, values);
+            put(&mut problem, c, k, cache.get(k, law));
             folds.replace(&problem, c);
             if sweep + 1 == LAW_SWEEPS {
                 let sign = errors[0].max(f64::MIN_POSITIVE);
                 let mut score: Vec<(CoulombShape, f64)> =
-                    laws.iter().zip(&errors).map(|((law, _), e)| (*law, e / sign)).collect();
+                    laws.iter().zip(&errors).map(|(law, e)| (*law, e / sign)).collect();
                 score.push((fittest_law, fittest_error / sign));
                 scores.push((k, score));
             }
@@ -174,7 +173,57 @@ pub fn choose_laws(
             r.stray, r.samples
         ));
     }
-    ChosenLaws { laws, scores, reason }
+    Ok(ChosenLaws { laws, scores, reason })
+}
+
+/// Each joint's candidate columns, weighted, by law: the grid's, and those the refinement tried,
+/// kept across sweeps, whose refinements mostly retrace each other. Filtering a column over a
+/// long log is most of a law's cost, and the filter runs up to [`super::filter::LANES`] side by
+/// side for the time of one, so the columns are made several at a time.
+struct ColumnCache<F> {
+    columns: F,
+    weights: Vec<f64>,
+    kept: HashMap<(usize, Option<u64>), Vec<f64>>,
+}
+
+impl<F, E> ColumnCache<F>
+where
+    F: Fn(usize, &[CoulombShape]) -> Result<Vec<Vec<f64>>, E>,
+{
+    fn key(k: usize, law: CoulombShape) -> (usize, Option<u64>) {
+        (k, law.epsilon().map(f64::to_bits))
+    }
+
+    /// Joint `k`'s columns of those of `laws` not yet made, made together.
+    fn fetch(&mut self, k: usize, laws: &[CoulombShape]) -> Result<(), E> {
+        let mut missing: Vec<CoulombShape> = Vec::new();
+        for &law in laws {
+            if !self.kept.contains_key(&Self::key(k, law)) && !missing.contains(&law) {
+                missing.push(law);
+            }
+        }
+        if missing.is_empty() {
+            return Ok(());
+        }
+        for (law, values) in missing.iter().zip((self.columns)(k, &missing)?) {
+            self.kept.insert(Self::key(k, *law), weighted(values, self.weights[k]));
+        }
+        Ok(())
+    }
+
+    /// Joint `k`'s column of `law`, made, when it is not yet, with those of `ahead` (the laws a
+    /// search may ask for next) in the same filtering.
+    fn fetch_with(&mut self, k: usize, law: CoulombShape, ahead: &[CoulombShape]) -> Result<(), E> {
+        if self.kept.contains_key(&Self::key(k, law)) {
+            return Ok(());
+        }
+        let laws: Vec<CoulombShape> = std::iter::once(law).chain(ahead.iter().copied()).collect();
+        self.fetch(k, &laws)
+    }
+
+    fn get(&self, k: usize, law: CoulombShape) -> &[f64] {
+        self.kept.get(&Self::key(k, law)).expect("a law's column is fetched before it is read")
+    }
 }
 
 /// Where a smooth law acts: the moving samples whose velocity is below this many times the law's
@@ -306,24 +355,26 @@ pub fn laws_for_fit(
     let rms_speed: Vec<f64> = (0..dof).map(|k| rms(&data.qd_friction, k)).collect();
     // A resting joint's rows are left out as the fit leaves them out: zero.
     let resting = |s: usize, k: usize| data.resting[s * dof + k];
-    let column = |k: usize, law: CoulombShape| -> Result<Vec<f64>, PreprocessError> {
-        let filtered = data.filter_like_torque(&data.friction.joint_directions(k, dof, law), 1)?;
-        Ok(rows.iter().map(|&s| if resting(s, k) { 0.0 } else { filtered[s] }).collect())
+    // Each law's directions side by side, filtered together, read at the rows.
+    let columns = |k: usize, laws: &[CoulombShape]| -> Result<Vec<Vec<f64>>, PreprocessError> {
+        let width = laws.len();
+        let mut side_by_side = Vec::new();
+        for (j, law) in laws.iter().enumerate() {
+            let directions = data.friction.joint_directions(k, dof, *law);
+            side_by_side.resize(directions.len() * width, 0.0);
+            directions.iter().enumerate().for_each(|(s, v)| side_by_side[s * width + j] = *v);
+        }
+        let filtered = data.filter_like_torque(&side_by_side, width)?;
+        let at_rows =
+            |j: usize| rows.iter().map(|&s| if resting(s, k) { 0.0 } else { filtered[s * width + j] }).collect();
+        Ok((0..width).map(at_rows).collect())
     };
     let kept = |r: usize| if resting(rows[r / dof], r % dof) { 0.0 } else { weights[r % dof] };
     let mut stacked: Vec<Vec<f64>> =
         (0..w.ncols()).map(|c| (0..w.nrows()).map(|r| w[(r, c)] * kept(r)).collect()).collect();
     for &(k, c) in &positions {
-        for (s, v) in column(k, model.coulomb_laws.shape(k))?.iter().enumerate() {
+        for (s, v) in columns(k, &[model.coulomb_laws.shape(k)])?[0].iter().enumerate() {
             stacked[c][s * dof + k] = v * weights[k];
-        }
-    }
-    // Every grid candidate is filtered once, up front, so that a filter that cannot be built fails
-    // here; the refinement's columns have the same length and filter alike.
-    let mut cache = std::collections::HashMap::new();
-    for &(k, _) in &positions {
-        for law in candidate_laws(rms_speed[k]) {
-            cache.insert((k, law.epsilon().map(f64::to_bits)), column(k, law)?);
         }
     }
     let y = rows
@@ -336,16 +387,9 @@ pub fn laws_for_fit(
         Butterworth::lowpass(data.order, data.cutoff_hz, data.rate_hz()).map_or(0.0, |f| f.memory_s(data.rate_hz()));
     let guard = (memory_s * data.rate_hz() / step as f64).ceil() as usize;
     let problem = LawProblem { columns: stacked, y, dof, coulomb: positions, weights, guard };
-    let column = |k, law: CoulombShape| match cache.get(&(k, law.epsilon().map(f64::to_bits))) {
-        Some(values) => values.clone(),
-        None => column(k, law).expect("a column of the same length filtered before"),
-    };
-    let chosen = choose_laws(problem, &rms_speed, &model.coulomb_laws, column, |k, v| Resolution::of(data, k, v));
-    Ok(Some(chosen))
+    let resolves = |k, v| Resolution::of(data, k, v);
+    choose_laws(problem, &rms_speed, &model.coulomb_laws, columns, resolves).map(Some)
 }
-
-/// A candidate law and its column on its joint's rows, weighted.
-type Candidate = (CoulombShape, Vec<f64>);
 
 /// Golden-section steps that refine a friction velocity between its grid neighbours: the bracket,
 /// a factor of about 4.8, shrinks to within 0.3 % of the best.
@@ -354,37 +398,75 @@ const REFINE_STEPS: usize = 14;
 /// Each fold's held-out error of a candidate, `None` where its fit could not be solved.
 type FoldErrors = Option<Vec<f64>>;
 
+/// A golden-section bracket in log v: `a < x1 < x2 < b`.
+#[derive(Clone, Copy)]
+struct Bracket {
+    a: f64,
+    b: f64,
+    x1: f64,
+    x2: f64,
+}
+
+impl Bracket {
+    const RATIO: f64 = 0.618_033_988_749_894_9;
+
+    fn new(a: f64, b: f64) -> Self {
+        Self { a, b, x1: b - Self::RATIO * (b - a), x2: a + Self::RATIO * (b - a) }
+    }
+
+    /// The bracket narrowed to the side of the better interior point (`x1`'s when `lower`), and
+    /// the point it must evaluate next.
+    fn narrowed(self, lower: bool) -> (Self, f64) {
+        let Self { a, b, x1, x2 } = self;
+        match lower {
+            true => {
+                let x = x2 - Self::RATIO * (x2 - a);
+                (Self { a, b: x2, x1: x, x2: x1 }, x)
+            }
+            false => {
+                let x = x1 + Self::RATIO * (b - x1);
+                (Self { a: x1, b, x1: x2, x2: x }, x)
+            }
+        }
+    }
+}
+
 /// The law of least held-out error between the two laws of `around` (both smooth), starting
-/// from `best` (its law and errors): a golden-section search in log v, `error_at(law)` giving a
-/// law's errors and its column. Returns the law, its column and its errors.
-fn refine(
+/// from `best` (its law and errors): a golden-section search in log v, `error_at(law, ahead)`
+/// giving a law's errors, and told the laws the search may ask for next, so that their columns
+/// are filtered with its own (both points the next step could need: two steps per filtering).
+/// Returns the law and its errors.
+fn refine<E>(
     around: (CoulombShape, CoulombShape),
     best: (CoulombShape, FoldErrors),
-    error_at: impl Fn(CoulombShape) -> (FoldErrors, Vec<f64>),
-) -> (CoulombShape, Vec<f64>, FoldErrors) {
+    mut error_at: impl FnMut(CoulombShape, &[CoulombShape]) -> Result<FoldErrors, E>,
+) -> Result<(CoulombShape, FoldErrors), E> {
     let total = |e: &FoldErrors| e.as_ref().map_or(f64::INFINITY, |e| e.iter().sum::<f64>());
     let log_v = |law: CoulombShape| law.epsilon().map_or(f64::NEG_INFINITY, f64::ln);
     let law_at = |x: f64| CoulombShape::Tanh { epsilon: x.exp() };
-    let (mut a, mut b) = (log_v(around.0), log_v(around.1));
-    let ratio = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut x1, mut x2) = (b - ratio * (b - a), a + ratio * (b - a));
-    let (mut f1, mut f2) = (error_at(law_at(x1)), error_at(law_at(x2)));
-    for _ in 0..REFINE_STEPS {
-        if total(&f1.0) <= total(&f2.0) {
-            (b, x2, f2) = (x2, x1, f1);
-            x1 = b - ratio * (b - a);
-            f1 = error_at(law_at(x1));
-        } else {
-            (a, x1, f1) = (x1, x2, f2);
-            x2 = a + ratio * (b - a);
-            f2 = error_at(law_at(x2));
-        }
+    let ahead = |b: Bracket| [law_at(b.narrowed(true).1), law_at(b.narrowed(false).1)];
+    let mut bracket = Bracket::new(log_v(around.0), log_v(around.1));
+    let [lower, upper] = ahead(bracket);
+    let mut f1 = error_at(law_at(bracket.x1), &[law_at(bracket.x2), lower, upper])?;
+    let mut f2 = error_at(law_at(bracket.x2), &[])?;
+    for step in 0..REFINE_STEPS {
+        let lower = total(&f1) <= total(&f2);
+        let (next, x) = bracket.narrowed(lower);
+        let f = match step + 1 < REFINE_STEPS {
+            true => error_at(law_at(x), &ahead(next))?,
+            false => error_at(law_at(x), &[])?,
+        };
+        (f1, f2) = match lower {
+            true => (f, f1),
+            false => (f2, f),
+        };
+        bracket = next;
     }
-    let (x, (errors, column)) = if total(&f1.0) <= total(&f2.0) { (x1, f1) } else { (x2, f2) };
-    match total(&errors) <= total(&best.1) {
-        true => (law_at(x), column, errors),
-        false => (best.0, error_at(best.0).1, best.1),
-    }
+    let (x, errors) = if total(&f1) <= total(&f2) { (bracket.x1, f1) } else { (bracket.x2, f2) };
+    Ok(match total(&errors) <= total(&best.1) {
+        true => (law_at(x), errors),
+        false => best,
+    })
 }
 
 /// Joint `k`'s rows of column `c` set to `values`.
@@ -614,6 +696,7 @@ fn system(kept: &[usize], sums: Sums, minus: Option<Sums>) -> (Mat<f64>, Vec<f64
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::convert::Infallible;
 
     /// One joint moving as a sine, its torque a viscous term plus dry friction rising as
     /// tanh(q̇/v_true) plus a little noise: the friction velocity is found to within a few per cent
@@ -630,16 +713,19 @@ mod tests {
         {
             let y: Vec<f64> =
                 velocity.iter().enumerate().map(|(i, v)| 2.0 * v + 0.7 * truth.eval(*v) + noise(i)).collect();
-            let column = |_: usize, law: CoulombShape| velocity.iter().map(|v| law.eval(*v)).collect::<Vec<f64>>();
+            let column = |law: CoulombShape| velocity.iter().map(|v| law.eval(*v)).collect::<Vec<f64>>();
+            let columns =
+                |_: usize, laws: &[CoulombShape]| Ok::<_, Infallible>(laws.iter().map(|l| column(*l)).collect());
             let problem = LawProblem {
-                columns: vec![velocity.clone(), column(0, CoulombShape::Sign)],
+                columns: vec![velocity.clone(), column(CoulombShape::Sign)],
                 y,
                 dof: 1,
                 coulomb: vec![(0, 1)],
                 weights: vec![1.0],
                 guard: 20,
             };
-            let chosen = choose_laws(problem, &[rms], &CoulombLaws::undeclared(1), column, |_, _| Resolution::EXACT);
+            let chosen =
+                choose_laws(problem, &[rms], &CoulombLaws::undeclared(1), columns, |_, _| Resolution::EXACT).unwrap();
             match (truth.epsilon(), chosen.laws.shape(0).epsilon()) {
                 (Some(v), Some(found)) => {
                     assert!((found / v - 1.0).abs() < 0.03, "{found} against {v}: {}", chosen.reason)
@@ -661,9 +747,10 @@ mod tests {
         let rms = (velocity.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
         let truth = CoulombShape::Tanh { epsilon: 0.05 * rms };
         let y: Vec<f64> = velocity.iter().map(|v| 2.0 * v + 0.7 * truth.eval(*v)).collect();
-        let column = |_: usize, law: CoulombShape| velocity.iter().map(|v| law.eval(*v)).collect::<Vec<f64>>();
+        let column = |law: CoulombShape| velocity.iter().map(|v| law.eval(*v)).collect::<Vec<f64>>();
+        let columns = |_: usize, laws: &[CoulombShape]| Ok::<_, Infallible>(laws.iter().map(|l| column(*l)).collect());
         let problem = || LawProblem {
-            columns: vec![velocity.clone(), column(0, CoulombShape::Sign)],
+            columns: vec![velocity.clone(), column(CoulombShape::Sign)],
             y: y.clone(),
             dof: 1,
             coulomb: vec![(0, 1)],
@@ -671,10 +758,10 @@ mod tests {
             guard: 20,
         };
         let stray = |share: f64| move |_: usize, v: f64| Resolution { stray: share * v, samples: 50 };
-        let refused = choose_laws(problem(), &[rms], &CoulombLaws::undeclared(1), column, stray(2.0));
+        let refused = choose_laws(problem(), &[rms], &CoulombLaws::undeclared(1), columns, stray(2.0)).unwrap();
         assert_eq!(refused.laws.shape(0), CoulombShape::Sign, "{}", refused.reason);
         assert!(refused.reason.contains("joint 0's fittest tanh") && refused.reason.contains("(50 samples)"));
-        let kept = choose_laws(problem(), &[rms], &CoulombLaws::undeclared(1), column, stray(0.5));
+        let kept = choose_laws(problem(), &[rms], &CoulombLaws::undeclared(1), columns, stray(0.5)).unwrap();
         let found = kept.laws.shape(0).epsilon().expect("the smooth law is kept");
         assert!((found / truth.epsilon().unwrap() - 1.0).abs() < 0.03, "{}", kept.reason);
         assert!(!kept.reason.contains("not kept"), "{}", kept.reason);
@@ -688,9 +775,10 @@ mod tests {
         let velocity: Vec<f64> = (0..n).map(|i| 0.3 * (i as f64 * 0.05).sin()).collect();
         let smooth = CoulombShape::Tanh { epsilon: 0.03 };
         let y: Vec<f64> = velocity.iter().map(|v| 2.0 * v + 0.7 * smooth.eval(*v)).collect();
-        let column = |_: usize, law: CoulombShape| velocity.iter().map(|v| law.eval(*v)).collect::<Vec<f64>>();
+        let column = |law: CoulombShape| velocity.iter().map(|v| law.eval(*v)).collect::<Vec<f64>>();
+        let columns = |_: usize, laws: &[CoulombShape]| Ok::<_, Infallible>(laws.iter().map(|l| column(*l)).collect());
         let problem = |guard| LawProblem {
-            columns: vec![velocity.clone(), column(0, CoulombShape::Sign)],
+            columns: vec![velocity.clone(), column(CoulombShape::Sign)],
             y: y.clone(),
             dof: 1,
             coulomb: vec![(0, 1)],
@@ -702,13 +790,14 @@ mod tests {
             problem(n / (GUARDS_PER_FOLD * LAW_MIN_FOLDS) + 1),
             &[rms],
             &CoulombLaws::undeclared(1),
-            column,
+            columns,
             |_, _| Resolution::EXACT,
-        );
+        )
+        .unwrap();
         assert_eq!(short.laws.shape(0), CoulombShape::Sign, "{}", short.reason);
         assert!(short.reason.contains(&format!("fewer than the {LAW_MIN_FOLDS}")), "{}", short.reason);
         let long_enough =
-            choose_laws(problem(5), &[rms], &CoulombLaws::undeclared(1), column, |_, _| Resolution::EXACT);
+            choose_laws(problem(5), &[rms], &CoulombLaws::undeclared(1), columns, |_, _| Resolution::EXACT).unwrap();
         assert!(long_enough.laws.shape(0).epsilon().is_some(), "{}", long_enough.reason);
     }
 
