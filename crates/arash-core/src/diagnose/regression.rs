@@ -379,13 +379,24 @@ fn sample_scores(partialled: &[Vec<f64>], e0: &[f64], gamma: &[f64], dof: usize)
 /// `Σ_b g_b g_bᵀ · B/(B − 1)` over `batches` runs of `length` samples; the last partial run
 /// joins the one before it.
 fn batch_meat(scores: &[f64], k: usize, length: usize, batches: usize) -> Mat<f64> {
-    let mut sums = Mat::<f64>::zeros(batches.max(1), k);
-    for (s, row) in scores.chunks_exact(k).enumerate() {
-        let b = (s / length).min(batches.max(1) - 1);
-        for j in 0..k {
-            sums[(b, j)] += row[j];
+    let count = batches.max(1);
+    let mut sums = Mat::<f64>::zeros(count, k);
+    // Each batch summed in a row of its own, written once: the blocking calls this for every
+    // doubling of the length, over every sample.
+    let mut sum = vec![0.0; k];
+    let mut current = 0;
+    for (run, rows) in scores.chunks(length.max(1) * k).enumerate() {
+        let b = run.min(count - 1);
+        if b != current {
+            sum.iter().enumerate().for_each(|(j, v)| sums[(current, j)] = *v);
+            sum.fill(0.0);
+            current = b;
+        }
+        for row in rows.chunks_exact(k) {
+            sum.iter_mut().zip(row).for_each(|(s, v)| *s += v);
         }
     }
+    sum.iter().enumerate().for_each(|(j, v)| sums[(current, j)] = *v);
     sums.transpose() * &sums * Scale(batches as f64 / (batches.max(2) - 1) as f64)
 }
 
