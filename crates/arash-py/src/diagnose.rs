@@ -358,7 +358,8 @@ impl Diagnosis {
     }
     /// The held-out error no model of the motion removes, RMS per joint (numpy array): the
     /// torque's noise in the band, or what the band holds above the narrowest that predicts as
-    /// well, if larger. Held-out gains are judged against the error above it.
+    /// well, if larger. Held-out gains are judged against the error above it, as far as that
+    /// stands clear of it.
     #[getter]
     fn noise_floor<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
         let floor = &self.inner.noise_floor;

@@ -336,7 +336,8 @@ pub struct Diagnosis {
     pub after: ErrorSummary,
     /// The held-out error no model of the motion removes, RMS per joint (N·m or N): the torque's
     /// noise in the band, or what the band holds above the narrowest that predicts as well, if
-    /// larger. Held-out gains are judged against the error above it (`diagnose/noise.rs`).
+    /// larger. Held-out gains are judged against the error above it, as far as that stands clear
+    /// of it (`diagnose/noise.rs`).
     #[serde(default)]
     pub noise_floor: Vec<f64>,
     /// The torque's white noise in the band, RMS per joint (N·m or N): read from the torque above a

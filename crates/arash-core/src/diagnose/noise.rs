@@ -6,8 +6,8 @@
 //! removes half of what the model misses then cuts the held-out error by much less than half, and
 //! a fixed bar (`min_gain`) set against all of it measures the sensor as much as the effect. So
 //! each joint's torque noise is estimated from the data ([`white_noise_variance`]), carried into
-//! the band, and a gain is the share of the error *above* it that an effect removes
-//! ([`NoiseFloor::gains`]).
+//! the band, and a gain is the share of the error *above* it that an effect removes, as far as
+//! the error stands clear of it by its sampling error ([`NoiseFloor::gains`]).
 //!
 //! The band is the widest in which the declared model predicts held-out torque as well as in the
 //! best (`band_choice.rs`). What it holds above the narrowest such band adds nothing the declared
@@ -28,10 +28,14 @@ const NOISE_FROM_SHARE: f64 = 0.25;
 /// The scale of a normal distribution's median absolute deviation: σ = 1.4826 · MAD.
 const MAD_TO_SIGMA: f64 = 1.482_602_218_505_602;
 
-/// An error above the floor counts as the model's own only when it stands this many of its
-/// standard errors clear of the floor; otherwise the gain is judged against the whole error, as
-/// if there were no floor (a model at the noise floor has nothing left to explain, and a share
-/// of almost nothing is no measure).
+/// The floor is subtracted from the error a gain is judged against in proportion to how clearly
+/// the error stands above it: the share 1 − (FLOOR_CLEAR_SIGMAS / z)², none below, z the error
+/// above the floor in its own standard errors ([`NoiseFloor::gains`]). Within two standard errors
+/// of the floor a model has nothing left it can be shown to miss, and a share of almost nothing is
+/// no measure, so the gain is judged against the whole error; far clear of it, against the error
+/// above it; between, continuously (the positive-part James–Stein factor). A floor counted all or
+/// nothing at two standard errors made every gain of a joint jump several-fold when the error
+/// moved by a fraction of one (docs/diagnosis.md, "The noise floor").
 pub const FLOOR_CLEAR_SIGMAS: f64 = 2.0;
 
 /// Each joint's white-noise variance of an unfiltered torque `tau` (`N × dof`, row-major, at
@@ -141,10 +145,9 @@ impl NoiseFloor {
     }
 
     /// Per joint, the relative cut of the held-out squared error from `before` to `after`, over
-    /// the error above the floor where that stands [`FLOOR_CLEAR_SIGMAS`] standard errors clear
-    /// of it (a sum of squares over `independent` samples has a relative standard error of
-    /// √(2/independent)), else over the whole error. A cut beyond the error above the floor
-    /// (where an effect's own content reaches above the narrowest band) is all of it: 1.
+    /// the error less the share of the floor that [`FLOOR_CLEAR_SIGMAS`] gives (a sum of squares
+    /// over `independent` samples has a relative standard error of √(2/independent)). A cut beyond
+    /// that (where an effect's own content reaches above the narrowest band) is all of it: 1.
     pub(super) fn gains(&self, before: &[f64], after: &[f64]) -> Vec<f64> {
         let relative_error = (2.0 / self.independent).sqrt();
         before
@@ -152,8 +155,12 @@ impl NoiseFloor {
             .zip(after)
             .zip(&self.sse)
             .map(|((b, a), floor)| {
-                let above = b - floor;
-                let denominator = if above > FLOOR_CLEAR_SIGMAS * relative_error * b { above } else { *b };
+                let clear = (b - floor) / (relative_error * b);
+                let trusted = match clear > FLOOR_CLEAR_SIGMAS {
+                    true => 1.0 - (FLOOR_CLEAR_SIGMAS / clear).powi(2),
+                    false => 0.0,
+                };
+                let denominator = b - trusted * floor;
                 if denominator > 0.0 {
                     ((b - a) / denominator).min(1.0)
                 } else {
@@ -196,15 +203,32 @@ mod tests {
         }
     }
 
-    /// A cut judged against the error above a floor that stands clear of it; against the whole
-    /// error where the floor is most of it.
+    /// A cut judged against the error less the floor's trusted share: nearly all the floor where
+    /// the error stands far clear of it, none within two standard errors, and a gain that moves
+    /// continuously as the error crosses two standard errors (no jump).
     #[test]
-    fn a_gain_is_judged_above_the_floor_only_where_the_error_stands_clear_of_it() {
-        let mut floor = NoiseFloor::none(2);
-        floor.sse = vec![60.0, 99.0];
+    fn a_gain_is_judged_above_the_floor_as_far_as_the_error_stands_clear_of_it() {
+        let mut floor = NoiseFloor::none(3);
+        floor.sse = vec![60.0, 99.0, 0.0];
         floor.independent = 1000.0;
-        let g = floor.gains(&[100.0, 100.0], &[80.0, 99.5]);
-        assert!((g[0] - 0.5).abs() < 1e-12, "{g:?}");
+        let se = (2.0f64 / 1000.0).sqrt() * 100.0;
+        let g = floor.gains(&[100.0, 100.0, 100.0], &[80.0, 99.5, 90.0]);
+        // Joint 0: 40 above the floor, z = 40/se; the floor's trusted share 1 − (2/z)².
+        let share = 1.0 - (2.0 * se / 40.0f64).powi(2);
+        assert!((g[0] - 20.0 / (100.0 - share * 60.0)).abs() < 1e-12, "{g:?}");
+        assert!(g[0] > 0.45 && g[0] < 0.5, "{g:?}");
+        // Joint 1: 1 above, well within two standard errors: the whole error.
         assert!((g[1] - 0.005).abs() < 1e-12, "{g:?}");
+        // Joint 2: no floor at all.
+        assert!((g[2] - 0.1).abs() < 1e-12, "{g:?}");
+        // Across two standard errors the gain moves by no more than the error does.
+        let at = |above: f64| {
+            let mut f = NoiseFloor::none(1);
+            f.sse = vec![100.0 - above];
+            f.independent = 1000.0;
+            f.gains(&[100.0], &[99.0])[0]
+        };
+        let (below, above) = (at(2.0 * se - 1e-6), at(2.0 * se + 1e-6));
+        assert!((above - below).abs() < 1e-6, "{below} against {above}");
     }
 }
