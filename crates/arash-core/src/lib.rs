@@ -22,6 +22,7 @@ pub mod identify;
 pub mod kinematics;
 pub mod model;
 pub mod model_file;
+pub mod parallel;
 pub mod params;
 pub mod physical;
 pub mod record;

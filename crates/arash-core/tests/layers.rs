@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 
 /// arash-core, leaf first.
 const CORE: &[&str] = &[
+    "parallel",
     "blas_lapack",
     "dense",
     "spatial",

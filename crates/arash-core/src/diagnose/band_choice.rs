@@ -286,28 +286,34 @@ impl<'a> Search<'a> {
         let shift = widest.as_ref().map_or(0, |(_, s)| *s);
         done[last] = widest.map(|(t, _)| t);
         tried[last] = true;
-        let mut run = |i: usize, done: &mut Vec<Option<Trial>>| -> Result<(), DiagnoseError> {
-            if !tried[i] {
-                tried[i] = true;
-                done[i] = self.trial(model, self.grid[i], shift..=shift)?.map(|(t, _)| t);
+        // Those of `indices` not yet tried, side by side: each trial is independent of the others.
+        let mut run = |indices: Vec<usize>, done: &mut Vec<Option<Trial>>| -> Result<(), DiagnoseError> {
+            let mut fresh = Vec::new();
+            for i in indices {
+                if !tried[i] {
+                    tried[i] = true;
+                    fresh.push(i);
+                }
+            }
+            let trials = crate::parallel::map(fresh.clone(), |i| self.trial(model, self.grid[i], shift..=shift));
+            for (i, trial) in fresh.into_iter().zip(trials) {
+                done[i] = trial?.map(|(t, _)| t);
             }
             Ok(())
         };
         // The widest, every other one below it, and the user's.
-        for i in (0..=last).rev().step_by(2).chain((0..=last).filter(|&i| Some(self.grid[i]) == user)) {
-            run(i, &mut done)?;
-        }
+        run(
+            (0..=last).rev().step_by(2).chain((0..=last).filter(|&i| Some(self.grid[i]) == user)).collect(),
+            &mut done,
+        )?;
         let indices: Vec<usize> = (0..=last).filter(|&i| done[i].is_some()).collect();
         let predictions: Vec<Prediction> =
             indices.iter().filter_map(|&i| done[i].as_ref()).map(Trial::prediction).collect();
         // Around the widest that predicts as well as the best, and around the best.
         let widest = best_predicting(&predictions, self.equal(&predictions), Prefer::Widest).map(|p| indices[p]);
         let most = predictions.iter().enumerate().max_by(|a, b| a.1.fp.total_cmp(&b.1.fp)).map(|(p, _)| indices[p]);
-        for i in [widest, most].into_iter().flatten() {
-            for j in [i.saturating_sub(1), (i + 1).min(last)] {
-                run(j, &mut done)?;
-            }
-        }
+        let around = [widest, most].into_iter().flatten().flat_map(|i| [i.saturating_sub(1), (i + 1).min(last)]);
+        run(around.collect(), &mut done)?;
         Ok(done.into_iter().flatten().collect())
     }
 

@@ -239,7 +239,7 @@ impl<'a> Context<'a> {
     /// Each template's weighted columns on the training log (and the validation log); templates
     /// without columns on this data are dropped.
     pub(super) fn pool(&self, templates: Vec<EffectTerm>, problem: &Problem, heldout: &HeldOut) -> Vec<Candidate> {
-        parallel_map(templates, |term| {
+        crate::parallel::map(templates, |term| {
             let columns = problem.weighted(term_columns(self.model, &term, &self.train));
             let validation = match (heldout, &self.validation) {
                 (HeldOut::Validation(p), Some(v)) => p.weighted(term_columns(self.model, &term, v)),
@@ -251,22 +251,4 @@ impl<'a> Context<'a> {
         .filter(|c| !c.columns.is_empty())
         .collect()
     }
-}
-
-/// `f` over `items` on every core, in order. Candidates are independent of each other, and their
-/// columns and tests are most of a diagnosis's time.
-pub(super) fn parallel_map<T: Send, R: Send>(items: Vec<T>, f: impl Fn(T) -> R + Sync) -> Vec<R> {
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(items.len().max(1));
-    let per = items.len().div_ceil(threads).max(1);
-    let mut chunks: Vec<Vec<T>> = Vec::new();
-    let mut items = items.into_iter().peekable();
-    while items.peek().is_some() {
-        chunks.push(items.by_ref().take(per).collect());
-    }
-    std::thread::scope(|scope| {
-        let f = &f;
-        let handles: Vec<_> =
-            chunks.into_iter().map(|chunk| scope.spawn(move || chunk.into_iter().map(f).collect::<Vec<R>>())).collect();
-        handles.into_iter().flat_map(|h| h.join().expect("a diagnosis worker panicked")).collect()
-    })
 }

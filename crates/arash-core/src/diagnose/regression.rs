@@ -330,11 +330,17 @@ pub fn test_group(
         Batching::FromScores => {
             let lengths: Vec<usize> =
                 (0..).map(|j| 1 << j).take_while(|l| samples / l >= MIN_BATCHES.max(k + 2)).collect();
+            // Each length's batch sums from the last one's, pairwise: one pass over the samples
+            // for all the lengths, not one per length.
+            let mut sums = BatchSums { values: scores.clone(), k, length: 1 };
             let walds: Vec<(usize, f64)> = lengths
                 .iter()
                 .map(|&l| {
-                    let (batches, cov) = covariance(l);
-                    (batches, wald(&cov))
+                    while sums.length < l {
+                        sums = sums.doubled(samples);
+                    }
+                    let batches = samples / l;
+                    (batches, wald(&(&h_inv * &sums.meat() * &h_inv)))
                 })
                 .collect();
             // From the plateau on, the length with the largest variance: a plateau seen through
@@ -374,6 +380,37 @@ fn sample_scores(partialled: &[Vec<f64>], e0: &[f64], gamma: &[f64], dof: usize)
         }
     }
     scores
+}
+
+/// The scores summed over runs of `length` samples, `batches × k` row-major, the last partial run
+/// joined to the one before it (as [`batch_meat`] sums them).
+struct BatchSums {
+    values: Vec<f64>,
+    k: usize,
+    length: usize,
+}
+
+impl BatchSums {
+    /// The sums over runs twice as long, of a log of `samples`: each run is two of these, and the
+    /// last also takes what is left over (the floor of half the count is the count at twice the
+    /// length).
+    fn doubled(&self, samples: usize) -> Self {
+        let k = self.k;
+        let count = (samples / (2 * self.length)).max(1);
+        let mut values = vec![0.0; count * k];
+        for (b, row) in self.values.chunks_exact(k).enumerate() {
+            let to = (b / 2).min(count - 1);
+            values[to * k..(to + 1) * k].iter_mut().zip(row).for_each(|(s, v)| *s += v);
+        }
+        Self { values, k, length: 2 * self.length }
+    }
+
+    /// `Σ_b g_b g_bᵀ · B/(B − 1)`.
+    fn meat(&self) -> Mat<f64> {
+        let batches = self.values.len() / self.k;
+        let sums = Mat::from_fn(batches, self.k, |b, j| self.values[b * self.k + j]);
+        sums.transpose() * &sums * Scale(batches as f64 / (batches.max(2) - 1) as f64)
+    }
 }
 
 /// `Σ_b g_b g_bᵀ · B/(B − 1)` over `batches` runs of `length` samples; the last partial run
@@ -465,6 +502,27 @@ pub fn holm_threshold(alpha: f64, m: usize, rank: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Sums doubled pairwise from the shorter runs' give the meat summed directly over the longer
+    /// runs, the leftover samples in the last run, for a sample count that is no power of two.
+    #[test]
+    fn batch_sums_doubled_pairwise_are_the_sums_over_the_longer_runs() {
+        let (k, samples) = (2, 1003);
+        let scores: Vec<f64> = (0..samples * k).map(|i| ((i * 7919 % 211) as f64 - 105.0) / 37.0).collect();
+        let mut sums = BatchSums { values: scores.clone(), k, length: 1 };
+        for length in [1, 2, 4, 8, 16, 32] {
+            while sums.length < length {
+                sums = sums.doubled(samples);
+            }
+            let direct = batch_meat(&scores, k, length, samples / length);
+            let doubled = sums.meat();
+            assert_eq!(doubled.nrows(), k);
+            for (a, b) in [(0, 0), (0, 1), (1, 1)] {
+                let scale = direct[(a, a)].abs().max(direct[(b, b)].abs());
+                assert!((doubled[(a, b)] - direct[(a, b)]).abs() <= 1e-12 * scale, "length {length}");
+            }
+        }
+    }
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 

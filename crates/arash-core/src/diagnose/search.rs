@@ -6,7 +6,7 @@ use std::borrow::Cow;
 use super::band_choice::choose_band;
 use super::calibration::GainErrors;
 use super::candidates::{candidates, not_the_cable};
-use super::context::{parallel_map, Context};
+use super::context::Context;
 use super::delay::search_delay;
 use super::findings::{rejection, DiagnoseSettings, Diagnosis, Finding, Rejection, RejectionReason, Series, TooHeavy};
 use super::options::{DiagnoseError, DiagnoseOptions, PAYLOAD_MASS_SIGMAS};
@@ -194,7 +194,7 @@ impl Search<'_> {
         let open: Vec<usize> = (0..self.pool.len())
             .filter(|i| !state.chosen.contains(i) && state.status[*i].as_ref().is_none_or(|r| r.p_value.is_some()))
             .collect();
-        let tests = parallel_map(open, |i| {
+        let tests = crate::parallel::map(open, |i| {
             let group: Vec<&Column> = self.pool[i].columns.iter().collect();
             (i, test_group(base, e0, &group, ctx.batching))
         });

@@ -355,8 +355,9 @@ pub fn laws_for_fit(
     let rms_speed: Vec<f64> = (0..dof).map(|k| rms(&data.qd_friction, k)).collect();
     // A resting joint's rows are left out as the fit leaves them out: zero.
     let resting = |s: usize, k: usize| data.resting[s * dof + k];
-    // Each law's directions side by side, filtered together, read at the rows.
-    let columns = |k: usize, laws: &[CoulombShape]| -> Result<Vec<Vec<f64>>, PreprocessError> {
+    // Each law's directions side by side, filtered together, read at the rows; the laws split
+    // between the cores.
+    let some_columns = |k: usize, laws: &[CoulombShape]| -> Result<Vec<Vec<f64>>, PreprocessError> {
         let width = laws.len();
         let mut side_by_side = Vec::new();
         for (j, law) in laws.iter().enumerate() {
@@ -368,6 +369,12 @@ pub fn laws_for_fit(
         let at_rows =
             |j: usize| rows.iter().map(|&s| if resting(s, k) { 0.0 } else { filtered[s * width + j] }).collect();
         Ok((0..width).map(at_rows).collect())
+    };
+    let columns = |k: usize, laws: &[CoulombShape]| -> Result<Vec<Vec<f64>>, PreprocessError> {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let parts: Vec<&[CoulombShape]> = laws.chunks(laws.len().div_ceil(cores).max(1)).collect();
+        let made = crate::parallel::map(parts, |part| some_columns(k, part));
+        Ok(made.into_iter().collect::<Result<Vec<_>, _>>()?.into_iter().flatten().collect())
     };
     let kept = |r: usize| if resting(rows[r / dof], r % dof) { 0.0 } else { weights[r % dof] };
     let mut stacked: Vec<Vec<f64>> =
