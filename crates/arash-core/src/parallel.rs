@@ -2,9 +2,14 @@
 //! independent candidates (a diagnosis's effects, its band's cut-offs, a friction law's columns)
 //! run them side by side.
 
+/// The cores work is spread over.
+pub fn cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
 /// `f` over `items` on every core, in order: the items are cut into one contiguous run per core.
 pub fn map<T: Send, R: Send>(items: Vec<T>, f: impl Fn(T) -> R + Sync) -> Vec<R> {
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(items.len().max(1));
+    let threads = cores().min(items.len().max(1));
     if threads == 1 {
         return items.into_iter().map(f).collect();
     }

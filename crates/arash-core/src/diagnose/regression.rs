@@ -391,6 +391,20 @@ struct BatchSums {
 }
 
 impl BatchSums {
+    /// The sums over `batches` runs of `length` samples, summed directly, a batch at a time.
+    fn over(scores: &[f64], k: usize, length: usize, batches: usize) -> Self {
+        let count = batches.max(1);
+        let mut values = vec![0.0; count * k];
+        for (run, rows) in scores.chunks(length.max(1) * k).enumerate() {
+            let b = run.min(count - 1);
+            let sum = &mut values[b * k..(b + 1) * k];
+            for row in rows.chunks_exact(k) {
+                sum.iter_mut().zip(row).for_each(|(s, v)| *s += v);
+            }
+        }
+        Self { values, k, length }
+    }
+
     /// The sums over runs twice as long, of a log of `samples`: each run is two of these, and the
     /// last also takes what is left over (the floor of half the count is the count at twice the
     /// length).
@@ -416,25 +430,7 @@ impl BatchSums {
 /// `Σ_b g_b g_bᵀ · B/(B − 1)` over `batches` runs of `length` samples; the last partial run
 /// joins the one before it.
 fn batch_meat(scores: &[f64], k: usize, length: usize, batches: usize) -> Mat<f64> {
-    let count = batches.max(1);
-    let mut sums = Mat::<f64>::zeros(count, k);
-    // Each batch summed in a row of its own, written once: the blocking calls this for every
-    // doubling of the length, over every sample.
-    let mut sum = vec![0.0; k];
-    let mut current = 0;
-    for (run, rows) in scores.chunks(length.max(1) * k).enumerate() {
-        let b = run.min(count - 1);
-        if b != current {
-            sum.iter().enumerate().for_each(|(j, v)| sums[(current, j)] = *v);
-            sum.fill(0.0);
-            current = b;
-        }
-        for row in rows.chunks_exact(k) {
-            sum.iter_mut().zip(row).for_each(|(s, v)| *s += v);
-        }
-    }
-    sum.iter().enumerate().for_each(|(j, v)| sums[(current, j)] = *v);
-    sums.transpose() * &sums * Scale(batches as f64 / (batches.max(2) - 1) as f64)
+    BatchSums::over(scores, k, length, batches).meat()
 }
 
 /// Blocking (Flyvbjerg and Petersen): the covariance from batches of 1, 2, 4, … samples grows
@@ -503,6 +499,9 @@ pub fn holm_threshold(alpha: f64, m: usize, rank: usize) -> f64 {
 mod tests {
     use super::*;
 
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
     /// Sums doubled pairwise from the shorter runs' give the meat summed directly over the longer
     /// runs, the leftover samples in the last run, for a sample count that is no power of two.
     #[test]
@@ -523,8 +522,6 @@ mod tests {
             }
         }
     }
-    use rand::{RngExt, SeedableRng};
-    use rand_chacha::ChaCha8Rng;
 
     #[test]
     fn holm_steps_down_and_stops_at_the_first_failure() {

@@ -102,8 +102,9 @@ impl Diagnosis {
         s += &self.error_table("held-out", &self.before, &self.after, |e| &e.heldout);
         if !self.noise_floor.is_empty() {
             s += "  held-out floor, what no model of the motion removes (held-out gains are judged against the \
-                  error above it, as far as that stands clear of it by its standard errors): the torque's noise in the band (read above a quarter of the sample rate), or \
-                  what the band holds above the narrowest that predicts as well, if larger\n";
+                  error above it, as far as that stands clear of it by its standard errors): the torque's noise \
+                  in the band (read above a quarter of the sample rate), or what the band holds above the \
+                  narrowest that predicts as well, if larger\n";
             for (k, name) in self.joint_names.iter().enumerate() {
                 let noise = self.sensor_noise.get(k).copied().unwrap_or(f64::NAN);
                 s += &format!("    {name:<22} RMS {:>10.3e}   (sensor noise {noise:.3e})\n", self.noise_floor[k]);

@@ -371,8 +371,7 @@ pub fn laws_for_fit(
         Ok((0..width).map(at_rows).collect())
     };
     let columns = |k: usize, laws: &[CoulombShape]| -> Result<Vec<Vec<f64>>, PreprocessError> {
-        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let parts: Vec<&[CoulombShape]> = laws.chunks(laws.len().div_ceil(cores).max(1)).collect();
+        let parts: Vec<&[CoulombShape]> = laws.chunks(laws.len().div_ceil(crate::parallel::cores()).max(1)).collect();
         let made = crate::parallel::map(parts, |part| some_columns(k, part));
         Ok(made.into_iter().collect::<Result<Vec<_>, _>>()?.into_iter().flatten().collect())
     };
