@@ -7,7 +7,8 @@ use std::io::{Read, Write};
 
 use arash_daemon::link::canopen::NodeId;
 use arash_daemon::link::frame::drive_fault;
-use arash_daemon::link::master::{CanopenConfig, CanopenLink, DriveInfo};
+use arash_daemon::link::drive_setup::DriveInfo;
+use arash_daemon::link::master::{CanopenConfig, CanopenLink};
 use arash_daemon::link::slcan::SlcanBus;
 use arash_daemon::link::{MotorLink, Telemetry};
 use libfuzzer_sys::fuzz_target;
@@ -47,7 +48,8 @@ const KNOWN: u8 = drive_fault::OVERCURRENT
     | drive_fault::HOST_TIMEOUT
     | drive_fault::UNDERVOLTAGE
     | drive_fault::DRIVE
-    | drive_fault::FIELDBUS;
+    | drive_fault::FIELDBUS
+    | drive_fault::STOPPED;
 
 fuzz_target!(|data: &[u8]| {
     let Some((&first, rest)) = data.split_first() else { return };
@@ -70,7 +72,7 @@ fuzz_target!(|data: &[u8]| {
         })
         .collect();
     let adapter = Adapter { input: rest.to_vec(), at: 0, chunk };
-    let Ok(bus) = SlcanBus::open(adapter, config.bit_rate) else { return };
+    let Ok(bus) = SlcanBus::open_probing(adapter, config.bit_rate, std::time::Duration::ZERO) else { return };
     let mut link = CanopenLink::new(bus, &config, &drives);
     let mut telemetry = Telemetry::new(joints);
     for _ in 0..rest.len() / chunk + 1 {

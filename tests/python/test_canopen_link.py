@@ -136,7 +136,9 @@ class Rig:
         if self.daemon and self.daemon.poll() is None:
             self.daemon.send_signal(signal.SIGTERM)
             self.daemon.wait(timeout=20)
-        self.sim.close()
+        if self.sim is not None:
+            self.sim.close()
+            self.sim = None
 
 
 @pytest.fixture
@@ -172,7 +174,9 @@ def sdo_requests(sent, node):
 
 def expected_start_up(node, period_us=1000, heartbeat=50, master_timeout=150, abort=3, max_torque=1000):
     """CiA 301 and 402's start-up of a CST drive, as issue 47 lists it, with one read of the
-    serial number (0x1018:4) whose answers are counted: two devices at one node ID answer twice."""
+    serial number (0x1018:4) whose answers are counted: two devices at one node ID answer twice.
+    The reaction to a lost master (0x6007) is set before the watch that triggers it (0x1016),
+    which is written last (issue 57)."""
     rpdo, tpdo = 0x200 + node, 0x180 + node
     pdo = lambda comm, mapping, cob, entries: [  # noqa: E731
         ("w", comm, 1, cob | 1 << 31), ("w", mapping, 0, 0),
@@ -185,8 +189,8 @@ def expected_start_up(node, period_us=1000, heartbeat=50, master_timeout=150, ab
         *pdo(0x1800, 0x1A00, tpdo, [0x60410010, 0x60640020, 0x60770010]),
         ("w", 0x6060, 0, 10), ("r", 0x6061, 0),
         ("r", 0x6075, 0), ("r", 0x6076, 0), ("w", 0x6072, 0, max_torque),
-        ("w", 0x1006, 0, period_us), ("w", 0x1017, 0, heartbeat), ("w", 0x1016, 1, MASTER << 16 | master_timeout),
-        ("w", 0x6007, 0, abort), ("r", 0x6041, 0),
+        ("w", 0x1006, 0, period_us), ("w", 0x1017, 0, heartbeat), ("w", 0x6007, 0, abort),
+        ("w", 0x1016, 1, MASTER << 16 | master_timeout), ("r", 0x6041, 0),
     ]
 
 
@@ -423,3 +427,207 @@ def test_the_robust_law_tracks_through_cia402_drives_as_through_the_serial_link(
     # SYNC, so that cycles a loaded host missed do not lower it.
     assert 47 + 3 * (79 + 111) <= stats["bits_per_sync"] <= 1.01 * (55 + 3 * 230), stats
     assert stats["late_syncs"] <= 0.01 * stats["syncs"], stats
+
+
+# --- issue 57: drives that stop by themselves, the adapter's health, recovery, the start-up ---
+
+def sent_to(r, node, since):
+    """(time, controlword, torque ‰) of each RPDO1 to ``node`` sent after ``since``."""
+    return [(t, d[0] | d[1] << 8, int.from_bytes(d[2:4], "little", signed=True))
+            for t, ident, d in list(r.sim.adapter.sent) if ident == 0x200 + node and t > since]
+
+
+def walked_back(words):
+    """Whether a controlword other than disable voltage follows the first disable voltage."""
+    first_off = next((i for i, w in enumerate(words) if w == 0), None)
+    return first_off is not None and any(w != 0 for w in words[first_off:])
+
+
+STOPS = {
+    # A pulse on the drive's quick-stop input (an e-stop): quick stop active, then switch on
+    # disabled 5 ms later, with no fault bit.
+    "quick stop from its input": lambda d: d.quick_stop_from_input(held=False),
+    # Safe torque off on many drives: straight to switch on disabled, no fault bit.
+    "switch on disabled by itself": lambda d: d.switch_off_by_itself(),
+}
+
+
+@pytest.mark.parametrize("how", list(STOPS))
+def test_a_drive_that_stops_by_itself_latches_and_is_never_walked_back_to_enabled(rig, how):
+    r = rig().start()
+    r.enable()
+    time.sleep(0.2)
+    stopped = time.monotonic()
+    STOPS[how](r.sim.drive(2))
+    r.mode("faulted", timeout=2)
+    status = r.ctl("status")
+    assert "drive stopped" in status["faults"], status
+    assert "stopped by itself" in status["drive"]["faults"], status
+    latched = status["link"]["latched"]
+    assert latched.startswith("node 2: drive stopped by itself (state "), latched
+    time.sleep(0.3)
+    # The master's answer: disable voltage to every drive from its first answer on, never the
+    # walk (0x06, 0x07, 0x0F) that would restart a stopped machine.
+    for node in NODES:
+        words = [w for _, w, _ in sent_to(r, node, stopped)]
+        assert 0 in words and not walked_back(words), (node, words[:12])
+        assert r.sim.drive(node).state != OPERATION_ENABLED
+    first_off = next(t for t, w, _ in sent_to(r, 2, stopped) if w == 0)
+    assert first_off - stopped < 0.05, first_off - stopped
+    assert r.ctl("enable", check=False).returncode != 0, "latched until the operator's reset"
+    # The operator's reset, then enable: the drives are walked again.
+    r.ctl("reset")
+    r.mode("disabled")
+    r.enable()
+    assert not r.ctl("status")["faults"]
+
+
+def test_a_drive_held_off_by_its_quick_stop_input_is_not_enabled_and_latches(rig):
+    r = rig().start()
+    r.enable()
+    r.sim.drive(1).quick_stop_from_input(held=True)
+    r.mode("faulted", timeout=2)
+    r.ctl("reset")
+    r.mode("disabled")
+    r.wait("telemetry", lambda: r.ctl("status")["telemetry"], poll=0.02)
+    # Enabling while the input is held: the drive refuses to leave switch on disabled, and the
+    # daemon latches rather than waiting for it to enable some time later.
+    r.ctl("enable")
+    r.mode("faulted", timeout=2)
+    assert "drive stopped" in r.ctl("status")["faults"]
+    r.sim.drive(1).release_quick_stop_input()
+    time.sleep(0.2)
+    assert all(d.state != OPERATION_ENABLED for d in r.sim.drives), "released: still nothing enables by itself"
+    r.ctl("reset")
+    r.mode("disabled")
+    r.enable()
+
+
+LEAVES = {
+    "reboot": lambda sim: sim.drive(3).reboot(),
+    # Another master's NMT "enter pre-operational" to node 3: its next heartbeat says so.
+    "pre-operational by another master": lambda sim: setattr(sim.drive(3).node.nmt, "state", "PRE-OPERATIONAL"),
+}
+
+
+@pytest.mark.parametrize("how", list(LEAVES))
+def test_a_drive_that_left_operational_is_brought_back_by_reset_then_enable(rig, how):
+    r = rig().start()
+    r.enable()
+    time.sleep(0.2)
+    LEAVES[how](r.sim)
+    r.mode("faulted", timeout=2)
+    latched = r.ctl("status")["link"]["latched"]
+    assert latched.startswith("node 3: left operational"), latched
+    if how == "reboot":
+        assert r.sim.drive(3).mapping(0x1A00) == [], "a rebooted drive has lost its mapping"
+    before = len(r.sim.adapter.sent)
+    r.ctl("reset")
+    r.wait("the start-up again", lambda: r.ctl("status")["link"]["recovering"] == [] and r.ctl("status")["telemetry"],
+           timeout=5, poll=0.05)
+    status = r.ctl("status")
+    assert status["mode"] == "disabled" and not status["faults"] and status["link"]["latched"] is None, status
+    # The whole start-up again for node 3 only: every check, the mapping, the mode, the
+    # watchdogs, then NMT start; the other drives got no SDO.
+    again = r.sim.adapter.sent[before:]
+    assert sdo_requests(again, 3) == expected_start_up(3), sdo_requests(again, 3)
+    assert sdo_requests(again, 1) == [] and sdo_requests(again, 2) == []
+    assert any(ident == 0 and d == bytes([0x01, 3]) for _, ident, d in again), "NMT start to node 3"
+    assert r.sim.drive(3).mapping(0x1A00) == [0x60410010, 0x60640020, 0x60770010]
+    time.sleep(0.1)  # its process data flows again from the next SYNC
+    r.enable()
+    time.sleep(0.3)
+    assert r.ctl("status")["mode"] == "enabled"
+    assert any(d.torque != 0 for d in r.sim.drives), "the arm is held again"
+
+
+def test_a_drive_that_fails_its_start_up_after_the_reset_stays_latched_and_named(rig):
+    r = rig().start()
+    r.enable()
+    r.sim.drive(2).reboot()
+    r.mode("faulted", timeout=2)
+    # The drive came back as one without CST (another firmware, another drive).
+    r.sim.drive(2).node.object_dictionary[0x6502].default = 1 << 7
+    r.ctl("reset")
+    r.wait("the start-up to fail", lambda: (r.ctl("status")["link"]["latched"] or "").startswith(
+        "the start-up after the reset failed: node 2"), timeout=5, poll=0.05)
+    status = r.ctl("status")
+    assert "cyclic synchronous torque" in status["link"]["latched"], status
+    assert status["mode"] == "faulted"
+    assert r.ctl("enable", check=False).returncode != 0
+
+
+def test_the_adapters_status_is_polled_at_a_bounded_rate_and_error_passive_latches_fieldbus(rig):
+    r = rig().start()
+    asked = r.sim.adapter.status_requests
+    time.sleep(1.0)
+    rate = r.sim.adapter.status_requests - asked
+    assert 50 <= rate <= 110, f"{rate} status requests in 1 s (one per 10 ms)"
+    assert r.ctl("status")["link"]["bus"]["reports_status"]
+    r.enable()
+    time.sleep(0.2)
+    injected = time.monotonic()
+    r.sim.adapter.report_status(0x20)
+    latched = r.mode("faulted", timeout=2)
+    assert latched - injected < 0.1, latched - injected
+    status = r.ctl("status")
+    assert "fieldbus" in status["drive"]["faults"], status
+    assert "error passive" in status["link"]["latched"], status
+    assert status["link"]["bus"]["bus_errors"] == 1, status  # the next polls find the flags clear
+    r.wait("every drive disabled", lambda: all(d.state == SWITCH_ON_DISABLED for d in r.sim.drives), timeout=0.5)
+
+
+def test_malformed_lines_and_foreign_frames_are_counted_shown_and_logged(rig, tmp_path):
+    from mcap.reader import make_reader
+
+    r = rig().start()
+    r.wait("telemetry", lambda: r.ctl("status")["telemetry"], poll=0.02)
+    r.sim.adapter.send_raw(b"t12\r" * 10 + b"T1234567820102\r" * 4 + b"r1230\r" * 3)
+    r.wait("the counts", lambda: r.ctl("status")["link"]["bus"]["malformed"] >= 10, timeout=2, poll=0.05)
+    bus = r.ctl("status")["link"]["bus"]
+    assert (bus["malformed"], bus["foreign"]) == (10, 7), bus
+    assert r.ctl("status")["mode"] == "disabled", "counted, not a fault"
+    r.daemon.send_signal(signal.SIGTERM)
+    r.daemon.wait(timeout=20)
+    logs = sorted((tmp_path / "logs").glob("*.mcap"))
+    assert logs, list(tmp_path.iterdir())
+    with open(logs[-1], "rb") as f:
+        metadata = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
+    assert json.loads(metadata["arash.link"]["bus"])["malformed"] == 10, metadata.get("arash.link")
+
+
+@pytest.mark.parametrize("watch", ["first-beat", "write"])
+def test_a_slow_start_up_trips_no_drives_watch_on_the_master(rig, watch):
+    """Drives slow to answer SDOs (4 ms each) make the start-up last well over the drives' 150 ms
+    watch on the master's heartbeat. Whether a drive's watch starts with the first beat it sees
+    (CiA 301) or as soon as 0x1016 is written, the master's heartbeat is periodic before it."""
+    slow = specs({n: dict(sdo_delay_s=0.004, watch_starts=watch) for n in NODES})
+    r = rig(drive_specs=slow)
+    began = time.monotonic()
+    r.start()
+    assert time.monotonic() - began > 0.3, "the start-up is slow, as meant"
+    time.sleep(0.5)
+    assert r.sim.aborts == [], r.sim.aborts
+    assert r.ctl("status")["mode"] == "disabled" and not r.ctl("status")["faults"]
+    r.enable()
+
+
+def test_missed_tpdos_latch_the_link_timeout_and_ramp_every_drives_torque_down_before_disabling(rig):
+    """docs/canopen.md, "Faults": the other drives still take their RPDOs, so the torque that
+    holds the arm is ramped to zero over link.ramp_ms, not dropped at once; then disable voltage."""
+    r = rig().start()
+    r.enable()
+    time.sleep(0.5)
+    dropped = time.monotonic()
+    r.sim.drive(3).injected.drop_tpdos = True
+    r.mode("faulted", timeout=2)
+    time.sleep(0.2)
+    after = sent_to(r, 2, dropped)
+    off = next(i for i, (_, w, _) in enumerate(after) if w == 0)
+    held = [abs(t) for _, _, t in after[:off]]
+    assert held[0] > 5, "the pitch joint is held against gravity"
+    assert off - 1 >= LINK_TIMEOUT_S * 1000, f"the link timeout: {off} cycles"
+    ramp = held[-10:]
+    assert all(a >= b for a, b in zip(ramp, ramp[1:])) and ramp[-1] <= held[0] / 5, ramp
+    assert after[off][0] - dropped < LINK_TIMEOUT_S + 0.010 + 0.05, after[off][0] - dropped
+    assert all(w == 0 for _, w, _ in after[off:]), "disable voltage from then on"

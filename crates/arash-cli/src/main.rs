@@ -43,6 +43,8 @@ enum Command {
 }
 
 fn main() -> std::process::ExitCode {
+    // Model files are resolved by this binary in a helper process (daemon/model_helper.rs).
+    arash_daemon::daemon::model_helper::serve_if_asked();
     arash_daemon::exit::report_panics_as_bugs();
     arash_daemon::exit::exit_code(run(Cli::parse().command))
 }

@@ -89,10 +89,10 @@ const DAEMON: &[&str] = &["exit", "link", "drive_config", "ctl", "rt", "live", "
 
 /// The files of arash-daemon's folder modules, leaf first.
 const DAEMON_FOLDERS: &[(&str, &[&str])] = &[
-    ("link", &["frame", "serial", "can", "slcan", "canopen", "cia402", "master"]),
+    ("link", &["frame", "serial", "can", "slcan", "canopen", "cia402", "drive_setup", "master"]),
     ("rt", &["clock", "memory", "reference", "cycle", "runner"]),
     ("live", &["window", "server"]),
-    ("daemon", &["startup", "requests", "server"]),
+    ("daemon", &["startup", "model_helper", "requests", "server"]),
 ];
 
 /// arash-cli: the `arash` binary's modules (`main.rs` declares them), leaf first.

@@ -168,6 +168,8 @@ pub struct Logger {
     period_errors_us: FineHistogram,
     exec_us: FineHistogram,
     last_link: crate::link::LinkStats,
+    /// The link as of the newest cycle: each file's metadata gets it when the file closes.
+    link_now: crate::link::LinkStats,
     last_dropped: u64,
     nominal_ns: f64,
     window: ErrorWindow,
@@ -201,6 +203,7 @@ impl Logger {
             period_errors_us: FineHistogram::default(),
             exec_us: FineHistogram::default(),
             last_link: Default::default(),
+            link_now: Default::default(),
             last_dropped: 0,
         })
     }
@@ -283,6 +286,7 @@ impl Logger {
     }
 
     fn cycle(&mut self, s: &CycleSample) -> anyhow::Result<()> {
+        self.link_now = s.link;
         let r = &mut self.record;
         s.write_into(r);
         let segment = self.segment.as_mut().expect("a segment is open");
@@ -351,13 +355,19 @@ impl Logger {
             live.publish(Topic::Timing, segment.writer.log_time(t.max(0.0)), json.as_bytes());
         }
         if link.errors() > self.last_link.errors() || dropped > self.last_dropped {
+            let (bus, was) = (link.bus.unwrap_or_default(), self.last_link.bus.unwrap_or_default());
             let text = format!(
-                "link errors in the last second: {} CRC, {} framing, {} lost, {} stale, {} send; {} log items dropped",
+                "link errors in the last second: {} CRC, {} framing, {} lost, {} stale, {} send; CAN adapter: {} \
+                 refused, {} bus errors, {} overruns, {} malformed lines; {} log items dropped",
                 link.crc_errors - self.last_link.crc_errors,
                 link.framing_errors - self.last_link.framing_errors,
                 link.lost - self.last_link.lost,
                 link.stale - self.last_link.stale,
                 link.send_errors - self.last_link.send_errors,
+                bus.refused - was.refused,
+                bus.bus_errors - was.bus_errors,
+                bus.overruns - was.overruns,
+                bus.malformed - was.malformed,
                 dropped - self.last_dropped,
             );
             self.write_event(s.cycle, s.t, &text)?;
@@ -451,7 +461,8 @@ impl Logger {
 
     /// Finish the open file and give it its final name.
     fn finish_segment(&mut self) -> anyhow::Result<Option<PathBuf>> {
-        let Some(s) = self.segment.take() else { return Ok(None) };
+        let Some(mut s) = self.segment.take() else { return Ok(None) };
+        s.writer.write_metadata(LINK_METADATA, link_metadata(&self.link_now))?;
         s.writer.finish()?;
         std::fs::rename(&s.part, &s.path)
             .map_err(|e| anyhow::anyhow!("renaming {} to {}: {e}", s.part.display(), s.path.display()))?;
@@ -494,6 +505,16 @@ impl Logger {
             exec_max_us: emax,
         }
     }
+}
+
+/// The metadata record each file closes with: the link's counters and state then
+/// ([`crate::link::LinkStats`], each field's JSON under its name).
+pub const LINK_METADATA: &str = "arash.link";
+
+fn link_metadata(link: &crate::link::LinkStats) -> std::collections::BTreeMap<String, String> {
+    let json = serde_json::to_value(link).expect("the link's counters serialise");
+    let fields = json.as_object().expect("a struct serialises as an object");
+    fields.iter().map(|(k, v)| (k.clone(), v.to_string())).collect()
 }
 
 /// Whole-run timing: quantiles of the period error (actual − nominal period) and of the

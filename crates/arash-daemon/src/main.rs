@@ -13,6 +13,8 @@ struct Cli {
 }
 
 fn main() -> std::process::ExitCode {
+    // Model files are resolved by this binary in a helper process (daemon/model_helper.rs).
+    arash_daemon::daemon::model_helper::serve_if_asked();
     arash_daemon::exit::report_panics_as_bugs();
     let args = Cli::parse().args;
     arash_daemon::exit::exit_code(daemon::startup::options(args).map_err(anyhow::Error::from).and_then(daemon::run))

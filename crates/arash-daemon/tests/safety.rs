@@ -19,6 +19,10 @@ struct Script {
     obeys_disable: bool,
     /// Whether CLEAR_FAULT clears the fault bits.
     clears: bool,
+    /// Whether ENABLE switches the power stage on.
+    obeys_enable: bool,
+    /// Whether the fault bits are reported on every poll, telemetry or not (a CANopen master's).
+    faults_always: bool,
     sent: Vec<Command>,
 }
 
@@ -30,6 +34,8 @@ impl Script {
             echo: true,
             obeys_disable: true,
             clears: true,
+            obeys_enable: true,
+            faults_always: false,
             sent: Vec::new(),
         }
     }
@@ -45,7 +51,9 @@ impl MotorLink for Script {
             self.telemetry.amps = *amps;
         }
         match command {
-            Command::Enable if self.telemetry.faults == 0 => self.telemetry.status = status::ENABLED,
+            Command::Enable if self.telemetry.faults == 0 && self.obeys_enable => {
+                self.telemetry.status = status::ENABLED
+            }
             Command::Disable if self.obeys_disable => self.telemetry.status = status::BRAKE,
             Command::ClearFault if self.clears => self.telemetry.faults = 0,
             _ => {}
@@ -56,6 +64,9 @@ impl MotorLink for Script {
 
     fn poll(&mut self, out: &mut Telemetry) -> std::io::Result<bool> {
         if !self.deliver {
+            if self.faults_always {
+                out.faults = self.telemetry.faults;
+            }
             return Ok(false);
         }
         self.telemetry.seq = self.telemetry.seq.wrapping_add(1);
@@ -418,6 +429,62 @@ fn a_drive_that_stays_powered_against_disable_latches_drive_state_after_the_link
     rig.cycle.request(Request::Enable);
     assert_eq!(rig.step(), vec![Event::EnableRefused]);
     assert!(rig.link.sent.iter().all(|c| *c == Command::Disable), "nothing but DISABLE was ever sent");
+}
+
+/// Issue 57: a drive that switches its power stage off by itself (its e-stop input, safe torque
+/// off), without a fault bit, latches in the cycle its telemetry says so. Nothing but DISABLE
+/// follows until the operator resets and enables.
+#[test]
+fn a_drive_that_switches_itself_off_while_enabled_latches_drive_stopped_at_once() {
+    let mut rig = Rig::new([0.1; 3], |_| {});
+    rig.step();
+    rig.enable();
+    rig.steps(5);
+    assert_eq!(rig.cycle.faults(), Faults::NONE);
+    rig.link.telemetry.status = 0;
+    let events = rig.step();
+    assert!(events.contains(&Event::FaultLatched(Faults::DRIVE_STOPPED)), "{events:?}");
+    assert_eq!(rig.cycle.mode(), Mode::Faulted);
+    let before = rig.link.sent.len();
+    rig.steps(50);
+    assert!(rig.link.sent[before..].iter().all(|c| *c == Command::Disable), "never walked back to enabled");
+    rig.cycle.request(Request::Enable);
+    assert_eq!(rig.step(), vec![Event::EnableRefused]);
+    rig.cycle.request(Request::ResetFault);
+    rig.steps(3);
+    assert_eq!(rig.cycle.mode(), Mode::Disabled, "the reset leaves it disabled");
+    rig.enable();
+    rig.steps(3);
+    assert_eq!((rig.cycle.mode(), rig.cycle.faults()), (Mode::Enabled, Faults::NONE));
+}
+
+/// A drive that never confirms the enable latches after exactly `link_timeout` telemetry
+/// frames, rather than being commanded on until it enables by itself much later.
+#[test]
+fn a_drive_that_never_confirms_the_enable_latches_drive_stopped_after_the_link_timeout() {
+    let mut rig = Rig::new([0.1; 3], |_| {});
+    rig.link.obeys_enable = false;
+    rig.step();
+    rig.enable();
+    for n in 1..20 {
+        rig.step();
+        assert_eq!(rig.cycle.faults(), Faults::NONE, "frame {n}: within the drive's grace");
+    }
+    let events = rig.step();
+    assert!(events.contains(&Event::FaultLatched(Faults::DRIVE_STOPPED)), "{events:?}");
+}
+
+/// A link that supervises its drives itself reports a fault while no telemetry comes (a
+/// CANopen drive that rebooted sends no process data): the cycle latches it, enabled or not.
+#[test]
+fn a_fault_the_link_reports_without_telemetry_latches() {
+    let mut rig = Rig::new([0.0; 3], |_| {});
+    rig.link.faults_always = true;
+    rig.steps(3);
+    rig.link.deliver = false;
+    rig.link.telemetry.faults = drive_fault::FIELDBUS;
+    let events = rig.step();
+    assert!(events.contains(&Event::FaultLatched(Faults::MOTOR)), "{events:?}");
 }
 
 #[test]

@@ -37,6 +37,10 @@ impl Faults {
     /// The drive reported its power stage on for too long while the host commanded it off (set
     /// by the daemon; a drive that ignores DISABLE, or a stale enable from an earlier host).
     pub const DRIVE_STATE: Faults = Faults(1 << 8);
+    /// The drive left its enabled state while the host had it enabled, without a fault of its
+    /// own, or never confirmed the enable (set by the daemon; an e-stop on the drive's
+    /// quick-stop input, safe torque off). Only the operator's reset and enable restart it.
+    pub const DRIVE_STOPPED: Faults = Faults(1 << 9);
 
     pub fn contains(self, other: Faults) -> bool {
         self.0 & other.0 == other.0
@@ -48,7 +52,7 @@ impl Faults {
 
     /// Names of the bits set, for reports.
     pub fn names(self) -> Vec<&'static str> {
-        const NAMES: [&str; 9] = [
+        const NAMES: [&str; 10] = [
             "non-finite state",
             "non-finite command",
             "position limit",
@@ -58,6 +62,7 @@ impl Faults {
             "following error",
             "current mismatch",
             "drive state",
+            "drive stopped",
         ];
         NAMES.iter().enumerate().filter(|(i, _)| self.0 & (1 << i) != 0).map(|(_, n)| *n).collect()
     }

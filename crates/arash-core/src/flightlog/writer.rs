@@ -213,6 +213,12 @@ impl LogWriter {
         }
     }
 
+    /// A metadata record named `name`, written now (e.g. what held when the log closed).
+    pub fn write_metadata(&mut self, name: &str, metadata: BTreeMap<String, String>) -> Result<(), LogError> {
+        let record = Metadata { name: name.into(), metadata };
+        self.writer.write_metadata(&record).map_err(|e| self.mcap_error(e))
+    }
+
     /// Close the current chunk and push it to the file.
     pub fn flush(&mut self) -> Result<(), LogError> {
         self.writer.flush().map_err(|e| self.mcap_error(e))

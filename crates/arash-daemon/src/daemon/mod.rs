@@ -11,6 +11,7 @@
 //! - [`requests`]: the operator's requests and the status they are answered with;
 //! - [`server`]: the operator's socket and the tokio loop's housekeeping.
 
+pub mod model_helper;
 pub mod requests;
 pub mod server;
 pub mod startup;
@@ -52,7 +53,8 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     let dof = model.dof();
     // First of all, before anything slow: a drive left powered by a crashed daemon keeps applying
     // its last current until told otherwise. The control cycle goes on sending DISABLE until an
-    // operator enables.
+    // operator enables. (A CANopen master disables its drives as it opens, and sends nothing
+    // more until the control thread starts it.)
     let mut link = open_link(&config, dof)?;
     let _ = link.send(&crate::link::Command::Disable);
 
@@ -69,10 +71,11 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     let units = config.control.gain_units.parse().map_err(anyhow::Error::msg)?;
     let gains = RobustGains::from_paper(&model, units).ok();
     let kind = config.controller()?;
-    let start_model = config.control.model.as_deref().map(|p| read_model_file(p).map(|f| (p, f))).transpose()?;
-    let (controller, logged_controller) =
-        build_controller(&model, kind, start_model.as_ref().map(|(p, f)| (*p, f)), gains.as_ref())?;
-    let torque_constant = torque_constants(&config, &model, start_model.as_ref().map(|(_, f)| f))?;
+    let robot = config.robot.as_deref();
+    let start_model =
+        config.control.model.as_deref().map(|p| model_helper::resolve_blocking(p, kind, robot)).transpose()?;
+    let (controller, logged_controller) = build_controller(&model, kind, start_model.as_ref(), gains.as_ref())?;
+    let torque_constant = torque_constants(&config, &model, start_model.as_ref().and_then(|r| r.drive_gains.as_ref()))?;
     let mut cycle_config = config.cycle_config(&model)?;
     cycle_config.drive.torque_constant.clone_from(&torque_constant.values);
     let cycle = ControlCycle::new(cycle_config, controller);
@@ -130,21 +133,28 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
         .name("arash-control".into())
         .stack_size(crate::rt::memory::CONTROL_STACK_BYTES)
         .spawn(move || {
-            match setup_realtime(priority, policy) {
-                Ok(status) => {
-                    let _ = rt_tx.send(Ok(status));
-                }
-                Err(e) => {
-                    let _ = rt_tx.send(Err(e));
-                    return;
-                }
+            // The link's start-up runs here, just before the first cycle: a CANopen master's
+            // heartbeat, which the drives watch from its first beat, then never pauses.
+            let ready = setup_realtime(priority, policy).and_then(|status| {
+                let found = link.start().map_err(|e| format!("{e}"))?;
+                Ok((status, found))
+            });
+            let failed = ready.is_err();
+            let _ = rt_tx.send(ready);
+            if failed {
+                return;
             }
             let queues = Queues { requests: request_rx, garbage: garbage_tx, log: log_tx };
             runner::run(cycle, link.as_mut(), queues, &rt_shared, period);
         })?;
     let rt_status = rt_rx.recv().context("the control thread died during set-up")?;
     let rt_status = match rt_status {
-        Ok(s) => s,
+        Ok((status, found)) => {
+            for line in found {
+                eprintln!("arash-daemon: {line}");
+            }
+            status
+        }
         Err(e) => {
             let _ = control_thread.join();
             let _ = logger_thread.join();
@@ -176,6 +186,7 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
         controller: Mutex::new(logged_controller),
         drive: config.drive.clone(),
         torque_constant,
+        robot: config.robot.clone(),
     });
     let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
     let served = runtime.block_on(async {

@@ -18,7 +18,8 @@ use crate::live::server::LiveServer;
 use crate::logger::{RunInfo, RunRegistry};
 use arash_core::identify::closed_loop::LoggedController;
 
-use super::startup::{build_controller, read_file, read_model_file, MAX_INPUT_FILE_BYTES};
+use super::model_helper;
+use super::startup::{build_controller, read_file, MAX_INPUT_FILE_BYTES};
 use crate::rt::cycle::Request;
 use crate::rt::reference::RunRequest;
 use crate::rt::runner::Shared;
@@ -44,6 +45,9 @@ pub(super) struct Operator {
     /// The configured drive, and the torque constants the cycle runs with (fixed at start-up).
     pub(super) drive: crate::drive_config::DriveConfig,
     pub(super) torque_constant: TorqueConstants,
+    /// The robot's URDF as configured (`None`: the built-in one): the model helper checks files
+    /// against it.
+    pub(super) robot: Option<PathBuf>,
 }
 
 /// Queue `request` for the control thread; the ticket it returns is what [`applied`] waits for.
@@ -139,13 +143,18 @@ pub(super) async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::
         }
         CtlRequest::Controller { kind, model } => {
             let kind = crate::config::controller_kind(&kind).context("controller kind")?;
-            let path = model.map(PathBuf::from);
-            let file = path.as_deref().map(|p| read_model_file(p).map(|f| (p, f))).transpose()?;
-            if let Some((p, gains)) = file.as_ref().and_then(|(p, f)| Some((p, f.drive_gains.as_ref()?))) {
-                same_torque_constants(operator, p, gains)?;
-            }
+            let resolved = match model.map(PathBuf::from) {
+                Some(path) => {
+                    let resolved = model_helper::resolve(&path, kind, operator.robot.as_deref()).await?;
+                    if let Some(gains) = &resolved.drive_gains {
+                        same_torque_constants(operator, &path, gains)?;
+                    }
+                    Some(resolved)
+                }
+                None => None,
+            };
             let (controller, logged) =
-                build_controller(&operator.model, kind, file.as_ref().map(|(p, f)| (*p, f)), operator.gains.as_ref())?;
+                build_controller(&operator.model, kind, resolved.as_ref(), operator.gains.as_ref())?;
             applied(operator, send(operator, Request::Controller(controller))?).await?;
             *operator.controller.lock().expect("controller lock") = logged;
             Ok(status(operator))
@@ -195,14 +204,7 @@ pub(super) fn status(operator: &Operator) -> serde_json::Value {
         "logging": !s.logging_failed.load(Ordering::Acquire),
         "memory": crate::rt::memory::MemoryUse::of_self(),
         "live": operator.live.as_ref().map(|l| l.status()),
-        "link": {
-            "frames_received": load(&s.frames_received),
-            "crc_errors": load(&s.crc_errors),
-            "framing_errors": load(&s.framing_errors),
-            "lost": load(&s.lost),
-            "stale": load(&s.stale),
-            "send_errors": load(&s.send_errors),
-        },
+        "link": *s.link.lock().expect("link stats lock"),
         "runs": runs,
     })
 }

@@ -6,7 +6,7 @@ use std::str::FromStr;
 use std::sync::Arc;
 
 use arash_core::control::{controller_with_effects, Controller, ControllerError, ControllerKind, RobustGains};
-use arash_core::model_file::{ModelFile, ModelFileError};
+use arash_core::model_file::{DriveGains, ModelFile, ModelFileError};
 use arash_core::urdf::UrdfError;
 use arash_core::Model;
 
@@ -51,7 +51,7 @@ pub enum StartupError {
     #[error("link.kind = \"can\" needs Linux SocketCAN")]
     NoSocketCan,
     #[error("the CANopen drives: {0}")]
-    Drives(#[from] crate::link::master::StartupError),
+    Drives(#[from] crate::link::drive_setup::StartupError),
     #[error("binding the live stream to live.address {address}")]
     LiveBind { address: std::net::SocketAddr, source: std::io::Error },
     #[error("the live stream's socket: {0}")]
@@ -64,35 +64,43 @@ pub enum StartupError {
     Robot { path: PathBuf, source: UrdfError },
     #[error("writing the effective configuration: {0}")]
     Effective(String),
+    /// A model file the helper process refused, with its message (the causes included), or the
+    /// helper itself failing.
+    #[error("{0}")]
+    ModelHelper(String),
 }
 
-/// Build a controller of `kind` for `model` with parameters from `model_file` (or CAD). The
-/// model-based laws also compensate the effects a diagnosis added to the file. Returns it with
-/// its description, which each run's log carries (`controller.json`) so that a closed-loop
-/// estimator can simulate the loop.
+/// What the daemon takes from a model file, as the model helper resolved it
+/// ([`super::model_helper`]).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ResolvedModel {
+    /// The standard parameters the controller uses: the file's own for PD; for a law that
+    /// inverts M(q), ones checked physically consistent.
+    pub params: Vec<f64>,
+    /// The effects a diagnosis added, which the model-based laws compensate.
+    pub effects: Vec<arash_core::effects::EffectTerm>,
+    pub drive_gains: Option<DriveGains>,
+}
+
+/// Build a controller of `kind` for `model` with the parameters a model file resolved to (or
+/// CAD). The model-based laws also compensate the effects a diagnosis added to the file.
+/// Returns it with its description, which each run's log carries (`controller.json`) so that a
+/// closed-loop estimator can simulate the loop.
 pub fn build_controller(
     model: &Model,
     kind: ControllerKind,
-    model_file: Option<(&Path, &ModelFile)>,
+    resolved: Option<&ResolvedModel>,
     gains: Option<&RobustGains>,
 ) -> Result<(Box<dyn Controller>, LoggedController), StartupError> {
-    let (params, effects) = match model_file {
+    let (params, effects) = match resolved {
         None => (model.cad_parameters(), vec![]),
-        Some((path, id)) => {
-            let params = if kind == ControllerKind::Pd {
-                id.controller_parameters(model)
-            } else {
-                id.consistent_controller_parameters(model)
-            };
-            let params = params.map_err(|source| StartupError::Refused { path: path.into(), kind, source })?;
-            (params, id.effects.clone())
-        }
+        Some(r) => (r.params.clone(), r.effects.clone()),
     };
     let controller = controller_with_effects(kind, model, &params, &effects, gains)?;
     Ok((controller, LoggedController::Standard { kind, params, effects, gains: gains.cloned() }))
 }
 
-/// Read a model file named by the configuration or an operator.
+/// Read a model file named by the configuration or an operator (in the model helper, or a tool).
 pub fn read_model_file(path: &Path) -> Result<ModelFile, StartupError> {
     let text = read_file(path, MAX_INPUT_FILE_BYTES)?;
     ModelFile::from_json(&text).map_err(|source| StartupError::ModelFile { path: path.into(), source })
@@ -103,9 +111,8 @@ pub fn read_model_file(path: &Path) -> Result<ModelFile, StartupError> {
 pub(super) fn torque_constants(
     config: &DaemonConfig,
     model: &Model,
-    file: Option<&ModelFile>,
+    gains: Option<&DriveGains>,
 ) -> Result<TorqueConstants, StartupError> {
-    let gains = file.and_then(|f| f.drive_gains.as_ref());
     let chosen = TorqueConstants::choose(&config.drive, gains, &model.joint_names())
         .map_err(|source| StartupError::TorqueConstants { model: config.control.model.clone(), source })?;
     for ((name, k), source) in model.joint_names().iter().zip(&chosen.values).zip(&chosen.sources) {
@@ -166,6 +173,13 @@ fn open_canopen(config: &DaemonConfig) -> Result<Box<dyn MotorLink>, StartupErro
             let port =
                 crate::link::serial::open_port(&config.link.port, config.link.baud).map_err(StartupError::Link)?;
             let bus = SlcanBus::open(port, c.bit_rate).map_err(StartupError::Link)?;
+            if !bus.health().reports_status {
+                eprintln!(
+                    "arash-daemon: WARNING: the slcan adapter on {} does not report its status flags (`F`): an error \
+                     passive or bus-off adapter is seen only when it refuses frames",
+                    config.link.port
+                );
+            }
             start_drives(bus, config)
         }
         #[cfg(target_os = "linux")]
@@ -178,17 +192,14 @@ fn open_canopen(config: &DaemonConfig) -> Result<Box<dyn MotorLink>, StartupErro
     }
 }
 
+/// The master over `bus`, its drives disabled at once; the rest of their start-up runs on the
+/// control thread ([`MotorLink::start`]).
 fn start_drives<B: crate::link::can::CanBus + 'static>(
-    mut bus: B,
+    bus: B,
     config: &DaemonConfig,
 ) -> Result<Box<dyn MotorLink>, StartupError> {
-    use crate::link::master::{configure, CanopenLink};
     let period = std::time::Duration::from_secs_f64(1.0 / config.control.rate_hz);
-    let drives = configure(&mut bus, &config.canopen, period)?;
-    for d in &drives {
-        eprintln!("arash-daemon: CiA 402 drive {d}; cyclic synchronous torque, disabled");
-    }
-    Ok(Box::new(CanopenLink::new(bus, &config.canopen, &drives)))
+    Ok(Box::new(crate::link::master::CanopenLink::open(bus, &config.canopen, period)?))
 }
 
 /// Bind the live stream's socket (before the control thread starts, so that a taken port stops

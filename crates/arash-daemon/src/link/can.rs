@@ -29,12 +29,52 @@ pub struct CanFrame {
 /// Moves CAN frames; never blocks.
 pub trait CanBus: Send {
     fn send(&mut self, frame: &CanFrame) -> std::io::Result<()>;
-    /// The next received frame, if any.
+    /// The next received frame, if any. Frames the transport cannot give as an 11-bit data
+    /// frame (extended, remote, error frames) are counted in [`BusHealth`], not returned.
     fn receive(&mut self) -> std::io::Result<Option<CanFrame>>;
-    /// Errors the CAN controller or adapter reported since the bus was opened (refused
-    /// transmissions, error frames, bus-off), counted; a bus that cannot tell reports none.
-    fn errors(&self) -> u64 {
-        0
+    /// What the controller or adapter reported since the bus was opened; a bus that cannot tell
+    /// reports nothing.
+    fn health(&self) -> BusHealth {
+        BusHealth::default()
+    }
+    /// Housekeeping at most once per control cycle: an slcan adapter is asked for its status
+    /// flags here, at a bounded rate.
+    fn service(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// What a CAN transport has reported about the bus and about itself, counted since it was
+/// opened. The first three latch the CANopen master's `fieldbus` fault when they grow
+/// ([`BusHealth::faults`]); the others are shown, not acted on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct BusHealth {
+    /// Frames or commands the adapter refused (slcan's BEL; a full SocketCAN queue is an error
+    /// of the send itself).
+    pub refused: u64,
+    /// Reports of the bus in error: an slcan status with error passive or bus error, a
+    /// SocketCAN error frame (bus-off, controller, no acknowledgement).
+    pub bus_errors: u64,
+    /// Frames lost on the way: an slcan status with a full FIFO or a data overrun, or the host's
+    /// own receive queue full.
+    pub overruns: u64,
+    /// slcan statuses with only the error-warning flag: the bus works, its error counters are high.
+    pub warnings: u64,
+    /// Lines from the adapter that are not its protocol.
+    pub malformed: u64,
+    /// Frames no CANopen node sends the master: extended and remote frames.
+    pub foreign: u64,
+    /// The adapter's last status flags (slcan `F`), when it reports them.
+    pub status_flags: Option<u8>,
+    /// Whether the adapter answers the status request at all (slcan `F`): when it does not,
+    /// error passive and bus-off show only as refused frames.
+    pub reports_status: bool,
+}
+
+impl BusHealth {
+    /// The reports that latch a fault: refusals, bus errors and lost frames.
+    pub fn faults(&self) -> u64 {
+        self.refused + self.bus_errors + self.overruns
     }
 }
 
@@ -197,8 +237,8 @@ impl CanBus for InProcessBus {
 #[cfg(target_os = "linux")]
 pub struct SocketCan {
     fd: std::os::fd::OwnedFd,
-    /// Error frames received (the kernel sends them only to sockets that ask).
-    errors: u64,
+    /// Error frames (the kernel sends them only to sockets that ask) and foreign frames.
+    health: BusHealth,
 }
 
 #[cfg(target_os = "linux")]
@@ -250,7 +290,7 @@ impl SocketCan {
         if set < 0 {
             return Err(context(std::io::Error::last_os_error()));
         }
-        Ok(Self { fd, errors: 0 })
+        Ok(Self { fd, health: BusHealth::default() })
     }
 }
 
@@ -274,24 +314,28 @@ impl CanBus for SocketCan {
 
     fn receive(&mut self) -> std::io::Result<Option<CanFrame>> {
         use std::os::fd::AsRawFd;
-        let mut raw: libc::can_frame = unsafe { std::mem::zeroed() };
-        let size = std::mem::size_of::<libc::can_frame>();
-        // SAFETY: reads at most one can_frame into a live stack value.
-        let n = unsafe { libc::read(self.fd.as_raw_fd(), &mut raw as *mut libc::can_frame as *mut libc::c_void, size) };
-        if n < 0 {
-            let e = std::io::Error::last_os_error();
-            return if e.kind() == std::io::ErrorKind::WouldBlock { Ok(None) } else { Err(e) };
+        loop {
+            let mut raw: libc::can_frame = unsafe { std::mem::zeroed() };
+            let size = std::mem::size_of::<libc::can_frame>();
+            // SAFETY: reads at most one can_frame into a live stack value.
+            let n =
+                unsafe { libc::read(self.fd.as_raw_fd(), &mut raw as *mut libc::can_frame as *mut libc::c_void, size) };
+            if n < 0 {
+                let e = std::io::Error::last_os_error();
+                return if e.kind() == std::io::ErrorKind::WouldBlock { Ok(None) } else { Err(e) };
+            }
+            if raw.can_id & libc::CAN_ERR_FLAG != 0 {
+                self.health.bus_errors += 1;
+            } else if n as usize != size || raw.can_id & (libc::CAN_EFF_FLAG | libc::CAN_RTR_FLAG) != 0 {
+                self.health.foreign += 1;
+            } else {
+                return Ok(Some(CanFrame { id: raw.can_id & libc::CAN_SFF_MASK, len: raw.can_dlc, data: raw.data }));
+            }
         }
-        self.errors += u64::from(raw.can_id & libc::CAN_ERR_FLAG != 0);
-        if n as usize != size || raw.can_id & (libc::CAN_EFF_FLAG | libc::CAN_RTR_FLAG | libc::CAN_ERR_FLAG) != 0 {
-            // Error, remote and extended frames are not ours; report them as foreign frames.
-            return Ok(Some(CanFrame { id: u32::MAX, len: 0, data: [0; 8] }));
-        }
-        Ok(Some(CanFrame { id: raw.can_id & libc::CAN_SFF_MASK, len: raw.can_dlc, data: raw.data }))
     }
 
-    fn errors(&self) -> u64 {
-        self.errors
+    fn health(&self) -> BusHealth {
+        self.health
     }
 }
 

@@ -106,6 +106,17 @@ pub enum NmtState {
     PreOperational,
 }
 
+impl std::fmt::Display for NmtState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::BootUp => "boot-up",
+            Self::Stopped => "stopped",
+            Self::Operational => "operational",
+            Self::PreOperational => "pre-operational",
+        })
+    }
+}
+
 /// The node and state of a heartbeat (or boot-up) frame; `None` for any other frame.
 pub fn heartbeat(frame: &CanFrame) -> Option<(NodeId, NmtState)> {
     let node = NodeId::of(frame, HEARTBEAT_BASE)?;
@@ -369,16 +380,20 @@ pub const SYNCHRONOUS_EVERY_SYNC: u32 = 1;
 /// `mapping` (0x1600 + n or 0x1A00 + n), transmitted on every SYNC at `cob_id`: invalidate the
 /// PDO, clear its mapping, write the entries, set their count, the transmission type, and
 /// validate it again (CiA 301, 7.5.2.36).
-pub fn map_pdo(communication: u16, mapping: u16, cob_id: u32, objects: &[(Object, u8)]) -> Vec<SdoRequest> {
-    let write = |index, sub, value, size| SdoRequest::Write { object: Object { index, sub }, value, size };
-    let mut steps = vec![write(communication, 1, cob_id | PDO_INVALID, 4), write(mapping, 0, 0, 1)];
-    for (i, &(object, bits)) in objects.iter().enumerate() {
-        steps.push(write(mapping, i as u8 + 1, mapping_entry(object, bits), 4));
-    }
-    steps.push(write(mapping, 0, objects.len() as u32, 1));
-    steps.push(write(communication, 2, SYNCHRONOUS_EVERY_SYNC, 1));
-    steps.push(write(communication, 1, cob_id, 4));
-    steps
+pub fn map_pdo(
+    communication: u16,
+    mapping: u16,
+    cob_id: u32,
+    objects: &[(Object, u8)],
+) -> impl Iterator<Item = SdoRequest> + '_ {
+    let write = move |index, sub, value, size| SdoRequest::Write { object: Object { index, sub }, value, size };
+    let entries =
+        objects.iter().enumerate().map(move |(i, &(o, bits))| write(mapping, i as u8 + 1, mapping_entry(o, bits), 4));
+    [write(communication, 1, cob_id | PDO_INVALID, 4), write(mapping, 0, 0, 1)].into_iter().chain(entries).chain([
+        write(mapping, 0, objects.len() as u32, 1),
+        write(communication, 2, SYNCHRONOUS_EVERY_SYNC, 1),
+        write(communication, 1, cob_id, 4),
+    ])
 }
 
 #[cfg(test)]
@@ -482,10 +497,8 @@ mod tests {
     #[test]
     fn a_pdo_is_mapped_in_the_standards_order() {
         let objects = [(Object { index: 0x6040, sub: 0 }, 16), (Object { index: 0x6071, sub: 0 }, 16)];
-        let steps = map_pdo(0x1400, 0x1600, RPDO1_BASE + 3, &objects);
-        let written: Vec<(u16, u8, u32)> = steps
-            .iter()
-            .map(|s| match *s {
+        let written: Vec<(u16, u8, u32)> = map_pdo(0x1400, 0x1600, RPDO1_BASE + 3, &objects)
+            .map(|s| match s {
                 SdoRequest::Write { object, value, .. } => (object.index, object.sub, value),
                 SdoRequest::Read(_) => unreachable!(),
             })

@@ -47,6 +47,34 @@ impl State {
     pub fn is_fault(self) -> bool {
         matches!(self, Self::Fault | Self::FaultReactionActive)
     }
+
+    /// Where the state stands on the master's walk to operation enabled (figure 8's
+    /// transitions 2, 3 and 4): `None` for the states the master never commands.
+    fn walk(self) -> Option<u8> {
+        match self {
+            Self::SwitchOnDisabled => Some(0),
+            Self::ReadyToSwitchOn => Some(1),
+            Self::SwitchedOn => Some(2),
+            Self::OperationEnabled => Some(3),
+            _ => None,
+        }
+    }
+}
+
+impl std::fmt::Display for State {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::NotReadyToSwitchOn => f.write_str("not ready to switch on"),
+            Self::SwitchOnDisabled => f.write_str("switch on disabled"),
+            Self::ReadyToSwitchOn => f.write_str("ready to switch on"),
+            Self::SwitchedOn => f.write_str("switched on"),
+            Self::OperationEnabled => f.write_str("operation enabled"),
+            Self::QuickStopActive => f.write_str("quick stop active"),
+            Self::FaultReactionActive => f.write_str("fault reaction active"),
+            Self::Fault => f.write_str("fault"),
+            Self::Unknown(word) => write!(f, "no state (statusword {word:#06x})"),
+        }
+    }
 }
 
 /// Controlword commands (CiA 402, table 28).
@@ -69,7 +97,8 @@ pub fn towards_enabled(state: State) -> u16 {
         State::SwitchOnDisabled => controlword::SHUTDOWN,
         State::ReadyToSwitchOn => controlword::SWITCH_ON,
         State::SwitchedOn | State::OperationEnabled => controlword::ENABLE_OPERATION,
-        // Quick stop ends in switch on disabled; the others wait for the drive, or for a reset.
+        // States the walk never leads to: an [`Axis`] latches in them, and the drive gets
+        // disable voltage.
         State::QuickStopActive
         | State::NotReadyToSwitchOn
         | State::FaultReactionActive
@@ -163,6 +192,10 @@ impl Tpdo1 {
 pub enum AxisFault {
     /// The drive reported a fault in its statusword.
     Drive { statusword: u16 },
+    /// The drive left the walk to operation enabled, or operation enabled itself, without the
+    /// master commanding it: its quick-stop input, safe torque off, or any state the master
+    /// did not ask for.
+    Stopped { statusword: u16 },
     /// The master latched it: an EMCY, a lost heartbeat, missed TPDOs, an SDO abort, bus-off.
     Master,
 }
@@ -177,11 +210,21 @@ pub struct Latched(pub AxisFault);
 /// that nothing re-enables it by itself; a fault reset is sent only on the operator's [`reset`]
 /// as one rising edge of bit 7.
 ///
+/// While the operator wants it enabled, the drive may only move forward on the walk (switch on
+/// disabled, ready to switch on, switched on, operation enabled), one step per controlword the
+/// master sends, and stay in operation enabled once there. Any other state (a step back, quick
+/// stop active, not ready to switch on, or a state the statusword does not name) is the drive
+/// stopping by itself, and latches: walking it back would restart a machine that an e-stop or
+/// safe torque off has stopped (IEC 60204-1, 9.2.5.4: restart only by a deliberate action).
+///
 /// [`reset`]: Axis::reset
 #[derive(Debug, Clone, Copy)]
 pub struct Axis {
     state: State,
     wanted: bool,
+    /// The furthest step of the walk seen since the operator's enable (`None`: no statusword
+    /// since it).
+    progress: Option<u8>,
     latched: Option<AxisFault>,
     reset: ResetEdge,
 }
@@ -199,7 +242,7 @@ enum ResetEdge {
 
 impl Default for Axis {
     fn default() -> Self {
-        Self { state: State::NotReadyToSwitchOn, wanted: false, latched: None, reset: ResetEdge::Idle }
+        Self { state: State::NotReadyToSwitchOn, wanted: false, progress: None, latched: None, reset: ResetEdge::Idle }
     }
 }
 
@@ -212,15 +255,35 @@ impl Axis {
         self.latched
     }
 
-    /// The drive's statusword of this cycle. A fault latches, and only the operator's reset
-    /// clears the latch: a drive that recovers by itself stays latched off.
+    /// The drive's statusword of this cycle. A fault latches, and so does a drive that stops
+    /// by itself while the operator wants it enabled; only the operator's reset clears the
+    /// latch: a drive that recovers by itself stays latched off.
     pub fn observe(&mut self, statusword: u16) {
         self.state = State::of(statusword);
         if self.reset == ResetEdge::Sent && !self.state.is_fault() {
             self.reset = ResetEdge::Idle;
         }
-        if self.state.is_fault() && self.latched.is_none() && self.reset == ResetEdge::Idle {
+        if self.latched.is_some() || self.reset != ResetEdge::Idle {
+            return;
+        }
+        if self.state.is_fault() {
             self.latch(AxisFault::Drive { statusword });
+        } else if self.wanted && !self.walks_forward() {
+            self.latch(AxisFault::Stopped { statusword });
+        }
+    }
+
+    /// Whether the state just observed is one the master's walk may have led to: a step of the
+    /// walk no earlier than the furthest seen since the enable (statuswords arrive in order, and
+    /// a drive that has taken a step does not take it back unless told to).
+    fn walks_forward(&mut self) -> bool {
+        match (self.state.walk(), self.progress) {
+            (Some(step), Some(furthest)) if step < furthest => false,
+            (Some(step), _) => {
+                self.progress = Some(step);
+                true
+            }
+            (None, _) => false,
         }
     }
 
@@ -230,12 +293,15 @@ impl Axis {
         self.wanted = false;
     }
 
-    /// The operator's `enable`; refused while latched.
+    /// The operator's `enable`; refused while latched. The walk starts from the next statusword.
     pub fn enable(&mut self) -> Result<(), Latched> {
         match self.latched {
             Some(fault) => Err(Latched(fault)),
             None => {
-                self.wanted = true;
+                if !self.wanted {
+                    self.wanted = true;
+                    self.progress = None;
+                }
                 Ok(())
             }
         }
@@ -244,6 +310,11 @@ impl Axis {
     /// The operator's `disable`.
     pub fn disable(&mut self) {
         self.wanted = false;
+    }
+
+    /// Whether the operator wants the axis enabled.
+    pub fn wanted(&self) -> bool {
+        self.wanted
     }
 
     /// The operator's `reset`: clear the latch and, if the drive is in fault, send it one fault
@@ -362,6 +433,68 @@ mod tests {
         other.latch(AxisFault::Master);
         assert_eq!(other.controlword(), controlword::DISABLE_VOLTAGE);
         assert!(!other.torque_allowed());
+    }
+
+    /// A drive enabled by the walk that then stops by itself (its quick-stop input: quick stop
+    /// active, then switch on disabled; safe torque off: switch on disabled or not ready) latches
+    /// in the cycle it reports it, gets disable voltage from then on, and is enabled again only
+    /// by the operator's reset and enable.
+    #[test]
+    fn a_drive_that_stops_by_itself_latches_and_is_not_walked_back() {
+        for stopped in [0x0217, 0x0250, 0x0200, 0x0233, 0x0221] {
+            let mut axis = Axis::default();
+            axis.enable().unwrap();
+            for statusword in [0x0250, 0x0231, 0x0233, 0x1237] {
+                axis.observe(statusword);
+                axis.controlword();
+            }
+            assert!(axis.torque_allowed());
+            axis.observe(stopped);
+            assert_eq!(axis.latched(), Some(AxisFault::Stopped { statusword: stopped }), "{stopped:#06x}");
+            assert!(!axis.torque_allowed());
+            let after: Vec<u16> = [0x0250, 0x0250, 0x0250]
+                .iter()
+                .map(|&s| {
+                    axis.observe(s);
+                    axis.controlword()
+                })
+                .collect();
+            assert_eq!(after, [0, 0, 0], "no walk back after {stopped:#06x}");
+            assert!(axis.enable().is_err());
+            axis.reset();
+            assert_eq!(axis.controlword(), 0, "a drive not in fault gets no reset edge");
+            axis.enable().unwrap();
+            axis.observe(0x0250);
+            assert_eq!(axis.controlword(), controlword::SHUTDOWN, "walked again after the operator's reset and enable");
+        }
+    }
+
+    /// During the walk a state repeats while the drive's statusword lags the controlword; a step
+    /// back, or a state the walk never leads to, is the drive stopping by itself.
+    #[test]
+    fn during_the_walk_a_step_back_latches_and_a_repeat_does_not() {
+        let mut axis = Axis::default();
+        axis.enable().unwrap();
+        for statusword in [0x0250, 0x0250, 0x0231, 0x0231, 0x0233] {
+            axis.observe(statusword);
+            assert_eq!(axis.latched(), None, "{statusword:#06x}");
+        }
+        axis.observe(0x0250);
+        assert_eq!(axis.latched(), Some(AxisFault::Stopped { statusword: 0x0250 }));
+        let mut quick = Axis::default();
+        quick.enable().unwrap();
+        quick.observe(0x0217);
+        assert_eq!(quick.latched(), Some(AxisFault::Stopped { statusword: 0x0217 }), "held in quick stop");
+        // The operator's disable is the master's command: the drive may go back, and nothing latches.
+        let mut off = Axis::default();
+        off.enable().unwrap();
+        off.observe(0x0237);
+        off.disable();
+        off.observe(0x0250);
+        assert_eq!(off.latched(), None);
+        off.enable().unwrap();
+        off.observe(0x0250);
+        assert_eq!((off.latched(), off.controlword()), (None, controlword::SHUTDOWN));
     }
 
     /// A fault reset is one rising edge of bit 7 on the operator's reset, and the axis stays

@@ -63,14 +63,22 @@ pub mod drive_fault {
     pub const DRIVE: u8 = 1 << 5;
     /// The CANopen bus: a lost heartbeat, a drive that left operational, bus errors.
     pub const FIELDBUS: u8 = 1 << 6;
+    /// A CiA 402 drive that left operation enabled by itself, without a fault (link/master.rs).
+    pub const STOPPED: u8 = 1 << 7;
 
     /// Names of the bits set in `faults`, for status and reports.
     pub fn names(faults: u8) -> Vec<&'static str> {
-        const NAMES: [&str; 7] =
-            ["overcurrent", "encoder", "overtemperature", "host timeout", "undervoltage", "drive", "fieldbus"];
-        let unknown = faults >> NAMES.len() != 0;
-        let known = NAMES.iter().enumerate().filter(|(i, _)| faults & (1 << i) != 0).map(|(_, n)| *n);
-        known.chain(unknown.then_some("unknown")).collect()
+        const NAMES: [&str; 8] = [
+            "overcurrent",
+            "encoder",
+            "overtemperature",
+            "host timeout",
+            "undervoltage",
+            "drive",
+            "fieldbus",
+            "stopped by itself",
+        ];
+        NAMES.iter().enumerate().filter(|(i, _)| faults & (1 << i) != 0).map(|(_, n)| *n).collect()
     }
 }
 

@@ -6,6 +6,7 @@
 //! - [`slcan`]: CAN frames over a serial line in the Lawicel ASCII protocol (USB adapters);
 //! - [`canopen`] and [`cia402`]: the CANopen frames and the CiA 402 axis supervision a master of
 //!   standard drives needs (sans-I/O);
+//! - [`drive_setup`]: a CiA 402 drive's start-up over SDO (sans-I/O, and a blocking runner);
 //! - [`master`]: a CANopen master of CiA 402 drives on any CAN transport (SocketCAN, slcan).
 //!
 //! The three links (serial, CAN, CANopen) implement [`MotorLink`]; the control cycle sees only
@@ -14,6 +15,7 @@
 pub mod can;
 pub mod canopen;
 pub mod cia402;
+pub mod drive_setup;
 pub mod frame;
 pub mod master;
 pub mod serial;
@@ -21,7 +23,8 @@ pub mod slcan;
 
 pub use frame::{Command, Telemetry, MAX_JOINTS};
 
-/// Counters of what went wrong on the link, logged once a second.
+/// Counters of what went wrong on the link, logged once a second, shown by `arash ctl status`
+/// and written into each log's metadata when it closes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct LinkStats {
     pub frames_sent: u64,
@@ -36,22 +39,50 @@ pub struct LinkStats {
     pub stale: u64,
     /// Sends that failed (e.g. a full output buffer).
     pub send_errors: u64,
+    /// What a CAN transport reported: refused frames, bus errors, lost frames, malformed
+    /// lines, foreign frames, the adapter's status flags (CAN links only).
+    pub bus: Option<can::BusHealth>,
+    /// Why a CANopen master latched its drives off, in words.
+    #[serde(serialize_with = "in_words")]
+    pub latched: Option<master::MasterFault>,
+    /// The joints (a bit each) whose drive's start-up a CANopen master is running again after
+    /// the operator's reset; shown as the list of their indices.
+    #[serde(serialize_with = "joint_list")]
+    pub recovering: u8,
+}
+
+fn joint_list<S: serde::Serializer>(joints: &u8, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_seq((0..8).filter(|j| joints & (1 << j) != 0))
+}
+
+fn in_words<S: serde::Serializer>(fault: &Option<master::MasterFault>, s: S) -> Result<S::Ok, S::Error> {
+    match fault {
+        Some(f) => s.collect_str(f),
+        None => s.serialize_none(),
+    }
 }
 
 impl LinkStats {
-    /// Every kind of error counted so far.
+    /// Every kind of error counted so far, the transport's included.
     pub fn errors(&self) -> u64 {
-        self.crc_errors + self.framing_errors + self.lost + self.stale + self.send_errors
+        let bus = self.bus.map_or(0, |b| b.faults() + b.malformed);
+        self.crc_errors + self.framing_errors + self.lost + self.stale + self.send_errors + bus
     }
 }
 
 /// A transport to the motor drives.
 pub trait MotorLink: Send {
+    /// Bring the drives up, on the control thread just before its first cycle: what the link
+    /// found, a line each for the operator. A link whose drives need no start-up has none.
+    fn start(&mut self) -> Result<Vec<String>, Box<dyn std::error::Error + Send + Sync>> {
+        Ok(Vec::new())
+    }
     /// Queue one command frame. Never blocks: a frame that cannot be written now is counted in
     /// `send_errors` and reported as an error.
     fn send(&mut self, command: &Command) -> std::io::Result<()>;
     /// Take everything that has arrived. Returns `true` when at least one new, valid telemetry
-    /// frame came, with the newest written to `out`.
+    /// frame came, with the newest written to `out`. A link that supervises its drives itself
+    /// (the CANopen master) writes `out.faults` on every call, new telemetry or not.
     fn poll(&mut self, out: &mut Telemetry) -> std::io::Result<bool>;
     fn stats(&self) -> LinkStats;
 }

@@ -14,8 +14,9 @@
 //! here allocates after construction.
 
 use std::io::{ErrorKind, Read, Write};
+use std::time::{Duration, Instant};
 
-use super::can::{CanBus, CanFrame};
+use super::can::{BusHealth, CanBus, CanFrame};
 
 /// The longest line the encoder writes: `t`, 3 digits, the length, 16 data digits, `\r`.
 pub const MAX_ENCODED: usize = 22;
@@ -186,22 +187,45 @@ fn hex_value(c: u8) -> Option<u8> {
     }
 }
 
-/// What an slcan adapter reported besides frames, counted since it was opened.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct AdapterCounts {
-    pub refused: u64,
-    pub malformed: u64,
-    pub foreign: u64,
-    /// Frames dropped because the receive queue was full.
-    pub overrun: u64,
-    /// The last status flags the adapter sent.
-    pub status: u8,
-    /// Status reports with the error-passive or the bus-error flag (bits 5 and 7).
-    pub bus_errors: u64,
+/// The status flags of an slcan adapter (the answer to `F`, Lawicel's CAN232 and CANUSB
+/// manuals), each with what it means for a master of drives.
+pub mod flags {
+    /// Frames were lost: the receive or transmit FIFO was full, or the controller overran.
+    pub const LOST: u8 = RECEIVE_FIFO_FULL | TRANSMIT_FIFO_FULL | DATA_OVERRUN;
+    /// The bus is in error: error passive, or a bus error (bus-off among them).
+    pub const BUS_ERROR: u8 = ERROR_PASSIVE | BUS_ERROR_BIT;
+    pub const RECEIVE_FIFO_FULL: u8 = 1 << 0;
+    pub const TRANSMIT_FIFO_FULL: u8 = 1 << 1;
+    pub const ERROR_WARNING: u8 = 1 << 2;
+    pub const DATA_OVERRUN: u8 = 1 << 3;
+    pub const ERROR_PASSIVE: u8 = 1 << 5;
+    pub const ARBITRATION_LOST: u8 = 1 << 6;
+    pub const BUS_ERROR_BIT: u8 = 1 << 7;
+
+    /// The names of the flags set, for messages.
+    pub fn names(flags: u8) -> impl Iterator<Item = &'static str> {
+        const NAMES: [&str; 8] = [
+            "receive FIFO full",
+            "transmit FIFO full",
+            "error warning",
+            "data overrun",
+            "bit 4",
+            "error passive",
+            "arbitration lost",
+            "bus error",
+        ];
+        NAMES.into_iter().enumerate().filter(move |(i, _)| flags & (1 << i) != 0).map(|(_, n)| n)
+    }
 }
 
-/// The status flags that report the bus in trouble: error passive (bit 5), bus error (bit 7).
-const BUS_ERROR_FLAGS: u8 = 0b1010_0000;
+/// How often the adapter is asked for its status flags (`F`): the bound on how late an
+/// error-passive or bus-off adapter is seen. Two bytes each way, a few per cent of a USB serial
+/// line's time at 1 kHz.
+pub const STATUS_POLL: Duration = Duration::from_millis(10);
+
+/// How long the adapter has at start-up to answer the first `F`. One that does not (some
+/// CANable firmwares answer BEL, others nothing) is not asked again.
+const STATUS_PROBE: Duration = Duration::from_millis(50);
 
 /// A [`CanBus`] on an slcan adapter behind a byte stream (a serial port set non-blocking, or a
 /// pseudo-terminal).
@@ -212,7 +236,9 @@ pub struct SlcanBus<P> {
     /// Lines (or their ends) the port would not take yet: a non-blocking port may write part of
     /// a line, and the rest must follow before any other line, or the adapter reads garbage.
     unsent: std::collections::VecDeque<u8>,
-    counts: AdapterCounts,
+    health: BusHealth,
+    /// When the adapter was last asked for its status (`None`: it does not answer).
+    status_asked: Option<Instant>,
 }
 
 /// Frames held between two `receive` calls: a 1 kHz cycle reads a few per joint.
@@ -223,24 +249,55 @@ const QUEUE: usize = 256;
 const UNSENT: usize = 4096;
 
 impl<P: Read + Write + Send> SlcanBus<P> {
-    /// Set the adapter to `bit_rate` and open the bus.
-    pub fn open(mut port: P, bit_rate: u32) -> std::io::Result<Self> {
+    /// Set the adapter to `bit_rate`, open the bus, and find out whether the adapter reports its
+    /// status flags (one `F`, answered within [`STATUS_PROBE`] or never asked again).
+    pub fn open(port: P, bit_rate: u32) -> std::io::Result<Self> {
+        Self::open_probing(port, bit_rate, STATUS_PROBE)
+    }
+
+    /// [`SlcanBus::open`], waiting `probe` for the status answer (what the port holds is read at
+    /// least once): a test's or a fuzzer's byte source answers at once or never.
+    pub fn open_probing(mut port: P, bit_rate: u32, probe: Duration) -> std::io::Result<Self> {
         let lines = setup_lines(bit_rate).map_err(|e| std::io::Error::new(ErrorKind::InvalidInput, e))?;
         for line in lines {
             port.write_all(line)?;
         }
         port.flush()?;
-        Ok(Self {
+        let mut bus = Self {
             port,
             decoder: Decoder::default(),
             received: std::collections::VecDeque::with_capacity(QUEUE),
             unsent: std::collections::VecDeque::with_capacity(UNSENT),
-            counts: AdapterCounts::default(),
-        })
+            health: BusHealth::default(),
+            status_asked: None,
+        };
+        bus.probe_status(probe)?;
+        Ok(bus)
     }
 
-    pub fn counts(&self) -> AdapterCounts {
-        self.counts
+    pub fn health(&self) -> BusHealth {
+        self.health
+    }
+
+    /// Ask for the status once and wait for its answer. What else arrives meanwhile is kept
+    /// (frames) or dropped (the setup's acknowledgements; a refused `C` on an adapter that was
+    /// closed is the protocol's answer, not an error).
+    fn probe_status(&mut self, probe: Duration) -> std::io::Result<()> {
+        self.port.write_all(b"F\r")?;
+        self.port.flush()?;
+        let deadline = Instant::now() + probe;
+        loop {
+            self.fill()?;
+            if self.health.reports_status || Instant::now() >= deadline {
+                break;
+            }
+            std::thread::sleep(Duration::from_micros(500));
+        }
+        self.health.refused = 0;
+        if self.health.reports_status {
+            self.status_asked = Some(Instant::now());
+        }
+        Ok(())
     }
 
     /// Write what the port takes now of the lines held back, in order.
@@ -258,6 +315,16 @@ impl<P: Read + Write + Send> SlcanBus<P> {
         Ok(())
     }
 
+    /// Queue one line for the adapter, whole or not at all.
+    fn write_line(&mut self, line: &[u8]) -> std::io::Result<()> {
+        self.flush_unsent()?;
+        if self.unsent.len() + line.len() > UNSENT {
+            return Err(std::io::Error::new(ErrorKind::WouldBlock, "the slcan adapter takes no more lines"));
+        }
+        self.unsent.extend(line);
+        self.flush_unsent()
+    }
+
     /// Read what the port holds now and decode it.
     fn fill(&mut self) -> std::io::Result<()> {
         let mut buffer = [0u8; 512];
@@ -270,22 +337,32 @@ impl<P: Read + Write + Send> SlcanBus<P> {
                 Err(e) => return Err(e),
             };
             for &byte in &buffer[..n] {
-                match self.decoder.push(byte) {
-                    Some(Event::Frame(frame)) if self.received.len() < QUEUE => self.received.push_back(frame),
-                    Some(Event::Frame(_)) => self.counts.overrun += 1,
-                    Some(Event::Refused) => self.counts.refused += 1,
-                    Some(Event::Malformed) => self.counts.malformed += 1,
-                    Some(Event::Foreign) => self.counts.foreign += 1,
-                    Some(Event::Status(flags)) => {
-                        self.counts.status = flags;
-                        self.counts.bus_errors += u64::from(flags & BUS_ERROR_FLAGS != 0);
-                    }
-                    Some(Event::Accepted) | None => {}
+                if let Some(event) = self.decoder.push(byte) {
+                    self.take(event);
                 }
             }
             if n < buffer.len() {
                 return Ok(());
             }
+        }
+    }
+
+    fn take(&mut self, event: Event) {
+        let h = &mut self.health;
+        match event {
+            Event::Frame(frame) if self.received.len() < QUEUE => self.received.push_back(frame),
+            Event::Frame(_) => h.overruns += 1,
+            Event::Refused => h.refused += 1,
+            Event::Malformed => h.malformed += 1,
+            Event::Foreign => h.foreign += 1,
+            Event::Status(f) => {
+                h.reports_status = true;
+                h.status_flags = Some(f);
+                h.bus_errors += u64::from(f & flags::BUS_ERROR != 0);
+                h.overruns += u64::from(f & flags::LOST != 0);
+                h.warnings += u64::from(f & flags::ERROR_WARNING != 0 && f & (flags::BUS_ERROR | flags::LOST) == 0);
+            }
+            Event::Accepted => {}
         }
     }
 }
@@ -294,12 +371,7 @@ impl<P: Read + Write + Send> CanBus for SlcanBus<P> {
     fn send(&mut self, frame: &CanFrame) -> std::io::Result<()> {
         let mut line = [0u8; MAX_ENCODED];
         let n = encode(frame, &mut line).map_err(|e| std::io::Error::new(ErrorKind::InvalidInput, e))?;
-        self.flush_unsent()?;
-        if self.unsent.len() + n > UNSENT {
-            return Err(std::io::Error::new(ErrorKind::WouldBlock, "the slcan adapter takes no more lines"));
-        }
-        self.unsent.extend(&line[..n]);
-        self.flush_unsent()
+        self.write_line(&line[..n])
     }
 
     fn receive(&mut self) -> std::io::Result<Option<CanFrame>> {
@@ -309,9 +381,19 @@ impl<P: Read + Write + Send> CanBus for SlcanBus<P> {
         Ok(self.received.pop_front())
     }
 
-    /// Frames the adapter refused (`BEL`), and its reports of a bus in error.
-    fn errors(&self) -> u64 {
-        self.counts.refused + self.counts.bus_errors
+    fn health(&self) -> BusHealth {
+        self.health
+    }
+
+    /// Ask for the status flags every [`STATUS_POLL`], if the adapter answers `F` at all.
+    fn service(&mut self) -> std::io::Result<()> {
+        match self.status_asked {
+            Some(at) if at.elapsed() >= STATUS_POLL => {
+                self.status_asked = Some(Instant::now());
+                self.write_line(b"F\r")
+            }
+            _ => Ok(()),
+        }
     }
 }
 
@@ -477,20 +559,62 @@ mod tests {
         assert_eq!(lines.len(), 2 + UNSENT - refused, "every accepted frame, whole");
     }
 
+    /// An adapter that does not answer `F` (some CANable firmwares): the setup's answers and a
+    /// BEL during the probe are not errors, frames are kept, and it is not asked again.
     #[test]
     fn the_bus_opens_the_adapter_sends_lines_and_counts_what_is_not_a_frame() {
         let input = b"\r\r\rt70117F\r\x07t701105\rZ\r".to_vec();
         let pipe = Pipe { input: std::io::Cursor::new(input), output: Vec::new() };
         let mut bus = SlcanBus::open(pipe, 500_000).unwrap();
-        assert_eq!(bus.port.output, b"C\rS6\rO\r");
+        assert_eq!(bus.port.output, b"C\rS6\rO\rF\r");
+        assert!(!bus.health().reports_status);
+        assert_eq!(bus.health().refused, 0, "the probe's BEL is the adapter's 'no status', not a refused frame");
         bus.send(&CanFrame { id: 0x080, len: 0, data: [0; 8] }).unwrap();
-        assert_eq!(&bus.port.output[7..], b"t0800\r");
+        assert_eq!(&bus.port.output[9..], b"t0800\r");
         let first = bus.receive().unwrap().unwrap();
         assert_eq!((first.id, first.len, first.data[0]), (0x701, 1, 0x7F));
         let second = bus.receive().unwrap().unwrap();
         assert_eq!(second.data[0], 0x05);
         assert_eq!(bus.receive().unwrap(), None);
-        assert_eq!(bus.counts().refused, 1);
-        assert_eq!(bus.counts().malformed, 0);
+        std::thread::sleep(STATUS_POLL);
+        bus.service().unwrap();
+        assert_eq!(&bus.port.output[9..], b"t0800\r", "not asked again");
+        bus.port.input = std::io::Cursor::new(b"\x07t1234\rT123456780\rr1230\r".to_vec());
+        assert_eq!(bus.receive().unwrap(), None);
+        let h = bus.health();
+        assert_eq!((h.refused, h.malformed, h.foreign, h.faults()), (1, 1, 2, 1), "{h:?}");
+    }
+
+    /// An adapter that answers `F` is asked every [`STATUS_POLL`], no sooner; error passive and
+    /// bus error count as bus errors, a full FIFO or an overrun as lost frames, error warning
+    /// alone only as a warning.
+    #[test]
+    fn an_adapter_that_reports_its_status_is_asked_at_a_bounded_rate_and_its_flags_are_read() {
+        let pipe = Pipe { input: std::io::Cursor::new(b"\r\r\rF00\r".to_vec()), output: Vec::new() };
+        let mut bus = SlcanBus::open(pipe, 1_000_000).unwrap();
+        assert!(bus.health().reports_status);
+        assert_eq!((bus.health().status_flags, bus.health().faults()), (Some(0), 0));
+        bus.port.output.clear();
+        bus.service().unwrap();
+        assert!(bus.port.output.is_empty(), "asked again before {STATUS_POLL:?}");
+        std::thread::sleep(STATUS_POLL);
+        bus.service().unwrap();
+        bus.service().unwrap();
+        assert_eq!(bus.port.output, b"F\r", "once per period");
+        for (line, bus_errors, overruns, warnings) in [
+            (&b"F20\r"[..], 1, 0, 0),
+            (b"F80\r", 2, 0, 0),
+            (b"F08\r", 2, 1, 0),
+            (b"F01\r", 2, 2, 0),
+            (b"F04\r", 2, 2, 1),
+            (b"F24\r", 3, 2, 1),
+        ] {
+            bus.port.input = std::io::Cursor::new(line.to_vec());
+            assert_eq!(bus.receive().unwrap(), None);
+            let h = bus.health();
+            assert_eq!((h.bus_errors, h.overruns, h.warnings), (bus_errors, overruns, warnings), "{line:?}");
+        }
+        assert_eq!(bus.health().status_flags, Some(0x24));
+        assert_eq!(flags::names(0xA8).collect::<Vec<_>>(), ["data overrun", "error passive", "bus error"]);
     }
 }

@@ -18,7 +18,13 @@
 //!   crashed daemon, or one that reports power on at start-up, is switched off at once; one that
 //!   still reports its power stage on after `link_timeout` telemetry frames latches
 //!   `DRIVE_STATE`;
-//! - **drive faults:** any fault bit in the telemetry latches `MOTOR`;
+//! - **drive stopped by itself:** while the host has the drive enabled, telemetry that reports
+//!   its power stage off latches `DRIVE_STOPPED` once the drive has confirmed the enable, and
+//!   so does a drive that has not confirmed it within `link_timeout` telemetry frames. Nothing
+//!   walks a drive stopped by its e-stop or safe torque off back to enabled; only the
+//!   operator's reset and enable do;
+//! - **drive faults:** any fault bit the link reports latches `MOTOR`, with or without new
+//!   telemetry (a CANopen master reports its drives' faults every cycle);
 //! - **reset:** [`Request::ResetFault`] sends CLEAR_FAULT every cycle until the drive reports no
 //!   fault (its telemetry lags the command by a cycle or more, so a stale fault bit must not
 //!   re-latch `MOTOR`). A drive still reporting a fault after `link_timeout` cycles latches
@@ -125,6 +131,10 @@ pub struct ControlCycle {
     clearing: u32,
     /// Consecutive telemetry frames with the power stage on while the host commands it off.
     powered_while_off: u32,
+    /// Since the last enable: whether the drive has reported its power stage on, and how many
+    /// telemetry frames have come without it before it did.
+    enable_confirmed: bool,
+    unconfirmed: u32,
     tau_out: Vec<f64>,
     record: CycleRecord,
     events: [Option<Event>; 8],
@@ -162,6 +172,8 @@ impl ControlCycle {
             mismatch_count: [0; MAX_JOINTS],
             clearing: 0,
             powered_while_off: 0,
+            enable_confirmed: false,
+            unconfirmed: 0,
             tau_out: vec![0.0; dof],
             record,
             events: [None; 8],
@@ -242,9 +254,12 @@ impl ControlCycle {
                     && self.missing < self.cfg.link_timeout
                     && self.clearing == 0
                     && self.telemetry.faults == 0
+                    && self.telemetry.status & status::ENABLED == 0
                 {
                     self.mode = Mode::Enabled;
                     self.enabling = true;
+                    self.enable_confirmed = false;
+                    self.unconfirmed = 0;
                     self.controller.reset();
                     self.gate.clear();
                     self.mismatch_count = [0; MAX_JOINTS];
@@ -354,6 +369,11 @@ impl ControlCycle {
         let fresh = link.poll(&mut self.telemetry).unwrap_or(false) && self.telemetry.joints == self.dof;
         if !fresh {
             self.missing = self.missing.saturating_add(1);
+            // Faults a link reports between telemetry latch now; a reset is confirmed only by
+            // telemetry that arrived after it.
+            if self.clearing == 0 && self.telemetry.faults != 0 {
+                self.gate.latch(Faults::MOTOR);
+            }
             return false;
         }
         let t = &self.telemetry;
@@ -407,6 +427,25 @@ impl ControlCycle {
             }
         } else {
             self.powered_while_off = 0;
+        }
+        if self.mode == Mode::Enabled && !self.enabling {
+            self.check_still_enabled(powered);
+        }
+    }
+
+    /// The drive the host has enabled must confirm it, and then stay enabled: one that switches
+    /// its power stage off by itself (an e-stop on its quick-stop input, safe torque off) is
+    /// stopped until the operator restarts it, however the drive could be walked back.
+    fn check_still_enabled(&mut self, powered: bool) {
+        if powered {
+            self.enable_confirmed = true;
+        } else if self.enable_confirmed {
+            self.gate.latch(Faults::DRIVE_STOPPED);
+        } else {
+            self.unconfirmed += 1;
+            if self.unconfirmed >= self.cfg.link_timeout.max(1) {
+                self.gate.latch(Faults::DRIVE_STOPPED);
+            }
         }
     }
 

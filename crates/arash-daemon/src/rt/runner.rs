@@ -68,12 +68,9 @@ pub struct Shared {
     /// Set by the logger thread if it stopped on an error (e.g. a full disk).
     pub logging_failed: AtomicBool,
     pub garbage_leaked: AtomicU64,
-    pub crc_errors: AtomicU64,
-    pub framing_errors: AtomicU64,
-    pub lost: AtomicU64,
-    pub stale: AtomicU64,
-    pub send_errors: AtomicU64,
-    pub frames_received: AtomicU64,
+    /// The link's counters and state, as of the last cycle that found the lock free: the
+    /// control thread only tries it, and the operator side holds it for a copy.
+    pub link: std::sync::Mutex<LinkStats>,
     /// Joint positions as f64 bits.
     pub q: [AtomicU64; MAX_JOINTS],
     /// Set by the daemon to stop the thread (it disables the drive first).
@@ -238,14 +235,7 @@ fn publish(shared: &Shared, cycle: &ControlCycle, stats: &LinkStats) {
     for (a, &q) in shared.q.iter().zip(&r.q) {
         a.store(q.to_bits(), Ordering::Relaxed);
     }
-    for (a, v) in [
-        (&shared.crc_errors, stats.crc_errors),
-        (&shared.framing_errors, stats.framing_errors),
-        (&shared.lost, stats.lost),
-        (&shared.stale, stats.stale),
-        (&shared.send_errors, stats.send_errors),
-        (&shared.frames_received, stats.frames_received),
-    ] {
-        a.store(v, Ordering::Relaxed);
+    if let Ok(mut link) = shared.link.try_lock() {
+        *link = *stats;
     }
 }

@@ -18,10 +18,15 @@ thread as the host's line arrives, not through the virtual bus and canopen's not
 which answered one to three cycles late and made the paper's robust law swing. SDO, NMT,
 heartbeats and EMCY go through the bus.
 
-Fault injection: a silent heartbeat, an EMCY, a drive fault, dropped TPDOs, a bus-off adapter
-that refuses every frame, one adapter error (BEL), and at construction a drive that ignores
-the mode, one without CST, one whose PDOs hold fewer objects, one that is not a CiA 402 drive
-and nodes that do not answer.
+Fault injection: a silent heartbeat, an EMCY, a drive fault, dropped TPDOs, a drive that stops
+by itself (its quick-stop input: quick stop active, then switch on disabled; safe torque off:
+straight to switch on disabled), a reboot with its boot-up message (the object dictionary back
+to its defaults, the PDO mapping lost), another master's NMT command, a bus-off adapter that
+refuses every frame, one adapter error (BEL), adapter status flags answered to the next ``F``,
+lines that are not the protocol, and at construction a drive that ignores the mode, one without
+CST, one whose PDOs hold fewer objects, one that is not a CiA 402 drive, nodes that do not answer
+and drives slow to answer SDOs. A drive's watch on the master's heartbeat (0x1016) starts with
+the first beat it sees (CiA 301), or, as some drives do, as soon as 0x1016 is written.
 """
 
 from __future__ import annotations
@@ -83,6 +88,14 @@ class DriveSpec:
     max_mapped: int = 8
     answers: bool = True
     serial: int | None = None  # 0x1018:4; default the node ID
+    # Seconds each SDO answer is held back (a drive busy with its own work).
+    sdo_delay_s: float = 0.0
+    # When the watch on the master's heartbeat starts: "first-beat" (CiA 301: the first beat
+    # received after 0x1016 is set) or "write" (the moment 0x1016 is written).
+    watch_starts: str = "first-beat"
+    # The quick-stop option code (0x605A): 2, quick stop then switch on disabled; 6, stay in
+    # quick stop active.
+    quick_stop_option: int = 2
 
 
 @dataclass
@@ -90,6 +103,9 @@ class Injected:
     """Faults switched on while the drive runs."""
     silent_heartbeat: bool = False
     drop_tpdos: bool = False
+    # The drive's quick-stop input is held (an e-stop wired to it): the drive will not leave
+    # switch on disabled while it is.
+    quick_stop_input: bool = False
 
 
 def _var(name, index, sub, data_type, access="rw", default=None):
@@ -177,6 +193,10 @@ class Drive:
             self.node.nmt.state = "PRE-OPERATIONAL"
         self.heartbeat_ms = 100
         self.last_beat = 0.0
+        # When 0x1016 was last written (time.monotonic), for the watch that starts then.
+        self.consumer_written = None
+        # A quick stop from the drive's own input ends in switch on disabled at this time.
+        self.quick_stop_ends = None
 
     # --- the object dictionary -------------------------------------------------------------
     def stored(self, index, sub=0):
@@ -189,13 +209,19 @@ class Drive:
             return obj.default
 
     def _on_read(self, index, subindex, od):
+        if self.spec.sdo_delay_s:
+            time.sleep(self.spec.sdo_delay_s)
         live = {0x6041: self.state, 0x6061: self.mode_display, 0x6064: self.position, 0x6077: self.torque,
                 0x6040: self.controlword}
         return live.get(index)
 
     def _on_write(self, index, subindex, od, data):
+        if self.spec.sdo_delay_s:
+            time.sleep(self.spec.sdo_delay_s)
         value = od.decode_raw(data)
         self.log.append(("sdo-write", self.spec.node, index, subindex, value))
+        if index == 0x1016:
+            self.consumer_written = time.monotonic()
         if index == 0x1017:
             # The simulator's clock thread produces the heartbeat (see Simulator._clock), not
             # canopen's own timer thread, which a loaded host can stall.
@@ -242,6 +268,8 @@ class Drive:
             elif word & 0x04 == 0:  # quick stop
                 self.state = QUICK_STOP_ACTIVE if s == OPERATION_ENABLED else SWITCH_ON_DISABLED
             elif word & 0x8F == 0x06:  # shutdown
+                if s == SWITCH_ON_DISABLED and self.injected.quick_stop_input:
+                    return  # the input holds the drive off
                 if s in (SWITCH_ON_DISABLED, SWITCHED_ON, OPERATION_ENABLED):
                     self.state = READY_TO_SWITCH_ON
             elif word & 0x8F == 0x07:  # switch on, or disable operation
@@ -270,6 +298,51 @@ class Drive:
             self.state = FAULT
             self.torque = 0
         self.node.emcy.send(code, 0x03)
+
+    def quick_stop_from_input(self, held=True):
+        """The drive's own quick-stop input (an e-stop wired to it): from operation enabled to
+        quick stop active, the torque dropped, then by the quick-stop option code to switch on
+        disabled a few milliseconds later. No fault bit, no EMCY: nothing the master commanded."""
+        with self.lock:
+            self.injected.quick_stop_input = held
+            if self.state == OPERATION_ENABLED:
+                self.state = QUICK_STOP_ACTIVE
+                self.torque = 0
+                if self.spec.quick_stop_option in (1, 2, 3, 4):
+                    self.quick_stop_ends = time.monotonic() + 0.005
+
+    def release_quick_stop_input(self):
+        self.injected.quick_stop_input = False
+
+    def switch_off_by_itself(self):
+        """Safe torque off on many drives: from any enabled state straight to switch on disabled,
+        with no fault bit."""
+        with self.lock:
+            if self.state in (OPERATION_ENABLED, SWITCHED_ON, READY_TO_SWITCH_ON):
+                self.state = SWITCH_ON_DISABLED
+                self.torque = 0
+
+    def advance(self, now):
+        """The drive's own timed transitions: a quick stop's end."""
+        with self.lock:
+            if self.quick_stop_ends is not None and now >= self.quick_stop_ends:
+                self.quick_stop_ends = None
+                if self.state == QUICK_STOP_ACTIVE:
+                    self.state = SWITCH_ON_DISABLED
+
+    def reboot(self):
+        """A power cycle or a reset: the object dictionary back to its defaults (the master's
+        PDO mapping, mode, watchdogs and heartbeat lost), the state machine in switch on
+        disabled, NMT pre-operational, and the boot-up message (CiA 301, 7.2.8.3.3)."""
+        with self.lock:
+            self.node.data_store.clear()
+            self.state, self.controlword, self.target, self.torque = SWITCH_ON_DISABLED, 0, 0, 0
+            self.mode_display = 0
+            self.heartbeat_ms = 0
+            self.consumer_written = None
+            self.quick_stop_ends = None
+        self.node.nmt.state = "PRE-OPERATIONAL"
+        self.node.network.send_message(0x700 + self.spec.node, bytes([0x00]))
 
     def abort_connection(self):
         """The reaction of 0x6007 when the master's heartbeat is lost."""
@@ -389,6 +462,10 @@ class SlcanAdapter:
         self._slave = slave
         self.open = False
         self.bus_off = False
+        # Status flags the next `F` answers with (then cleared, as reading them clears them on
+        # an SJA1000-based adapter); bus-off answers error passive and bus error every time.
+        self.status_flags = 0
+        self.status_requests = 0
         # (time, id, bytes) the host put on the bus, when recorded
         self.sent: list[tuple[float, int, bytes]] | None = [] if record else None
         self.bits = 0  # on the bus, both ways (count_frame)
@@ -420,6 +497,16 @@ class SlcanAdapter:
         """One BEL, as an adapter sends when it refuses a command or frame."""
         self._write(b"\a")
 
+    def report_status(self, flags):
+        """Answer the host's next status request (`F`) with ``flags`` (bit 5 error passive, bit 7
+        bus error, bit 3 data overrun, ...)."""
+        self.status_flags |= flags
+
+    def send_raw(self, data: bytes):
+        """Bytes to the host as the adapter's own: lines that are not its protocol, frames of
+        other kinds."""
+        self._write(data)
+
     def _line(self, line: bytes):
         if not line:
             return
@@ -443,7 +530,9 @@ class SlcanAdapter:
             self.open = kind == b"O" or (self.open and kind == b"S")
             self._write(b"\r")
         elif kind == b"F":
-            self._write(b"FA0\r" if self.bus_off else b"F00\r")
+            self.status_requests += 1
+            flags, self.status_flags = self.status_flags | (0xA0 if self.bus_off else 0), 0
+            self._write(b"F%02X\r" % flags)
         else:
             self._write(b"\a")
 
@@ -554,6 +643,8 @@ class Simulator:
         self.syncs = 0
         self.sync_times = array.array("d")  # when each SYNC arrived (time.monotonic)
         self._master_heartbeat: dict[int, float] = {}
+        # (time, node) of each drive's abort on a lost master heartbeat (0x1016, 0x6007).
+        self.aborts: list[tuple[float, int]] = []
         self._notifier_raised = False
         for cob in range(0x701, 0x780):
             self.network.subscribe(cob, self._on_heartbeat)
@@ -611,6 +702,7 @@ class Simulator:
         while not self._stop.wait(0.001):
             now = time.monotonic()
             for d in self.drives:
+                d.advance(now)
                 beat = d.heartbeat(now)
                 if beat is not None:
                     self.network.send_message(*beat)
@@ -618,11 +710,14 @@ class Simulator:
                 entry = d.stored(0x1016, 1) if d.spec.answers else 0
                 master, limit_ms = entry >> 16 & 0x7F, entry & 0xFFFF
                 seen = self._master_heartbeat.get(master)
+                if d.spec.watch_starts == "write" and d.consumer_written is not None:
+                    seen = max(seen or 0.0, d.consumer_written)
                 if not limit_ms or seen is None:
                     continue
                 late = now - seen > limit_ms / 1000
                 if late and d.spec.node not in tripped:
                     tripped.add(d.spec.node)
+                    self.aborts.append((now, d.spec.node))
                     d.abort_connection()
                 elif not late:
                     tripped.discard(d.spec.node)
