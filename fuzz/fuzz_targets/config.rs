@@ -1,20 +1,10 @@
-//! Any text as the daemon's configuration file: parsed, validated and turned into the cycle's
-//! settings without a panic; whatever validates gives a cycle configuration.
+//! The fuzz target `config`: fuzz/targets/config.rs, which `crates/arash-daemon/tests/fuzz_replay.rs`
+//! also runs on stable on the committed corpus and on random inputs.
 #![no_main]
 
-use arash_daemon::config::DaemonConfig;
-use libfuzzer_sys::fuzz_target;
-
-#[path = "robot.rs"]
+#[path = "../targets/robot.rs"]
 mod robot;
-use robot::model;
+#[path = "../targets/config.rs"]
+mod target;
 
-fuzz_target!(|data: &[u8]| {
-    let Ok(text) = std::str::from_utf8(data) else { return };
-    let Ok(config) = DaemonConfig::parse(text) else { return };
-    if config.validate(model()).is_ok() {
-        let cycle = config.cycle_config(model()).expect("a validated configuration gives a cycle configuration");
-        assert!(cycle.dt.is_finite() && cycle.dt > 0.0);
-        let _ = config.controller();
-    }
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| target::check(data));

@@ -1,19 +1,10 @@
-//! Any text as a model file: loaded and judged for a controller (shape, finiteness, physical
-//! consistency recomputed from its parameters) without a panic; what is accepted is finite.
+//! The fuzz target `model_file`: fuzz/targets/model_file.rs, which `crates/arash-daemon/tests/fuzz_replay.rs`
+//! also runs on stable on the committed corpus and on random inputs.
 #![no_main]
 
-use arash_core::model_file::ModelFile;
-use libfuzzer_sys::fuzz_target;
-
-#[path = "robot.rs"]
+#[path = "../targets/robot.rs"]
 mod robot;
-use robot::model;
+#[path = "../targets/model_file.rs"]
+mod target;
 
-fuzz_target!(|data: &[u8]| {
-    let Ok(text) = std::str::from_utf8(data) else { return };
-    let Ok(id) = ModelFile::from_json(text) else { return };
-    if let Ok(params) = id.controller_parameters(model()) {
-        assert!(params.iter().all(|x| x.is_finite()));
-        let _ = id.consistent_controller_parameters(model());
-    }
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| target::check(data));

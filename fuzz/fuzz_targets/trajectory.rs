@@ -1,25 +1,8 @@
-//! Any text as a trajectory file: parsed and checked against ARASH:ASiST's limits without a panic
-//! or a hang; a trajectory that passes evaluates to finite values inside the limits.
+//! The fuzz target `trajectory`: fuzz/targets/trajectory.rs, which `crates/arash-daemon/tests/fuzz_replay.rs`
+//! also runs on stable on the committed corpus and on random inputs.
 #![no_main]
 
-use std::sync::OnceLock;
+#[path = "../targets/trajectory.rs"]
+mod target;
 
-use arash_core::control::{PlanLimits, Trajectory};
-use libfuzzer_sys::fuzz_target;
-
-fn limits() -> &'static PlanLimits {
-    static LIMITS: OnceLock<PlanLimits> = OnceLock::new();
-    LIMITS.get_or_init(|| PlanLimits::from_model(&arash_core::arash_asist()))
-}
-
-fuzz_target!(|data: &[u8]| {
-    let Ok(text) = std::str::from_utf8(data) else { return };
-    let Ok(trajectory) = Trajectory::from_json(text, 3) else { return };
-    let duration = trajectory.default_duration();
-    if trajectory.check_limits(limits(), duration, 1e-3).is_ok() {
-        let (mut q, mut qd, mut qdd) = ([0.0; 3], [0.0; 3], [0.0; 3]);
-        trajectory.eval(0.0, &mut q, &mut qd, &mut qdd);
-        assert!(q.iter().chain(&qd).all(|x| x.is_finite()));
-    }
-    let _ = trajectory.to_json();
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| target::check(data));

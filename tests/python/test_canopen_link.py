@@ -363,8 +363,9 @@ def tracked(d, link, port, trajectory):
     d.mkdir()
     sock = d / "s.sock"
     with open(d / "daemon.err", "w") as err:
-        daemon = subprocess.Popen([ARASH, "daemon", "--rt", "ignore", "--link", link, "--controller", "robust",
-                                   "--port", port, "--socket", sock, "--log-dir", d / "logs"], stderr=err)
+        daemon = subprocess.Popen([ARASH, "daemon", "--rt", "ignore", "--pace", "lockstep", "--link", link,
+                                   "--controller", "robust", "--port", port, "--socket", sock, "--log-dir", d / "logs"],
+                                  stderr=err)
     try:
         deadline = time.monotonic() + 20
         while not sock.exists():
@@ -392,10 +393,12 @@ def tracked(d, link, port, trajectory):
 def test_the_robust_law_tracks_through_cia402_drives_as_through_the_serial_link(tmp_path):
     """The same simulated rig (nominal scenario, seed 1) behind `arash mock-motor` and behind
     simulated CiA 402 drives: the paper's robust law, whose insertion loop needs each SYNC's
-    process data within its cycle, tracks alike through both. The differences the link makes
-    are the host's timing (two serial runs measure it) and the drives' ‰ resolution of the
-    target torque (1.7 mN·m, 11 mN). The bus load of the run is within docs/canopen.md's bounds
-    for three joints at 1 kHz."""
+    process data within its cycle, tracks alike through both. The daemon runs in lockstep with
+    the simulated rig (`--pace lockstep`), so that the host's timing is out of the comparison;
+    what the link changes is the drives' ‰ resolution of the target torque (1.7 mN·m, 11 mN)
+    and where in the rig's noise each run starts (two serial runs measure that). The bus load
+    per SYNC is within docs/canopen.md's bounds for three joints. (The drives' SYNC timing at
+    1 kHz is the soak's, bench/daemon_soak.sh ... canopen.)"""
     trajectory = tmp_path / "validation.json"
     trajectory.write_text(json.dumps({"format": "arash-trajectory/1", "kind": "paper-validation",
                                       "omega": TRACKING_OMEGA}))
@@ -426,7 +429,6 @@ def test_the_robust_law_tracks_through_cia402_drives_as_through_the_serial_link(
     # 55 + 230 per joint (docs/canopen.md); heartbeats and the start-up add about 1 %. Counted per
     # SYNC, so that cycles a loaded host missed do not lower it.
     assert 47 + 3 * (79 + 111) <= stats["bits_per_sync"] <= 1.01 * (55 + 3 * 230), stats
-    assert stats["late_syncs"] <= 0.01 * stats["syncs"], stats
 
 
 # --- issue 57: drives that stop by themselves, the adapter's health, recovery, the start-up ---

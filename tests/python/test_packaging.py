@@ -4,8 +4,9 @@ fresh venv that holds only numpy, and identifies a small log there, physically c
 included; the sdist carries everything it needs and builds and installs from its own contents;
 and README's `pip install ./crates/arash-py` works as written.
 
-These build the package (a release build, reusing the workspace's compiled dependencies) and
-install numpy into fresh venvs from the package registry or pip's cache.
+These build the package (a release build in the workspace's target directory, reusing the
+compiled dependencies of scripts/setup's build) and install numpy into fresh venvs from the
+package registry or pip's cache.
 """
 
 import os
@@ -134,9 +135,10 @@ def test_the_sdist_builds_and_installs_from_its_own_contents(tmp_path):
     assert any(n.endswith("crates/arash-core/robots/arash_asist.urdf") for n in names), names
     assert any(n.endswith("Cargo.lock") for n in names) and any(n.endswith("pyproject.toml") for n in names)
     python = fresh_venv(tmp_path / "venv")
-    # Built in pip's isolated environment from the sdist alone; the workspace's target directory
-    # only lends compiled registry crates (the sdist's own crates are rebuilt from its sources).
-    env = {**clean_env(), "CARGO_TARGET_DIR": str(ROOT / "target" / "sdist")}
+    # Built in pip's isolated environment from the sdist alone; the workspace's target directory,
+    # where scripts/setup's build of the package is, only lends compiled registry crates (the
+    # sdist's own crates are rebuilt from its sources: another path, another build).
+    env = {**clean_env(), "CARGO_TARGET_DIR": str(ROOT / "target")}
     run(python, "-m", "pip", "install", "--quiet", sdist, env=env, cwd=tmp_path)
     smoke_test(python, tmp_path)
 
@@ -145,6 +147,6 @@ def test_pip_install_of_the_crate_directory_works_as_the_readme_says(tmp_path):
     """README's install line for analysts, `pip install ./crates/arash-py`, run as written from
     the repository root into a fresh venv."""
     python = fresh_venv(tmp_path / "venv")
-    env = {**clean_env(), "CARGO_TARGET_DIR": str(ROOT / "target" / "sdist")}
+    env = {**clean_env(), "CARGO_TARGET_DIR": str(ROOT / "target")}
     run(python, "-m", "pip", "install", "--quiet", "./crates/arash-py", env=env, cwd=ROOT)
     smoke_test(python, tmp_path)

@@ -73,6 +73,12 @@ fn daemon_command(dir: &Scratch, pty: &str, config: &str) -> Command {
     cmd
 }
 
+/// `config` with the daemon in lockstep with the mock (`rt.pace`): the same run as fast as the host
+/// goes, and the same on a busy host. For the tests whose property is not wall-clock timing.
+fn lockstep(config: &str) -> String {
+    format!("[rt]\npace = \"lockstep\"\n{config}")
+}
+
 /// Start the daemon on `pty` and wait for its socket.
 fn daemon(dir: &Scratch, pty: &str, config: &str) -> Proc {
     let err = std::fs::OpenOptions::new().create(true).append(true).open(dir.join("daemon.err")).unwrap();
@@ -141,7 +147,7 @@ fn an_excitation_run_through_the_daemon_identifies_the_mock() {
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let (_mock, pty) = mock(&dir, None);
-    let mut d = daemon(&dir, &pty, "[control]\ncontroller = \"idc\"\n");
+    let mut d = daemon(&dir, &pty, &lockstep("[control]\ncontroller = \"idc\"\n"));
     ctl(&dir, &["enable"]).unwrap();
     let log = ctl(&dir, &["run", excitation.to_str().unwrap(), "--duration", "30", "--label", "excitation", "--wait"])
         .unwrap_or_else(|e| panic!("{e}\n{}", stderr(&dir)));
@@ -386,7 +392,7 @@ fn silence_trips_the_link_timeout_ramps_down_and_writes_a_black_box() {
 fn faults_during_a_run(name: &str, plan: &str, config: &str) -> serde_json::Value {
     let dir = Scratch::new("e2e", name);
     let (_mock, pty) = mock(&dir, Some(plan));
-    let _d = daemon(&dir, &pty, config);
+    let _d = daemon(&dir, &pty, &lockstep(config));
     ctl(&dir, &["enable"]).unwrap();
     let trajectory = concat!(env!("CARGO_MANIFEST_DIR"), "/../../trajectories/paper_validation_0.5.json");
     ctl(&dir, &["run", trajectory]).unwrap();
@@ -459,16 +465,19 @@ fn after_kill_9_the_log_is_recovered_and_the_daemon_comes_back_disabled() {
     let _serial = serial();
     let dir = Scratch::new("e2e", "kill9");
     let (_mock, pty) = mock(&dir, None);
-    let mut d = daemon(&dir, &pty, "");
+    // In lockstep: what is lost is counted in cycles, not in the host's wall-clock luck.
+    let mut d = daemon(&dir, &pty, &lockstep(""));
     ctl(&dir, &["enable"]).unwrap();
-    std::thread::sleep(Duration::from_millis(2500));
+    // Two and a half flush periods (1000 cycles each) logged, then the kill.
+    wait_until(&dir, Duration::from_secs(30), "2,500 cycles", |s| s["cycle"].as_u64() >= Some(2500));
+    let ran = status(&dir)["cycle"].as_u64().unwrap();
     d.0.kill().unwrap(); // SIGKILL: no chance to finish the file
     d.0.wait().unwrap();
     // Longer than the drive's 100 ms watchdog: it switches off and latches HOST_TIMEOUT.
     std::thread::sleep(Duration::from_millis(300));
     assert_eq!(logs(&dir, "daemon-").iter().filter(|p| p.to_string_lossy().ends_with(".part")).count(), 1);
     std::fs::remove_file(dir.join("s.sock")).unwrap();
-    let _d = daemon(&dir, &pty, "");
+    let _d = daemon(&dir, &pty, &lockstep(""));
     wait_until(&dir, Duration::from_secs(5), "telemetry", |s| s["telemetry"] == true);
     let err = stderr(&dir);
     assert!(err.contains("unfinished log from a crash"), "{err}");
@@ -477,8 +486,9 @@ fn after_kill_9_the_log_is_recovered_and_the_daemon_comes_back_disabled() {
     assert_eq!(recovered.len(), 1);
     let log = read_log(&recovered[0]).unwrap();
     assert!(!log.truncated, "rewritten complete, with a footer");
-    // At most about a second lost: 2.5 s enabled plus start-up before the kill.
-    assert!(log.len() >= 1400, "at least its flushed seconds read back: {}", log.len());
+    // At most what was written since the last flush is lost: one flush period (1000 cycles, a
+    // second at 1 kHz), with a chunk's worth of slack.
+    assert!(log.len() as u64 + 1100 >= ran, "at least its flushed cycles read back: {} of {ran}", log.len());
     // The MCAP library's seeking read (summary section, chunk indexes) opens it.
     let bytes = std::fs::read(&recovered[0]).unwrap();
     let summary = mcap::Summary::read(&bytes).unwrap().expect("a summary section");
@@ -634,7 +644,7 @@ fn run_with(dir: &Scratch, pty: &str, torque_constant: &[f64], model: &Path) -> 
         "[control]\ncontroller = \"pd\"\nmodel = {:?}\n[drive]\ntorque_constant = {torque_constant:?}\n",
         model.to_str().unwrap()
     );
-    let mut d = daemon(dir, pty, &config);
+    let mut d = daemon(dir, pty, &lockstep(&config));
     wait_until(dir, Duration::from_secs(5), "telemetry", |s| s["telemetry"] == true);
     ctl(dir, &["enable"]).unwrap();
     let trajectory = concat!(env!("CARGO_MANIFEST_DIR"), "/../../trajectories/paper_validation_0.9.json");

@@ -1,6 +1,8 @@
 //! `arash demo` end to end in its short mode: the mock motor with the demo scenario (a wiring
 //! disturbance on pitch and Stribeck friction, neither declared), the daemon, calibration,
-//! diagnosis, tracking four ways and the report. Then Ctrl-C in the middle of a run.
+//! diagnosis, tracking four ways and the report, with the daemon in lockstep with the simulated
+//! rig (the same runs, as fast as the host goes, and the same on a busy host). Then Ctrl-C in
+//! the middle of a run of the demo at its real-time pace.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -65,8 +67,8 @@ fn column(summary: &serde_json::Value, path: &[&str]) -> Vec<f64> {
 fn the_demo_calibrates_diagnoses_and_controls_the_simulated_rig() {
     let _serial = serial();
     let dir = Scratch::new("demo", "full");
-    let out =
-        Command::new(ARASH).args(["demo", "--restarts", "1", "--omegas", "0.5", "-o"]).arg(&dir).output().unwrap();
+    let args = ["demo", "--restarts", "1", "--omegas", "0.5", "--pace", "lockstep", "-o"];
+    let out = Command::new(ARASH).args(args).arg(&dir).output().unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
     for table in ["Table I (OLS)", "Table II", "Effects found", "Error per joint, before → after", "max error cut by"]

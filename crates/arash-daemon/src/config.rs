@@ -11,7 +11,7 @@ use crate::drive_config::DriveConfig;
 use crate::link::master::CanopenConfig;
 use crate::live::LiveConfig;
 use crate::logger::LogConfig;
-use crate::rt::clock::RtPolicy;
+use crate::rt::clock::{Pace, RtPolicy};
 
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -126,11 +126,14 @@ pub struct SafetyConfig {
 pub struct RtConfig {
     pub policy: RtPolicy,
     pub priority: i32,
+    /// `deadline` (the rig), or `lockstep` for a simulated rig: each cycle as soon as the link
+    /// answers the last (rt/clock.rs, [`Pace`]). Lockstep needs `policy = "ignore"`.
+    pub pace: Pace,
 }
 
 impl Default for RtConfig {
     fn default() -> Self {
-        Self { policy: RtPolicy::Require, priority: 80 }
+        Self { policy: RtPolicy::Require, priority: 80, pace: Pace::Deadline }
     }
 }
 
@@ -210,6 +213,9 @@ impl DaemonConfig {
         }
         if self.link.timeout_ms * self.control.rate_hz / 1000.0 < 1.0 {
             return Err(ConfigError::TimeoutBelowPeriod(self.link.timeout_ms));
+        }
+        if self.rt.pace == Pace::Lockstep && self.rt.policy == RtPolicy::Require {
+            return Err(ConfigError::LockstepOnRig);
         }
         if !(1..=99).contains(&self.rt.priority) {
             return Err(ConfigError::Priority(self.rt.priority.into()));
@@ -310,6 +316,11 @@ pub enum ConfigError {
     Queue(usize),
     #[error("link.timeout_ms = {0} is shorter than one control period")]
     TimeoutBelowPeriod(f64),
+    #[error(
+        "rt.pace = \"lockstep\" runs the loop as fast as the link answers, which only a simulated rig may do; \
+         it needs rt.policy = \"ignore\" (--rt ignore)"
+    )]
+    LockstepOnRig,
     #[error("rt.priority must be 1–99 (SCHED_FIFO), not {0}")]
     Priority(i64),
     #[error("socket.mode must be octal, like \"0660\", not {0:?}")]

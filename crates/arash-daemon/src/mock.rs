@@ -186,7 +186,7 @@ impl MockMotor {
         while !stop.load(std::sync::atomic::Ordering::Relaxed) {
             // A wake-up on a pty's bytes can come late on a loaded host; with a 10 ms timeout
             // the daemon saw stale stretches of up to 9 cycles (docs/demo.md).
-            wait_readable(fd, 1);
+            crate::link::wait_readable(fd, std::time::Duration::from_millis(1));
             inbox.clear();
             endpoint.receive(|m| inbox.push(m))?;
             for m in inbox.drain(..) {
@@ -336,13 +336,6 @@ impl MockMotor {
 /// A full output buffer loses the frame, as a real link would; the host counts the gap.
 fn send<P: Read + Write>(endpoint: &mut Endpoint<P>, bytes: &[u8]) {
     let _ = endpoint.write_raw(bytes);
-}
-
-/// Wait up to `timeout_ms` for `fd` to become readable.
-pub fn wait_readable(fd: std::os::fd::RawFd, timeout_ms: i32) {
-    let mut pfd = libc::pollfd { fd, events: libc::POLLIN, revents: 0 };
-    // SAFETY: one pollfd on the stack; the result only tells whether to read.
-    unsafe { libc::poll(&mut pfd, 1, timeout_ms) };
 }
 
 /// The mock motor in the same process, as a [`crate::link::MotorLink`]: each command is answered at once,

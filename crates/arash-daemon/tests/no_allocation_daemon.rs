@@ -14,6 +14,7 @@ use arash_core::sim::Scenario;
 use arash_daemon::config::DaemonConfig;
 use arash_daemon::drive_config::DriveConfig;
 use arash_daemon::mock::{FaultPlan, InProcessLink, MockMotor};
+use arash_daemon::rt::clock::Pace;
 use arash_daemon::rt::cycle::{ControlCycle, Request};
 use arash_daemon::rt::reference::RunRequest;
 use arash_daemon::rt::runner::{run, Queues, Shared};
@@ -48,7 +49,7 @@ fn ten_thousand_control_cycles_allocate_nothing() {
         let queues = Queues { requests: request_rx, garbage: garbage_tx, log: log_tx };
         watch_this_thread();
         // 0.2 ms periods: the loop is the real one, only faster than the rig's 1 kHz.
-        run(cycle, &mut link, queues, &thread_shared, Duration::from_micros(200));
+        run(cycle, &mut link, queues, &thread_shared, Duration::from_micros(200), Pace::Deadline);
     });
     let wait_for = |cycles: u64, log_rx: &mut rtrb::Consumer<_>| {
         while shared.cycle.load(Ordering::Acquire) < cycles {

@@ -30,7 +30,7 @@ use crate::config::DaemonConfig;
 use crate::live::window::display_scales;
 use crate::logger::{LogContext, Logger, RunRegistry};
 
-use crate::rt::clock::setup_realtime;
+use crate::rt::clock::{setup_realtime, Pace, RtStatus};
 use crate::rt::cycle::ControlCycle;
 use crate::rt::runner::{self, Queues, Shared};
 use requests::Operator;
@@ -127,7 +127,7 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
 
     let (rt_tx, rt_rx) = std::sync::mpsc::channel();
     let rt_shared = shared.clone();
-    let (priority, policy) = (config.rt.priority, config.rt.policy);
+    let (priority, policy, pace) = (config.rt.priority, config.rt.policy, config.rt.pace);
     let period = Duration::from_secs_f64(1.0 / config.control.rate_hz);
     let control_thread = std::thread::Builder::new()
         .name("arash-control".into())
@@ -135,7 +135,17 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
         .spawn(move || {
             // The link's start-up runs here, just before the first cycle: a CANopen master's
             // heartbeat, which the drives watch from its first beat, then never pauses.
-            let ready = setup_realtime(priority, policy).and_then(|status| {
+            // A lockstep run has no deadline to keep, and at SCHED_FIFO a loop that goes as fast
+            // as the rig answers would starve the host's other work.
+            let realtime = match pace {
+                Pace::Deadline => setup_realtime(priority, policy),
+                Pace::Lockstep => Ok(RtStatus {
+                    fifo: false,
+                    mlocked: false,
+                    problems: vec!["the lockstep pace runs at ordinary priority".into()],
+                }),
+            };
+            let ready = realtime.and_then(|status| {
                 let found = link.start().map_err(|e| format!("{e}"))?;
                 Ok((status, found))
             });
@@ -145,7 +155,7 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
                 return;
             }
             let queues = Queues { requests: request_rx, garbage: garbage_tx, log: log_tx };
-            runner::run(cycle, link.as_mut(), queues, &rt_shared, period);
+            runner::run(cycle, link.as_mut(), queues, &rt_shared, period, pace);
         })?;
     let rt_status = rt_rx.recv().context("the control thread died during set-up")?;
     let rt_status = match rt_status {

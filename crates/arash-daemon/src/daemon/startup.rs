@@ -18,7 +18,7 @@ use crate::live::LiveConfigError;
 use arash_core::identify::closed_loop::LoggedController;
 
 use super::DaemonOptions;
-use crate::rt::clock::RtPolicy;
+use crate::rt::clock::{Pace, RtPolicy};
 
 /// Why the daemon cannot start. Each names the file, setting or device concerned, and the daemon
 /// has enabled nothing when it says so. The cause, where there is one, is the error's `source`:
@@ -148,7 +148,7 @@ pub(super) fn open_link(config: &DaemonConfig, dof: usize) -> Result<Box<dyn Mot
         LinkKind::Serial => {
             let port =
                 crate::link::serial::open_port(&config.link.port, config.link.baud).map_err(StartupError::Link)?;
-            Ok(Box::new(crate::link::serial::SerialLink::new(port, dof)))
+            Ok(Box::new(crate::link::serial::SerialLink::on_port(port, dof)))
         }
         LinkKind::Can => {
             #[cfg(target_os = "linux")]
@@ -172,7 +172,7 @@ fn open_canopen(config: &DaemonConfig) -> Result<Box<dyn MotorLink>, StartupErro
         Transport::Slcan => {
             let port =
                 crate::link::serial::open_port(&config.link.port, config.link.baud).map_err(StartupError::Link)?;
-            let bus = SlcanBus::open(port, c.bit_rate).map_err(StartupError::Link)?;
+            let bus = SlcanBus::on_port(port, c.bit_rate).map_err(StartupError::Link)?;
             if !bus.health().reports_status {
                 eprintln!(
                     "arash-daemon: WARNING: the slcan adapter on {} does not report its status flags (`F`): an error \
@@ -269,6 +269,10 @@ pub struct DaemonArgs {
     /// runs without them and logs that it does.
     #[arg(long, value_parser = RtPolicy::from_str)]
     pub rt: Option<RtPolicy>,
+    /// `deadline` (the rig), or `lockstep` for a simulated rig: each cycle as soon as the link
+    /// answers the last, as fast as the host goes (overrides rt.pace; needs --rt ignore).
+    #[arg(long, value_parser = Pace::from_str)]
+    pub pace: Option<Pace>,
     /// Operator socket (overrides socket.path).
     #[arg(long)]
     pub socket: Option<PathBuf>,
@@ -310,6 +314,9 @@ pub fn options(args: DaemonArgs) -> Result<DaemonOptions, StartupError> {
     }
     if let Some(rt) = args.rt {
         config.rt.policy = rt;
+    }
+    if let Some(pace) = args.pace {
+        config.rt.pace = pace;
     }
     if let Some(s) = args.socket {
         config.socket.path = s;

@@ -42,6 +42,11 @@ pub trait CanBus: Send {
     fn service(&mut self) -> std::io::Result<()> {
         Ok(())
     }
+    /// Wait until a frame may have arrived, or `timeout` (the lockstep pace); a bus that cannot
+    /// tell sleeps it.
+    fn wait(&self, timeout: std::time::Duration) {
+        std::thread::sleep(timeout);
+    }
 }
 
 /// What a CAN transport has reported about the bus and about itself, counted since it was
@@ -336,6 +341,11 @@ impl CanBus for SocketCan {
 
     fn health(&self) -> BusHealth {
         self.health
+    }
+
+    fn wait(&self, timeout: std::time::Duration) {
+        use std::os::fd::AsRawFd;
+        super::wait_readable(self.fd.as_raw_fd(), timeout);
     }
 }
 

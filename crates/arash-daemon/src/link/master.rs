@@ -183,6 +183,9 @@ pub struct CanopenLink<B> {
     latched: Option<MasterFault>,
     /// The last command was CLEAR_FAULT: the operator's reset is under way.
     clearing: bool,
+    /// SYNCs are stamped with their number times the SYNC period, not the host's clock
+    /// ([`MotorLink::clock_by_samples`]).
+    by_samples: bool,
     stats: LinkStats,
 }
 
@@ -239,6 +242,7 @@ impl<B: CanBus> CanopenLink<B> {
             bus_seen,
             latched: None,
             clearing: false,
+            by_samples: false,
             stats: LinkStats { bus: Some(bus_seen), ..LinkStats::default() },
         }
     }
@@ -511,7 +515,11 @@ impl<B: CanBus> MotorLink for CanopenLink<B> {
             result = result.and(sent);
         }
         let now = Instant::now();
-        self.sync_times[self.syncs_sent as usize % SYNC_RING] = now.duration_since(self.opened).as_micros() as u32;
+        let stamp = match self.by_samples {
+            true => u64::from(self.syncs_sent) * self.sync_period.as_micros() as u64,
+            false => now.duration_since(self.opened).as_micros() as u64,
+        };
+        self.sync_times[self.syncs_sent as usize % SYNC_RING] = stamp as u32;
         self.syncs_sent = self.syncs_sent.wrapping_add(1);
         result = result.and(self.send_frame(&sync()));
         if let Some(beat) = self.beat.due(now) {
@@ -541,6 +549,14 @@ impl<B: CanBus> MotorLink for CanopenLink<B> {
 
     fn stats(&self) -> LinkStats {
         self.stats
+    }
+
+    fn wait(&mut self, timeout: Duration) {
+        self.bus.wait(timeout);
+    }
+
+    fn clock_by_samples(&mut self) {
+        self.by_samples = true;
     }
 }
 

@@ -85,6 +85,27 @@ pub trait MotorLink: Send {
     /// (the CANopen master) writes `out.faults` on every call, new telemetry or not.
     fn poll(&mut self, out: &mut Telemetry) -> std::io::Result<bool>;
     fn stats(&self) -> LinkStats;
+    /// Time the telemetry by its samples (count × period), not by the host's clock: the lockstep
+    /// pace (rt/clock.rs), where a simulated rig's time is its steps. A link whose telemetry
+    /// carries the drive's own clock has nothing to change.
+    fn clock_by_samples(&mut self) {}
+    /// Wait until something has arrived or `timeout` has passed (the lockstep pace, for a
+    /// simulated rig: rt/clock.rs). A link that cannot tell sleeps the timeout.
+    fn wait(&mut self, timeout: std::time::Duration) {
+        std::thread::sleep(timeout);
+    }
+}
+
+/// Wait until `fd` is readable or `timeout` has passed.
+pub fn wait_readable(fd: std::os::fd::RawFd, timeout: std::time::Duration) {
+    let mut pfd = libc::pollfd { fd, events: libc::POLLIN, revents: 0 };
+    let ts = libc::timespec {
+        tv_sec: timeout.as_secs().min(i32::MAX as u64) as libc::time_t,
+        tv_nsec: libc::c_long::from(timeout.subsec_nanos() as i32),
+    };
+    // SAFETY: one pollfd and one timespec on the stack, no signal mask; the result only tells
+    // whether to read.
+    unsafe { libc::ppoll(&mut pfd, 1, &ts, std::ptr::null()) };
 }
 
 /// Tracks the drive's telemetry sequence numbers (`bits` wide, wrapping): gaps are counted as

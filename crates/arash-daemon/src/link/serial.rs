@@ -92,11 +92,22 @@ pub struct SerialLink<P> {
     sequence: SequenceCheck,
     stats: LinkStats,
     joints: usize,
+    /// The port's descriptor, to wait on (the lockstep pace); `None`: the wait sleeps.
+    readable: Option<std::os::fd::RawFd>,
 }
 
 impl<P: Read + Write> SerialLink<P> {
     pub fn new(port: P, joints: usize) -> Self {
-        Self { endpoint: Endpoint::new(port), sequence: SequenceCheck::default(), stats: LinkStats::default(), joints }
+        let endpoint = Endpoint::new(port);
+        Self { endpoint, sequence: SequenceCheck::default(), stats: LinkStats::default(), joints, readable: None }
+    }
+}
+
+impl<P: Read + Write + std::os::fd::AsRawFd> SerialLink<P> {
+    /// The link on a port it can wait on until something arrives.
+    pub fn on_port(port: P, joints: usize) -> Self {
+        let readable = Some(port.as_raw_fd());
+        Self { readable, ..Self::new(port, joints) }
     }
 }
 
@@ -136,6 +147,13 @@ impl<P: Read + Write + Send> MotorLink for SerialLink<P> {
 
     fn stats(&self) -> LinkStats {
         self.stats
+    }
+
+    fn wait(&mut self, timeout: Duration) {
+        match self.readable {
+            Some(fd) => super::wait_readable(fd, timeout),
+            None => std::thread::sleep(timeout),
+        }
     }
 }
 

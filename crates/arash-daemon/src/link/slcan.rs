@@ -239,6 +239,8 @@ pub struct SlcanBus<P> {
     health: BusHealth,
     /// When the adapter was last asked for its status (`None`: it does not answer).
     status_asked: Option<Instant>,
+    /// The port's descriptor, to wait on (the lockstep pace); `None`: the wait sleeps.
+    readable: Option<std::os::fd::RawFd>,
 }
 
 /// Frames held between two `receive` calls: a 1 kHz cycle reads a few per joint.
@@ -270,6 +272,7 @@ impl<P: Read + Write + Send> SlcanBus<P> {
             unsent: std::collections::VecDeque::with_capacity(UNSENT),
             health: BusHealth::default(),
             status_asked: None,
+            readable: None,
         };
         bus.probe_status(probe)?;
         Ok(bus)
@@ -367,6 +370,14 @@ impl<P: Read + Write + Send> SlcanBus<P> {
     }
 }
 
+impl<P: Read + Write + Send + std::os::fd::AsRawFd> SlcanBus<P> {
+    /// [`SlcanBus::open`] on a port it can wait on until something arrives.
+    pub fn on_port(port: P, bit_rate: u32) -> std::io::Result<Self> {
+        let readable = Some(port.as_raw_fd());
+        Ok(Self { readable, ..Self::open(port, bit_rate)? })
+    }
+}
+
 impl<P: Read + Write + Send> CanBus for SlcanBus<P> {
     fn send(&mut self, frame: &CanFrame) -> std::io::Result<()> {
         let mut line = [0u8; MAX_ENCODED];
@@ -383,6 +394,14 @@ impl<P: Read + Write + Send> CanBus for SlcanBus<P> {
 
     fn health(&self) -> BusHealth {
         self.health
+    }
+
+    fn wait(&self, timeout: Duration) {
+        match (self.received.is_empty(), self.readable) {
+            (false, _) => {}
+            (true, Some(fd)) => super::wait_readable(fd, timeout),
+            (true, None) => std::thread::sleep(timeout),
+        }
     }
 
     /// Ask for the status flags every [`STATUS_POLL`], if the adapter answers `F` at all.

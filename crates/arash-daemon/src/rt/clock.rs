@@ -79,6 +79,33 @@ impl std::str::FromStr for RtPolicy {
     }
 }
 
+/// What sets the pace of the control cycles.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Pace {
+    /// One cycle per period, to absolute deadlines: the rig.
+    #[default]
+    Deadline,
+    /// A simulated rig's pace: each cycle as soon as the link has answered the last one (or a
+    /// period has passed without an answer, which counts as a cycle without telemetry). The
+    /// simulated rig advances one period per command, so the run is the same run, only as fast
+    /// as the host goes; tests and demos whose property is not wall-clock timing use it.
+    Lockstep,
+}
+
+impl std::str::FromStr for Pace {
+    type Err = String;
+
+    /// `deadline` or `lockstep`, as `rt.pace` and `--pace` spell them.
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "deadline" => Ok(Self::Deadline),
+            "lockstep" => Ok(Self::Lockstep),
+            other => Err(format!("the pace must be `deadline` or `lockstep`, not `{other}`")),
+        }
+    }
+}
+
 /// What the real-time set-up achieved.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct RtStatus {

@@ -5,10 +5,10 @@
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::time::Duration;
 
-use super::clock::{now_ns, sleep_until, Schedule};
+use super::clock::{now_ns, sleep_until, Pace, Schedule};
 use super::cycle::{ControlCycle, Event, Garbage, Request};
 use super::reference::Phase;
-use crate::link::{LinkStats, MotorLink, MAX_JOINTS};
+use crate::link::{Command, LinkStats, MotorLink, Telemetry, MAX_JOINTS};
 use arash_core::control::{ControllerKind, Faults};
 use arash_core::record::{CycleRecord, Mode};
 
@@ -86,15 +86,107 @@ pub struct Queues {
     pub log: rtrb::Producer<LogItem>,
 }
 
-/// Run the control loop until `shared.stop`; then disable the drive and return.
-pub fn run(mut cycle: ControlCycle, link: &mut dyn MotorLink, mut queues: Queues, shared: &Shared, period: Duration) {
+/// Free slots the log queue keeps in lockstep before the next cycle: the events and the cycle of
+/// one cycle, with room to spare.
+const LOCKSTEP_LOG_ROOM: usize = 16;
+
+/// How long, in lockstep, the cycle waits for the simulated rig's answer before it counts as a
+/// cycle without telemetry: far beyond a pty's round trip and a loaded host's stalls, so that the
+/// run is the same run however busy the host; a rig's injected silence costs this much wall time
+/// per silent cycle.
+const LOCKSTEP_PATIENCE: Duration = Duration::from_millis(100);
+
+/// The link as the cycle sees it in lockstep: [`Lockstep::wait_for_telemetry`] polls until new telemetry has
+/// come (or the patience is out) and holds it for the cycle's own poll. At the deadline pace it
+/// passes everything through.
+struct Lockstep<'a> {
+    link: &'a mut dyn MotorLink,
+    /// The newest telemetry, and the fault bits a link reports between telemetry.
+    latest: Telemetry,
+    held: bool,
+}
+
+impl<'a> Lockstep<'a> {
+    fn new(link: &'a mut dyn MotorLink, joints: usize) -> Self {
+        Self { link, latest: Telemetry::new(joints), held: false }
+    }
+
+    /// Poll until new telemetry is held or `patience` has passed, waiting on the link between.
+    fn wait_for_telemetry(&mut self, patience: Duration) {
+        let deadline = std::time::Instant::now() + patience;
+        while !self.held {
+            self.held = self.link.poll(&mut self.latest).unwrap_or(false);
+            let now = std::time::Instant::now();
+            if self.held || now >= deadline {
+                return;
+            }
+            self.link.wait(deadline - now);
+        }
+    }
+}
+
+impl MotorLink for Lockstep<'_> {
+    fn start(&mut self) -> Result<Vec<String>, Box<dyn std::error::Error + Send + Sync>> {
+        self.link.start()
+    }
+
+    fn send(&mut self, command: &Command) -> std::io::Result<()> {
+        self.link.send(command)
+    }
+
+    fn poll(&mut self, out: &mut Telemetry) -> std::io::Result<bool> {
+        let fresh = self.link.poll(&mut self.latest)? | std::mem::take(&mut self.held);
+        match fresh {
+            true => *out = self.latest,
+            false => out.faults = self.latest.faults,
+        }
+        Ok(fresh)
+    }
+
+    fn stats(&self) -> LinkStats {
+        self.link.stats()
+    }
+
+    fn wait(&mut self, timeout: Duration) {
+        self.link.wait(timeout);
+    }
+
+    fn clock_by_samples(&mut self) {
+        self.link.clock_by_samples();
+    }
+}
+
+/// Run the control loop until `shared.stop`; then disable the drive and return. The cycles go
+/// at `pace`: a `period` apart, or in lockstep with a simulated rig.
+pub fn run(
+    mut cycle: ControlCycle,
+    link: &mut dyn MotorLink,
+    mut queues: Queues,
+    shared: &Shared,
+    period: Duration,
+    pace: Pace,
+) {
     let mut schedule = Schedule::new(period, now_ns());
     let mut previous_wake = now_ns();
     let mut missed = 0u64;
     let mut stopping: Option<u32> = None;
     shared.running.store(true, Ordering::Release);
+    if pace == Pace::Lockstep {
+        link.clock_by_samples();
+    }
+    let mut link = Lockstep::new(link, cycle.record().q.len());
     for n in 0u64.. {
-        sleep_until(schedule.next_deadline());
+        match pace {
+            Pace::Deadline => sleep_until(schedule.next_deadline()),
+            Pace::Lockstep => {
+                // The simulated rig waits for its next command: a full log queue slows the run
+                // rather than losing cycles from the log.
+                while queues.log.slots() < LOCKSTEP_LOG_ROOM {
+                    std::thread::sleep(Duration::from_micros(200));
+                }
+                link.wait_for_telemetry(LOCKSTEP_PATIENCE);
+            }
+        }
         let wake = now_ns();
         if stopping.is_none() && shared.stop.load(Ordering::Acquire) {
             let _ = cycle.request(Request::Disable);
@@ -107,9 +199,9 @@ pub fn run(mut cycle: ControlCycle, link: &mut dyn MotorLink, mut queues: Queues
                 hand_back(&mut queues.garbage, g, shared);
             }
         }
-        cycle.step(link, n);
+        cycle.step(&mut link, n);
         let exec = now_ns() - wake;
-        let sample = sample(&cycle, link, n, wake - previous_wake, exec, missed);
+        let sample = sample(&cycle, &link, n, wake - previous_wake, exec, missed);
         previous_wake = wake;
         let t = sample.t;
         cycle.drain_events(|event| {
@@ -127,8 +219,10 @@ pub fn run(mut cycle: ControlCycle, link: &mut dyn MotorLink, mut queues: Queues
                 break;
             }
         }
-        missed += schedule.advance(now_ns());
-        shared.missed.store(missed, Ordering::Relaxed);
+        if pace == Pace::Deadline {
+            missed += schedule.advance(now_ns());
+            shared.missed.store(missed, Ordering::Relaxed);
+        }
     }
     shared.running.store(false, Ordering::Release);
 }

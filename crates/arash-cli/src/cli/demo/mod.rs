@@ -29,7 +29,8 @@ use arash_core::identify::{
 use arash_core::model_file::{IdentifyMethod, ModelFile};
 use arash_core::{BaseParameters, Model};
 use arash_daemon::drive_config::DriveConfig;
-use arash_daemon::rt::clock::RtPolicy;
+use arash_daemon::rt::clock::{Pace, RtPolicy};
+use std::str::FromStr;
 
 use crate::runlog;
 use report::{Tracking, TrackingRun};
@@ -70,6 +71,11 @@ pub struct Args {
     /// Real-time set-up of the daemon; default ignore with the mock, require with --port.
     #[arg(long)]
     rt: Option<RtPolicy>,
+    /// The daemon's pace: `deadline` (1 kHz in real time), or `lockstep` with the simulated rig,
+    /// each cycle as soon as the rig answers: the same runs, as fast as the host goes, and
+    /// the same on a busy host (rt/clock.rs; not with --port).
+    #[arg(long, value_parser = Pace::from_str, default_value = "deadline")]
+    pace: Pace,
     /// Stream the daemon live to Foxglove on ADDR (default 127.0.0.1:8765), as
     /// `arash daemon --live` does.
     #[arg(long, value_name = "ADDR")]
@@ -180,7 +186,12 @@ fn steps(args: &Args, plan: &Plan) -> anyhow::Result<()> {
         Some(port) => (Motors::Port(port), args.rt.unwrap_or(RtPolicy::Require)),
         None => (Motors::Mock { scenario: &scenario, seed: args.seed }, args.rt.unwrap_or(RtPolicy::Ignore)),
     };
-    let mut rig = Rig::start(dir, motors, args.link, rt, args.live.as_ref())?;
+    anyhow::ensure!(
+        args.port.is_none() || args.pace == Pace::Deadline,
+        "--pace lockstep is for the simulated rig: a real rig ({}) runs at its deadlines",
+        args.port.as_deref().unwrap_or_default()
+    );
+    let mut rig = Rig::start(dir, motors, args.link, (rt, args.pace), args.live.as_ref())?;
     if args.live.is_some() {
         // The daemon's own answer: the address it bound (port 0 picks one).
         let status = rig.call(&arash_daemon::ctl::CtlRequest::Status)?;

@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use arash_daemon::ctl::{call, wait_for_run, CtlRequest};
-use arash_daemon::rt::clock::RtPolicy;
+use arash_daemon::rt::clock::{Pace, RtPolicy};
 
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
@@ -100,12 +100,16 @@ impl Rig {
         dir: &Path,
         motors: Motors,
         link: Link,
-        rt: RtPolicy,
+        (rt, pace): (RtPolicy, Pace),
         live: Option<&Option<String>>,
     ) -> anyhow::Result<Self> {
         let rt = match rt {
             RtPolicy::Require => "require",
             RtPolicy::Ignore => "ignore",
+        };
+        let pace = match pace {
+            Pace::Deadline => "deadline",
+            Pace::Lockstep => "lockstep",
         };
         let exe = std::env::current_exe().context("locating the arash executable")?;
         let mut rig = Rig { socket: dir.join("arash.sock"), daemon: None, mock: None, port: String::new() };
@@ -136,7 +140,8 @@ impl Rig {
         let _ = std::fs::remove_file(&rig.socket);
         let log = std::fs::File::create(dir.join("daemon.log"))?;
         let mut daemon = Command::new(&exe);
-        daemon.args(["daemon", "--rt", rt, "--link", link.daemon_flag(), "--port", &rig.port, "--config"]).arg(&config);
+        daemon.args(["daemon", "--rt", rt, "--pace", pace, "--link", link.daemon_flag(), "--port", &rig.port]);
+        daemon.arg("--config").arg(&config);
         if let Some(address) = live {
             daemon.arg("--live").args(address.iter());
         }
