@@ -7,6 +7,7 @@
 //!
 //! `cargo test -p arash-core --test layers` runs it.
 
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 /// arash-core, leaf first.
@@ -211,6 +212,47 @@ fn dependencies(krate: &str) -> Vec<String> {
         .expect("cargo tree runs");
     assert!(out.status.success(), "cargo tree -p {krate}: {}", String::from_utf8_lossy(&out.stderr));
     String::from_utf8_lossy(&out.stdout).lines().filter_map(|l| l.split_whitespace().next()).map(String::from).collect()
+}
+
+/// Each crate's features in a build of `packages` (cargo tree's arguments): name and version to
+/// the features enabled.
+fn features(packages: &[&str]) -> BTreeMap<String, BTreeSet<String>> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let out = std::process::Command::new(cargo)
+        .args(["tree", "--offline", "--locked", "-e", "features", "--prefix", "none", "-f", "{p} {f}"])
+        .args(packages)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("cargo tree runs");
+    assert!(out.status.success(), "cargo tree {packages:?}: {}", String::from_utf8_lossy(&out.stderr));
+    let mut found: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        let mut words = line.split_whitespace();
+        let (Some(name), Some(version)) = (words.next(), words.next()) else { continue };
+        if !version.starts_with('v') {
+            continue; // a feature's own line (`serde feature "std"`)
+        }
+        let listed = words.filter(|w| !w.starts_with('(')).flat_map(|w| w.split(',')).map(String::from);
+        found.entry(format!("{name} {version}")).or_default().extend(listed);
+    }
+    found
+}
+
+/// scripts/test builds the Python package with maturin (arash-py's dependencies alone) and the
+/// workspace with cargo: the second reuses what the first compiled only where every crate gets
+/// the same features in both (crates/arash-py/Cargo.toml enables the workspace's; issue 62).
+#[test]
+fn the_python_package_builds_its_dependencies_with_the_workspaces_features() {
+    let (package, workspace) = (features(&["-p", "arash-py"]), features(&["--workspace"]));
+    let differ: Vec<(&String, Vec<&String>)> = package
+        .iter()
+        .filter_map(|(krate, own)| {
+            let all = workspace.get(krate)?;
+            (all != own).then(|| (krate, all.symmetric_difference(own).collect()))
+        })
+        .collect();
+    assert!(package.len() > 100, "{} crates read from cargo tree", package.len());
+    assert!(differ.is_empty(), "features that differ between the two builds, to enable in arash-py: {differ:?}");
 }
 
 /// systemd runs `arash-daemon`: the tools' plotting, fonts, progress bars and CSV are not in it.

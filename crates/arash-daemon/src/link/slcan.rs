@@ -252,7 +252,7 @@ const UNSENT: usize = 4096;
 
 impl<P: Read + Write + Send> SlcanBus<P> {
     /// Set the adapter to `bit_rate`, open the bus, and find out whether the adapter reports its
-    /// status flags (one `F`, answered within [`STATUS_PROBE`] or never asked again).
+    /// status flags (one `F`, answered within 50 ms or never asked again).
     pub fn open(port: P, bit_rate: u32) -> std::io::Result<Self> {
         Self::open_probing(port, bit_rate, STATUS_PROBE)
     }
