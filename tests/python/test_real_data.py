@@ -3,6 +3,7 @@ mapped through a declared transmission, the KUKA LWR4+'s torque-sensor runs, eac
 the defaults. Skips with a message when the data are absent."""
 
 import csv
+import functools
 import subprocess
 import warnings
 
@@ -42,6 +43,24 @@ def tx40_transmission():
     return arash.Transmission(TX40_RATIOS, coupling=[(6, 5, 32.0)], offsets=TX40_OFFSETS)
 
 
+def tx40_robot():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # link_6's inertia, which a test below checks
+        return arash.Robot.from_urdf(need(TX40 / "tx40_mdh_modified.urdf"))
+
+
+@functools.cache
+def tx40_identified():
+    """The motor-side log identified with the defaults, once for the tests that read it."""
+    return arash.identify(tx40_robot(), *tx40_motor_log(), motor_side=tx40_transmission())
+
+
+@functools.cache
+def tx40_diagnosed():
+    """The motor-side log diagnosed with the defaults, once for the tests that read it."""
+    return arash.diagnose(tx40_robot(), *tx40_motor_log(), motor_side=tx40_transmission())
+
+
 def test_the_tx40_transmission_maps_as_upstream_does():
     """Upstream's mapping, written out by hand from its README: q = R⁻¹θ with R = diag(N) and
     R[5,4] = N[5], then the MDH offsets; τ = T τ_m with T = diag(N) and T[4,5] = N[5]."""
@@ -75,7 +94,7 @@ def test_the_tx40_identifies_from_its_motor_side_log_with_the_defaults():
     robot = arash.Robot.from_urdf(need(TX40 / "tx40_mdh_modified.urdf"))
     with pytest.warns(UserWarning):  # link_6 has no rotational inertia, as upstream's URDF says
         robot = arash.Robot.from_urdf(TX40 / "tx40_mdh_modified.urdf")
-    ident = arash.identify(robot, t, theta, tau_m, motor_side=tx40_transmission())
+    ident = tx40_identified()
     q, tau = tx40_transmission().to_joints(theta, tau_m)
     by_hand = arash.identify(robot, t, q, tau)
     np.testing.assert_allclose(ident.beta, by_hand.beta, rtol=1e-12, atol=0)
@@ -140,10 +159,7 @@ def test_the_tx40_diagnosis_finds_the_wrist_motor_and_rotor_inertias_upstream_mo
     cut the held-out error by 15 %, below the bar, and were not added). It cuts joint 5's held-out
     error (FP% 46 before, docs/real-data.md). Nothing beyond upstream's terms is added but an
     alignment of the torque to the positions (a delay is the log's, not the robot's)."""
-    t, theta, tau_m = tx40_motor_log()
-    with pytest.warns(UserWarning):
-        robot = arash.Robot.from_urdf(need(TX40 / "tx40_mdh_modified.urdf"))
-    d = arash.diagnose(robot, t, theta, tau_m, motor_side=tx40_transmission())
+    d = tx40_diagnosed()
     print("\n" + d.report())
     by_label = {e.label.split(" (")[0]: e for e in d.accepted}
     rotor = by_label["coupled_rotor on joint_6"]
@@ -201,14 +217,14 @@ def test_the_cli_reads_a_motor_side_log_like_python(tmp_path):
                     "--coupling", "6,5,32", "--joint-offsets-deg", offsets, "-o", model], check=True,
                    capture_output=True)
     cli = arash.load_model(model)
-    python = arash.identify(robot, t, theta, tau_m, motor_side=tx40_transmission())
+    python = tx40_identified()
     assert cli.cutoff_hz == python.cutoff_hz
     np.testing.assert_allclose(cli.beta, python.beta, rtol=1e-9, atol=1e-12)
     # The diagnosis reads the same declared transmission, and with it finds the wrist motor.
     diagnosis = subprocess.run([binary, "diagnose", log, "--robot", urdf, "--gear-ratios", ",".join(map(str, TX40_RATIOS)),
                                 "--coupling", "6,5,32", "--joint-offsets-deg", offsets, "-o", tmp_path / "diagnosis"],
                                check=True, capture_output=True, text=True)
-    found = arash.diagnose(robot, t, theta, tau_m, motor_side=tx40_transmission()).accepted
+    found = tx40_diagnosed().accepted
     effects = diagnosis.stdout.split("Effects found")[1].split("Error per joint")[0]
     assert "coupled_rotor on joint_6" in effects, diagnosis.stdout
     assert all(f"{i + 1}. {e.label}" in effects for i, e in enumerate(found)), diagnosis.stdout

@@ -44,6 +44,14 @@ class Expanded:
             self.G[self.model.joints[jid].idx_v, k] = mult
             self.offset[self.model.joints[jid].idx_v] = off
         self.T = self._parameter_map()
+        # Where each Pinocchio joint's configuration goes (the tree's encoding, computed once):
+        # one angle, or (cos θ, sin θ) for a continuous joint.
+        joints = [self.model.joints[jid] for jid in range(1, self.model.njoints)]
+        self._angle_q = np.array([j.idx_q for j in joints if j.nq != 2], dtype=int)
+        self._angle_v = np.array([j.idx_v for j in joints if j.nq != 2], dtype=int)
+        self._circle_q = np.array([j.idx_q for j in joints if j.nq == 2], dtype=int)
+        self._circle_v = np.array([j.idx_v for j in joints if j.nq == 2], dtype=int)
+        self._lower = np.tril_indices(nv, -1)
 
     def _parameter_map(self):
         """T with π_pin (10 per Pinocchio joint) = T π_ours (rigid part)."""
@@ -82,13 +90,9 @@ class Expanded:
         """Tree configuration in Pinocchio's encoding: a continuous joint is (cos θ, sin θ)."""
         angles = self.G @ q + self.offset
         config = np.zeros(self.model.nq)
-        for jid in range(1, self.model.njoints):
-            joint = self.model.joints[jid]
-            theta = angles[joint.idx_v]
-            if joint.nq == 2:
-                config[joint.idx_q : joint.idx_q + 2] = (np.cos(theta), np.sin(theta))
-            else:
-                config[joint.idx_q] = theta
+        config[self._angle_q] = angles[self._angle_v]
+        config[self._circle_q] = np.cos(angles[self._circle_v])
+        config[self._circle_q + 1] = np.sin(angles[self._circle_v])
         return config, self.G @ qd, self.G @ qdd
 
     def torque(self, q, qd, qdd):
@@ -99,8 +103,9 @@ class Expanded:
     def mass_matrix(self, q):
         """Gᵀ · Pinocchio's CRBA (which fills the upper triangle) · G."""
         config, _, _ = self.tree(q, np.zeros_like(q), np.zeros_like(q))
-        tree = pin.crba(self.model, self.data, config)
-        return self.G.T @ (np.triu(tree) + np.triu(tree, 1).T) @ self.G
+        tree = pin.crba(self.model, self.data, config).copy()
+        tree[self._lower] = tree.T[self._lower]
+        return self.G.T @ tree @ self.G
 
 
 def joint_torques(robot, q, qd, params):
