@@ -102,7 +102,8 @@ pub fn recover(dir: &Path) -> Vec<(PathBuf, Result<usize, String>)> {
         let path = entry.path();
         let Some(name) = path.file_name().and_then(|n| n.to_str()) else { continue };
         let Some(stem) = name.strip_suffix(".mcap.part") else { continue };
-        let target = path.with_file_name(format!("{stem}.recovered.mcap"));
+        // Never over an earlier crash's file (see [`unused_name`]).
+        let target = unused_file(dir, stem, "recovered.mcap");
         // Rewritten with a summary and a footer so that every MCAP reader opens it; the cut
         // original is kept only if that fails.
         match arash_core::flightlog::rewrite_complete(&path, &target) {
@@ -110,7 +111,7 @@ pub fn recover(dir: &Path) -> Vec<(PathBuf, Result<usize, String>)> {
                 let _ = std::fs::remove_file(&path);
             }
             Err(e) => {
-                let kept = path.with_file_name(format!("{stem}.cut.mcap"));
+                let kept = unused_file(dir, stem, "cut.mcap");
                 let _ = std::fs::rename(&path, &kept);
                 out.push((kept, Err(format!("could not rewrite it complete: {e}"))));
                 continue;
@@ -571,11 +572,25 @@ impl FineHistogram {
     }
 }
 
-/// `name`, or `name-2`, `name-3`, … if a log of that name is already in `dir`, finished or not:
-/// run numbers start again at 1 when the daemon restarts, and a new run must not overwrite an
-/// earlier session's.
+/// `dir/<stem>.<ext>`, or `<stem>-2.<ext>`, … if that file exists.
+fn unused_file(dir: &Path, stem: &str, ext: &str) -> PathBuf {
+    (1..)
+        .map(|k| match k {
+            1 => dir.join(format!("{stem}.{ext}")),
+            k => dir.join(format!("{stem}-{k}.{ext}")),
+        })
+        .find(|p| !p.exists())
+        .expect("an unused name")
+}
+
+/// `name`, or `name-2`, `name-3`, … if a log of that name is already in `dir`, finished, being
+/// written or recovered from a crash: run numbers start again at 1 when the daemon restarts, and
+/// a daemon restarted within the second of a crash stamps its idle log as the cut one was named
+/// (a second crash would then be recovered over the first's file).
 fn unused_name(dir: &std::path::Path, name: &str) -> String {
-    let taken = |n: &str| dir.join(format!("{n}.mcap")).exists() || dir.join(format!("{n}.mcap.part")).exists();
+    let taken = |n: &str| {
+        ["mcap", "mcap.part", "recovered.mcap", "cut.mcap"].iter().any(|ext| dir.join(format!("{n}.{ext}")).exists())
+    };
     if !taken(name) {
         return name.to_string();
     }
@@ -595,6 +610,28 @@ mod tests {
         assert_eq!(unused_name(&dir, "run-1-x"), "run-1-x-2");
         std::fs::write(dir.join("run-1-x-2.mcap.part"), b"").unwrap();
         assert_eq!(unused_name(&dir, "run-1-x"), "run-1-x-3");
+        std::fs::write(dir.join("run-1-x-3.recovered.mcap"), b"").unwrap();
+        assert_eq!(unused_name(&dir, "run-1-x"), "run-1-x-4");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn recovering_a_crash_never_overwrites_an_earlier_crashs_file() {
+        let dir = std::env::temp_dir().join(format!("arash-logger-recover-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // An earlier crash's files, and a new `.part` of the same name (empty: cut before its
+        // first flush).
+        std::fs::write(dir.join("daemon-1-1.recovered.mcap"), b"earlier").unwrap();
+        std::fs::write(dir.join("daemon-1-1.cut.mcap"), b"earlier").unwrap();
+        std::fs::write(dir.join("daemon-1-1.mcap.part"), b"").unwrap();
+        let out = super::recover(&dir);
+        assert_eq!(out.len(), 1);
+        let kept = out[0].0.file_name().unwrap().to_str().unwrap();
+        assert!(["daemon-1-1-2.recovered.mcap", "daemon-1-1-2.cut.mcap"].contains(&kept), "{kept}");
+        for earlier in ["daemon-1-1.recovered.mcap", "daemon-1-1.cut.mcap"] {
+            assert_eq!(std::fs::read(dir.join(earlier)).unwrap(), b"earlier", "{earlier}");
+        }
+        assert!(!dir.join("daemon-1-1.mcap.part").exists());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
