@@ -282,6 +282,48 @@ fn every_module_is_in_a_layer() {
 }
 
 /// The check can fail: an upward reference planted in a copy is found.
+/// The lines of the files under `root` (the module `blas_lapack/` aside) that name `blas_lapack`,
+/// arash-core's default feature `blas-lapack`, with no `#[cfg(feature = "blas-lapack")]` on the
+/// line before: each would break a build without the feature (docs/architecture.md). The suite
+/// checks this; compiling and linting without the feature is the long tier's (`scripts/test
+/// --full`), as it builds all of arash-core's dependencies again with other features.
+fn ungated_blas_references(root: &Path) -> Vec<String> {
+    let (parent, name) = (root.parent().unwrap(), root.file_name().unwrap().to_str().unwrap());
+    let mut out = Vec::new();
+    for path in files_of(parent, name) {
+        if path.components().any(|c| c.as_os_str() == "blas_lapack") {
+            continue;
+        }
+        let code = code(&path);
+        let lines: Vec<&str> = code.lines().collect();
+        for (i, line) in lines.iter().enumerate() {
+            let gated = i > 0 && lines[i - 1].trim() == r#"#[cfg(feature = "blas-lapack")]"#;
+            if line.contains("blas_lapack") && !gated {
+                out.push(format!("{}: {}", path.display(), line.trim()));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn arash_core_names_its_blas_only_behind_the_feature() {
+    let found = ungated_blas_references(&src("arash-core"));
+    assert!(found.is_empty(), "blas_lapack used without #[cfg(feature = \"blas-lapack\")]: {found:#?}");
+}
+
+#[test]
+fn an_ungated_blas_reference_is_found() {
+    let dir = std::env::temp_dir().join(format!("arash-layers-blas-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let gated = "#[cfg(feature = \"blas-lapack\")]\npub mod blas_lapack;\n";
+    std::fs::write(dir.join("lib.rs"), format!("{gated}fn f() {{ crate::blas_lapack::g(); }}\n")).unwrap();
+    let found = ungated_blas_references(&dir);
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert!(found[0].ends_with("fn f() { crate::blas_lapack::g(); }"), "{found:?}");
+}
+
 #[test]
 fn an_upward_reference_is_found() {
     let dir = std::env::temp_dir().join(format!("arash-layers-{}", std::process::id()));

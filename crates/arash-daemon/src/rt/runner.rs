@@ -179,6 +179,12 @@ pub fn run(
         match pace {
             Pace::Deadline => sleep_until(schedule.next_deadline()),
             Pace::Lockstep => {
+                // Between runs, no faster than the rig's own rate: an idle daemon and its
+                // simulated rig spinning as fast as the host goes would take a core each from
+                // whatever the host does meanwhile, and log millions of idle cycles.
+                if cycle.phase() == Phase::Hold {
+                    sleep_until(schedule.next_deadline());
+                }
                 // The simulated rig waits for its next command: a full log queue slows the run
                 // rather than losing cycles from the log.
                 while queues.log.slots() < LOCKSTEP_LOG_ROOM {
@@ -219,9 +225,15 @@ pub fn run(
                 break;
             }
         }
-        if pace == Pace::Deadline {
-            missed += schedule.advance(now_ns());
-            shared.missed.store(missed, Ordering::Relaxed);
+        match pace {
+            Pace::Deadline => {
+                missed += schedule.advance(now_ns());
+                shared.missed.store(missed, Ordering::Relaxed);
+            }
+            // Only the idle cycles keep the schedule; a run's are not late for it.
+            Pace::Lockstep => {
+                schedule.advance(now_ns());
+            }
         }
     }
     shared.running.store(false, Ordering::Release);
