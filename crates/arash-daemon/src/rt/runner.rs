@@ -230,10 +230,9 @@ pub fn run(
                 missed += schedule.advance(now_ns());
                 shared.missed.store(missed, Ordering::Relaxed);
             }
-            // Only the idle cycles keep the schedule; a run's are not late for it.
-            Pace::Lockstep => {
-                schedule.advance(now_ns());
-            }
+            // A period from this cycle's end: a run's cycles go faster than the period, and a
+            // schedule kept through them would be ahead of the clock by the time they saved.
+            Pace::Lockstep => schedule = Schedule::new(period, now_ns()),
         }
     }
     shared.running.store(false, Ordering::Release);
