@@ -372,11 +372,14 @@ def tracked(d, link, port, trajectory):
             assert daemon.poll() is None and time.monotonic() < deadline, (d / "daemon.err").read_text()
             time.sleep(0.05)
         ctl = [ARASH, "ctl", "--socket", sock]
-        for _ in range(100):
-            if json.loads(subprocess.run([*ctl, "status"], capture_output=True, text=True).stdout)["telemetry"]:
-                break
+        # The drives' start-up, one SDO a cycle against the Python simulator, takes a few seconds on
+        # a busy host; enabling before the first telemetry is refused.
+        deadline = time.monotonic() + 60
+        while not json.loads(subprocess.run([*ctl, "status"], capture_output=True, text=True).stdout)["telemetry"]:
+            assert daemon.poll() is None and time.monotonic() < deadline, (d / "daemon.err").read_text()
             time.sleep(0.05)
-        subprocess.run([*ctl, "enable"], check=True, capture_output=True)
+        enable = subprocess.run([*ctl, "enable"], capture_output=True, text=True)
+        assert enable.returncode == 0, enable.stderr + (d / "daemon.err").read_text()
         period = 2 * math.pi / TRACKING_OMEGA
         run = subprocess.run([*ctl, "run", trajectory, "--duration", str(2 * period), "--label", link, "--wait"],
                              capture_output=True, text=True, timeout=120)

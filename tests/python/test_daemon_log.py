@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import arash
-from support.paths import ARASH
+from support.paths import ARASH, loaded_host_config, mock_motor_args
 
 mcap_reader = pytest.importorskip("mcap.reader")
 
@@ -21,11 +21,11 @@ def daemon_logs(tmp_path_factory):
     if not ARASH.exists():
         pytest.skip(f"{ARASH} is not built")
     d = tmp_path_factory.mktemp("daemon")
-    mock = subprocess.Popen([ARASH, "mock-motor"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    mock = subprocess.Popen(mock_motor_args(), stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     try:
         pty = mock.stdout.readline().strip()
-        daemon = subprocess.Popen([ARASH, "daemon", "--rt", "ignore", "--port", pty, "--socket", d / "s.sock",
-                                   "--log-dir", d / "logs"], stderr=subprocess.DEVNULL)
+        daemon = subprocess.Popen([ARASH, "daemon", "--config", loaded_host_config(d), "--rt", "ignore", "--port", pty,
+                                   "--socket", d / "s.sock", "--log-dir", d / "logs"], stderr=subprocess.DEVNULL)
         for _ in range(200):
             if (d / "s.sock").exists():
                 break
@@ -74,9 +74,10 @@ def test_timing_histograms_count_every_cycle_of_their_second(daemon_logs):
 def test_a_log_cut_by_kill_9_is_recovered_into_a_file_the_official_seeking_reader_opens(tmp_path):
     if not ARASH.exists():
         pytest.skip(f"{ARASH} is not built")
-    mock = subprocess.Popen([ARASH, "mock-motor"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    mock = subprocess.Popen(mock_motor_args(), stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     sock = tmp_path / "s.sock"
-    start = [ARASH, "daemon", "--rt", "ignore", "--port", None, "--socket", sock, "--log-dir", tmp_path / "logs"]
+    start = [ARASH, "daemon", "--config", loaded_host_config(tmp_path), "--rt", "ignore", "--port", None,
+             "--socket", sock, "--log-dir", tmp_path / "logs"]
 
     def daemon(pty):
         args = [pty if a is None else a for a in start]

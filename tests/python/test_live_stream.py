@@ -12,7 +12,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from support.paths import ROOT
+from support.paths import ROOT, loaded_host_config, mock_motor_args
 
 pytest.importorskip("websockets")
 mcap_reader = pytest.importorskip("mcap.reader")
@@ -32,12 +32,12 @@ class Rig:
             pytest.skip(f"{ARASH} is not built")
         self.d, self.sock = d, d / "s.sock"
         d.mkdir(parents=True, exist_ok=True)
-        self.mock = subprocess.Popen([ARASH, "mock-motor"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                                     text=True)
+        self.mock = subprocess.Popen(mock_motor_args(), stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
         pty = self.mock.stdout.readline().strip()
         self.err = open(d / "daemon.err", "w")
-        self.daemon = subprocess.Popen([ARASH, "daemon", "--rt", "ignore", "--port", pty, "--socket", self.sock,
-                                        "--log-dir", d / "logs", *extra], stderr=self.err)
+        self.daemon = subprocess.Popen([ARASH, "daemon", "--config", loaded_host_config(d), "--rt", "ignore",
+                                        "--port", pty, "--socket", self.sock, "--log-dir", d / "logs", *extra],
+                                       stderr=self.err)
         for _ in range(300):
             if self.sock.exists():
                 break
@@ -48,7 +48,8 @@ class Rig:
         (d / "validation.json").write_text(json.dumps({"kind": "paper-validation", "omega": 0.9}))
 
     def ctl(self, *args):
-        out = subprocess.run([ARASH, "ctl", "--socket", self.sock, *args], check=True, capture_output=True, text=True)
+        out = subprocess.run([ARASH, "ctl", "--socket", self.sock, *args], capture_output=True, text=True)
+        assert out.returncode == 0, (args, out.stderr, (self.d / "daemon.err").read_text())
         return json.loads(out.stdout) if args[0] == "status" else out.stdout
 
     def stop(self):

@@ -14,6 +14,26 @@ SHARED_DATA = ROOT.parent / "shared" / "data"
 # The `arash` binary that `cargo build --release` makes (scripts/test builds it first).
 ARASH = ROOT / "target" / "release" / "arash"
 
+# For the rig's tests of what the log and the stream hold, not of the link's faults: a host kept
+# busy stalls a pseudo-terminal's kernel worker (ordinary priority, whatever the daemon's and the
+# mock's) past the 20 ms link timeout and the mock's 100 ms watchdog now and then, and the fault
+# would end the run. The link timeout is tested by crates/arash-daemon/tests/safety.rs and
+# crates/arash-cli/tests/daemon_e2e.rs.
+HOST_STALL_MS = 250
+
+
+def loaded_host_config(d):
+    """A daemon configuration (`--config`) whose link times out after HOST_STALL_MS."""
+    path = d / "loaded-host.toml"
+    path.write_text(f"[link]\ntimeout_ms = {HOST_STALL_MS}.0\n")
+    return path
+
+
+def mock_motor_args():
+    """`arash mock-motor` with its watchdog at HOST_STALL_MS."""
+    return [ARASH, "mock-motor", "--watchdog-ms", str(HOST_STALL_MS)]
+
+
 ROBOT_FILES = {
     "arash_asist": ROOT / "robots" / "arash_asist.urdf",
     "planar_2link": FIXTURES / "planar_2link.urdf",
