@@ -366,18 +366,20 @@ def tracked(d, link, port, trajectory):
         daemon = subprocess.Popen([ARASH, "daemon", "--rt", "ignore", "--pace", "lockstep", "--link", link,
                                    "--controller", "robust", "--port", port, "--socket", sock, "--log-dir", d / "logs"],
                                   stderr=err)
-    try:
-        deadline = time.monotonic() + 20
-        while not sock.exists():
+
+    def until(condition, seconds):
+        deadline = time.monotonic() + seconds
+        while not condition():
             assert daemon.poll() is None and time.monotonic() < deadline, (d / "daemon.err").read_text()
             time.sleep(0.05)
+
+    try:
+        until(sock.exists, 20)
         ctl = [ARASH, "ctl", "--socket", sock]
         # The drives' start-up, one SDO a cycle against the Python simulator, takes a few seconds on
         # a busy host; enabling before the first telemetry is refused.
-        deadline = time.monotonic() + 60
-        while not json.loads(subprocess.run([*ctl, "status"], capture_output=True, text=True).stdout)["telemetry"]:
-            assert daemon.poll() is None and time.monotonic() < deadline, (d / "daemon.err").read_text()
-            time.sleep(0.05)
+        until(lambda: json.loads(subprocess.run([*ctl, "status"], capture_output=True, text=True).stdout)["telemetry"],
+              60)
         enable = subprocess.run([*ctl, "enable"], capture_output=True, text=True)
         assert enable.returncode == 0, enable.stderr + (d / "daemon.err").read_text()
         period = 2 * math.pi / TRACKING_OMEGA
