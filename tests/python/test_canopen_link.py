@@ -59,9 +59,9 @@ def arash_plant():
 
     def step(q, qd, tau, dt):
         q, qd = np.asarray(q, float), np.asarray(qd, float)
-        bias = expanded.torque(q, qd, np.zeros(3))
+        mass, bias = expanded.dynamics(q, qd)
         friction = VISCOUS * qd + COULOMB * np.tanh(qd / 1e-3)
-        qdd = np.linalg.solve(expanded.mass_matrix(q), np.asarray(tau) - bias - friction)
+        qdd = np.linalg.solve(mass, np.asarray(tau) - bias - friction)
         qd = qd + dt * qdd
         return q + dt * qd, qd
 

@@ -129,12 +129,12 @@ def test_the_stick_step_holds_a_joint_still_until_the_other_torques_overcome_its
 
     h, m, fc = 1e-3, 2.0, 3.0
     for force, expected in ((2.5, 0.0), (-2.9, 0.0), (5.0, h * (5.0 - fc) / m), (-4.0, h * (-4.0 + fc) / m)):
-        v = coulomb_step(np.array([[m]]), np.array([h * force / m]), np.array([h * fc]))
+        v = coulomb_step(np.array([[1 / m]]), np.array([h * force / m]), np.array([h * fc]))
         assert abs(v[0] - expected) < 1e-15, (force, v, expected)
     mass = np.array([[2.0, 0.6], [0.6, 1.0]])
     impulse = h * np.array([0.5, 2.0])
     for free in (np.array([1e-3, 2e-3]), np.array([4e-3, -1e-4]), np.array([-2e-4, 3e-4])):
-        v = coulomb_step(mass, free, impulse)
+        v = coulomb_step(np.linalg.inv(mass), free, impulse)
         cost = lambda x: 0.5 * (x - free) @ mass @ (x - free) + impulse @ np.abs(x)  # noqa: E731
         reference = minimize(cost, free, method="Nelder-Mead", options={"xatol": 1e-12, "fatol": 1e-18}).x
         assert cost(v) <= cost(reference) + 1e-15, (v, reference)

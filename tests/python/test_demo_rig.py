@@ -30,7 +30,9 @@ def max_error(controller, params, seed):
     return np.abs(run["q"][second] - run["q_des"][second]).max(axis=0)
 
 
-@pytest.mark.parametrize("seed", [1, 2, 3])
+# Seeds 2 and 3 are the long tier's (scripts/test --full): other draws of the same rig; `demo.rs`
+# runs the demo's own rig in the suite.
+@pytest.mark.parametrize("seed", [1, pytest.param(2, marks=pytest.mark.full), pytest.param(3, marks=pytest.mark.full)])
 def test_the_identified_model_covers_the_truth_and_halves_cads_tracking_error_on_a_rig_the_model_describes(seed):
     robot = arash.Robot.arash_asist()
     # `arash demo --restarts 1`'s design and 60 s of it; the seed also draws the rig's parameters.

@@ -277,15 +277,21 @@ def test_a_six_axis_arm_at_100_hz_weighs_a_second_payload_in_kilograms_from_logs
     assert "of it from the drive gains" in d.report()
 
 
-def test_the_gains_share_of_a_payloads_sigma_is_the_spread_of_calibrations():
+# Ten calibrations are the long tier's; four in the suite. The spread of n draws lies within
+# [0.27, 1.77] × its σ for n = 4 (χ² with 3 degrees of freedom, 95 %), within [0.55, 1.45] for
+# n = 10; and it holds the model's own parameter noise besides the gains'. Four draws still
+# fail a σ that is off by a factor of 4 (hand-checked: the gains' covariance taken as their σ).
+@pytest.mark.parametrize("draws,low,high", [(4, 0.25, 4.0), pytest.param(10, 0.5, 1.3, marks=pytest.mark.full)],
+                         ids=["4 calibrations", "10 calibrations"])
+def test_the_gains_share_of_a_payloads_sigma_is_the_spread_of_calibrations(draws, low, high):
     """The σ the diagnosis gives a payload's mass from the drive gains, against the spread of the
-    mass over ten calibrations of the same robot whose currents differ only by their noise (the
+    mass over calibrations of the same robot whose currents differ only by their noise (the
     diagnosed log fixed). The spread also holds the model's own parameter noise, which is not the
-    gains', so it is the larger; the two must agree to within the sampling error of ten draws."""
+    gains', so it is the larger; the two must agree to within the sampling error of the draws."""
     masses, sigmas = [], []
     robot, _, _, _, loaded_run = six_axis_case(0)
     second, third = loaded_run(200), loaded_run(300)
-    for n in range(10):
+    for n in range(draws):
         robot, free, carried, _, _ = six_axis_case(0, noise_seed=n)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
@@ -295,4 +301,4 @@ def test_the_gains_share_of_a_payloads_sigma_is_the_spread_of_calibrations():
         sigmas.append(first.sigma_from_gains[0])
     spread, sigma = np.std(masses, ddof=1), np.median(sigmas)
     print(f"mass over calibrations: spread {spread:.4f} kg; the gains' σ {sigma:.4f} kg")
-    assert 0.5 * spread <= sigma <= 1.3 * spread, (spread, sigma)
+    assert low * spread <= sigma <= high * spread, (spread, sigma)

@@ -56,8 +56,8 @@ def closed_loop_log(condition, loop_hz=LOOP_HZ, damping=LOOP_DAMPING):
         tau = tau + truth["noise"] * rng.normal(size=tau.shape)
         q_log[i], tau_log[i] = measured, tau
         for _ in range(SUBSTEPS):
-            bias = expanded.torque(q, qd, np.zeros_like(q))
-            qdd = np.linalg.solve(expanded.mass_matrix(q), tau - bias - friction(truth, qd, "tanh"))
+            mass, bias = expanded.dynamics(q, qd)
+            qdd = np.linalg.solve(mass, tau - bias - friction(truth, qd, "tanh"))
             qd = qd + h * qdd
             q = q + h * qd
     return robot, (t, q_log, tau_log), truth
@@ -125,6 +125,7 @@ def pd_gravity_log(condition, truth_params, *, loop_hz=LOOP_HZ, damping=LOOP_DAM
         a = np.exp(-2 * np.pi * noise_hz * dt)
         for i in range(1, len(t)):
             disturbance[i] = a * disturbance[i - 1] + np.sqrt(1 - a * a) * disturbance[i]
+    impulse = h * fc
     for i in range(len(t)):
         measured = np.round(q / step) * step
         velocity = qd_d[0] if i == 0 else (measured - measured_before) / dt
@@ -133,26 +134,32 @@ def pd_gravity_log(condition, truth_params, *, loop_hz=LOOP_HZ, damping=LOOP_DAM
         tau = tau + noise * disturbance[i]
         q_log[i], tau_log[i] = measured, tau
         for _ in range(substeps):
-            bias = plant.torque(q, qd, np.zeros(n))
-            mass = plant.mass_matrix(q)
-            free = qd + h * np.linalg.solve(mass, tau - bias - smooth_terms(q, qd))
-            qd = free if widths is not None else coulomb_step(mass, free, h * fc)
+            mass, bias = plant.dynamics(q, qd)
+            inverse = np.linalg.inv(mass)
+            free = qd + h * (inverse @ (tau - bias - smooth_terms(q, qd)))
+            qd = free if widths is not None else coulomb_step(inverse, free, impulse)
             q = q + h * qd
     controller = {"law": "pd", "params": cad_params, "kp": kp, "kd": kd}
     return robot, (t, q_log, tau_log), (q_d, qd_d, qdd_d), controller
 
 
-def coulomb_step(mass, free, impulse):
+def coulomb_step(inverse, free, impulse):
     """The velocity after one step of dry friction of the set-valued law sign(q̇) (Moreau's
     time-stepping): v = argmin ½ (v − v_free)ᵀ M (v − v_free) + Σ_k impulse_k |v_k|, where v_free is
-    the velocity the other forces give and ``impulse`` = h·f_c. A joint sticks (v_k = 0 exactly)
-    wherever the rest cannot overcome its friction. Solved by projected Gauss–Seidel on the
-    friction impulses, each clamped to [−impulse_k, impulse_k]."""
+    the velocity the other forces give, ``inverse`` is M⁻¹ and ``impulse`` = h·f_c. A joint
+    sticks (v_k = 0 exactly) wherever the rest cannot overcome its friction. Solved by projected
+    Gauss–Seidel on the friction impulses, each clamped to [−impulse_k, impulse_k]."""
+    # Every joint sliding the way its free velocity goes is the minimiser when the velocities
+    # that gives keep those signs: then each λ_k = impulse_k · sign(v_k), the optimality
+    # condition. It holds on most steps of a moving arm, and the sweeps are for the others.
+    sliding = free - inverse @ (np.sign(free) * impulse)
+    if np.all(sliding * free > 0):
+        return sliding
     n = len(free)
-    inverse = np.linalg.inv(mass)
     lam = np.zeros(n)
     # Python floats in the sweep: the same arithmetic as numpy's, without its per-call cost.
-    rows, diagonal, reach, target = inverse.tolist(), np.diag(inverse).tolist(), impulse.tolist(), free.tolist()
+    rows, diagonal, target = inverse.tolist(), np.diag(inverse).tolist(), free.tolist()
+    reach = np.asarray(impulse, dtype=float).tolist()
     values = [0.0] * n
     tolerance = 1e-12 * max(1e-300, max(reach))
     for _ in range(100):

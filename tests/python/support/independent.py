@@ -52,6 +52,11 @@ class Expanded:
         self._circle_q = np.array([j.idx_q for j in joints if j.nq == 2], dtype=int)
         self._circle_v = np.array([j.idx_v for j in joints if j.nq == 2], dtype=int)
         self._lower = np.tril_indices(nv, -1)
+        # Without continuous joints the configuration is linear in q: config = A q + c.
+        select = np.zeros((self.model.nq, nv))
+        select[self._angle_q, self._angle_v] = 1.0
+        self._config_of_q, self._config_offset = select @ self.G, select @ self.offset
+        self._GT = np.ascontiguousarray(self.G.T)
 
     def _parameter_map(self):
         """T with π_pin (10 per Pinocchio joint) = T π_ours (rigid part)."""
@@ -106,6 +111,21 @@ class Expanded:
         tree = pin.crba(self.model, self.data, config).copy()
         tree[self._lower] = tree.T[self._lower]
         return self.G.T @ tree @ self.G
+
+    def dynamics(self, q, qd):
+        """The mass matrix and the bias torque (Coriolis, centrifugal, gravity) at one state, as
+        ``mass_matrix`` and ``torque(q, q̇, 0)`` give them, from one tree configuration: a
+        simulator's step needs both, and numpy's per-call cost on these small arrays is most of
+        a step's time (the closed-loop generators step the plant 10⁵–10⁶ times)."""
+        if len(self._circle_q):
+            config, velocity, _ = self.tree(q, qd, qd)
+        else:
+            config, velocity = self._config_of_q @ q + self._config_offset, self.G @ qd
+        tree = pin.crba(self.model, self.data, config)
+        # CRBA fills the upper triangle; its lower one is ours to overwrite.
+        tree[self._lower] = tree.T[self._lower]
+        bias = pin.nonLinearEffects(self.model, self.data, config, velocity)
+        return self._GT @ tree @ self.G, self._GT @ bias
 
 
 def joint_torques(robot, q, qd, params):
