@@ -158,8 +158,7 @@ def coulomb_step(inverse, free, impulse):
     n = len(free)
     lam = np.zeros(n)
     # Python floats in the sweep: the same arithmetic as numpy's, without its per-call cost.
-    rows, diagonal, target = inverse.tolist(), np.diag(inverse).tolist(), free.tolist()
-    reach = np.asarray(impulse, dtype=float).tolist()
+    rows, diagonal, reach, target = inverse.tolist(), np.diag(inverse).tolist(), impulse.tolist(), free.tolist()
     values = [0.0] * n
     tolerance = 1e-12 * max(1e-300, max(reach))
     for _ in range(100):

@@ -52,11 +52,10 @@ class Expanded:
         self._circle_q = np.array([j.idx_q for j in joints if j.nq == 2], dtype=int)
         self._circle_v = np.array([j.idx_v for j in joints if j.nq == 2], dtype=int)
         self._lower = np.tril_indices(nv, -1)
-        # Without continuous joints the configuration is linear in q: config = A q + c.
+        # Without continuous joints the configuration is linear in q: A q + c (`configuration`).
         select = np.zeros((self.model.nq, nv))
         select[self._angle_q, self._angle_v] = 1.0
         self._config_of_q, self._config_offset = select @ self.G, select @ self.offset
-        self._GT = np.ascontiguousarray(self.G.T)
 
     def _parameter_map(self):
         """T with π_pin (10 per Pinocchio joint) = T π_ours (rigid part)."""
@@ -91,14 +90,22 @@ class Expanded:
         mass = pin.Inertia(payload.mass, np.asarray(payload.at, dtype=float), np.zeros((3, 3)))
         self.model.inertias[frame.parentJoint] = self.model.inertias[frame.parentJoint] + frame.placement.act(mass)
 
-    def tree(self, q, qd, qdd):
+    def configuration(self, q):
         """Tree configuration in Pinocchio's encoding: a continuous joint is (cos θ, sin θ)."""
+        if not len(self._circle_q):
+            # Linear in q: one product, where the indexing below costs a simulator's step more
+            # than Pinocchio's algorithms do (the same numbers, bit for bit).
+            return self._config_of_q @ q + self._config_offset
         angles = self.G @ q + self.offset
         config = np.zeros(self.model.nq)
         config[self._angle_q] = angles[self._angle_v]
         config[self._circle_q] = np.cos(angles[self._circle_v])
         config[self._circle_q + 1] = np.sin(angles[self._circle_v])
-        return config, self.G @ qd, self.G @ qdd
+        return config
+
+    def tree(self, q, qd, qdd):
+        """The tree's configuration, velocity and acceleration."""
+        return self.configuration(q), self.G @ qd, self.G @ qdd
 
     def torque(self, q, qd, qdd):
         """Gᵀ · Pinocchio's RNEA on the expanded tree: the rigid-body joint torques."""
@@ -106,27 +113,22 @@ class Expanded:
         return self.G.T @ pin.rnea(self.model, self.data, config, velocity, acceleration)
 
     def mass_matrix(self, q):
-        """Gᵀ · Pinocchio's CRBA (which fills the upper triangle) · G."""
-        config, _, _ = self.tree(q, np.zeros_like(q), np.zeros_like(q))
-        tree = pin.crba(self.model, self.data, config).copy()
-        tree[self._lower] = tree.T[self._lower]
-        return self.G.T @ tree @ self.G
+        """Gᵀ · Pinocchio's CRBA · G."""
+        return self._reduced_mass(self.configuration(q))
 
     def dynamics(self, q, qd):
         """The mass matrix and the bias torque (Coriolis, centrifugal, gravity) at one state, as
         ``mass_matrix`` and ``torque(q, q̇, 0)`` give them, from one tree configuration: a
-        simulator's step needs both, and numpy's per-call cost on these small arrays is most of
-        a step's time (the closed-loop generators step the plant 10⁵–10⁶ times)."""
-        if len(self._circle_q):
-            config, velocity, _ = self.tree(q, qd, qd)
-        else:
-            config, velocity = self._config_of_q @ q + self._config_offset, self.G @ qd
-        tree = pin.crba(self.model, self.data, config)
-        # CRBA fills the upper triangle; its lower one is ours to overwrite.
-        tree[self._lower] = tree.T[self._lower]
-        bias = pin.nonLinearEffects(self.model, self.data, config, velocity)
-        return self._GT @ tree @ self.G, self._GT @ bias
+        simulator's step needs both (the closed-loop generators step the plant 10⁵–10⁶ times)."""
+        config = self.configuration(q)
+        bias = pin.nonLinearEffects(self.model, self.data, config, self.G @ qd)
+        return self._reduced_mass(config), self.G.T @ bias
 
+    def _reduced_mass(self, config):
+        tree = pin.crba(self.model, self.data, config)
+        # CRBA fills the upper triangle; the lower one is ours to overwrite.
+        tree[self._lower] = tree.T[self._lower]
+        return self.G.T @ tree @ self.G
 
 def joint_torques(robot, q, qd, params):
     """Friction and elastic torques, which Pinocchio's rigid-body algorithms leave out."""

@@ -733,12 +733,12 @@ class Simulator:
                 else:
                     silence[node] += tick
                 late = silence[node] > limit_ms / 1000
-                if late and d.spec.node not in tripped:
-                    tripped.add(d.spec.node)
-                    self.aborts.append((now, d.spec.node))
+                if late and node not in tripped:
+                    tripped.add(node)
+                    self.aborts.append((now, node))
                     d.abort_connection()
                 elif not late:
-                    tripped.discard(d.spec.node)
+                    tripped.discard(node)
 
     def statistics(self):
         """What the drives saw: SYNCs, their intervals (µs: median, 99th percentile, largest),
