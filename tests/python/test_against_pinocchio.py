@@ -93,3 +93,23 @@ def test_a_link_with_only_semidefinite_inertia_loads_with_a_warning_and_agrees_w
     with pytest.warns(UserWarning):
         worst = check_against_pinocchio(path, seed=11)
     print("\ntx40: " + ", ".join(f"{k} {v:.1e}" for k, v in worst.items()))
+
+
+
+@pytest.mark.parametrize("name,path", robot_cases(), ids=[c[0] for c in robot_cases()])
+def test_the_generators_one_call_dynamics_agrees_with_the_model(name, path):
+    """``Expanded.dynamics``, which the closed-loop generators step their plants with: its mass
+    matrix and its bias torque (Coriolis, centrifugal and gravity, from Pinocchio's CRBA and
+    non-linear effects on one tree configuration) are arash's M(q) and C(q, q̇) q̇ + g(q)."""
+    robot = arash.Robot.from_urdf(path)
+    ref = Expanded(path, robot)
+    rng = np.random.default_rng(3)
+    params = random_physical_params(robot, rng)
+    ref.set_parameters(params)
+    q, qd, _ = random_states(robot, 200, rng)
+    mass = robot.mass_matrix(q, params)
+    bias = np.einsum("nij,nj->ni", robot.coriolis_matrix(q, qd, params), qd) + robot.gravity(q, params)
+    for k in range(len(q)):
+        m, b = ref.dynamics(q[k], qd[k])
+        assert relative_error(m, mass[k]) < TOLERANCE, (k, m, mass[k])
+        assert relative_error(b, bias[k]) < TOLERANCE, (k, b, bias[k])
