@@ -708,8 +708,8 @@ class Simulator:
         # thread and the one that records the master's beats alike, and on waking this one would
         # judge beats that arrived but were not yet recorded. So silence is counted in this
         # thread's ticks, each at most CLOCK_TICK_MAX_S, from the last beat it saw recorded.
-        silence: dict[int, float] = {}
-        last_seen: dict[int, float] = {}
+        silence = {}
+        last_seen = {}
         last = time.monotonic()
         while not self._stop.wait(0.001):
             now = time.monotonic()
