@@ -40,6 +40,22 @@ fn bench(c: &mut Criterion) {
     c.bench_function("forward_dynamics (arash_asist)", |b| {
         b.iter(|| forward_dynamics(&model, &mut data, black_box(&q), &qd, &[0.1, 0.2, 0.3], &pi, &mut tau))
     });
+    // The hand's force in the cycle: one observer step and the tip map, with a rotor inertia.
+    let mut rotor = effects::EffectTerm::new(effects::EffectKind::Armature, None);
+    rotor.coefficients = vec![1e-4, 1e-4, 0.02];
+    let mut observer =
+        force::MomentumObserver::new(&model, &pi, &[rotor], &[10.0; 3], &[1e-3; 3], force::TorqueTiming::Sampled)
+            .unwrap();
+    let mut tip = force::FrameForce::new(&model, "instrument_tip", "remote_centre", 1e-3).unwrap();
+    let mut t = 0.0_f64;
+    c.bench_function("momentum observer step + instrument tip force (arash_asist)", |b| {
+        b.iter(|| {
+            t += 1e-3;
+            let q = [0.3 * t.sin(), 0.4, 0.01];
+            let external = observer.step(1e-3, black_box(&q), &qd, &[0.1, 0.2, 0.3]).unwrap();
+            black_box(tip.map(&q, external, &[0.01, 0.01, 0.1]))
+        })
+    });
 }
 
 criterion_group!(benches, bench);

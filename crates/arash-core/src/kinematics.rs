@@ -2,7 +2,7 @@
 //! dynamics algorithm.
 
 use crate::data::Data;
-use crate::model::{Body, JointKind, Model};
+use crate::model::{Body, Frame, JointKind, Model};
 use crate::spatial::{axis_angle, axis_rotation, Mat3, Motion, Vec3};
 
 /// Joint motion subspace `S` of a body, in its own frame.
@@ -32,6 +32,36 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64]) {
             Some(p) => (data.world_rot[p] * rot, data.world_pos[p] + data.world_rot[p] * pos),
             None => (rot, pos),
         };
+    }
+}
+
+/// The orientation and origin of `frame` in the base frame. Precondition: forward kinematics done.
+pub fn frame_placement(data: &Data, frame: &Frame) -> (Mat3, Vec3) {
+    match frame.body {
+        Some(b) => (data.world_rot[b] * frame.rot, data.world_pos[b] + data.world_rot[b] * frame.pos),
+        None => (frame.rot, frame.pos),
+    }
+}
+
+/// The Jacobian of `frame`'s origin in the base frame: the origin's velocity is `linear · q̇`
+/// and the frame's angular velocity `angular · q̇` (each 3 × dof, row-major). Precondition:
+/// forward kinematics done.
+pub fn frame_jacobian(model: &Model, data: &Data, frame: &Frame, linear: &mut [f64], angular: &mut [f64]) {
+    let n = model.dof();
+    let Some(b) = frame.body else {
+        linear.fill(0.0);
+        angular.fill(0.0);
+        return;
+    };
+    let rot = data.world_rot[b];
+    for k in 0..n {
+        let column = data.jac[b * n + k];
+        let v = rot * (column.v + column.w.cross(&frame.pos));
+        let w = rot * column.w;
+        for i in 0..3 {
+            linear[i * n + k] = v[i];
+            angular[i * n + k] = w[i];
+        }
     }
 }
 

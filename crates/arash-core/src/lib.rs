@@ -18,6 +18,7 @@ pub mod dynamics;
 pub mod effects;
 #[cfg(feature = "flightlog")]
 pub mod flightlog;
+pub mod force;
 pub mod identify;
 pub mod kinematics;
 pub mod model;
@@ -39,7 +40,7 @@ pub use dynamics::{
     DynamicsError,
 };
 pub use kinematics::forward_kinematics;
-pub use model::{ActuatedJoint, Body, CoulombLaws, CoulombShape, JointKind, Model, ModelWarning};
+pub use model::{ActuatedJoint, Body, CoulombLaws, CoulombShape, Frame, JointKind, Model, ModelWarning, UnknownFrame};
 pub use model_file::ModelFile;
 pub use params::ParamLayout;
 pub use regressor::{regressor, regressor_of_bodies, slotine_li_regressor};

@@ -230,6 +230,29 @@ pub struct Model {
     pub coulomb_laws: CoulombLaws,
     /// What the URDF declared that loads but deserves a look (empty for a clean description).
     pub warnings: Vec<ModelWarning>,
+    /// The named frames that are not bodies: the root link and every massless link on a fixed
+    /// joint (a tool point, a sensor mount).
+    pub frames: Vec<Frame>,
+}
+
+/// A named frame rigidly attached to a body or to the base, placed in that body's frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Frame {
+    pub name: String,
+    /// The body it moves with; `None` for the base.
+    pub body: Option<usize>,
+    pub rot: Mat3,
+    /// Its origin in the body's frame (m).
+    pub pos: Vec3,
+}
+
+/// A frame name that is neither a body nor a frame of the model.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("robot `{robot}` has no frame `{name}` (its frames: {known})")]
+pub struct UnknownFrame {
+    pub robot: String,
+    pub name: String,
+    pub known: String,
 }
 
 /// Something a robot description declares that arash loads, but that its user should know.
@@ -294,6 +317,24 @@ impl Model {
     /// Length of the standard parameter vector.
     pub fn num_params(&self) -> usize {
         self.layout().len()
+    }
+
+    /// The frame called `name`: a body's own frame, or one of [`Self::frames`].
+    pub fn frame(&self, name: &str) -> Result<Frame, UnknownFrame> {
+        if let Some(b) = self.bodies.iter().position(|b| b.name == name) {
+            return Ok(Frame { name: name.to_string(), body: Some(b), rot: Mat3::identity(), pos: Vec3::zeros() });
+        }
+        self.frames.iter().find(|f| f.name == name).cloned().ok_or_else(|| UnknownFrame {
+            robot: self.name.clone(),
+            name: name.to_string(),
+            known: self
+                .bodies
+                .iter()
+                .map(|b| b.name.as_str())
+                .chain(self.frames.iter().map(|f| f.name.as_str()))
+                .collect::<Vec<_>>()
+                .join(", "),
+        })
     }
 
     /// Names of the joints, in `q` order.

@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 use std::path::Path;
 
-use crate::model::{ActuatedJoint, Body, CoulombLaws, Coupling, JointKind, Model, ModelWarning};
+use crate::model::{ActuatedJoint, Body, CoulombLaws, Coupling, Frame, JointKind, Model, ModelWarning};
 use crate::spatial::{params_from_com, rpy_to_rotation, Mat3, Vec3};
 
 /// Why a URDF could not become a [`Model`]. Every variant names the offending element.
@@ -309,6 +309,7 @@ impl TreeBuilder {
         let mut actuated: Vec<ActuatedJoint> = Vec::new();
         let mut warnings: Vec<ModelWarning> = Vec::new();
         let identity = Attachment { body: None, rot: Mat3::identity(), pos: Vec3::zeros() };
+        let mut frames = vec![Frame { name: self.root.clone(), body: None, rot: identity.rot, pos: identity.pos }];
         // Depth first, children in document order, so bodies are numbered parents first, as
         // Pinocchio numbers its joints.
         let mut stack: Vec<(usize, Attachment)> = Vec::new();
@@ -319,6 +320,9 @@ impl TreeBuilder {
                 Attachment { body: at.body, rot: at.rot * joint.origin_rot, pos: at.pos + at.rot * joint.origin_pos };
             let (child_at, warning) = self.attach(joint, placed, &mut bodies, &mut mimics, &mut actuated)?;
             warnings.extend(warning);
+            if child_at.body == placed.body && joint.kind == JointKind::Fixed {
+                frames.push(Frame { name: joint.child.clone(), body: placed.body, rot: placed.rot, pos: placed.pos });
+            }
             self.push_children(&joint.child, child_at, &mut stack);
         }
         if actuated.is_empty() {
@@ -343,6 +347,7 @@ impl TreeBuilder {
             joints: actuated,
             gravity: Vec3::new(0.0, 0.0, -9.81),
             warnings,
+            frames,
         })
     }
 
@@ -616,8 +621,16 @@ mod tests {
 
     #[test]
     fn massless_fixed_frames_fold_into_their_parent() {
-        let j = joint("a", "prismatic", "base", "l1", "") + &joint("tip", "fixed", "l1", "tcp", "");
+        let tip = r#"<origin xyz="0 0 0.1" rpy="0 0 0"/>"#;
+        let j = joint("a", "prismatic", "base", "l1", "") + &joint("tip", "fixed", "l1", "tcp", tip);
         let model = parse_urdf(&robot(&[("base", ""), ("l1", LINK), ("tcp", "")], &j)).unwrap();
         assert_eq!(model.bodies.len(), 1);
+        let tcp = model.frame("tcp").unwrap();
+        assert_eq!(tcp.body, Some(0), "the tool point moves with l1");
+        assert_eq!(tcp.pos, Vec3::new(0.0, 0.0, 0.1));
+        assert_eq!(model.frame("l1").unwrap().body, Some(0));
+        assert_eq!(model.frame("base").unwrap().body, None);
+        let e = model.frame("flange").unwrap_err().to_string();
+        assert!(e.contains("`flange`") && e.contains("l1, base, tcp"), "{e}");
     }
 }

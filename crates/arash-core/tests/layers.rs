@@ -28,6 +28,7 @@ const CORE: &[&str] = &[
     "physical",
     "effects",
     "control",
+    "force",
     "record",
     "model_file",
     "identify",
@@ -40,6 +41,7 @@ const CORE: &[&str] = &[
 const FOLDERS: &[(&str, &[&str])] = &[
     ("blas_lapack", &["args", "blas", "lapack"]),
     ("control", &["gains", "safety", "fourier", "trajectory", "estimator", "feedforward", "laws"]),
+    ("force", &["frame_force", "observer"]),
     (
         "identify",
         &[

@@ -7,6 +7,7 @@
 //! - `robot`: `Robot` and `BaseParameters`;
 //! - `filters`: `butter` and `filtfilt`;
 //! - `motors`: `SimulatedMotors`, the simulated rig a cycle at a time;
+//! - `force`: `external_force`, the momentum observer and the force at a frame over a log;
 //! - `identify`, `diagnose`, `simulate`, `transmission`: the rest of the API.
 
 use pyo3::prelude::*;
@@ -15,6 +16,7 @@ mod batching;
 mod convert;
 mod diagnose;
 mod filters;
+mod force;
 mod identify;
 mod motors;
 mod robot;
@@ -29,6 +31,7 @@ fn _arash(module: &Bound<'_, PyModule>) -> PyResult<()> {
     transmission::register(module)?;
     module.add_function(wrap_pyfunction!(filters::butter, module)?)?;
     module.add_function(wrap_pyfunction!(filters::filtfilt, module)?)?;
+    module.add_function(wrap_pyfunction!(force::external_force, module)?)?;
     module.add_class::<robot::Robot>()?;
     module.add_class::<robot::BaseParameters>()?;
     module.add_class::<motors::SimulatedMotors>()?;

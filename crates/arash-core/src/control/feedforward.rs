@@ -18,6 +18,8 @@ use crate::model::Model;
 pub struct EffectFeedforward {
     terms: Vec<EffectTerm>,
     states: Vec<TermState>,
+    /// A zero acceleration per joint, for [`Self::add_forces`].
+    zeros: Vec<f64>,
 }
 
 impl EffectFeedforward {
@@ -44,7 +46,7 @@ impl EffectFeedforward {
         // A drive's gain scales everything commanded through it, the other effects' torque too.
         terms.sort_by_key(|t| t.kind == EffectKind::DriveGain);
         let states = vec![TermState::default(); terms.len()];
-        Self { terms, states }
+        Self { terms, states, zeros: vec![0.0; model.dof()] }
     }
 
     /// Forget the terms' state (the hysteresis term's direction of travel, the cable's stretch).
@@ -55,8 +57,56 @@ impl EffectFeedforward {
     /// Add the effects' torques at position `q`, velocity `qd` and acceleration `qdd` to `tau`,
     /// which holds the model's torque (the command) on entry; drive gains scale the sum last.
     pub fn add(&mut self, q: &[f64], qd: &[f64], qdd: &[f64], tau: &mut [f64]) {
+        self.accumulate(q, qd, qdd, tau, true);
+    }
+
+    /// Add the effects' torques at `(q, q̇)` and zero acceleration to `tau`, with no drive gain:
+    /// the torques the joints feel from friction, cables and wiring. With [`Self::add_inertia`]
+    /// and [`Self::drive_gain`] this is the same model as [`Self::add`], taken apart as a
+    /// momentum observer needs it.
+    pub fn add_forces(&mut self, q: &[f64], qd: &[f64], tau: &mut [f64]) {
+        let zeros = std::mem::take(&mut self.zeros);
+        self.accumulate(q, qd, &zeros, tau, false);
+        self.zeros = zeros;
+    }
+
+    /// Add the inertia the effects put on the joints to the mass matrix `mass` (row-major,
+    /// dof × dof): a rotor inertia on its joint's diagonal, a coupled rotor's `c g gᵀ` on every
+    /// joint its motor turns with. Both are constant.
+    pub fn add_inertia(&self, mass: &mut [f64]) {
+        let n = self.zeros.len();
+        for term in &self.terms {
+            match (term.kind, &term.coupling) {
+                (EffectKind::Armature, _) => {
+                    for (k, c) in term.coefficients.iter().enumerate().take(n) {
+                        mass[k * n + k] += c;
+                    }
+                }
+                (EffectKind::CoupledRotor, Some(g)) => {
+                    for (i, gi) in g.iter().enumerate() {
+                        for (j, gj) in g.iter().enumerate() {
+                            mass[i * n + j] += term.coefficients[0] * gi * gj;
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// The factor joint `k`'s drive puts on its torque, `1 + g` (1 without a drive-gain term):
+    /// the measured torque is this times the torque the joint feels.
+    pub fn drive_gain(&self, k: usize) -> f64 {
+        let gains = self.terms.iter().filter(|t| t.kind == EffectKind::DriveGain && t.joint == Some(k));
+        gains.map(|t| 1.0 + t.coefficients[0]).product()
+    }
+
+    fn accumulate(&mut self, q: &[f64], qd: &[f64], qdd: &[f64], tau: &mut [f64], with_gains: bool) {
         let mut features = [0.0; 8];
         for (term, state) in self.terms.iter().zip(&mut self.states) {
+            if !with_gains && term.kind == EffectKind::DriveGain {
+                continue;
+            }
             match term.joint {
                 Some(k) => {
                     let width = term.width();

@@ -28,6 +28,7 @@ __all__ = [
     "_simulate",
     "butter",
     "consistent_least_squares",
+    "external_force",
     "filtfilt",
     "load_model",
     "paper_validation_trajectory",
@@ -153,6 +154,25 @@ def butter(order: int, cutoff_hz: float, sample_rate_hz: float) -> tuple[_Array,
 
 def filtfilt(x: _ArrayLike, cutoff_hz: float, sample_rate_hz: float, order: Optional[int] = None) -> _Array:
     """Zero-phase Butterworth low-pass along axis 0 (filtfilt's padding, second-order sections)."""
+
+def external_force(
+    robot: Robot,
+    t: _ArrayLike,
+    q: _ArrayLike,
+    qd: _ArrayLike,
+    tau: _ArrayLike,
+    *,
+    bandwidth_hz: Union[float, Sequence[float]],
+    model: Optional[Identification] = None,
+    params: Optional[_ArrayLike] = None,
+    epsilon: Optional[Union[float, Sequence[float]]] = None,
+    frame: Optional[str] = None,
+    about: Optional[str] = None,
+    sigma: Optional[Union[float, Sequence[float]]] = None,
+    min_lever_m: float = 1e-3,
+    torque: str = "sampled",
+) -> dict[str, npt.NDArray[Any]]:
+    """The external joint torque by the momentum observer, and the force at ``frame``."""
 
 @final
 class Identification:

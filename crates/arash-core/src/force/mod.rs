@@ -1,0 +1,9 @@
+//! The force of an operator's hand, estimated from the calibrated model: the external joint
+//! torque by a generalized momentum observer ([`MomentumObserver`]), and the force at a named
+//! frame such as the instrument tip ([`FrameForce`]). Neither allocates after it is built.
+
+pub mod frame_force;
+pub mod observer;
+
+pub use frame_force::{FrameForce, FrameForceSample};
+pub use observer::{MomentumObserver, ObserverError, TorqueTiming};
