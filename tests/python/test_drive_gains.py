@@ -281,7 +281,9 @@ def test_a_six_axis_arm_at_100_hz_weighs_a_second_payload_in_kilograms_from_logs
 # [0.27, 1.77] × its σ for n = 4 (χ² with 3 degrees of freedom, 95 %), within [0.55, 1.45] for
 # n = 10; and it holds the model's own parameter noise besides the gains'. Measured σ/spread
 # with four draws: 0.91, so the suite's bounds fail a σ off by more than about 4.4× up or 3.6×
-# down; the long tier's bound it to within the sampling error of ten.
+# down (checked by hand: the gains' σ scaled by 5 or by 0.25 in `GainErrors::sigma` fails the
+# four-draw case, at 4.5 and 0.23 × the spread); the long tier's bound it to within the
+# sampling error of ten.
 @pytest.mark.parametrize("draws,low,high", [(4, 0.25, 4.0), pytest.param(10, 0.5, 1.3, marks=pytest.mark.full)],
                          ids=["4 calibrations", "10 calibrations"])
 def test_the_gains_share_of_a_payloads_sigma_is_the_spread_of_calibrations(draws, low, high):
