@@ -134,6 +134,8 @@ fn bad_input_is_refused_by_name() {
     let e =
         MomentumObserver::new(&model, &params, &[], &[10.0, 0.0, 10.0], &[1e-3; 3], TorqueTiming::Held).unwrap_err();
     assert_eq!(e, ObserverError::Bandwidth { joint: 1, value: 0.0 });
+    let e = MomentumObserver::new(&model, &params[1..], &[], &[10.0; 3], &[1e-3; 3], TorqueTiming::Held).unwrap_err();
+    assert_eq!(e.to_string(), "π has 88 entries; the robot's model has 89 parameters");
     let e = MomentumObserver::new(&model, &params, &[], &[10.0; 2], &[1e-3; 3], TorqueTiming::Held).unwrap_err();
     assert!(e.to_string().contains("bandwidth has 2 entries"), "{e}");
     let mut observer = MomentumObserver::new(&model, &params, &[], &[10.0; 3], &[1e-3; 3], TorqueTiming::Held).unwrap();

@@ -1,5 +1,7 @@
 //! `external_force`: the momentum observer and the force at a frame over a whole log.
 
+use arash_core::control::gains::{compensation_epsilon, model_epsilon};
+use arash_core::control::RobustGains;
 use arash_core::force::{FrameForce, MomentumObserver, TorqueTiming};
 use numpy::PyReadonlyArrayDyn;
 use pyo3::exceptions::PyValueError;
@@ -14,7 +16,8 @@ use crate::robot::Robot;
 /// `qd`, `tau` (N, dof): the torque the drives applied), at `bandwidth_hz` per joint (a float
 /// or one per joint), on the model `model` (an `Identification`, effects included) or on the
 /// parameters `params` (the CAD parameters when neither is given). The Coulomb terms switch as
-/// tanh(q̇/ε), `epsilon` per joint (default: the robust controller's). `torque` says how `tau`
+/// tanh(q̇/ε), `epsilon` per joint (default: the robust controller's, or the joint kinds' default
+/// for a robot without the paper's gains). `torque` says how `tau`
 /// acted between samples: "sampled" (a measurement at its instant: a torque sensor, a current
 /// read back) or "held" (a command held until the next sample: the daemon's and the
 /// simulator's logs).
@@ -64,8 +67,11 @@ pub(crate) fn external_force<'py>(
     let bandwidth = per_joint("bandwidth_hz", bandwidth_hz)?;
     let epsilon = match &epsilon {
         Some(e) => per_joint("epsilon", e)?,
+        // The robust controller's ε as it compensates friction: the paper's where it has gains
+        // for the robot, the joint kinds' default elsewhere, widened to the model's own law.
         None => {
-            arash_core::control::RobustGains::paper(core_model).map(|g| g.epsilon).unwrap_or_else(|_| vec![1e-3; n])
+            let paper = RobustGains::paper(core_model).map(|g| g.epsilon);
+            compensation_epsilon(core_model, &paper.unwrap_or_else(|_| model_epsilon(core_model)))
         }
     };
     let sigma = match &sigma {

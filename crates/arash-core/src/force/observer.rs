@@ -24,6 +24,8 @@ use crate::model::Model;
 pub enum ObserverError {
     #[error("{what} has {got} entries; the robot has {dof} joints")]
     Length { what: &'static str, got: usize, dof: usize },
+    #[error("π has {got} entries; the robot's model has {needed} parameters")]
+    Params { got: usize, needed: usize },
     #[error("the observer's bandwidth on joint {joint} is {value} Hz; it must be positive and finite")]
     Bandwidth { joint: usize, value: f64 },
     #[error("the Coulomb switching velocity on joint {joint} is {value}; it must be positive and finite")]
@@ -97,7 +99,7 @@ impl MomentumObserver {
             }
         }
         if params.len() != model.num_params() {
-            return Err(ObserverError::Length { what: "π", got: params.len(), dof: n });
+            return Err(ObserverError::Params { got: params.len(), needed: model.num_params() });
         }
         if let Some((joint, &value)) = bandwidth_hz.iter().enumerate().find(|(_, b)| !(b.is_finite() && **b > 0.0)) {
             return Err(ObserverError::Bandwidth { joint, value });
