@@ -287,3 +287,46 @@ def test_the_kuka_model_from_run_1_predicts_run_2_as_well_as_a_hand_set_cutoff()
           f"best hand-set mean {hand.mean(axis=1).max():.1f}")
     assert run2.mean() >= hand.mean(axis=1).max() - 1.0, (run2, hand)
     assert np.all(run2[1:4] >= 85.0), run2
+
+
+FLANGE_MASS_KG = 3.0  # a tool of the size the LWR4+ carries (its rated payload is 7 kg)
+
+
+def test_a_mass_hung_at_the_kuka_flange_is_weighed_by_the_force_estimate():
+    """Issue 58 on measured data. Runs 2 and 3 (held out from the run-1 fit; run 3 in another part
+    of the joint space) with a 3 kg point mass added at the flange (lwr_7_link's origin) by
+    Pinocchio's RNEA of the arm with and without it, from the logged q, q̇, q̈. The observer on the
+    model identified from run 1 (q differentiated as the model was fitted, the sensors' torque
+    as sampled) must weigh it: the flange force's vertical part is −m g within 10 % where the arm
+    moves slowly (its slowest fifth of samples, median). The CAD model is further off on both
+    runs. The bandwidth is the model's band, not the default quarter of it: these logs were
+    low-pass filtered upstream at about that band, so there is nothing above it for the lag to
+    pass, and a quarter (0.27 Hz, a 0.6 s lag) smears the faster motion into the slow samples
+    (14 % on run 2)."""
+    pin = pytest.importorskip("pinocchio")
+    urdf = need(KUKA / "kuka_lwr4.urdf")
+    robot = arash.Robot.from_urdf(urdf)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # two periods only, said in settings["warnings"]
+        identified = arash.identify(robot, *kuka_run(1))
+    bare = pin.buildModelFromUrdf(str(urdf))
+    loaded = pin.Model(bare)
+    loaded.appendBodyToJoint(loaded.getJointId("lwr_6_joint"), pin.Inertia(FLANGE_MASS_KG, np.zeros(3), 1e-6 * np.eye(3)),
+                             pin.SE3.Identity())
+    bare_data, loaded_data = bare.createData(), loaded.createData()
+    weight = FLANGE_MASS_KG * 9.81
+    for i in (2, 3):
+        data = np.load(need(KUKA / f"measurements_{i}.npz"))
+        t, q, qd, qdd = data["times"] - data["times"][0], data["positions"], data["velocities"], data["accelerations"]
+        load = np.array([pin.rnea(loaded, loaded_data, *s) - pin.rnea(bare, bare_data, *s) for s in zip(q, qd, qdd)])
+        tau = data["torques"] + load
+        speed = np.abs(qd).max(axis=1)
+        errors = {}
+        for name, kw in [("identified", {"model": identified}), ("CAD", {"qd": qd})]:
+            out = arash.external_force(robot, t, q, tau, frame="lwr_7_link", bandwidth_hz=identified.cutoff_hz, **kw)
+            slow = (speed < np.quantile(speed, 0.2)) & ~out["singular"]
+            errors[name] = abs(np.median(out["force"][slow, 2]) + weight) / weight
+        print(f"\nrun {i}: flange weight error, identified {100 * errors['identified']:.1f} %, "
+              f"CAD {100 * errors['CAD']:.1f} %")
+        assert errors["identified"] <= 0.10, (i, errors)
+        assert errors["CAD"] > 1.5 * errors["identified"], (i, errors)

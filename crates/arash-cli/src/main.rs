@@ -32,6 +32,9 @@ enum Command {
     Identify(cli::identify::Args),
     /// Find what the declared model lacks in logged runs: report, figures and an updated model.
     Diagnose(cli::diagnose::Args),
+    /// Estimate the hand's force over logged runs from the model: the estimate with its σ, the
+    /// contacts and collisions found, and a figure.
+    Force(cli::force::Args),
     /// Run the simulated rig with a controller on a trajectory and write the flight log (MCAP).
     Simulate(cli::simulate::Args),
     /// Run the rig: the 1 kHz control loop over the motor link (starts with the motors disabled).
@@ -56,6 +59,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Excite(args) => cli::excite::run(args),
         Command::Identify(args) => cli::identify::run(args),
         Command::Diagnose(args) => cli::diagnose::run(args),
+        Command::Force(args) => cli::force::run(args),
         Command::Simulate(args) => cli::simulate::run(args),
         Command::Daemon(args) => cli::daemon::run(args),
         Command::Ctl(args) => cli::ctl::run(args),

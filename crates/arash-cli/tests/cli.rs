@@ -3,6 +3,7 @@
 mod common;
 
 use common::Scratch;
+use std::path::Path;
 use std::process::Command;
 
 fn arash(args: &[&str]) -> std::process::Output {
@@ -338,6 +339,8 @@ fn diagnose_names_the_effect_and_writes_report_model_and_figures() {
     assert_eq!(model["effects"][0]["kind"], "configuration_disturbance");
     let report = std::fs::read_to_string(report_dir.join("report.txt")).unwrap();
     assert!(text.starts_with(report.trim()), "report.txt is what was printed");
+    assert_eq!(model["held_out"]["rms"].as_array().map(Vec::len), Some(3), "{}", model["held_out"]);
+    force_reads_the_run_with_the_diagnosed_model(&log, &report_dir.join("model.json"), &dir.join("force"));
     let pngs: Vec<_> = std::fs::read_dir(&report_dir)
         .unwrap()
         .map(|e| e.unwrap().path())
@@ -355,6 +358,32 @@ fn diagnose_names_the_effect_and_writes_report_model_and_figures() {
     let out = arash(&["diagnose", log.to_str().unwrap(), "--hold-friction", "-o", never.to_str().unwrap()]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("--model"), "{err}");
+}
+
+/// `arash force` over the hand-free run the model was diagnosed on: thresholds from the model's
+/// held-out σ, the force at the instrument tip by default, no collision, and its files written.
+fn force_reads_the_run_with_the_diagnosed_model(log: &Path, model: &Path, out_dir: &Path) {
+    let (log, model, out_dir) = (log.to_str().unwrap(), model.to_str().unwrap(), out_dir.to_str().unwrap());
+    let out = arash(&["force", log, "--model", model, "--held", "-o", out_dir]);
+    let (text, err) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "{err}");
+    assert!(text.contains("the force at `instrument_tip`, its moment about `remote_centre`"), "{text}");
+    assert!(
+        text.contains("σ is the model's held-out residual RMS") && text.contains(", 0 reaching collision"),
+        "{text}"
+    );
+    let csv = std::fs::read_to_string(Path::new(out_dir).join("force.csv")).unwrap();
+    let header = csv.lines().next().unwrap();
+    assert!(
+        header.starts_with("t,tau_ext.") && header.contains(",force.z,") && header.ends_with(",singular"),
+        "{header}"
+    );
+    assert_eq!(csv.lines().count(), 45_001);
+    let png = std::fs::read(Path::new(out_dir).join("force.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG\r\n\x1a\n") && png.len() > 10_000);
+    let out = arash(&["force", log, "--model", model, "--frame", "tool", "-o", out_dir]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("no frame `tool`"), "{err}");
 }
 
 /// A scenario for the two-joint planar fixture.

@@ -1,7 +1,7 @@
 //! The mutable workspace paired with a [`Model`]: every buffer an evaluation needs, allocated once.
 
 use crate::model::Model;
-use crate::spatial::{Mat3, Motion, Vec3};
+use crate::spatial::{Force, Mat3, Motion, Vec3};
 
 /// Scratch and results for one [`Model`]. Create it once with [`Data::new`]; no algorithm in this
 /// crate allocates after that. A `Data` must only be used with the model it was made for.
@@ -24,6 +24,8 @@ pub struct Data {
     pub(crate) vel_ref: Vec<Motion>,
     /// Spatial accelerations (or reference accelerations), gravity included when asked for.
     pub(crate) acc: Vec<Motion>,
+    /// Per-body forces summed over each body's subtree (the momentum observer's sweep).
+    pub(crate) subtree: Vec<Force>,
     /// `(sin q_k, cos q_k)` of each actuated coordinate at the last forward kinematics.
     pub(crate) sin_cos: Vec<(f64, f64)>,
     /// dof × dof scratch for the mass matrix and its Cholesky factor.
@@ -46,6 +48,7 @@ impl Data {
             vel: vec![Motion::ZERO; nb],
             vel_ref: vec![Motion::ZERO; nb],
             acc: vec![Motion::ZERO; nb],
+            subtree: vec![Force::ZERO; nb],
             sin_cos: vec![(0.0, 1.0); n],
             mass: vec![0.0; n * n],
             rhs: vec![0.0; n],

@@ -6,7 +6,7 @@
 //! joints.
 
 use crate::data::Data;
-use crate::kinematics::{motion_sweep, placements_and_jacobians};
+use crate::kinematics::{motion_sweep, placements_and_jacobians, subspace};
 use crate::model::Model;
 use crate::spatial::{apply_inertia, Force, Motion};
 
@@ -142,6 +142,60 @@ fn christoffel_wrench(p: &[f64], v: &Motion, v_r: &Motion, a_r: &Motion) -> Forc
     let t2 = apply_inertia(p, &v.cross(v_r));
     let t3 = v_r.cross_force(&apply_inertia(p, v));
     Force { n: base.n + (t1.n - t2.n + t3.n) * 0.5, f: base.f + (t1.f - t2.f + t3.f) * 0.5 }
+}
+
+/// The terms of the generalized momentum observer at `(q, q̇)` in one kinematic pass: the
+/// momentum `M(q) q̇`, `Cᵀ(q, q̇) q̇` and the gravity torque `g(q)`, each `dof` long. Friction and
+/// elastic entries of π are not used.
+///
+/// `Cᵀq̇` is `∂T/∂q`, the kinetic energy's gradient (the Christoffel `C` makes them equal), and a
+/// tree's `∂T/∂θ` about one joint is `(v × s) · H`: the joint body's velocity crossed with its
+/// axis, against the momentum `H` of everything the joint carries. That costs one sweep out and
+/// one back instead of `C`'s `dof` sweeps; a coupled body adds its multiplier's share to the
+/// coordinate that drives it.
+pub fn momentum_terms(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], params: &[f64], out: MomentumTerms<'_>) {
+    check_params(model, params);
+    let n = model.dof();
+    let MomentumTerms { momentum, coriolis_t, gravity } = out;
+    assert!(
+        momentum.len() == n && coriolis_t.len() == n && gravity.len() == n,
+        "the momentum terms must each hold {n} values"
+    );
+    placements_and_jacobians(model, data, q);
+    // Velocities J q̇, and accelerations of gravity alone (no reference rate, no q̈).
+    let zeros = std::mem::take(&mut data.zeros);
+    motion_sweep(model, data, qd, &zeros, &zeros, true);
+    data.zeros = zeros;
+    momentum.fill(0.0);
+    gravity.fill(0.0);
+    for b in 0..model.bodies.len() {
+        let p = body_params(params, b);
+        let h = apply_inertia(p, &data.vel[b]);
+        let w = apply_inertia(p, &data.acc[b]);
+        for k in 0..n {
+            let column = &data.jac[b * n + k];
+            momentum[k] += column.dot(&h);
+            gravity[k] += column.dot(&w);
+        }
+        data.subtree[b] = h;
+    }
+    coriolis_t.fill(0.0);
+    for (b, body) in model.bodies.iter().enumerate().rev() {
+        let carried = data.subtree[b];
+        if let Some(c) = body.coupling {
+            coriolis_t[c.index] += c.multiplier * data.vel[b].cross(&subspace(body)).dot(&carried);
+        }
+        if let Some(parent) = body.parent {
+            data.subtree[parent] = data.subtree[parent].add(&carried.to_parent(&data.rot[b], &data.pos[b]));
+        }
+    }
+}
+
+/// Where [`momentum_terms`] writes: `M q̇`, `Cᵀq̇` and `g`, each `dof` long.
+pub struct MomentumTerms<'a> {
+    pub momentum: &'a mut [f64],
+    pub coriolis_t: &'a mut [f64],
+    pub gravity: &'a mut [f64],
 }
 
 /// The gravity torque `g(q)`.

@@ -7,7 +7,7 @@ use crate::spatial::{axis_angle, axis_rotation, Mat3, Motion, Vec3};
 
 /// Joint motion subspace `S` of a body, in its own frame.
 #[inline]
-fn subspace(body: &Body) -> Motion {
+pub(crate) fn subspace(body: &Body) -> Motion {
     match body.kind {
         JointKind::Revolute => Motion::new(body.axis, Vec3::zeros()),
         JointKind::Prismatic => Motion::new(Vec3::zeros(), body.axis),

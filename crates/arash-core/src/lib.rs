@@ -19,6 +19,7 @@ pub mod effects;
 #[cfg(feature = "flightlog")]
 pub mod flightlog;
 pub mod force;
+pub mod force_log;
 pub mod identify;
 pub mod kinematics;
 pub mod model;
@@ -36,8 +37,8 @@ pub mod urdf;
 pub use base_parameters::{BaseParameterError, BaseParameters};
 pub use data::Data;
 pub use dynamics::{
-    coriolis_matrix, forward_dynamics, gravity_torque, inverse_dynamics, kinetic_energy, mass_matrix, potential_energy,
-    DynamicsError,
+    coriolis_matrix, forward_dynamics, gravity_torque, inverse_dynamics, kinetic_energy, mass_matrix, momentum_terms,
+    potential_energy, DynamicsError, MomentumTerms,
 };
 pub use kinematics::forward_kinematics;
 pub use model::{ActuatedJoint, Body, CoulombLaws, CoulombShape, Frame, JointKind, Model, ModelWarning, UnknownFrame};

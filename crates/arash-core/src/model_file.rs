@@ -223,6 +223,51 @@ pub struct ModelFile {
     /// physical units.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub drive_gains: Option<DriveGains>,
+    /// The model's residual on data it was not fitted on, per joint: what a force estimate's σ
+    /// and its detection thresholds are set from (docs/force.md). `arash identify --validate`
+    /// and `arash diagnose` record it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub held_out: Option<HeldOut>,
+}
+
+/// A model's residual on held-out data: measured torque minus the model's prediction, in the
+/// band the model was fitted in, each sample on its own (periods not averaged, as a force
+/// estimate sees them).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HeldOut {
+    /// RMS per joint (N·m or N).
+    pub rms: Vec<f64>,
+    /// The samples pooled over.
+    pub samples: usize,
+    /// The band's cut-off (Hz).
+    pub cutoff_hz: f64,
+    /// Which data: the validation runs' names, or the training log's held-out blocks.
+    pub source: String,
+}
+
+impl HeldOut {
+    /// One finite, non-negative RMS per joint, and a positive cut-off: σ and thresholds are made
+    /// from them.
+    fn check(&self, dof: usize) -> Result<(), ModelFileError> {
+        if self.rms.len() != dof {
+            return Err(ModelFileError::Shape(format!(
+                "`held_out.rms` has {} values for {dof} joints",
+                self.rms.len()
+            )));
+        }
+        if let Some((k, v)) = self.rms.iter().enumerate().find(|(_, v)| !(v.is_finite() && **v >= 0.0)) {
+            return Err(ModelFileError::Shape(format!(
+                "`held_out.rms[{k}]` is {v}; a residual's RMS must be finite and not negative"
+            )));
+        }
+        if !(self.cutoff_hz.is_finite() && self.cutoff_hz > 0.0) {
+            return Err(ModelFileError::Shape(format!(
+                "`held_out.cutoff_hz` is {}; it must be positive and finite",
+                self.cutoff_hz
+            )));
+        }
+        Ok(())
+    }
 }
 
 /// How the stacked problem is solved. Both treat the currents as measured with noise, which plain
@@ -462,6 +507,7 @@ impl ModelFile {
             data,
             effects: vec![],
             drive_gains: None,
+            held_out: None,
         }
     }
 
@@ -500,6 +546,9 @@ impl ModelFile {
                      (null for sign(q̇))"
                 )));
             }
+        }
+        if let Some(held_out) = &id.held_out {
+            held_out.check(id.dof())?;
         }
         Ok(id)
     }

@@ -83,6 +83,24 @@ impl Motion {
     }
 }
 
+impl Force {
+    pub const ZERO: Force = Force { n: Vec3::new(0.0, 0.0, 0.0), f: Vec3::new(0.0, 0.0, 0.0) };
+
+    /// Re-express a force given in a child frame in its parent frame, the child's orientation
+    /// being `rot` and its origin `pos` in the parent (the dual of [`Motion::to_child`]: the
+    /// power `m · f` is the same in either frame).
+    #[inline]
+    pub fn to_parent(&self, rot: &Mat3, pos: &Vec3) -> Force {
+        let f = rot * self.f;
+        Force { n: rot * self.n + pos.cross(&f), f }
+    }
+
+    #[inline]
+    pub fn add(&self, g: &Force) -> Force {
+        Force { n: self.n + g.n, f: self.f + g.f }
+    }
+}
+
 /// `I(π) x`: the spatial inertia of a body with parameters `p` applied to motion `x`.
 #[inline]
 pub fn apply_inertia(p: &[f64], x: &Motion) -> Force {

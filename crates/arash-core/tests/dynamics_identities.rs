@@ -62,6 +62,41 @@ fn mass_coriolis_and_gravity_compose_inverse_dynamics() {
     }
 }
 
+/// The observer's one-pass terms equal `M q̇`, `Cᵀ q̇` and `g` from the separate algorithms, and
+/// `Cᵀ q̇` is the kinetic energy's gradient by central differences (independent of `C`).
+#[test]
+fn momentum_terms_are_the_momentum_the_energy_gradient_and_gravity() {
+    for model in all_models() {
+        let (mut data, mut rng, n) = (Data::new(&model), rng(11), model.dof());
+        let (mut m, mut c, mut g) = (vec![0.0; n * n], vec![0.0; n * n], vec![0.0; n]);
+        let (mut p, mut ct, mut g1) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        for _ in 0..STATES {
+            let (s, pi) = (state(&model, &mut rng), physical_params(&model, &mut rng));
+            let terms = MomentumTerms { momentum: &mut p, coriolis_t: &mut ct, gravity: &mut g1 };
+            momentum_terms(&model, &mut data, &s.q, &s.qd, &pi, terms);
+            mass_matrix(&model, &mut data, &s.q, &pi, &mut m);
+            coriolis_matrix(&model, &mut data, &s.q, &s.qd, &pi, &mut c);
+            gravity_torque(&model, &mut data, &s.q, &pi, &mut g);
+            let h = 1e-6;
+            for k in 0..n {
+                let mq: f64 = dot(&m[k * n..(k + 1) * n], &s.qd);
+                let ctq: f64 = (0..n).map(|j| c[j * n + k] * s.qd[j]).sum();
+                let energy = |sign: f64, data: &mut Data| {
+                    let mut q = s.q.clone();
+                    q[k] += sign * h;
+                    kinetic_energy(&model, data, &q, &s.qd, &pi)
+                };
+                let gradient = (energy(1.0, &mut data) - energy(-1.0, &mut data)) / (2.0 * h);
+                let scale = 1.0 + mq.abs() + ctq.abs() + g[k].abs();
+                assert!((p[k] - mq).abs() <= 1e-11 * scale, "{}: momentum on joint {k}", model.name);
+                assert!((g1[k] - g[k]).abs() <= 1e-11 * scale, "{}: gravity on joint {k}", model.name);
+                assert!((ct[k] - ctq).abs() <= 1e-10 * scale, "{}: Cᵀq̇ on joint {k}: {} vs {ctq}", model.name, ct[k]);
+                assert!((ct[k] - gradient).abs() <= 1e-6 * scale, "{}: ∂T/∂q on joint {k}", model.name);
+            }
+        }
+    }
+}
+
 /// `Ṁ` by central differences of `M` along `q + t q̇`.
 fn mass_matrix_rate(model: &Model, data: &mut Data, q: &[f64], qd: &[f64], pi: &[f64]) -> Vec<f64> {
     let (n, h) = (model.dof(), 1e-6);

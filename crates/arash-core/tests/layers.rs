@@ -32,6 +32,7 @@ const CORE: &[&str] = &[
     "record",
     "model_file",
     "identify",
+    "force_log",
     "diagnose",
     "flightlog",
     "sim",
@@ -41,7 +42,7 @@ const CORE: &[&str] = &[
 const FOLDERS: &[(&str, &[&str])] = &[
     ("blas_lapack", &["args", "blas", "lapack"]),
     ("control", &["gains", "safety", "fourier", "trajectory", "estimator", "feedforward", "laws"]),
-    ("force", &["frame_force", "observer"]),
+    ("force", &["thresholds", "frame_force", "observer"]),
     (
         "identify",
         &[

@@ -12,8 +12,8 @@ use arash_core::identify::gains::{Calibration, GainEstimator, KnownLoad};
 use arash_core::identify::options::{ConsistentOptions, ExcitationOptions, PreprocessOptions};
 use arash_core::identify::repair::{repair, Signal};
 use arash_core::identify::{
-    identify as core_identify, identify_in_closed_loop, identify_with_known_load, validate, Declared, IdentifyOptions,
-    Log,
+    held_out_residual, identify as core_identify, identify_in_closed_loop, identify_with_known_load, validate,
+    Declared, IdentifyOptions, Log,
 };
 use arash_core::model_file::{IdentifyMethod, ModelFile as CoreIdentification};
 use arash_core::Model;
@@ -242,6 +242,54 @@ impl Identification {
         dict.set_item("rel", to_numpy(py, m.relative_error, false, dof, &[])?)?;
         dict.set_item("rms", to_numpy(py, m.rms, false, dof, &[])?)?;
         Ok(dict)
+    }
+
+    /// The model's residual on data it was not fitted on, as its file records it: "rms" per
+    /// joint (N·m or N, the force estimate's σ), "samples", "cutoff_hz" and "source"; None when
+    /// the file records none (`with_held_out` records it; a diagnosis always does).
+    #[getter]
+    fn held_out<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(h) = &self.inner.held_out else { return Ok(None) };
+        let d = PyDict::new(py);
+        d.set_item("rms", vector_out(py, &h.rms)?)?;
+        d.set_item("samples", h.samples)?;
+        d.set_item("cutoff_hz", h.cutoff_hz)?;
+        d.set_item("source", &h.source)?;
+        Ok(Some(d))
+    }
+
+    /// The same model with its residual on the held-out `runs` recorded (each a tuple `(t, q,
+    /// tau)`, as for `validate`): per joint, the RMS over all their samples, in the model's band,
+    /// no periods averaged. A model with a diagnosis's effects has its own, from the diagnosis.
+    fn with_held_out(&self, py: Python<'_>, runs: Vec<Bound<'_, PyAny>>) -> PyResult<Identification> {
+        if !self.inner.effects.is_empty() {
+            return Err(PyValueError::new_err(
+                "this model has effects a diagnosis added, and its held-out residual from that diagnosis; \
+                 `with_held_out` scores a declared model (`without_effects()` gives one)",
+            ));
+        }
+        if runs.is_empty() {
+            return Err(PyValueError::new_err("runs is empty: give at least one (t, q, tau) held out from the fit"));
+        }
+        let mut arrays = Vec::with_capacity(runs.len());
+        for (i, run) in runs.iter().enumerate() {
+            let (t, q, tau) = run
+                .extract::<(PyReadonlyArrayDyn<'_, f64>, PyReadonlyArrayDyn<'_, f64>, PyReadonlyArrayDyn<'_, f64>)>()
+                .map_err(|_| PyValueError::new_err(format!("runs[{i}] is not a tuple (t, q, tau) of arrays")))?;
+            arrays.push((t, q, tau));
+        }
+        let mut logs = Vec::with_capacity(arrays.len());
+        for (t, q, tau) in &arrays {
+            logs.push(log_arrays(t, q, tau, self.model.dof())?);
+        }
+        let names: Vec<String> = (0..logs.len()).map(|i| format!("runs[{i}]")).collect();
+        let runs: Vec<(&str, Log)> =
+            names.iter().zip(&logs).map(|(name, (t, q, tau))| (name.as_str(), Log { t, q, tau })).collect();
+        let order = self.inner.settings.order;
+        let held_out = py.detach(|| held_out_residual(&self.model, &self.inner, &runs, order)).map_err(value_error)?;
+        let mut inner = self.inner.clone();
+        inner.held_out = Some(held_out);
+        Ok(Identification::new(Arc::clone(&self.model), inner))
     }
 
     /// The same model without the effects a diagnosis added (`which`: the indices of those to

@@ -9,8 +9,8 @@ use arash_core::identify::closed_loop::{ClosedLoop, IvOptions, LoggedController}
 use arash_core::identify::gains::{Calibration, GainEstimator, KnownLoad};
 use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
 use arash_core::identify::{
-    identify, identify_in_closed_loop, identify_with_known_load, validate, validation_table, Declared, IdentifyOptions,
-    Log,
+    held_out_residual, identify, identify_in_closed_loop, identify_with_known_load, validate, validation_table,
+    Declared, IdentifyOptions, Log,
 };
 use arash_core::model_file::IdentifyMethod;
 
@@ -159,6 +159,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         let joints = model.joint_names();
         let mut labels = Vec::new();
         let mut fp = Vec::new();
+        let mut held_out = Vec::new();
         for path in &args.validate {
             let v = args.runs.read(std::slice::from_ref(path), &model)?;
             let pre = PreprocessOptions { periods: args.validate_periods, order: args.order, ..Default::default() };
@@ -169,8 +170,18 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             }
             labels.push(path.file_stem().map_or("run".into(), |s| s.to_string_lossy().into_owned()));
             fp.push(validation.metrics.fp_percent);
+            held_out.push(v);
         }
         println!("Cross-validation (FP% per joint, one column per run):\n{}", validation_table(&joints, &labels, &fp));
+        let runs: Vec<(&str, Log)> = labels
+            .iter()
+            .zip(&held_out)
+            .map(|(label, v)| (label.as_str(), Log { t: &v.t, q: &v.q, tau: &v.tau }))
+            .collect();
+        let residual =
+            held_out_residual(&model, &identification, &runs, args.order).context("the held-out residual")?;
+        println!("Held-out residual RMS per joint (the force estimate's σ): {}", rms_line(&joints, &residual.rms));
+        identification.held_out = Some(residual);
     }
     crate::report::write_atomically(&args.output, &identification.to_json())?;
     println!("wrote {}", args.output.display());
@@ -206,4 +217,9 @@ fn closed_loop_of<'a>(
         })?,
     };
     Ok((&channels.reference, controller))
+}
+
+/// `name value, …`, each value in scientific notation.
+fn rms_line(joints: &[String], rms: &[f64]) -> String {
+    joints.iter().zip(rms).map(|(j, r)| format!("{j} {r:.4e}")).collect::<Vec<_>>().join(", ")
 }

@@ -3,6 +3,7 @@ pub mod daemon;
 pub mod demo;
 pub mod diagnose;
 pub mod excite;
+pub mod force;
 pub mod identify;
 pub mod mock_motor;
 pub mod model;

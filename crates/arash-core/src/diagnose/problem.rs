@@ -132,6 +132,16 @@ pub(super) enum HeldOut {
     Blocks { train: Vec<bool>, test: Vec<bool> },
 }
 
+impl HeldOut {
+    /// How many samples the held-out error is measured on.
+    pub(super) fn samples(&self, dof: usize) -> usize {
+        match self {
+            HeldOut::Validation(v) => v.y.len() / dof,
+            HeldOut::Blocks { test, .. } => test.iter().filter(|t| **t).count(),
+        }
+    }
+}
+
 /// A candidate in the search: its term and its weighted columns on each log.
 pub(super) struct Candidate {
     pub(super) term: EffectTerm,

@@ -393,7 +393,20 @@ impl Search<'_> {
         let declared_fit = Fitted { columns: &declared_only, coefficients: &x_before };
         let final_fit = Fitted { columns: &final_cols, coefficients: &x_after };
         let series = series(&ctx.train, problem, declared_fit, final_fit, pool, &state.chosen);
-        let updated = self.updated_model(&state, &x_after, &series, urdf, samples_in)?;
+        let mut updated = self.updated_model(&state, &x_after, &series, urdf, samples_in)?;
+        let heldout = match ctx.validation.is_some() {
+            true => "the validation log".to_string(),
+            false => format!(
+                "the odd-numbered of {} blocks of {:.3} s, fitting on the even ones",
+                ctx.split.count, ctx.split.block_s
+            ),
+        };
+        updated.held_out = Some(crate::model_file::HeldOut {
+            rms: after.heldout.rms.clone(),
+            samples: self.heldout.samples(dof),
+            cutoff_hz: ctx.train.pre.cutoff_hz,
+            source: heldout.clone(),
+        });
         for (i, c) in pool.iter().enumerate().filter(|(i, _)| !state.chosen.contains(i)) {
             rejected.push(
                 state.status[i]
@@ -430,14 +443,7 @@ impl Search<'_> {
                 max_vif: options.max_vif,
                 max_delay_s: options.max_delay_s,
                 refit: ctx.refit,
-                heldout: if ctx.validation.is_some() {
-                    "the validation log".into()
-                } else {
-                    format!(
-                        "the odd-numbered of {} blocks of {:.3} s, fitting on the even ones",
-                        ctx.split.count, ctx.split.block_s
-                    )
-                },
+                heldout,
                 candidates: pool.len() + 1,
             },
             model: updated,

@@ -15,7 +15,7 @@
 
 use crate::control::EffectFeedforward;
 use crate::data::Data;
-use crate::dynamics::{coriolis_matrix, gravity_torque, mass_matrix};
+use crate::dynamics::{momentum_terms, MomentumTerms};
 use crate::effects::EffectTerm;
 use crate::model::Model;
 
@@ -69,8 +69,9 @@ pub struct MomentumObserver {
     applied: Vec<f64>,
     explained: Vec<f64>,
     primed: bool,
-    mass: Vec<f64>,
-    coriolis: Vec<f64>,
+    /// The effects' constant inertia (rotors), dof × dof row-major.
+    effect_inertia: Vec<f64>,
+    coriolis_t: Vec<f64>,
     gravity: Vec<f64>,
     forces: Vec<f64>,
     now_momentum: Vec<f64>,
@@ -109,6 +110,8 @@ impl MomentumObserver {
         }
         let mut params = params.to_vec();
         let effects = EffectFeedforward::new(model, effects, epsilon, &mut params);
+        let mut effect_inertia = vec![0.0; n * n];
+        effects.add_inertia(&mut effect_inertia);
         let zeros = vec![0.0; n];
         Ok(Self {
             model: model.clone(),
@@ -123,8 +126,8 @@ impl MomentumObserver {
             applied: zeros.clone(),
             explained: zeros.clone(),
             primed: false,
-            mass: vec![0.0; n * n],
-            coriolis: vec![0.0; n * n],
+            effect_inertia,
+            coriolis_t: zeros.clone(),
             gravity: zeros.clone(),
             forces: zeros.clone(),
             now_momentum: zeros.clone(),
@@ -183,22 +186,23 @@ impl MomentumObserver {
     /// the `now_` buffers.
     fn momentum_and_explained(&mut self, q: &[f64], qd: &[f64], tau: &[f64]) {
         let n = self.model.dof();
-        mass_matrix(&self.model, &mut self.data, q, &self.params, &mut self.mass);
-        self.effects.add_inertia(&mut self.mass);
-        coriolis_matrix(&self.model, &mut self.data, q, qd, &self.params, &mut self.coriolis);
-        gravity_torque(&self.model, &mut self.data, q, &self.params, &mut self.gravity);
+        let terms = MomentumTerms {
+            momentum: &mut self.now_momentum,
+            coriolis_t: &mut self.coriolis_t,
+            gravity: &mut self.gravity,
+        };
+        momentum_terms(&self.model, &mut self.data, q, qd, &self.params, terms);
         self.forces.fill(0.0);
         self.effects.add_forces(q, qd, &mut self.forces);
         let layout = self.model.layout();
         for k in 0..n {
-            let row = &self.mass[k * n..(k + 1) * n];
-            self.now_momentum[k] = row.iter().zip(qd).map(|(m, v)| m * v).sum();
-            let coriolis_t: f64 = (0..n).map(|j| self.coriolis[j * n + k] * qd[j]).sum();
+            let row = &self.effect_inertia[k * n..(k + 1) * n];
+            self.now_momentum[k] += row.iter().zip(qd).map(|(m, v)| m * v).sum::<f64>();
             let joint = self.params[layout.viscous(k)] * qd[k]
                 + self.params[layout.coulomb(k)] * (qd[k] / self.epsilon[k]).tanh()
                 + self.params[layout.stiffness(k)] * q[k];
             self.now_applied[k] = tau[k] / self.effects.drive_gain(k);
-            self.now_explained[k] = coriolis_t - self.gravity[k] - joint - self.forces[k];
+            self.now_explained[k] = self.coriolis_t[k] - self.gravity[k] - joint - self.forces[k];
         }
     }
 }

@@ -20,7 +20,7 @@ pub mod signals;
 
 use crate::base_parameters::BaseParameters;
 use crate::model::Model;
-use crate::model_file::{DataSummary, Fitted, IdentifyMethod, Metrics, ModelFile, ModelFileError, Settings};
+use crate::model_file::{DataSummary, Fitted, HeldOut, IdentifyMethod, Metrics, ModelFile, ModelFileError, Settings};
 use crate::physical::{min_pseudo_inertia_eigenvalues, nearest_standard_parameters};
 use closed_loop::{closed_loop_fit, ClosedLoopError, ClosedLoopSettings, ClosedLoopStart};
 use consistent::{identify_consistent, ConsistentError};
@@ -472,5 +472,36 @@ pub fn validation_series(
         predicted,
         cutoff_hz: pre.cutoff_hz,
         reasons: pre.choices.reasons,
+    })
+}
+
+/// The model's residual on held-out runs (`(name, log)` each), for [`ModelFile::held_out`]: per
+/// joint, the RMS over every run's samples of the measured torque minus the prediction, each run
+/// filtered in the model's band and no periods averaged, since a force estimate sees each sample
+/// on its own. `order` is the filter's, as the identification's.
+pub fn held_out_residual(
+    model: &Model,
+    identification: &ModelFile,
+    runs: &[(&str, Log<'_>)],
+    order: usize,
+) -> Result<HeldOut, IdentifyError> {
+    let n = model.dof();
+    let mut squares = vec![0.0; n];
+    let (mut samples, mut cutoff_hz) = (0, identification.settings.cutoff_hz);
+    let options = PreprocessOptions { periods: Some(1), order, ..Default::default() };
+    for (_, log) in runs {
+        let series = validation_series(model, identification, log.t, log.q, log.tau, &options)?;
+        for (k, (m, p)) in series.measured.iter().zip(&series.predicted).enumerate() {
+            squares[k % n] += (m - p) * (m - p);
+        }
+        samples += series.measured.len() / n;
+        cutoff_hz = cutoff_hz.min(series.cutoff_hz);
+    }
+    let names: Vec<&str> = runs.iter().map(|(name, _)| *name).collect();
+    Ok(HeldOut {
+        rms: squares.iter().map(|s| (s / samples.max(1) as f64).sqrt()).collect(),
+        samples,
+        cutoff_hz,
+        source: format!("validation runs: {}", names.join(", ")),
     })
 }

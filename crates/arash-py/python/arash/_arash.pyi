@@ -159,20 +159,27 @@ def external_force(
     robot: Robot,
     t: _ArrayLike,
     q: _ArrayLike,
-    qd: _ArrayLike,
     tau: _ArrayLike,
     *,
-    bandwidth_hz: Union[float, Sequence[float]],
+    qd: Optional[_ArrayLike] = None,
     model: Optional[Identification] = None,
     params: Optional[_ArrayLike] = None,
+    bandwidth_hz: Optional[Union[float, Sequence[float]]] = None,
     epsilon: Optional[Union[float, Sequence[float]]] = None,
+    sigma: Optional[Union[float, Sequence[float]]] = None,
     frame: Optional[str] = None,
     about: Optional[str] = None,
-    sigma: Optional[Union[float, Sequence[float]]] = None,
     min_lever_m: float = 1e-3,
     torque: str = "sampled",
-) -> dict[str, npt.NDArray[Any]]:
-    """The external joint torque by the momentum observer, and the force at ``frame``."""
+    currents: bool = False,
+    thresholds: Optional[Union[str, tuple[Union[float, Sequence[float]], Union[float, Sequence[float]]]]] = None,
+    contact_sigmas: Optional[float] = None,
+    collision_sigmas: Optional[float] = None,
+) -> dict[str, Any]:
+    """The external joint torque by the momentum observer ("tau_ext", its σ "sigma_joint"), the force
+    at ``frame``, and with ``thresholds`` ("sigma", or ``(contact, collision)`` in N·m and N) each
+    sample's "level" (0 free, 1 contact, 2 collision) and the "episodes" found. What was chosen
+    from the model (bandwidth, σ, q̇) is in "reasons"."""
 
 @final
 class Identification:
@@ -221,6 +228,13 @@ class Identification:
         """FP% ("fp_percent"), ‖e‖/‖τ‖ ("rel") and RMS ("rms") per joint on a validation log, with the
         cut-off it was filtered at ("cutoff_hz") and its preprocessing reasons ("reasons"), of the
         declared part (``arash.heldout_errors`` scores a diagnosis's effects too)."""
+    @property
+    def held_out(self) -> Optional[dict[str, Any]]:
+        """The model's residual on held-out data, as its file records it: "rms" per joint (the
+        force estimate's σ), "samples", "cutoff_hz" and "source"; None when it records none."""
+    def with_held_out(self, runs: Sequence[tuple[_ArrayLike, _ArrayLike, _ArrayLike]]) -> Identification:
+        """The same model with its residual on the held-out ``runs`` (each ``(t, q, tau)``) recorded:
+        per joint, the RMS over all their samples, in the model's band, no periods averaged."""
     def without_effects(self, which: Optional[Sequence[int]] = None) -> Identification:
         """The same model without the effects a diagnosis added (``which``: the indices of those to
         drop, in the file's order; default all, which leaves the declared part alone)."""
