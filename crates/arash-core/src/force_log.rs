@@ -66,6 +66,13 @@ pub enum ThresholdChoice {
     ByHand { contact: Vec<f64>, collision: Vec<f64> },
 }
 
+/// A frame the force is wanted at, and the frame its moment is taken about (default: the base).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FrameChoice {
+    pub frame: String,
+    pub about: Option<String>,
+}
+
 /// What an offline estimate is made with; `None` fields are chosen from the model.
 #[derive(Clone, Debug)]
 pub struct ForceLogOptions {
@@ -76,7 +83,7 @@ pub struct ForceLogOptions {
     /// Each joint's σ of the estimate (N·m, N).
     pub sigma: Option<Vec<f64>>,
     /// The frame the force is mapped to, and the frame its moment is taken about.
-    pub frame: Option<(String, String)>,
+    pub frame: Option<FrameChoice>,
     /// The smallest lever the joints must give the frame's origin in every direction (m).
     pub min_lever_m: f64,
     pub timing: TorqueTiming,
@@ -116,6 +123,8 @@ pub struct ForceLog {
     pub sigma: Vec<f64>,
     /// Per sample, whether the joints cannot resolve the force at the frame.
     pub singular: Vec<bool>,
+    /// The frame the force is at and the one its moment is about, as used.
+    pub frame: Option<(String, String)>,
     /// With thresholds: each sample's level, the thresholds, and the episodes found.
     pub levels: Vec<Level>,
     pub thresholds: Option<Thresholds>,
@@ -190,11 +199,15 @@ pub fn estimate_force(
         None => epsilon_of(&model, &mut reasons),
     };
     let mut observer = MomentumObserver::new(&model, &pi, &effects, &bandwidth, &epsilon, options.timing)?;
-    let mut map = match &options.frame {
+    let frame = options.frame.as_ref().map(|c| {
+        let base = || model.frames[0].name.clone();
+        (c.frame.clone(), c.about.clone().unwrap_or_else(base))
+    });
+    let mut map = match &frame {
         Some((frame, about)) => Some(FrameForce::new(&model, frame, about, options.min_lever_m)?),
         None => None,
     };
-    let mut out = ForceLog { tau_ext: vec![0.0; samples * n], ..Default::default() };
+    let mut out = ForceLog { tau_ext: vec![0.0; samples * n], frame, ..Default::default() };
     for i in 0..samples {
         let rows = i * n..(i + 1) * n;
         // The first sample primes the observer; its step length is never used.
@@ -223,9 +236,10 @@ pub fn estimate_force(
 
 /// The robot's instrument tip and the remote centre its moment is taken about, where its URDF
 /// names them (ARASH:ASiST's do): the frame a force is wanted at when none is named.
-pub fn default_frame(model: &Model) -> Option<(String, String)> {
+pub fn default_frame(model: &Model) -> Option<FrameChoice> {
     let has = |name: &str| model.frame(name).is_ok();
-    (has("instrument_tip") && has("remote_centre")).then(|| ("instrument_tip".into(), "remote_centre".into()))
+    (has("instrument_tip") && has("remote_centre"))
+        .then(|| FrameChoice { frame: "instrument_tip".into(), about: Some("remote_centre".into()) })
 }
 
 /// Each joint's Coulomb width: the model's own law where it has one (the velocity offline has no

@@ -1,7 +1,9 @@
 //! `external_force`: the hand's force over a whole log (`arash_core::force_log`).
 
 use arash_core::force::{Level, TorqueTiming, COLLISION_SIGMAS, CONTACT_SIGMAS};
-use arash_core::force_log::{estimate_force, Effort, ForceInput, ForceLogOptions, Source, ThresholdChoice};
+use arash_core::force_log::{
+    estimate_force, Effort, ForceInput, ForceLogOptions, FrameChoice, Source, ThresholdChoice,
+};
 use numpy::PyReadonlyArrayDyn;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -34,7 +36,7 @@ use crate::robot::Robot;
 /// collision)` per joint in N·m and N; the result then holds each sample's `level` (0 free, 1
 /// contact, 2 collision), the thresholds used and the `episodes` (start, end, level) found.
 #[pyfunction]
-#[pyo3(signature = (robot, t, q, tau, *, qd=None, model=None, params=None, bandwidth_hz=None, epsilon=None, sigma=None, frame=None, about=None, min_lever_m=1e-3, torque="sampled", currents=false, thresholds=None, contact_sigmas=None, collision_sigmas=None))]
+#[pyo3(signature = (robot, t, q, tau, *, qd=None, model=None, params=None, bandwidth_hz=None, epsilon=None, sigma=None, frame=None, about=None, min_lever_m=None, torque="sampled", currents=false, thresholds=None, contact_sigmas=None, collision_sigmas=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn external_force<'py>(
     py: Python<'py>,
@@ -50,7 +52,7 @@ pub(crate) fn external_force<'py>(
     sigma: Option<Bound<'py, PyAny>>,
     frame: Option<String>,
     about: Option<String>,
-    min_lever_m: f64,
+    min_lever_m: Option<f64>,
     torque: &str,
     currents: bool,
     thresholds: Option<Bound<'py, PyAny>>,
@@ -92,12 +94,13 @@ pub(crate) fn external_force<'py>(
             }
         }
     };
+    let defaults = ForceLogOptions::default();
     let options = ForceLogOptions {
         bandwidth_hz: optional("bandwidth_hz", &bandwidth_hz)?,
         epsilon: optional("epsilon", &epsilon)?,
         sigma: optional("sigma", &sigma)?,
-        frame: frame.map(|f| (f, about.unwrap_or_else(|| core_model.frames[0].name.clone()))),
-        min_lever_m,
+        frame: frame.map(|frame| FrameChoice { frame, about }),
+        min_lever_m: min_lever_m.unwrap_or(defaults.min_lever_m),
         timing,
         effort: if currents { Effort::Current } else { Effort::Torque },
         thresholds,
@@ -127,7 +130,7 @@ pub(crate) fn external_force<'py>(
     out.set_item("sigma_joint", vector_out(py, &result.sigma_joint)?)?;
     out.set_item("bandwidth_hz", vector_out(py, &result.bandwidth_hz)?)?;
     out.set_item("reasons", &result.reasons)?;
-    if options.frame.is_some() {
+    if result.frame.is_some() {
         out.set_item("force", matrix_out(py, &result.force, 3)?)?;
         out.set_item("local", matrix_out(py, &result.local, 3)?)?;
         out.set_item("moment", matrix_out(py, &result.moment, 3)?)?;

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use arash_core::force::{Level, TorqueTiming, COLLISION_SIGMAS, CONTACT_SIGMAS};
 use arash_core::force_log::{
-    default_frame, estimate_force, Effort, ForceInput, ForceLog, ForceLogOptions, Source, ThresholdChoice,
+    default_frame, estimate_force, Effort, ForceInput, ForceLog, ForceLogOptions, FrameChoice, Source, ThresholdChoice,
 };
 use arash_core::{Model, ModelFile};
 
@@ -79,9 +79,9 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     eprintln!("estimating the hand's force over {} samples ...", log.t.len());
     let result = estimate_force(&model, Source::File(&file), input, &options).context("estimating the force")?;
     std::fs::create_dir_all(&args.output).with_context(|| format!("creating {}", args.output.display()))?;
-    let frame = options.frame.as_ref().map(|(f, _)| f.as_str());
+    let frame = result.frame.as_ref().map(|(f, _)| f.as_str());
     crate::report::write_atomically(&args.output.join("force.csv"), &csv(&model, &log.t, &result, frame))?;
-    let report = report(&model, &log.t, &result, &options);
+    let report = report(&model, &log.t, &result);
     crate::report::write_atomically(&args.output.join("report.txt"), &report)?;
     figure(&args.output.join("force.png"), &model, &log.t, &result, frame)?;
     print!("{report}");
@@ -99,11 +99,11 @@ fn options(args: &Args, model: &Model, file: &ModelFile) -> anyhow::Result<Force
         }
     };
     let frame = match (&args.frame, &args.about) {
-        (Some(f), Some(a)) => Some((f.clone(), a.clone())),
-        (Some(f), None) => {
-            let about = default_frame(model).filter(|(tip, _)| tip == f).map(|(_, centre)| centre);
-            Some((f.clone(), about.unwrap_or_else(|| model.frames[0].name.clone())))
-        }
+        // The instrument tip's moment is wanted about the remote centre even when named alone.
+        (Some(f), about) => Some(FrameChoice {
+            frame: f.clone(),
+            about: about.clone().or_else(|| default_frame(model).filter(|d| &d.frame == f).and_then(|d| d.about)),
+        }),
         (None, Some(_)) => anyhow::bail!("--about needs --frame"),
         (None, None) => default_frame(model),
     };
@@ -173,12 +173,12 @@ fn level_name(level: Level) -> &'static str {
 }
 
 /// What chose each setting, the thresholds, and the contacts and collisions found.
-fn report(model: &Model, t: &[f64], result: &ForceLog, options: &ForceLogOptions) -> String {
+fn report(model: &Model, t: &[f64], result: &ForceLog) -> String {
     let mut s = String::from("The hand's force, estimated from the model\n\n");
     for reason in &result.reasons {
         let _ = writeln!(s, "  {reason}");
     }
-    if let Some((frame, about)) = &options.frame {
+    if let Some((frame, about)) = &result.frame {
         let _ = writeln!(s, "  the force at `{frame}`, its moment about `{about}` (base frame)");
     }
     let names = model.joint_names();

@@ -169,7 +169,7 @@ def external_force(
     sigma: Optional[Union[float, Sequence[float]]] = None,
     frame: Optional[str] = None,
     about: Optional[str] = None,
-    min_lever_m: float = 1e-3,
+    min_lever_m: Optional[float] = None,
     torque: str = "sampled",
     currents: bool = False,
     thresholds: Optional[Union[str, tuple[Union[float, Sequence[float]], Union[float, Sequence[float]]]]] = None,
