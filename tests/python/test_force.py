@@ -169,9 +169,21 @@ def test_the_held_out_residual_is_the_unmodelled_torque_of_the_held_out_run():
     assert np.all(rms[[0, 2]] < 2.0 * truth["noise"][[0, 2]]), (rms, truth["noise"])
     # The samples the filter has settled on (its start-up is left out), thinned as the fit was.
     assert 0 < model.held_out["samples"] <= len(t) and model.held_out["source"] == "validation runs: runs[0]"
+    # The observer on the same held-out run, hand-free: the pitch's constant torque passes every
+    # bandwidth alike, so the pitch widens to the grid's end and its σ is that torque; the yaw's
+    # noise grows with the band and keeps it at the least. Each joint takes the widest bandwidth
+    # whose σ is within 25 % of its σ at the least.
+    observer = model.held_out["observer"]
+    grid, sigma = observer["grid_hz"], observer["grid_sigma"]
+    assert grid[0] == 20.0 and np.all(np.diff(grid) > 0), grid
+    assert observer["bandwidth_hz"][1] == grid[-1] and abs(observer["sigma"][1] - offset) < 0.1 * offset, observer
+    assert sigma[1, 0] > 1.25 * sigma[0, 0] and observer["bandwidth_hz"][0] == grid[0], observer
+    for k in range(3):
+        widest = max(g for g in range(len(grid)) if sigma[g, k] <= 1.25 * sigma[0, k])
+        assert observer["bandwidth_hz"][k] == grid[widest] and observer["sigma"][k] == sigma[widest, k], (k, observer)
     out = arash.external_force(robot, t, q, tau, model=model, thresholds="sigma")
-    assert any("held-out σ" in r for r in out["reasons"]), out["reasons"]
-    np.testing.assert_allclose(out["bandwidth_hz"], model.held_out["cutoff_hz"] / 4)
-    np.testing.assert_allclose(out["sigma_joint"], rms)
-    np.testing.assert_allclose(out["contact_threshold"], 4.0 * rms)
-    np.testing.assert_allclose(out["collision_threshold"], 8.0 * rms)
+    assert any("observer's hand-free RMS" in r for r in out["reasons"]), out["reasons"]
+    np.testing.assert_allclose(out["bandwidth_hz"], observer["bandwidth_hz"])
+    np.testing.assert_allclose(out["sigma_joint"], observer["sigma"])
+    np.testing.assert_allclose(out["contact_threshold"], 4.0 * observer["sigma"])
+    np.testing.assert_allclose(out["collision_threshold"], 8.0 * observer["sigma"])

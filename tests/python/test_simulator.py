@@ -46,7 +46,7 @@ def test_read_log_agrees_with_the_official_decoder(run):
         np.testing.assert_array_equal(log[field], result[field], err_msg=field)
     for field in ["t", "cycle", "controller", "mode", "faults"]:
         np.testing.assert_array_equal(log[field], [getattr(m, field) for m in cycles], err_msg=field)
-    for field in ["q", "qd", "qdd", "tau_motor", "motor_q", "motor_qd"]:
+    for field in ["q", "qd", "qdd", "tau_motor", "motor_q", "motor_qd", "tau_hand", "hand_force"]:
         np.testing.assert_array_equal(log["truth"][field], np.array([list(getattr(m, field)) for m in truth]))
     assert log["metadata"] == metadata["arash"]
     assert log["urdf"] == attachments["robot.urdf"].decode() == ROBOT_FILES["arash_asist"].read_text()
@@ -139,3 +139,32 @@ def test_the_cli_log_identifies_like_the_python_arrays(tmp_path):
     assert cli.cutoff_hz == ident.cutoff_hz
     assert cli.settings["reasons"] == ident.settings["reasons"]
     np.testing.assert_allclose(cli.beta, ident.beta, rtol=1e-9, atol=1e-12)
+
+
+def test_the_hand_pushes_the_plant_by_pinocchios_jacobian():
+    """scenarios/hand.toml's hand at the instrument tip: the joint torque the truth records is
+    Jᵀ F with Pinocchio's own frame Jacobian, and the plant feels it: Pinocchio's inverse dynamics
+    of the true robot is the motors' torque plus the hand's. Before the random force starts (1 s)
+    there is no hand."""
+    pin = pytest.importorskip("pinocchio")
+    from support.independent import Expanded
+
+    result = arash.simulate(ROOT / "scenarios" / "hand.toml", VALIDATION, controller="robust", duration=2.0)
+    robot = arash.Robot.arash_asist()
+    ref = Expanded(ROBOT_FILES["arash_asist"], robot)
+    params = result["true_params"]
+    ref.set_parameters(params)
+    tip = ref.model.getFrameId("instrument_tip")
+    nb, n = len(robot.body_names()), robot.dof
+    fv, fc, ke = params[10 * nb : 10 * nb + 2 * n : 2], params[10 * nb + 1 : 10 * nb + 2 * n : 2], params[-n:]
+    truth, t = result["truth"], result["t"]
+    assert not truth["hand_force"][t < 1.0].any() and not truth["tau_hand"][t < 1.0].any()
+    assert np.abs(truth["hand_force"][t > 1.5]).max() > 0.1
+    scale = np.abs(truth["tau_motor"]).max(0)
+    for i in range(1100, 2000, 13):
+        q, qd, qdd = truth["q"][i], truth["qd"][i], truth["qdd"][i]
+        jac = pin.computeFrameJacobian(ref.model, ref.data, ref.configuration(q), tip, pin.LOCAL_WORLD_ALIGNED)
+        hand = ref.G.T @ (jac[:3].T @ truth["hand_force"][i])
+        np.testing.assert_allclose(truth["tau_hand"][i], hand, rtol=1e-9, atol=1e-12 * scale.max())
+        tau = ref.torque(q, qd, qdd) + fv * qd + fc * np.tanh(qd / 1e-3) + ke * q
+        assert np.max(np.abs(tau - truth["tau_motor"][i] - hand) / scale) < 1e-9, i

@@ -9,10 +9,12 @@ use std::path::Path;
 use anyhow::{bail, Context};
 use arash_core::control::Trajectory;
 use arash_core::flightlog::on_uniform_grid;
+use arash_core::force::TorqueTiming;
 use arash_core::identify::closed_loop::LoggedController;
 use arash_core::Model;
 
 /// A log: `t` (N) and row-major `q`, `tau` (N × dof).
+#[derive(Clone)]
 pub struct Log {
     pub t: Vec<f64>,
     pub q: Vec<f64>,
@@ -27,6 +29,10 @@ pub struct Log {
     pub starts: Vec<usize>,
     /// What `--repair` did to the runs ([`Log::repaired`]), one line per change, each naming its file.
     pub repairs: Vec<String>,
+    /// How the logged torque acted between its sample and the next: the daemon's telemetry
+    /// reports the current over the cycle that ended at its sample, `arash simulate` records the
+    /// one over the cycle that follows, a CSV is taken as sampled.
+    pub timing: TorqueTiming,
 }
 
 impl Log {
@@ -71,8 +77,8 @@ impl Log {
             reference: [columns.next(), columns.next(), columns.next()].map(Option::unwrap_or_default),
             controller: c.controller,
         });
-        let (trajectory, starts, repairs) = (self.trajectory, self.starts, self.repairs);
-        let log = Log { t: repaired.t, q, tau, trajectory, closed_loop, starts, repairs };
+        let (trajectory, starts, repairs, timing) = (self.trajectory, self.starts, self.repairs, self.timing);
+        let log = Log { t: repaired.t, q, tau, trajectory, closed_loop, starts, repairs, timing };
         Ok((log, repaired.report))
     }
 
@@ -85,6 +91,7 @@ impl Log {
 
 /// The reference `(q_des, q̇_des, q̈_des)` at every sample (row-major N × dof each), and the
 /// controller the run was made with, or why the log does not name one.
+#[derive(Clone)]
 pub struct ClosedLoopChannels {
     pub reference: [Vec<f64>; 3],
     pub controller: Result<LoggedController, String>,
@@ -164,6 +171,10 @@ fn read_flight_log(path: &Path, model: &Model, effort: Effort) -> anyhow::Result
             closed_loop: Some(closed_loop),
             starts: vec![],
             repairs: vec![],
+            timing: match log.metadata.get("source").map(String::as_str) {
+                Some("simulator") => TorqueTiming::Held,
+                _ => TorqueTiming::Preceding,
+            },
         },
         dof,
     );
@@ -206,7 +217,16 @@ fn regrid(log: Log, dof: usize) -> (Log, usize) {
         controller: c.controller,
     });
     (
-        Log { t: uniform.t, q, tau, trajectory: log.trajectory, closed_loop, starts: log.starts, repairs: log.repairs },
+        Log {
+            t: uniform.t,
+            q,
+            tau,
+            trajectory: log.trajectory,
+            closed_loop,
+            starts: log.starts,
+            repairs: log.repairs,
+            timing: log.timing,
+        },
         uniform.repaired,
     )
 }
@@ -241,6 +261,7 @@ fn read_csv(path: &Path, model: &Model, repair: bool) -> anyhow::Result<Log> {
         closed_loop: None,
         starts: vec![],
         repairs: vec![],
+        timing: TorqueTiming::Sampled,
     };
     let mut reference: [Vec<f64>; 3] = Default::default();
     for (line, record) in reader.records().enumerate() {
@@ -297,8 +318,17 @@ pub fn concatenate(mut logs: Vec<Log>) -> Log {
         [one] => one.closed_loop.take(),
         _ => None,
     };
-    let mut out =
-        Log { t: Vec::new(), q: Vec::new(), tau: Vec::new(), trajectory, closed_loop, starts: vec![], repairs: vec![] };
+    let timing = logs.first().map_or(TorqueTiming::Sampled, |l| l.timing);
+    let mut out = Log {
+        t: Vec::new(),
+        q: Vec::new(),
+        tau: Vec::new(),
+        trajectory,
+        closed_loop,
+        starts: vec![],
+        repairs: vec![],
+        timing,
+    };
     for log in logs {
         if !out.t.is_empty() {
             out.starts.push(out.t.len());
@@ -368,8 +398,19 @@ mod tests {
         let q: Vec<f64> = t.iter().map(|t| 3.0 * t).collect();
         let reference = [q.clone(), q.clone(), q.clone()];
         let closed_loop = Some(ClosedLoopChannels { reference, controller: Err("none".into()) });
-        let (out, repaired) =
-            regrid(Log { t, q: q.clone(), tau: q, trajectory: None, closed_loop, starts: vec![], repairs: vec![] }, 1);
+        let (out, repaired) = regrid(
+            Log {
+                t,
+                q: q.clone(),
+                tau: q,
+                trajectory: None,
+                closed_loop,
+                starts: vec![],
+                repairs: vec![],
+                timing: TorqueTiming::Sampled,
+            },
+            1,
+        );
         assert_eq!(repaired, 2);
         let c = out.closed_loop.expect("kept");
         assert!(c.reference.iter().all(|r| *r == out.q) && c.controller.is_err());
@@ -391,6 +432,7 @@ mod tests {
             }),
             starts: vec![],
             repairs: vec![],
+            timing: TorqueTiming::Sampled,
         };
         let one = concatenate(vec![run(12.5)]);
         assert!((one.t[0] - 0.0).abs() < 1e-12 && (one.t[3] - 3e-3).abs() < 1e-12, "{:?}", one.t);
@@ -413,6 +455,7 @@ mod tests {
             closed_loop: None,
             starts: vec![],
             repairs: vec![],
+            timing: TorqueTiming::Sampled,
         };
         // Continuous: the second run starts one step on from where the first ended.
         assert!(concatenate(vec![run(0.0), run(5e-4)]).jumps().is_empty());
@@ -430,6 +473,7 @@ mod tests {
             closed_loop: None,
             starts: vec![],
             repairs: vec![],
+            timing: TorqueTiming::Sampled,
         };
         let jumps = concatenate(vec![moving(0.0), moving(0.2 + 3e-3)]).jumps();
         assert_eq!(jumps.iter().map(|j| (j.0, j.1)).collect::<Vec<_>>(), [(200, 0)], "{jumps:?}");

@@ -364,7 +364,7 @@ fn diagnose_names_the_effect_and_writes_report_model_and_figures() {
 /// held-out σ, the force at the instrument tip by default, no collision, and its files written.
 fn force_reads_the_run_with_the_diagnosed_model(log: &Path, model: &Path, out_dir: &Path) {
     let (log, model, out_dir) = (log.to_str().unwrap(), model.to_str().unwrap(), out_dir.to_str().unwrap());
-    let out = arash(&["force", log, "--model", model, "--held", "-o", out_dir]);
+    let out = arash(&["force", log, "--model", model, "-o", out_dir]);
     let (text, err) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
     assert!(out.status.success(), "{err}");
     assert!(text.contains("the force at `instrument_tip`, its moment about `remote_centre`"), "{text}");

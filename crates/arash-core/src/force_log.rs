@@ -1,13 +1,18 @@
 //! The hand's force over a whole log, offline: what `arash force` and `arash.external_force`
 //! return. The momentum observer runs over the samples, the estimate is mapped to a frame, each
-//! sample carries the σ the model's held-out residual gives it, and thresholds tell contact from
+//! sample carries the σ the model's held-out data gives it, and thresholds tell contact from
 //! collision (`docs/force.md`).
 //!
 //! The choices it makes when not told are made here, each with its reason:
-//! - the observer's bandwidth is a quarter of the band the model's σ was measured in (its
-//!   held-out cut-off), [`BAND_PER_BANDWIDTH`];
-//! - without a measured velocity, `q̇` is the central difference of `q` filtered zero-phase in
-//!   the model's band with the model's filter, as the identification differentiated it;
+//! - the observer's bandwidth and σ per joint are those measured on the model's held-out runs
+//!   ([`observer_held_out`]): at least ten times the hand's band so that it follows a hand
+//!   ([`HAND_BAND_HZ`], [`BANDWIDTH_PER_HAND_BAND`]), wider while the estimate's hand-free RMS
+//!   stays within [`NOISE_ALLOWANCE`] of its value there. A model file that records no observer
+//!   run gets a quarter of the band its σ was measured in ([`BAND_PER_BANDWIDTH`]), so that the
+//!   σ it carries still describes it; bare parameters get the hand's least bandwidth;
+//! - without a measured velocity, `q̇` is the central difference of `q` filtered zero-phase
+//!   with the model's filter, at the model's band or the observer's bandwidth
+//!   ([`VELOCITY_BAND_PER_BANDWIDTH`]), whichever is wider;
 //! - the Coulomb terms switch with the model's own law where it has one: offline the velocity is
 //!   filtered without lag, so the law the model was fitted with holds, where the controllers
 //!   widen it against a noisy velocity;
@@ -19,17 +24,60 @@ use crate::force::{
 };
 use crate::identify::filter::{Butterworth, FilterError};
 use crate::identify::signals::{central_difference, filter_columns};
+use crate::identify::Log;
 use crate::model::{Model, UnknownFrame};
-use crate::model_file::ModelFile;
+use crate::model_file::{ModelFile, ObserverHeldOut};
 
-/// The model's band over the observer's default bandwidth. The σ is measured in the band, by a
-/// zero-phase Butterworth that cuts steeply at its edge; the observer's first-order lag rolls off
-/// at only 20 dB per decade, so at the full band it would pass the residual above the band (and
-/// the differentiated velocity's noise) that σ never saw. At a quarter of the band its
-/// noise-equivalent band, π/2 of its bandwidth, lies well inside it: on the demo's rig the
-/// estimate's hand-free RMS is then 0.65–0.85 σ per joint, against 0.9–1.4 σ at the full band
-/// (docs/force.md).
+/// The model's band over the observer's bandwidth for a model file that records no observer run
+/// on held-out data: its σ was then measured in that band by a zero-phase Butterworth that cuts
+/// steeply at its edge, and the observer's first-order lag, rolling off at only 20 dB per decade,
+/// would at the full band pass what lies above it, which σ never saw. A quarter of the band keeps
+/// the estimate's noise inside the σ it carries, at the price of speed: record the observer's own
+/// run (`identify --validate`, `with_held_out`) to get a hand's bandwidth.
 pub const BAND_PER_BANDWIDTH: f64 = 4.0;
+
+/// The band of a hand's deliberate motion and force (Hz): voluntary movement lies below about
+/// 2 Hz; physiological tremor, at 8–12 Hz, is not the trainee's intent and an order of magnitude
+/// smaller.
+pub const HAND_BAND_HZ: f64 = 2.0;
+
+/// The least bandwidth over the hand's band: a first-order lag at ten times a force's frequency
+/// follows it to 10 % (5 % RMS over a flat band), and at 20 Hz it reads a step of twice a
+/// threshold across that threshold within ln 2/(2π·20 Hz) = 5.5 ms, inside the 20 ms a
+/// collision must be found in.
+pub const BANDWIDTH_PER_HAND_BAND: f64 = 10.0;
+
+/// The bandwidths the observer is tried at on held-out data, as multiples of the least
+/// ([`HAND_BAND_HZ`] × [`BANDWIDTH_PER_HAND_BAND`]), each up to a tenth of the sample rate.
+pub const BANDWIDTH_GRID: [f64; 4] = [1.0, 2.0, 4.0, 8.0];
+
+/// How far the hand-free RMS may grow over its value at the least bandwidth before a wider one
+/// is refused: 25 %. White noise grows √2 per octave of bandwidth, so a noisy joint stays at the
+/// least; an error no bandwidth changes (the model's own, slow beside the band) lets a joint
+/// widen, and so detect sooner, for nearly nothing.
+pub const NOISE_ALLOWANCE: f64 = 1.25;
+
+/// The bandwidths tried on a log sampled at `rate_hz`: the grid, capped at a tenth of the rate
+/// (a first-order lag sampled fewer than ten times per time constant's 2π is no longer one).
+const HAND_BANDWIDTH: f64 = HAND_BAND_HZ * BANDWIDTH_PER_HAND_BAND;
+
+pub fn bandwidth_grid(rate_hz: f64) -> Vec<f64> {
+    let least = HAND_BANDWIDTH;
+    let cap = 0.1 * rate_hz;
+    let mut grid: Vec<f64> = BANDWIDTH_GRID.iter().map(|m| m * least).filter(|b| *b <= cap).collect();
+    if grid.is_empty() {
+        grid.push(cap);
+    }
+    grid
+}
+
+/// The velocity filter's band over the observer's bandwidth. The momentum path differentiates
+/// `M q̇`, so the velocity's noise (an encoder's steps) reaches the estimate amplified by `K`
+/// above the bandwidth; a zero-phase filter at the bandwidth itself removes it there without
+/// lag, and a hand's force, ten times slower, passes unchanged. On the demo's held-out runs at
+/// 20 Hz, a filter at 4× the bandwidth doubles the yaw's and pitch's hand-free RMS and cuts the
+/// insertion's by a third (docs/force.md).
+pub const VELOCITY_BAND_PER_BANDWIDTH: f64 = 1.0;
 
 /// Why a log's force could not be estimated.
 #[derive(Debug, thiserror::Error)]
@@ -169,7 +217,8 @@ pub fn estimate_force(
         None => std::borrow::Cow::Borrowed(model),
     };
     let mut reasons = Vec::new();
-    let bandwidth = bandwidth_of(file, options, n, &mut reasons)?;
+    let rate = (samples - 1) as f64 / (input.t[samples - 1] - input.t[0]);
+    let bandwidth = bandwidth_of(file, options, rate, n, &mut reasons)?;
     let sigma = sigma_of(file, options, n, &mut reasons)?;
     let thresholds =
         match &options.thresholds {
@@ -181,14 +230,16 @@ pub fn estimate_force(
                      in N·m and N"
                         .into(),
                 )),
-                false => Some(Thresholds::from_sigma(&sigma, *contact, *collision)?),
+                false => {
+                    Some(with_peak(Thresholds::from_sigma(&sigma, *contact, *collision)?, file, options, &mut reasons))
+                }
             },
             ThresholdChoice::ByHand { contact, collision } => Some(Thresholds::by_hand(contact, collision, n)?),
         };
     let tau = torques_of(file, &input, options.effort, n)?;
     let qd = match input.qd {
         Some(qd) => std::borrow::Cow::Borrowed(qd),
-        None => std::borrow::Cow::Owned(velocity_of(file, &input, n, &mut reasons)?),
+        None => std::borrow::Cow::Owned(velocity_of(file, &input, &bandwidth, n, &mut reasons)?),
     };
     let (pi, effects) = match source {
         Source::File(f) => (f.full_or_base_vector(), f.effects.clone()),
@@ -232,6 +283,34 @@ pub fn estimate_force(
     out.bandwidth_hz = bandwidth;
     out.reasons = reasons;
     Ok(out)
+}
+
+/// Multiple of the held-out runs' largest hand-free estimate the collision threshold keeps above:
+/// a residual with heavy tails (friction at reversals) reaches 8σ and more without any hand, and
+/// a longer run than the held-out ones reaches further than they did.
+pub const PEAK_MARGIN: f64 = 1.5;
+
+/// The collision thresholds raised above the observer's held-out peak, where σ is the observer's
+/// own and the model records the peak.
+fn with_peak(
+    t: Thresholds,
+    file: Option<&ModelFile>,
+    options: &ForceLogOptions,
+    reasons: &mut Vec<String>,
+) -> Thresholds {
+    let peak = file.and_then(|f| f.held_out.as_ref()).and_then(|h| h.observer.as_ref()).map(|o| &o.peak);
+    match peak {
+        Some(peak) if options.sigma.is_none() && !peak.is_empty() => {
+            let floor: Vec<f64> = peak.iter().map(|p| PEAK_MARGIN * p).collect();
+            reasons.push(format!(
+                "the collision threshold is at least {PEAK_MARGIN} times the largest hand-free estimate on the held-out \
+                 runs, {:?}",
+                round3(peak)
+            ));
+            t.with_collision_floor(&floor)
+        }
+        _ => t,
+    }
 }
 
 /// The robot's instrument tip and the remote centre its moment is taken about, where its URDF
@@ -287,26 +366,36 @@ fn check_input(input: &ForceInput<'_>, n: usize) -> Result<usize, ForceLogError>
 fn bandwidth_of(
     file: Option<&ModelFile>,
     options: &ForceLogOptions,
+    rate: f64,
     n: usize,
     reasons: &mut Vec<String>,
 ) -> Result<Vec<f64>, ForceLogError> {
     if let Some(b) = &options.bandwidth_hz {
         return Ok(b.clone());
     }
-    let Some(file) = file else {
-        return Err(ForceLogError::Input(
-            "the observer's bandwidth follows from a model file's band; with bare parameters give it".into(),
-        ));
+    if let Some(o) = file.and_then(|f| f.held_out.as_ref()).and_then(|h| h.observer.as_ref()) {
+        reasons.push(format!("the observer's bandwidth per joint is {:?} Hz: {}", round3(&o.bandwidth_hz), o.reason));
+        return Ok(o.bandwidth_hz.clone());
+    }
+    let hz = match file.and_then(|f| f.held_out.as_ref().map(|h| h.cutoff_hz).or(Some(f.settings.cutoff_hz))) {
+        Some(band) => {
+            let hz = band / BAND_PER_BANDWIDTH;
+            reasons.push(format!(
+                "the observer's bandwidth is {hz:.3} Hz, a quarter of the {band:.3} Hz band the model's σ was measured \
+                 in: the model file records no observer run on held-out data (identify with --validate) to set it \
+                 from, and at a wider bandwidth the estimate would pass what that σ never saw"
+            ));
+            hz
+        }
+        None => {
+            let hz = bandwidth_grid(rate)[0];
+            reasons.push(format!(
+                "the observer's bandwidth is {hz:.3} Hz, {BANDWIDTH_PER_HAND_BAND} times the {HAND_BAND_HZ} Hz band of a \
+                 hand's force (at most a tenth of the sample rate)"
+            ));
+            hz
+        }
     };
-    let (band, from) = match &file.held_out {
-        Some(h) => (h.cutoff_hz, "the band the model's held-out σ was measured in"),
-        None => (file.settings.cutoff_hz, "the band the model was fitted in (it records no held-out σ)"),
-    };
-    let hz = band / BAND_PER_BANDWIDTH;
-    reasons.push(format!(
-        "the observer's bandwidth is {hz:.3} Hz, a quarter of {band:.3} Hz, {from}: its lag's slow roll-off then \
-         passes little of what lies above that band"
-    ));
     Ok(vec![hz; n])
 }
 
@@ -322,6 +411,13 @@ fn sigma_of(
             Err(ForceLogError::Input(format!("σ has {} entries; the robot has {n} joints", s.len())))
         }
         (Some(s), _) => Ok(s.clone()),
+        (None, Some(h)) if h.observer.is_some() => {
+            reasons.push(format!(
+                "σ is the observer's hand-free RMS at its bandwidth on the model's held-out data ({})",
+                h.source
+            ));
+            Ok(h.observer.as_ref().map(|o| o.sigma.clone()).unwrap_or_default())
+        }
         (None, Some(h)) => {
             reasons.push(format!("σ is the model's held-out residual RMS ({}, {} samples)", h.source, h.samples));
             Ok(h.rms.clone())
@@ -350,11 +446,12 @@ fn torques_of<'a>(
     Ok(input.effort.iter().enumerate().map(|(i, c)| c * gains.gains[i % n]).collect())
 }
 
-/// `q̇` as the identification made it: `q` filtered zero-phase in the model's band, then central
-/// differences.
+/// `q̇` as the identification made it, `q` filtered zero-phase with the model's filter then
+/// central differences, in a band wide enough for the observer's bandwidth.
 fn velocity_of(
     file: Option<&ModelFile>,
     input: &ForceInput<'_>,
+    bandwidth_hz: &[f64],
     n: usize,
     reasons: &mut Vec<String>,
 ) -> Result<Vec<f64>, ForceLogError> {
@@ -365,12 +462,111 @@ fn velocity_of(
     };
     let samples = input.t.len();
     let h = (input.t[samples - 1] - input.t[0]) / (samples - 1) as f64;
-    let cutoff = file.settings.cutoff_hz;
-    let filter = Butterworth::lowpass(file.settings.order, cutoff, 1.0 / h)?;
-    let q = filter_columns(&filter, input.q, n, false)?;
+    let cutoffs: Vec<f64> =
+        bandwidth_hz.iter().map(|b| velocity_cutoff(file.settings.cutoff_hz, *b, 1.0 / h)).collect();
+    // Each joint's velocity at its own cut-off: one filter per distinct cut-off.
+    let mut qd = vec![0.0; input.q.len()];
+    let mut done = vec![false; n];
+    for k in 0..n {
+        if done[k] {
+            continue;
+        }
+        let filter = Butterworth::lowpass(file.settings.order, cutoffs[k], 1.0 / h)?;
+        let rate = central_difference(&filter_columns(&filter, input.q, n, false)?, n, h, false);
+        for j in (k..n).filter(|&j| cutoffs[j] == cutoffs[k]) {
+            done[j] = true;
+            qd.iter_mut().skip(j).step_by(n).zip(rate.iter().skip(j).step_by(n)).for_each(|(o, v)| *o = *v);
+        }
+    }
     reasons.push(format!(
-        "q̇ is the central difference of q filtered zero-phase at {cutoff:.3} Hz (order {}), as the model was fitted",
-        file.settings.order
+        "q̇ is the central difference of q filtered zero-phase at {:?} Hz per joint (order {}): the model's band \
+         ({:.3} Hz) or {VELOCITY_BAND_PER_BANDWIDTH} times the joint's bandwidth, whichever is wider",
+        round3(&cutoffs),
+        file.settings.order,
+        file.settings.cutoff_hz
     ));
-    Ok(central_difference(&q, n, h, false))
+    Ok(qd)
+}
+
+/// A joint's velocity cut-off: the model's band, widened to the observer's bandwidth on that
+/// joint times [`VELOCITY_BAND_PER_BANDWIDTH`], below a fifth of the sample rate.
+fn velocity_cutoff(model_band_hz: f64, bandwidth_hz: f64, rate_hz: f64) -> f64 {
+    model_band_hz.max(VELOCITY_BAND_PER_BANDWIDTH * bandwidth_hz).min(0.2 * rate_hz)
+}
+
+fn round3(v: &[f64]) -> Vec<f64> {
+    v.iter().map(|x| (x * 1000.0).round() / 1000.0).collect()
+}
+
+/// The span of a run whose estimate holds neither edge: the zero-phase velocity filter rings for
+/// about three of its periods at either end (a run that stops moving mid-stroke reads there as
+/// a hand of 0.25 N·m on the demo's yaw), and the observer settles over five time constants.
+fn interior(t: &[f64], bandwidth_hz: f64, velocity_cutoff_hz: f64) -> (f64, f64) {
+    let edge = 3.0 / velocity_cutoff_hz;
+    (t[0] + edge + 5.0 / (std::f64::consts::TAU * bandwidth_hz), t[t.len() - 1] - edge)
+}
+
+/// The observer run with no hand on a model's held-out runs at each bandwidth of
+/// [`bandwidth_grid`]: per joint, the estimate's RMS away from the runs' edges ([`interior`]),
+/// and the widest bandwidth whose RMS is within [`NOISE_ALLOWANCE`] of the RMS at the least. What
+/// a force estimate on this model then uses as its bandwidth and σ.
+pub fn observer_held_out(
+    model: &Model,
+    file: &ModelFile,
+    runs: &[(&str, Log<'_>)],
+    timing: TorqueTiming,
+) -> Result<ObserverHeldOut, ForceLogError> {
+    let n = model.dof();
+    if runs.is_empty() {
+        return Err(ForceLogError::Input("the observer's σ needs at least one held-out run".into()));
+    }
+    let rate = runs
+        .iter()
+        .map(|(_, l)| (l.t.len().saturating_sub(1)) as f64 / (l.t[l.t.len() - 1] - l.t[0]))
+        .fold(f64::INFINITY, f64::min);
+    let grid = bandwidth_grid(rate);
+    let mut grid_sigma = vec![0.0; grid.len() * n];
+    let mut grid_peak = vec![0.0f64; grid.len() * n];
+    for (g, &b) in grid.iter().enumerate() {
+        let (mut squares, mut count) = (vec![0.0; n], 0usize);
+        let options = ForceLogOptions { bandwidth_hz: Some(vec![b; n]), timing, ..Default::default() };
+        for (name, log) in runs {
+            let input = ForceInput { t: log.t, q: log.q, qd: None, effort: log.tau };
+            let estimate = estimate_force(model, Source::File(file), input, &options)
+                .map_err(|e| ForceLogError::Input(format!("held-out run {name}: {e}")))?;
+            let (from, to) = interior(log.t, b, velocity_cutoff(file.settings.cutoff_hz, b, rate));
+            for (_, row) in estimate.tau_ext.chunks(n).enumerate().filter(|(i, _)| (from..to).contains(&log.t[*i])) {
+                squares.iter_mut().zip(row).for_each(|(s, r)| *s += r * r);
+                for (k, r) in row.iter().enumerate() {
+                    grid_peak[g * n + k] = grid_peak[g * n + k].max(r.abs());
+                }
+                count += 1;
+            }
+        }
+        if count == 0 {
+            return Err(ForceLogError::Input(format!(
+                "the held-out runs are too short for the observer to settle at {b} Hz"
+            )));
+        }
+        for k in 0..n {
+            grid_sigma[g * n + k] = (squares[k] / count as f64).sqrt();
+        }
+    }
+    let (mut bandwidth_hz, mut sigma, mut peak) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    for k in 0..n {
+        let column: Vec<f64> = (0..grid.len()).map(|g| grid_sigma[g * n + k]).collect();
+        let chosen = (0..grid.len()).rev().find(|&g| column[g] <= NOISE_ALLOWANCE * column[0]).unwrap_or(0);
+        bandwidth_hz[k] = grid[chosen];
+        sigma[k] = column[chosen];
+        peak[k] = grid_peak[chosen * n + k];
+    }
+    let names: Vec<&str> = runs.iter().map(|(name, _)| *name).collect();
+    let reason = format!(
+        "the widest of {grid:?} Hz (from {HAND_BANDWIDTH:.0} Hz, ten times a hand's {HAND_BAND_HZ} Hz band) at which \
+         the observer's hand-free RMS on the held-out runs ({}) is within {NOISE_ALLOWANCE} times its value at \
+         {:.0} Hz: wider, what the band lets through (noise grows √2 per octave) outgrows the error already there",
+        names.join(", "),
+        grid[0]
+    );
+    Ok(ObserverHeldOut { bandwidth_hz, sigma, grid_hz: grid, grid_sigma, reason, peak })
 }

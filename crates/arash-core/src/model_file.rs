@@ -243,6 +243,29 @@ pub struct HeldOut {
     pub cutoff_hz: f64,
     /// Which data: the validation runs' names, or the training log's held-out blocks.
     pub source: String,
+    /// The momentum observer run on the same held-out data with no hand: the bandwidth chosen
+    /// per joint and the estimate's RMS there, the σ a force estimate carries
+    /// (`force_log::observer_held_out`). Absent in files from before it was measured.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub observer: Option<ObserverHeldOut>,
+}
+
+/// The observer's hand-free estimate on held-out data, over a grid of bandwidths.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ObserverHeldOut {
+    /// The bandwidth chosen per joint (Hz).
+    pub bandwidth_hz: Vec<f64>,
+    /// The estimate's RMS per joint at that bandwidth (N·m or N).
+    pub sigma: Vec<f64>,
+    /// The bandwidths tried (Hz) and the RMS at each, per joint (`grid × dof`, row-major).
+    pub grid_hz: Vec<f64>,
+    pub grid_sigma: Vec<f64>,
+    /// Why each joint's bandwidth was chosen.
+    pub reason: String,
+    /// The largest hand-free estimate per joint at its bandwidth (N·m or N): the collision
+    /// threshold stays above it. Empty in files from before it was kept.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub peak: Vec<f64>,
 }
 
 impl HeldOut {
@@ -265,6 +288,30 @@ impl HeldOut {
                 "`held_out.cutoff_hz` is {}; it must be positive and finite",
                 self.cutoff_hz
             )));
+        }
+        if let Some(o) = &self.observer {
+            let checks = [
+                ("bandwidth_hz", &o.bandwidth_hz, dof, true),
+                ("sigma", &o.sigma, dof, false),
+                ("grid_sigma", &o.grid_sigma, o.grid_hz.len() * dof, false),
+                ("peak", &o.peak, if o.peak.is_empty() { 0 } else { dof }, false),
+            ];
+            for (name, values, len, positive) in checks {
+                if values.len() != len {
+                    return Err(ModelFileError::Shape(format!(
+                        "`held_out.observer.{name}` has {} values; it needs {len}",
+                        values.len()
+                    )));
+                }
+                if let Some((k, v)) =
+                    values.iter().enumerate().find(|(_, v)| !(v.is_finite() && **v >= 0.0) || (positive && **v == 0.0))
+                {
+                    return Err(ModelFileError::Shape(format!(
+                        "`held_out.observer.{name}[{k}]` is {v}; it must be finite and {}",
+                        if positive { "positive" } else { "not negative" }
+                    )));
+                }
+            }
         }
         Ok(())
     }

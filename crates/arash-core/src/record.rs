@@ -87,6 +87,10 @@ pub struct TruthRecord {
     pub motor_q: Vec<f64>,
     /// Motor velocity in joint units.
     pub motor_qd: Vec<f64>,
+    /// The operator's hand over the cycle: its force at its frame (base frame, N; zero without
+    /// a hand) and the joint torque it exerts at the cycle's start.
+    pub hand_force: Vec<f64>,
+    pub tau_hand: Vec<f64>,
 }
 
 impl TruthRecord {
@@ -99,6 +103,8 @@ impl TruthRecord {
             tau_motor: vec![0.0; dof],
             motor_q: vec![0.0; dof],
             motor_qd: vec![0.0; dof],
+            hand_force: vec![0.0; 3],
+            tau_hand: vec![0.0; dof],
         }
     }
 }
@@ -133,6 +139,9 @@ pub struct TruthColumns {
     pub tau_motor: Vec<f64>,
     pub motor_q: Vec<f64>,
     pub motor_qd: Vec<f64>,
+    /// `N × 3`, row-major.
+    pub hand_force: Vec<f64>,
+    pub tau_hand: Vec<f64>,
 }
 
 impl Columns {
@@ -170,7 +179,7 @@ impl Columns {
 
 impl TruthColumns {
     /// The joint vectors (`N × dof`, row-major), by field name.
-    pub fn joint_vectors(&self) -> [(&'static str, &Vec<f64>); 6] {
+    pub fn joint_vectors(&self) -> [(&'static str, &Vec<f64>); 7] {
         [
             ("q", &self.q),
             ("qd", &self.qd),
@@ -178,6 +187,7 @@ impl TruthColumns {
             ("tau_motor", &self.tau_motor),
             ("motor_q", &self.motor_q),
             ("motor_qd", &self.motor_qd),
+            ("tau_hand", &self.tau_hand),
         ]
     }
 
@@ -191,5 +201,7 @@ impl TruthColumns {
         self.tau_motor.extend(&r.tau_motor);
         self.motor_q.extend(&r.motor_q);
         self.motor_qd.extend(&r.motor_qd);
+        self.hand_force.extend(&r.hand_force);
+        self.tau_hand.extend(&r.tau_hand);
     }
 }

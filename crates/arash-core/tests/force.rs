@@ -94,6 +94,46 @@ fn the_observer_recovers_a_constant_torque_on_the_moving_arm_with_its_effects() 
     assert!(worst_blind > 0.1, "without them the estimate must be off; it was within {worst_blind:.2e}");
 }
 
+/// A drive's telemetry pairs each position with the torque of the cycle that ended there (the
+/// daemon's log): read as [`TorqueTiming::Preceding`] the constant torque on the moving arm is
+/// recovered; read as a command held from its sample, each cycle's change of the PD torque is
+/// taken for a hand.
+#[test]
+fn a_drive_reports_the_torque_of_the_cycle_that_ended_and_preceding_reads_it() {
+    let model = arash_asist();
+    let mut params = model.cad_parameters();
+    (0..3).for_each(|k| params[model.layout().coulomb(k)] = 0.0);
+    let external = [0.05, -0.08, 0.6];
+    let observer = |timing| MomentumObserver::new(&model, &params, &[], &[20.0; 3], &[1e-3; 3], timing).unwrap();
+    let (mut preceding, mut held) = (observer(TorqueTiming::Preceding), observer(TorqueTiming::Held));
+    let mut data = Data::new(&model);
+    let (mut q, mut qd) = ([0.0, 0.3, 0.0], [0.0; 3]);
+    let mut reported = [0.0; 3];
+    let (mut worst_preceding, mut worst_held) = (0.0_f64, 0.0_f64);
+    for i in 0..2000 {
+        let t = i as f64 * DT;
+        let r = preceding.step(DT, &q, &qd, &reported).unwrap().to_vec();
+        let h = held.step(DT, &q, &qd, &reported).unwrap().to_vec();
+        if t > 0.5 {
+            for k in 0..3 {
+                worst_preceding = worst_preceding.max((r[k] - external[k]).abs() / external[k].abs());
+                worst_held = worst_held.max((h[k] - external[k]).abs() / external[k].abs());
+            }
+        }
+        let target = [0.5 * (3.0 * t).sin(), 0.3 + 0.4 * (2.0 * t).sin(), 0.01 * (4.0 * t).sin()];
+        let mut tau = [0.0; 3];
+        gravity_torque(&model, &mut data, &q, &params, &mut tau);
+        let (kp, kd) = ([20.0, 20.0, 400.0], [1.0, 1.0, 20.0]);
+        (0..3).for_each(|k| tau[k] += kp[k] * (target[k] - q[k]) - kd[k] * qd[k]);
+        let applied: Vec<f64> = (0..3).map(|k| tau[k] + external[k]).collect();
+        rk4(&model, &mut data, &params, &[0.0; 3], &applied, &mut q, &mut qd);
+        // Reported with the next sample's position, as telemetry answers the command.
+        reported = tau;
+    }
+    assert!(worst_preceding < 0.01, "read as preceding: worst relative error {worst_preceding:.2e}");
+    assert!(worst_held > 3.0 * worst_preceding, "read as held: {worst_held:.2e}, no worse than preceding");
+}
+
 /// Ten RK4 steps of 0.1 ms across one cycle, the torque held.
 fn rk4(
     model: &Model,

@@ -73,11 +73,7 @@ pub(crate) fn external_force<'py>(
         }
     };
     let optional = |name: &str, v: &Option<Bound<'py, PyAny>>| v.as_ref().map(|v| per_joint(name, v)).transpose();
-    let timing = match torque {
-        "sampled" => TorqueTiming::Sampled,
-        "held" => TorqueTiming::Held,
-        other => return Err(PyValueError::new_err(format!("torque is {other:?}; give \"sampled\" or \"held\""))),
-    };
+    let timing = torque_timing(torque)?;
     let thresholds = match &thresholds {
         None => ThresholdChoice::None,
         Some(t) if t.extract::<String>().is_ok_and(|s| s == "sigma") => ThresholdChoice::Sigma {
@@ -146,4 +142,18 @@ pub(crate) fn external_force<'py>(
         out.set_item("episodes", found)?;
     }
     Ok(out)
+}
+
+/// How a logged torque acted between samples, by name: "sampled" (a sensor at its instant),
+/// "held" (a command held until the next sample) or "preceding" (a drive's report of the cycle
+/// that ended at its sample: the daemon's logs).
+pub(crate) fn torque_timing(torque: &str) -> PyResult<TorqueTiming> {
+    match torque {
+        "sampled" => Ok(TorqueTiming::Sampled),
+        "held" => Ok(TorqueTiming::Held),
+        "preceding" => Ok(TorqueTiming::Preceding),
+        other => {
+            Err(PyValueError::new_err(format!("torque is {other:?}; give \"sampled\", \"held\" or \"preceding\"")))
+        }
+    }
 }

@@ -23,7 +23,9 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::convert::{batch, row_major, same_length, to_numpy, value_error, vector, vector_out, Batch, NumpyArray};
+use crate::convert::{
+    batch, matrix_out, row_major, same_length, to_numpy, value_error, vector, vector_out, Batch, NumpyArray,
+};
 use crate::robot::{BaseParameters, Robot};
 
 /// A log's arrays, borrowed from numpy where they are contiguous (a 300,000-sample log is 17 MB).
@@ -245,8 +247,10 @@ impl Identification {
     }
 
     /// The model's residual on data it was not fitted on, as its file records it: "rms" per
-    /// joint (N·m or N, the force estimate's σ), "samples", "cutoff_hz" and "source"; None when
-    /// the file records none (`with_held_out` records it; a diagnosis always does).
+    /// joint (N·m or N), "samples", "cutoff_hz", "source" and "observer" (None, or the force
+    /// observer run hand-free on the held-out runs: "bandwidth_hz" and "sigma" per joint, the
+    /// force estimate's defaults, "grid_hz", "grid_sigma" (grid × dof) and "reason"); None when
+    /// the file records none (`with_held_out` records it; a diagnosis records the residual).
     #[getter]
     fn held_out<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
         let Some(h) = &self.inner.held_out else { return Ok(None) };
@@ -255,19 +259,29 @@ impl Identification {
         d.set_item("samples", h.samples)?;
         d.set_item("cutoff_hz", h.cutoff_hz)?;
         d.set_item("source", &h.source)?;
+        match &h.observer {
+            None => d.set_item("observer", py.None())?,
+            Some(o) => {
+                let od = PyDict::new(py);
+                od.set_item("bandwidth_hz", vector_out(py, &o.bandwidth_hz)?)?;
+                od.set_item("sigma", vector_out(py, &o.sigma)?)?;
+                od.set_item("grid_hz", vector_out(py, &o.grid_hz)?)?;
+                od.set_item("grid_sigma", matrix_out(py, &o.grid_sigma, self.model.dof())?)?;
+                od.set_item("reason", &o.reason)?;
+                d.set_item("observer", od)?;
+            }
+        }
         Ok(Some(d))
     }
 
     /// The same model with its residual on the held-out `runs` recorded (each a tuple `(t, q,
     /// tau)`, as for `validate`): per joint, the RMS over all their samples, in the model's band,
-    /// no periods averaged. A model with a diagnosis's effects has its own, from the diagnosis.
-    fn with_held_out(&self, py: Python<'_>, runs: Vec<Bound<'_, PyAny>>) -> PyResult<Identification> {
-        if !self.inner.effects.is_empty() {
-            return Err(PyValueError::new_err(
-                "this model has effects a diagnosis added, and its held-out residual from that diagnosis; \
-                 `with_held_out` scores a declared model (`without_effects()` gives one)",
-            ));
-        }
+    /// no periods averaged (a model with a diagnosis's effects keeps the diagnosis's), and the
+    /// force observer run hand-free on them, which sets a force estimate's bandwidth and σ
+    /// (`torque`: how the runs' torque acted between samples, as for `external_force`).
+    #[pyo3(signature = (runs, *, torque="sampled"))]
+    fn with_held_out(&self, py: Python<'_>, runs: Vec<Bound<'_, PyAny>>, torque: &str) -> PyResult<Identification> {
+        let timing = crate::force::torque_timing(torque)?;
         if runs.is_empty() {
             return Err(PyValueError::new_err("runs is empty: give at least one (t, q, tau) held out from the fit"));
         }
@@ -286,7 +300,22 @@ impl Identification {
         let runs: Vec<(&str, Log)> =
             names.iter().zip(&logs).map(|(name, (t, q, tau))| (name.as_str(), Log { t, q, tau })).collect();
         let order = self.inner.settings.order;
-        let held_out = py.detach(|| held_out_residual(&self.model, &self.inner, &runs, order)).map_err(value_error)?;
+        // A diagnosis's model keeps the residual its diagnosis measured (its effects are judged
+        // there); the observer is run on it like on any other.
+        let diagnosed = self.inner.held_out.clone().filter(|_| !self.inner.effects.is_empty());
+        let held_out = py
+            .detach(|| -> Result<_, String> {
+                let mut h = match diagnosed {
+                    Some(h) => h,
+                    None => held_out_residual(&self.model, &self.inner, &runs, order).map_err(|e| e.to_string())?,
+                };
+                h.observer = Some(
+                    arash_core::force_log::observer_held_out(&self.model, &self.inner, &runs, timing)
+                        .map_err(|e| e.to_string())?,
+                );
+                Ok(h)
+            })
+            .map_err(PyValueError::new_err)?;
         let mut inner = self.inner.clone();
         inner.held_out = Some(held_out);
         Ok(Identification::new(Arc::clone(&self.model), inner))

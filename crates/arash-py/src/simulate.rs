@@ -57,6 +57,7 @@ fn truth_dict<'py>(py: Python<'py>, c: &TruthColumns, dof: usize) -> PyResult<Bo
     for (name, values) in c.joint_vectors() {
         d.set_item(name, matrix(py, values, dof)?)?;
     }
+    d.set_item("hand_force", matrix(py, &c.hand_force, 3)?)?;
     Ok(d)
 }
 

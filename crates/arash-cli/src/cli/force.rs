@@ -47,10 +47,12 @@ pub struct Args {
     /// Without --collision: collision at this many σ.
     #[arg(long, default_value_t = COLLISION_SIGMAS)]
     collision_sigmas: f64,
-    /// The logged effort is a command held over each cycle (the daemon's and `arash simulate`'s
-    /// logs), not a measurement at its instant (a torque sensor, a current read back).
-    #[arg(long)]
-    held: bool,
+    /// How the logged effort acted between samples: `held` (a command held until the next
+    /// sample: `arash simulate`'s logs), `preceding` (a drive's report of the cycle that ended
+    /// at its sample: the daemon's logs) or `sampled` (a sensor at its instant: CSV). Default:
+    /// from the log.
+    #[arg(long, value_parser = parse_timing)]
+    timing: Option<TorqueTiming>,
     /// The logs hold motor currents (A), turned into torques by the model's drive gains.
     #[arg(long)]
     currents: bool,
@@ -74,7 +76,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         model.name
     );
     let log = args.runs.read(&args.runs.logs, &model)?;
-    let options = options(&args, &model, &file)?;
+    let options = options(&args, &model, &file, log.timing)?;
     let input = ForceInput { t: &log.t, q: &log.q, qd: None, effort: &log.tau };
     eprintln!("estimating the hand's force over {} samples ...", log.t.len());
     let result = estimate_force(&model, Source::File(&file), input, &options).context("estimating the force")?;
@@ -89,7 +91,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn options(args: &Args, model: &Model, file: &ModelFile) -> anyhow::Result<ForceLogOptions> {
+fn options(args: &Args, model: &Model, file: &ModelFile, logged: TorqueTiming) -> anyhow::Result<ForceLogOptions> {
     let n = model.dof();
     let per_joint = |name: &str, v: &[f64]| -> anyhow::Result<Vec<f64>> {
         match v.len() {
@@ -126,7 +128,7 @@ fn options(args: &Args, model: &Model, file: &ModelFile) -> anyhow::Result<Force
     Ok(ForceLogOptions {
         bandwidth_hz: args.bandwidth.as_deref().map(|b| per_joint("bandwidth", b)).transpose()?,
         frame,
-        timing: if args.held { TorqueTiming::Held } else { TorqueTiming::Sampled },
+        timing: args.timing.unwrap_or(logged),
         effort: if args.currents { Effort::Current } else { Effort::Torque },
         thresholds,
         ..Default::default()
@@ -231,4 +233,13 @@ fn figure(path: &Path, model: &Model, t: &[f64], result: &ForceLog, frame: Optio
         }
     }
     panels(path, "The hand's force, estimated from the model", "t (s)", &all)
+}
+
+fn parse_timing(text: &str) -> Result<TorqueTiming, String> {
+    match text {
+        "held" => Ok(TorqueTiming::Held),
+        "preceding" => Ok(TorqueTiming::Preceding),
+        "sampled" => Ok(TorqueTiming::Sampled),
+        other => Err(format!("`{other}`: give held, preceding or sampled")),
+    }
 }

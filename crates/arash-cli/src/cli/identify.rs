@@ -178,9 +178,18 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             .zip(&held_out)
             .map(|(label, v)| (label.as_str(), Log { t: &v.t, q: &v.q, tau: &v.tau }))
             .collect();
-        let residual =
+        let mut residual =
             held_out_residual(&model, &identification, &runs, args.order).context("the held-out residual")?;
-        println!("Held-out residual RMS per joint (the force estimate's σ): {}", rms_line(&joints, &residual.rms));
+        println!("Held-out residual RMS per joint: {}", rms_line(&joints, &residual.rms));
+        let timing = held_out.first().map_or(arash_core::force::TorqueTiming::Sampled, |v| v.timing);
+        let observer = arash_core::force_log::observer_held_out(&model, &identification, &runs, timing)
+            .context("the force observer on the held-out runs")?;
+        println!(
+            "Force observer on the held-out runs: bandwidth {:?} Hz, σ (the force estimate's) {}",
+            observer.bandwidth_hz,
+            rms_line(&joints, &observer.sigma)
+        );
+        residual.observer = Some(observer);
         identification.held_out = Some(residual);
     }
     crate::report::write_atomically(&args.output, &identification.to_json())?;

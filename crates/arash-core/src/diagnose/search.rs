@@ -406,6 +406,7 @@ impl Search<'_> {
             samples: self.heldout.samples(dof),
             cutoff_hz: ctx.train.pre.cutoff_hz,
             source: heldout.clone(),
+            observer: None,
         });
         for (i, c) in pool.iter().enumerate().filter(|(i, _)| !state.chosen.contains(i)) {
             rejected.push(

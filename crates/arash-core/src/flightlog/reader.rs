@@ -187,6 +187,8 @@ fn truth_record_from(m: &Truth, r: &mut TruthRecord) {
         (&mut r.tau_motor, &m.tau_motor),
         (&mut r.motor_q, &m.motor_q),
         (&mut r.motor_qd, &m.motor_qd),
+        (&mut r.hand_force, &m.hand_force),
+        (&mut r.tau_hand, &m.tau_hand),
     ] {
         dst.clear();
         dst.extend_from_slice(src);

@@ -111,6 +111,10 @@ pub struct Truth {
     pub motor_q: Vec<f64>,
     #[prost(double, repeated, tag = "8")]
     pub motor_qd: Vec<f64>,
+    #[prost(double, repeated, tag = "9")]
+    pub hand_force: Vec<f64>,
+    #[prost(double, repeated, tag = "10")]
+    pub tau_hand: Vec<f64>,
 }
 
 /// (name, tag, type, repeated) of each field of the structs above. Files carry the descriptor
@@ -141,6 +145,8 @@ const TRUTH_FIELDS: &[(&str, i32, Type, bool)] = &[
     ("tau_motor", 6, Type::Double, true),
     ("motor_q", 7, Type::Double, true),
     ("motor_qd", 8, Type::Double, true),
+    ("hand_force", 9, Type::Double, true),
+    ("tau_hand", 10, Type::Double, true),
 ];
 
 const ERROR_FIELDS: &[(&str, i32, Type, bool)] = &[

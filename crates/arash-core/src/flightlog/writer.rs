@@ -160,6 +160,8 @@ impl LogWriter {
             (&mut m.tau_motor, &r.tau_motor),
             (&mut m.motor_q, &r.motor_q),
             (&mut m.motor_qd, &r.motor_qd),
+            (&mut m.hand_force, &r.hand_force),
+            (&mut m.tau_hand, &r.tau_hand),
         ] {
             dst.clear();
             dst.extend_from_slice(src);

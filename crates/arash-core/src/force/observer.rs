@@ -46,6 +46,10 @@ pub enum TorqueTiming {
     /// A measurement at its sample's instant (a torque sensor, a current read back), taken as
     /// varying linearly between samples.
     Sampled,
+    /// A drive's report of the torque over the cycle that ended at its sample, beside the
+    /// position at that sample: the daemon's telemetry, its cycle and its flight log. Taking it
+    /// as held would read one cycle's change of the torque as a hand.
+    Preceding,
 }
 
 /// The generalized momentum observer on one model, with its scratch, built once; [`Self::step`]
@@ -168,6 +172,7 @@ impl MomentumObserver {
                 let change = (self.now_momentum[k] - self.momentum[k]) / dt;
                 let applied = match self.timing {
                     TorqueTiming::Held => self.applied[k],
+                    TorqueTiming::Preceding => self.now_applied[k],
                     TorqueTiming::Sampled => 0.5 * (self.applied[k] + self.now_applied[k]),
                 };
                 let unexplained = change - applied - 0.5 * (self.now_explained[k] + self.explained[k]);

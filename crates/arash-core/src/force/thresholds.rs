@@ -64,6 +64,15 @@ impl Thresholds {
         Ok(Self { contact: scaled(contact_sigmas), collision: scaled(collision_sigmas) })
     }
 
+    /// Raise each joint's collision threshold to at least `floor` (a held-out peak the hand-free
+    /// estimate reached), and its contact threshold no further than that.
+    pub fn with_collision_floor(mut self, floor: &[f64]) -> Self {
+        for (c, f) in self.collision.iter_mut().zip(floor) {
+            *c = c.max(*f);
+        }
+        self
+    }
+
     /// Thresholds set by hand, per joint, for a robot of `dof` joints.
     pub fn by_hand(contact: &[f64], collision: &[f64], dof: usize) -> Result<Self, ThresholdError> {
         for (what, values) in [("contact", contact), ("collision", collision)] {

@@ -503,5 +503,6 @@ pub fn held_out_residual(
         samples,
         cutoff_hz,
         source: format!("validation runs: {}", names.join(", ")),
+        observer: None,
     })
 }

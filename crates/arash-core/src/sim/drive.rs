@@ -125,6 +125,8 @@ impl Drive {
         self.measure_torque();
         self.plant.advance(dt, &self.truth.tau_motor)?;
         self.truth.qdd.copy_from_slice(self.plant.qdd());
+        self.truth.hand_force.copy_from_slice(self.plant.hand_force());
+        self.truth.tau_hand.copy_from_slice(self.plant.hand_torque());
         self.cycles += 1;
         Ok(())
     }

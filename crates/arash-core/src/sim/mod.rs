@@ -3,12 +3,14 @@
 //!
 //! - [`scenario`]: the TOML description of a rig and the effects switched on;
 //! - [`truth`]: the true parameters (CAD plus a seeded perturbation);
+//! - [`hand`]: an operator's hand, a force at the instrument the plant feels;
 //! - [`plant`]: the continuous-time robot and its fixed-step integrator;
 //! - [`drive`]: amplifiers, encoders and current sensing around the plant;
 //! - [`rig`]: the drive, amplifiers and the control loop around the plant;
 //! - [`run`]: a whole run (what `arash simulate` and `arash.simulate` execute).
 
 pub mod drive;
+pub mod hand;
 pub mod plant;
 pub mod rig;
 pub mod run;

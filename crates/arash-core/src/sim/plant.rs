@@ -8,8 +8,10 @@
 //! `τ_s = k (θ − q) + c (θ̇ − q̇)`.
 //! `h` holds gravity, velocity products, the declared friction (with the drift factor) and the
 //! cable stiffness; `τ_x` the undeclared joint-side effects (Stribeck, asymmetric Coulomb,
-//! configuration disturbance).
+//! configuration disturbance). A scenario's hand adds `J_vᵀ F_hand` on the joint side, with the
+//! force held over the cycle like the motor torque and the Jacobian at each step's `q`.
 
+use super::hand::HandForce;
 use super::scenario::{Integrator, Scenario};
 use super::truth::{add_payload, true_parameters};
 use crate::data::Data;
@@ -32,6 +34,11 @@ pub struct Plant {
     payload_body: Option<usize>,
     payload_attached: bool,
     armature: Option<Vec<f64>>,
+    hand: Option<HandForce>,
+    /// The hand's force over the present cycle (base frame, N) and its joint torque at the
+    /// cycle's start.
+    hand_force: [f64; 3],
+    hand_torque: Vec<f64>,
     time: f64,
     x: Vec<f64>,
     // Integrator scratch.
@@ -53,6 +60,8 @@ pub enum PlantError {
     Dynamics { time: f64, source: DynamicsError },
     #[error("the simulation diverged at t = {0:.4} s: the state is no longer finite")]
     NonFinite(f64),
+    #[error("scenario field `hand.frame`: {0}")]
+    HandFrame(#[from] crate::model::UnknownFrame),
     #[error("{0}")]
     Parameters(String),
     #[error(transparent)]
@@ -76,6 +85,7 @@ impl Plant {
             None => None,
         };
         let states = if scenario.effects.compliance.is_some() { 4 * n } else { 2 * n };
+        let hand = scenario.hand.as_ref().map(|h| HandForce::new(model, h, scenario.seed)).transpose()?;
         Ok(Self {
             data: Data::new(&truth_model),
             model: truth_model,
@@ -86,6 +96,9 @@ impl Plant {
             payload_body,
             payload_attached: false,
             armature: scenario.effects.armature.as_ref().map(|a| a.inertia.clone()),
+            hand,
+            hand_force: [0.0; 3],
+            hand_torque: vec![0.0; n],
             time: 0.0,
             x: vec![0.0; states],
             k: std::array::from_fn(|_| vec![0.0; states]),
@@ -146,6 +159,16 @@ impl Plant {
         }
     }
 
+    /// The hand's force over the last cycle (base frame, N; zero without a hand).
+    pub fn hand_force(&self) -> &[f64; 3] {
+        &self.hand_force
+    }
+
+    /// The hand's joint torque at the start of the last cycle (N·m or N).
+    pub fn hand_torque(&self) -> &[f64] {
+        &self.hand_torque
+    }
+
     fn compliant(&self) -> bool {
         self.scenario.effects.compliance.is_some()
     }
@@ -186,6 +209,7 @@ impl Plant {
     /// Advance one control cycle of `dt` seconds in `substeps` steps with the motor torque `tau`.
     pub fn advance(&mut self, dt: f64, tau: &[f64]) -> Result<(), PlantError> {
         self.set_time(self.time);
+        self.set_hand();
         let substeps = self.scenario.physics.substeps;
         let h = dt / substeps as f64;
         for i in 0..substeps {
@@ -254,12 +278,24 @@ impl Plant {
         result
     }
 
+    /// The hand's force for the cycle starting now, and its torque at the present `q`.
+    fn set_hand(&mut self) {
+        let n = self.model.dof();
+        self.hand_torque.fill(0.0);
+        let Some(hand) = &mut self.hand else { return };
+        self.hand_force = hand.force(self.time);
+        hand.add_torque(&self.model, &self.x[..n], &self.hand_force, &mut self.hand_torque);
+    }
+
     /// `ẋ = f(x, τ_m)`.
     fn derivative(&mut self, x: &[f64], tau: &[f64], dx: &mut [f64]) -> Result<(), PlantError> {
         let n = self.model.dof();
         let (q, qd) = (&x[..n], &x[n..2 * n]);
         for k in 0..n {
             self.tau_joint[k] = -self.joint_side_effects(k, q[k], qd[k]);
+        }
+        if let Some(hand) = &mut self.hand {
+            hand.add_torque(&self.model, q, &self.hand_force, &mut self.tau_joint);
         }
         match &self.scenario.effects.compliance {
             None => {

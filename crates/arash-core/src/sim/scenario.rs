@@ -382,6 +382,65 @@ impl Effects {
     }
 }
 
+/// Band-limited random force: on each base axis a sum of sinusoids of equal amplitude at
+/// frequencies spread evenly up to `band_hz`, with seeded phases, scaled to `rms`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RandomForce {
+    /// RMS per base axis x, y, z (N).
+    pub rms: [f64; 3],
+    /// Highest frequency (Hz).
+    pub band_hz: f64,
+    /// When the force starts and ends (s); no end = the whole run.
+    pub start_s: f64,
+    pub end_s: Option<f64>,
+}
+
+impl Default for RandomForce {
+    fn default() -> Self {
+        Self { rms: [0.5, 0.5, 0.5], band_hz: 2.0, start_s: 0.0, end_s: None }
+    }
+}
+
+/// A press like tissue contact: the force rises and falls as `F·sin²(π (t − at)/duration)`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Press {
+    pub at_s: f64,
+    pub duration_s: f64,
+    /// Peak force, base frame (N).
+    pub force: [f64; 3],
+}
+
+/// A force switched on at `at_s` and held until `end_s` (or the end of the run).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Step {
+    pub at_s: f64,
+    #[serde(default)]
+    pub end_s: Option<f64>,
+    /// Base frame (N).
+    pub force: [f64; 3],
+}
+
+/// An operator's hand: a force at a frame of the robot that the plant feels and no log records
+/// (the truth records it). The parts add up.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Hand {
+    /// The frame whose origin the force acts at.
+    pub frame: String,
+    pub random: Option<RandomForce>,
+    pub press: Vec<Press>,
+    pub step: Vec<Step>,
+}
+
+impl Default for Hand {
+    fn default() -> Self {
+        Self { frame: "instrument_tip".into(), random: None, press: Vec::new(), step: Vec::new() }
+    }
+}
+
 /// A whole scenario.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -396,6 +455,8 @@ pub struct Scenario {
     pub sensors: Sensors,
     pub actuators: Actuators,
     pub effects: Effects,
+    /// An operator's hand at the instrument, if any.
+    pub hand: Option<Hand>,
 }
 
 impl Default for Scenario {
@@ -409,6 +470,7 @@ impl Default for Scenario {
             sensors: Sensors::default(),
             actuators: Actuators::default(),
             effects: Effects::default(),
+            hand: None,
         }
     }
 }
@@ -456,7 +518,41 @@ impl Scenario {
         if !self.actuators.torque_limit.is_empty() {
             joints("actuators.torque_limit", &self.actuators.torque_limit, dof, Sign::Positive)?;
         }
-        self.validate_effects(dof)
+        self.validate_effects(dof)?;
+        self.validate_hand()
+    }
+
+    fn validate_hand(&self) -> Result<(), ScenarioError> {
+        let Some(h) = &self.hand else { return Ok(()) };
+        let finite_force = |field: &str, f: &[f64; 3]| match f.iter().all(|v| v.is_finite()) {
+            true => Ok(()),
+            false => Err(field_error(field, format!("must be finite, not {f:?}"))),
+        };
+        let window = |field: &str, start: f64, end: Option<f64>| match (start.is_finite() && start >= 0.0, end) {
+            (false, _) => Err(field_error(field, format!("starts at {start} s; it must be finite and ≥ 0"))),
+            (true, Some(e)) if !(e.is_finite() && e > start) => {
+                Err(field_error(field, format!("ends at {e} s; it must end after it starts ({start} s)")))
+            }
+            _ => Ok(()),
+        };
+        if let Some(r) = &h.random {
+            finite_force("hand.random.rms", &r.rms)?;
+            if r.rms.iter().any(|v| *v < 0.0) {
+                return Err(field_error("hand.random.rms", format!("must be ≥ 0, not {:?}", r.rms)));
+            }
+            positive("hand.random.band_hz", r.band_hz)?;
+            window("hand.random", r.start_s, r.end_s)?;
+        }
+        for (i, p) in h.press.iter().enumerate() {
+            finite_force(&format!("hand.press[{i}].force"), &p.force)?;
+            window(&format!("hand.press[{i}]"), p.at_s, None)?;
+            positive(&format!("hand.press[{i}].duration_s"), p.duration_s)?;
+        }
+        for (i, s) in h.step.iter().enumerate() {
+            finite_force(&format!("hand.step[{i}].force"), &s.force)?;
+            window(&format!("hand.step[{i}]"), s.at_s, s.end_s)?;
+        }
+        Ok(())
     }
 
     fn validate_effects(&self, dof: usize) -> Result<(), ScenarioError> {

@@ -232,9 +232,14 @@ class Identification:
     def held_out(self) -> Optional[dict[str, Any]]:
         """The model's residual on held-out data, as its file records it: "rms" per joint (the
         force estimate's σ), "samples", "cutoff_hz" and "source"; None when it records none."""
-    def with_held_out(self, runs: Sequence[tuple[_ArrayLike, _ArrayLike, _ArrayLike]]) -> Identification:
+    def with_held_out(
+        self, runs: Sequence[tuple[_ArrayLike, _ArrayLike, _ArrayLike]], *, torque: str = "sampled"
+    ) -> Identification:
         """The same model with its residual on the held-out ``runs`` (each ``(t, q, tau)``) recorded:
-        per joint, the RMS over all their samples, in the model's band, no periods averaged."""
+        per joint, the RMS over all their samples, in the model's band, no periods averaged (a
+        diagnosis's model keeps its diagnosis's), and the force observer run hand-free on them,
+        whose bandwidth and σ a force estimate then uses (``torque``: "sampled", "held" or
+        "preceding", as for ``external_force``)."""
     def without_effects(self, which: Optional[Sequence[int]] = None) -> Identification:
         """The same model without the effects a diagnosis added (``which``: the indices of those to
         drop, in the file's order; default all, which leaves the declared part alone)."""

@@ -9,6 +9,7 @@
 
 use super::diagnose::Cutoffs;
 use crate::report::demo as report;
+mod hand;
 mod rig;
 mod tx40;
 
@@ -180,7 +181,11 @@ fn steps(args: &Args, plan: &Plan) -> anyhow::Result<()> {
         let epsilon = rig_scenario.truth.coulomb_epsilon;
         diagnosed.coulomb_laws =
             arash_core::CoulombLaws::uniform(arash_core::model::CoulombShape::Tanh { epsilon }, model.dof());
-        truth = Some(Truth { params: arash_core::sim::true_parameters(&model, &rig_scenario), epsilon });
+        truth = Some(Truth {
+            params: arash_core::sim::true_parameters(&model, &rig_scenario),
+            epsilon,
+            scenario: rig_scenario,
+        });
     }
     let (motors, rt) = match &args.port {
         Some(port) => (Motors::Port(port), args.rt.unwrap_or(RtPolicy::Require)),
@@ -232,6 +237,7 @@ type Outcome = (Excitation, report::Calibration, Diagnosis, Tracking);
 struct Truth {
     params: Vec<f64>,
     epsilon: f64,
+    scenario: arash_core::sim::Scenario,
 }
 
 /// The robot the demo runs on: the declared model, the same with the rig's Coulomb law as the
@@ -293,6 +299,9 @@ fn experiment(args: &Args, plan: &Plan, robot: DemoRobot, rig: &Rig, truth: Opti
     // The diagnosis fits the exact base parameters (`BaseParameterOptions::diagnosed`): the
     // calibration's regrouping would be a bias an effect could take up.
     let exact = BaseParameters::compute(model, &BaseParameterOptions::diagnosed())?;
+    let hand_free: Vec<(String, runlog::Log)> = std::iter::once(("excitation".to_string(), training_log.clone()))
+        .chain(validation.iter().map(|(omega, log)| (format!("validation-{omega}"), log.clone())))
+        .collect();
     let held_out = validation.into_iter().map(|(_, log)| log).collect::<Vec<_>>();
     let held_out = (!held_out.is_empty()).then(|| runlog::concatenate(held_out));
     let (diagnosis, with_effects) =
@@ -304,7 +313,7 @@ fn experiment(args: &Args, plan: &Plan, robot: DemoRobot, rig: &Rig, truth: Opti
     let mut ways = vec![
         ("inverse dynamics, CAD parameters", "idc", None),
         ("robust, identified model", "robust", Some(calibration.consistent_file.clone())),
-        ("robust, identified model + effects found", "robust", Some(with_effects)),
+        ("robust, identified model + effects found", "robust", Some(with_effects.clone())),
     ];
     // What the declared model's true parameters do beside the rig's undeclared effects: the
     // scale against which the identified model's cut is read (docs/demo.md).
@@ -322,7 +331,39 @@ fn experiment(args: &Args, plan: &Plan, robot: DemoRobot, rig: &Rig, truth: Opti
     let tracking = Tracking { omega: args.tracking_omega, prismatic: report::prismatic(model), runs };
     let names = model.joint_names();
     println!("{}", indent(&tracking.table(&names)));
+    if let Some(truth) = &truth {
+        println!("\n[6b/8] the surgeon's hand: the tip force estimated with each model against the simulated hand");
+        let chapter = hand_chapter(dir, model, truth, &calibration.consistent, &with_effects, &hand_free, args)?;
+        println!("{}", indent(&chapter.table()));
+        crate::report::write_atomically(&dir.join("report").join("hand").join("hand.md"), &chapter.table())?;
+    }
     Ok((excitation, calibration, diagnosis, tracking))
+}
+
+/// The chapter on the surgeon's hand ([`hand`]): CAD (the consistent model's settings with the
+/// CAD parameters), the identified model and the model with the effects found.
+fn hand_chapter(
+    dir: &Path,
+    model: &Model,
+    truth: &Truth,
+    consistent: &ModelFile,
+    with_effects: &Path,
+    hand_free: &[(String, runlog::Log)],
+    args: &Args,
+) -> anyhow::Result<hand::HandChapter> {
+    let mut cad = consistent.clone();
+    cad.params = Some(model.cad_parameters());
+    cad.effects.clear();
+    let text = std::fs::read_to_string(with_effects).with_context(|| format!("reading {}", with_effects.display()))?;
+    let effects = ModelFile::from_json(&text)?;
+    let models = [("CAD", cad), ("identified", consistent.clone()), ("identified + effects", effects.clone())];
+    let runs: Vec<(&str, arash_core::identify::Log)> = hand_free
+        .iter()
+        .map(|(name, l)| (name.as_str(), arash_core::identify::Log { t: &l.t, q: &l.q, tau: &l.tau }))
+        .collect();
+    let out = dir.join("report").join("hand");
+    let timing = hand_free.first().map_or(arash_core::force::TorqueTiming::Preceding, |(_, l)| l.timing);
+    hand::run(&out, model, &truth.scenario, &models, (&runs, timing), &effects, args.tracking_omega)
 }
 
 /// `model_truth.json`: the physically consistent model file with the simulated rig's own
