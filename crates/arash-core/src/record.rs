@@ -51,6 +51,10 @@ pub struct CycleRecord {
     pub controller: ControllerKind,
     pub mode: Mode,
     pub faults: Faults,
+    /// The hand's force observer: the external joint torque (N·m, N), and the force at its
+    /// frame (base frame, N). Empty when no observer runs (and `frame_force` without a frame).
+    pub tau_ext: Vec<f64>,
+    pub frame_force: Vec<f64>,
 }
 
 impl CycleRecord {
@@ -69,6 +73,8 @@ impl CycleRecord {
             controller: ControllerKind::None,
             mode: Mode::Disabled,
             faults: Faults::NONE,
+            tau_ext: Vec::new(),
+            frame_force: Vec::new(),
         }
     }
 }
@@ -126,6 +132,9 @@ pub struct Columns {
     pub controller: Vec<u32>,
     pub mode: Vec<u32>,
     pub faults: Vec<u32>,
+    /// Empty when no cycle carried the observer's estimate (`N × dof`, and `N × 3`).
+    pub tau_ext: Vec<f64>,
+    pub frame_force: Vec<f64>,
 }
 
 /// The `/arash/truth` messages as columns (simulated logs only).
@@ -174,6 +183,8 @@ impl Columns {
         self.controller.push(r.controller as u32);
         self.mode.push(r.mode as u32);
         self.faults.push(r.faults.0);
+        self.tau_ext.extend(&r.tau_ext);
+        self.frame_force.extend(&r.frame_force);
     }
 }
 

@@ -85,7 +85,7 @@ const FOLDERS: &[(&str, &[&str])] = &[
         ],
     ),
     ("flightlog", &["uniform", "schema", "reader", "writer", "recover"]),
-    ("sim", &["scenario", "truth", "plant", "drive", "rig", "run"]),
+    ("sim", &["scenario", "truth", "hand", "plant", "drive", "rig", "run"]),
 ];
 
 /// arash-daemon: the rig library, leaf first (its binary, `main.rs`, only calls `daemon`).
@@ -94,7 +94,7 @@ const DAEMON: &[&str] = &["exit", "link", "drive_config", "ctl", "rt", "live", "
 /// The files of arash-daemon's folder modules, leaf first.
 const DAEMON_FOLDERS: &[(&str, &[&str])] = &[
     ("link", &["frame", "serial", "can", "slcan", "canopen", "cia402", "drive_setup", "master"]),
-    ("rt", &["clock", "memory", "reference", "cycle", "runner"]),
+    ("rt", &["clock", "memory", "reference", "force", "cycle", "runner"]),
     ("live", &["window", "server"]),
     ("daemon", &["startup", "model_helper", "requests", "server"]),
 ];

@@ -28,6 +28,7 @@ pub struct DaemonConfig {
     pub rt: RtConfig,
     pub socket: SocketConfig,
     pub live: LiveConfig,
+    pub force: crate::rt::force::ForceConfig,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
@@ -230,6 +231,7 @@ impl DaemonConfig {
         }
         self.safety_limits(model)?.validate(dof)?;
         self.following_error(model)?;
+        self.force.validate(model).map_err(ConfigError::Force)?;
         Ok(())
     }
 
@@ -339,6 +341,8 @@ pub enum ConfigError {
     Safety(#[from] arash_core::control::LimitsError),
     #[error("{key} has {got} entries; the robot has {dof} joints")]
     Length { key: &'static str, got: usize, dof: usize },
+    #[error("{0}")]
+    Force(String),
     #[error("safety.following_error must be {dof} positive numbers, not {got:?}")]
     FollowingError { dof: usize, got: Vec<f64> },
 }
@@ -378,6 +382,22 @@ mod tests {
         // The file rounds the torque constants to four digits.
         defaults.drive.torque_constant.clone_from(&shipped.drive.torque_constant);
         assert_eq!(shipped, defaults);
+    }
+
+    #[test]
+    fn the_force_observers_settings_are_checked_by_name() {
+        let model = arash_core::arash_asist();
+        let refused = |text: &str, key: &str| {
+            let e = DaemonConfig::parse(text).unwrap().validate(&model).unwrap_err().to_string();
+            assert!(e.contains(key), "{text}: {e}");
+        };
+        refused("[force]\nbandwidth_hz = [20.0, 20.0]\n", "force.bandwidth_hz has 2 entries");
+        refused("[force]\ncontact = [0.1, 0.1, 1.0]\n", "force.contact and force.collision go together");
+        refused("[force]\ncontact = [0.1, 0.1, 1.0]\ncollision = [0.2, 0.05, 2.0]\n", "below force.contact");
+        refused("[force]\ncollision_sigmas = 2.0\n", "force.collision_sigmas is below");
+        assert!(DaemonConfig::parse("[force]\nfram = \"tip\"\n").unwrap_err().to_string().contains("fram"));
+        refused("[force]\nframe = \"tool\"\n", "force.frame");
+        DaemonConfig::parse("[force]\nframe = \"remote_centre\"\n").unwrap().validate(&model).unwrap();
     }
 
     #[test]

@@ -255,6 +255,9 @@ impl Logger {
             Event::RunStarted(id) => format!("run {id} started"),
             Event::RunEnded(id) => format!("run {id} ended"),
             Event::ControllerSwitched => "controller switched".into(),
+            Event::ContactStarted => "contact: the hand's force estimate crossed the contact threshold".into(),
+            Event::ContactEnded => "contact ended".into(),
+            Event::RunRefused => "run refused: a collision is latched (reset it first)".into(),
         };
         self.write_event(cycle, t, &description)?;
         match event {

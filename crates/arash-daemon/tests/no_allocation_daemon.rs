@@ -1,6 +1,7 @@
 //! The control thread allocates nothing per cycle: 10^4 cycles of the real loop
 //! (`rt::runner::run`: request queue, control cycle, safety, log queue, status) against the mock
-//! motor in process, enabling and playing a trajectory inside the counted window.
+//! motor in process, enabling and playing a trajectory inside the counted window, with the
+//! hand's force observer, its tip map and its thresholds running on every cycle.
 
 #[path = "../../arash-core/tests/common/counting.rs"]
 mod counting;
@@ -34,7 +35,16 @@ fn ten_thousand_control_cycles_allocate_nothing() {
         Some(&RobustGains::paper(&model).unwrap()),
     )
     .unwrap();
-    let cycle = ControlCycle::new(cfg, controller);
+    // Thresholds far above anything the hand-free run reaches: every cycle evaluates them.
+    let force = arash_daemon::rt::force::ForceConfig {
+        contact: Some(vec![50.0; 3]),
+        collision: Some(vec![100.0; 3]),
+        ..Default::default()
+    };
+    let setup = arash_daemon::rt::force::ForceSetup::resolve(&model, &force, None, 1000.0).unwrap();
+    assert_eq!(setup.frame.as_deref(), Some("instrument_tip"));
+    let cycle =
+        ControlCycle::new(cfg, controller).with_force(setup.build(&model, &model.cad_parameters(), &[]).unwrap());
     let motor = MockMotor::new(&model, &Scenario::default(), DriveConfig::default(), FaultPlan::default()).unwrap();
     let mut link = InProcessLink::new(motor);
 

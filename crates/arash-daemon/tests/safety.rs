@@ -677,3 +677,78 @@ fn telemetry_arriving_only_every_tenth_cycle_does_not_destabilise_the_robust_con
     let (faults, _) = track_with_telemetry_every(10, |c| c.link.hold_ms = 0.0);
     assert_eq!(faults, Faults::FOLLOWING_ERROR);
 }
+
+/// The hand's force observer in the cycle: an arm held at rest by its gravity torque, then a
+/// torque it does not explain on the pitch (the drive's current rises as something pushes on
+/// the instrument). The cycle whose estimate first reaches the collision threshold latches
+/// `COLLISION` in its own record, abandons the run and floats the arm on the model's gravity
+/// compensation with the drive still enabled; runs are refused until the operator's reset, which
+/// holds the arm. Contacts come and go as events.
+#[test]
+fn a_collision_latches_in_the_cycle_its_estimate_crosses_the_threshold_and_the_arm_floats() {
+    use arash_core::control::Trajectory;
+    use arash_daemon::rt::force::ForceConfig;
+    use arash_daemon::rt::force::ForceSetup;
+    use arash_daemon::rt::reference::{Phase, RunRequest};
+    let model = arash_core::arash_asist();
+    let params = model.cad_parameters();
+    let mut gravity = [0.0; 3];
+    arash_core::dynamics::gravity_torque(&model, &mut arash_core::Data::new(&model), &[0.0; 3], &params, &mut gravity);
+    let (contact, collision) = (vec![0.05, 0.05, 0.5], vec![0.2, 0.2, 2.0]);
+    let force =
+        ForceConfig { contact: Some(contact.clone()), collision: Some(collision.clone()), ..Default::default() };
+    let setup = ForceSetup::resolve(&model, &force, None, 1000.0).unwrap();
+    assert_eq!(setup.bandwidth_hz, vec![20.0; 3], "a hand's bandwidth without a model file's run");
+    let monitor = setup.build(&model, &params, &[]).unwrap();
+    let mut rig = Rig::new(gravity, |_| {});
+    rig.cycle = ControlCycle::new(config(|_| {}), Box::new(Constant(gravity.to_vec()))).with_force(monitor);
+    rig.step();
+    rig.enable();
+    let run = RunRequest { id: 7, trajectory: Trajectory::Hold { q: vec![0.0; 3] }, duration_s: 30.0 };
+    assert!(rig.cycle.request(Request::Run(Box::new(run))).is_none());
+    rig.steps(1200); // the approach lasts at least a second
+    assert_eq!(rig.cycle.phase(), Phase::Run);
+    let quiet = rig.cycle.record().tau_ext.iter().map(|v| v.abs()).fold(0.0, f64::max);
+    assert!(quiet < 1e-4, "held by its own gravity, nothing is external: {quiet}");
+    // A push on the pitch: the drive's current now reads the gravity torque plus 0.5 N·m.
+    rig.link.echo = false;
+    let pushed = [gravity[0], gravity[1] + 0.5, gravity[2]];
+    rig.link.telemetry.amps[..3].copy_from_slice(&[0, 1, 2].map(|k| (pushed[k] / rig.kt[k]) as f32));
+    let (mut contact_at, mut latched_at) = (None, None);
+    for i in 0..200 {
+        let events = rig.step();
+        let r = rig.cycle.record();
+        let over = r.tau_ext.iter().zip(&collision).any(|(e, c)| e.abs() >= *c);
+        if events.contains(&Event::ContactStarted) {
+            contact_at.get_or_insert(i);
+        }
+        if events.contains(&Event::FaultLatched(Faults::COLLISION)) {
+            assert!(over && r.faults.contains(Faults::COLLISION), "latched in the cycle that crossed: {r:?}");
+            assert!(events.contains(&Event::RunEnded(7)), "{events:?}");
+            latched_at = Some(i);
+            break;
+        }
+        assert!(!over, "cycle {i} crossed the collision threshold without latching: {:?}", r.tau_ext);
+    }
+    let (contact_at, latched_at) = (contact_at.expect("a contact first"), latched_at.expect("a collision"));
+    assert!(contact_at < latched_at, "{contact_at} {latched_at}");
+    // 0.5 N·m through a 20 Hz lag reaches 0.2 N·m after ln(1/(1 − 0.4))/(2π·20) s = 4.1 ms.
+    assert!((3..=6).contains(&latched_at), "latched after {latched_at} cycles");
+    assert!(rig.cycle.take_garbage().is_some(), "the stopped run goes off the real-time thread");
+    // Floating: enabled, holding where it is, commanding the model's gravity compensation.
+    rig.steps(5);
+    assert_eq!((rig.cycle.mode(), rig.cycle.phase()), (Mode::Enabled, Phase::Hold));
+    let sent = rig.sent_torque();
+    assert!((0..3).all(|k| (sent[k] - gravity[k]).abs() < 1e-5), "{sent:?} against {gravity:?}");
+    let run = RunRequest { id: 8, trajectory: Trajectory::Hold { q: vec![0.0; 3] }, duration_s: 1.0 };
+    assert!(rig.cycle.request(Request::Run(Box::new(run))).is_some(), "refused, handed back");
+    assert_eq!(rig.step(), vec![Event::RunRefused]);
+    // The push goes; the reset holds the arm and clears the fault.
+    rig.link.telemetry.amps[..3].copy_from_slice(&[0, 1, 2].map(|k| (gravity[k] / rig.kt[k]) as f32));
+    rig.steps(200);
+    rig.cycle.request(Request::ResetFault);
+    let events = rig.step();
+    assert!(events.contains(&Event::FaultsCleared), "{events:?}");
+    assert_eq!((rig.cycle.faults(), rig.cycle.record().faults), (Faults::NONE, Faults::NONE));
+    assert_eq!(rig.cycle.mode(), Mode::Enabled);
+}

@@ -44,6 +44,12 @@ fn cycles_dict<'py>(py: Python<'py>, c: &Columns, dof: usize) -> PyResult<Bound<
     } else {
         d.set_item("qdd", matrix(py, &c.qdd, dof)?)?;
     }
+    for (name, values, width) in [("tau_ext", &c.tau_ext, dof), ("frame_force", &c.frame_force, 3)] {
+        match values.is_empty() {
+            true => d.set_item(name, py.None())?,
+            false => d.set_item(name, matrix(py, values, width)?)?,
+        }
+    }
     d.set_item("controller", integers(py, &c.controller))?;
     d.set_item("mode", integers(py, &c.mode))?;
     d.set_item("faults", integers(py, &c.faults))?;

@@ -41,6 +41,10 @@ impl Faults {
     /// own, or never confirmed the enable (set by the daemon; an e-stop on the drive's
     /// quick-stop input, safe torque off). Only the operator's reset and enable restart it.
     pub const DRIVE_STOPPED: Faults = Faults(1 << 9);
+    /// The hand's force observer read a collision during a trajectory run (set by the daemon):
+    /// the run is stopped and the joints float under the model's compensation until the
+    /// operator's reset (docs/daemon.md, "Contact and collision").
+    pub const COLLISION: Faults = Faults(1 << 10);
 
     pub fn contains(self, other: Faults) -> bool {
         self.0 & other.0 == other.0
@@ -52,7 +56,7 @@ impl Faults {
 
     /// Names of the bits set, for reports.
     pub fn names(self) -> Vec<&'static str> {
-        const NAMES: [&str; 10] = [
+        const NAMES: [&str; 11] = [
             "non-finite state",
             "non-finite command",
             "position limit",
@@ -63,6 +67,7 @@ impl Faults {
             "current mismatch",
             "drive state",
             "drive stopped",
+            "collision",
         ];
         NAMES.iter().enumerate().filter(|(i, _)| self.0 & (1 << i) != 0).map(|(_, n)| *n).collect()
     }

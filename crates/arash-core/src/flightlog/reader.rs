@@ -168,6 +168,8 @@ fn cycle_record(m: &Cycle, r: &mut CycleRecord) -> Result<(), String> {
         (&mut r.q_des, &m.q_des),
         (&mut r.qd_des, &m.qd_des),
         (&mut r.qdd_des, &m.qdd_des),
+        (&mut r.tau_ext, &m.tau_ext),
+        (&mut r.frame_force, &m.frame_force),
     ] {
         dst.clear();
         dst.extend_from_slice(src);
@@ -207,8 +209,13 @@ fn check_shapes(log: &FlightLog, name: &str) -> Result<(), LogError> {
             });
         }
     }
-    if !c.qdd.is_empty() && c.qdd.len() != n * dof {
-        return Err(LogError::NotFlightLog { path: name.into(), problem: "qdd is present in some cycles only".into() });
+    for (field, v, width) in [("qdd", &c.qdd, dof), ("tau_ext", &c.tau_ext, dof), ("frame_force", &c.frame_force, 3)] {
+        if !v.is_empty() && v.len() != n * width {
+            return Err(LogError::NotFlightLog {
+                path: name.into(),
+                problem: format!("{field} is present in some cycles only"),
+            });
+        }
     }
     Ok(())
 }

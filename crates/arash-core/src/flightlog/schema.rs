@@ -42,6 +42,12 @@ pub struct Cycle {
     /// Fault bits (see `docs/flightlog.md`).
     #[prost(uint32, tag = "13")]
     pub faults: u32,
+    /// The hand's force observer: the external joint torque, and the force at its frame (base
+    /// frame, N); empty when the daemon runs none.
+    #[prost(double, repeated, tag = "14")]
+    pub tau_ext: Vec<f64>,
+    #[prost(double, repeated, tag = "15")]
+    pub frame_force: Vec<f64>,
 }
 
 impl Cycle {
@@ -58,6 +64,8 @@ impl Cycle {
             (&mut self.q_des, &r.q_des),
             (&mut self.qd_des, &r.qd_des),
             (&mut self.qdd_des, &r.qdd_des),
+            (&mut self.tau_ext, &r.tau_ext),
+            (&mut self.frame_force, &r.frame_force),
         ] {
             dst.clear();
             dst.extend_from_slice(src);
@@ -134,6 +142,8 @@ const CYCLE_FIELDS: &[(&str, i32, Type, bool)] = &[
     ("controller", 11, Type::Uint32, false),
     ("mode", 12, Type::Uint32, false),
     ("faults", 13, Type::Uint32, false),
+    ("tau_ext", 14, Type::Double, true),
+    ("frame_force", 15, Type::Double, true),
 ];
 
 const TRUTH_FIELDS: &[(&str, i32, Type, bool)] = &[

@@ -78,6 +78,7 @@ pub struct MomentumObserver {
     coriolis_t: Vec<f64>,
     gravity: Vec<f64>,
     forces: Vec<f64>,
+    friction: Vec<f64>,
     now_momentum: Vec<f64>,
     now_applied: Vec<f64>,
     now_explained: Vec<f64>,
@@ -134,6 +135,7 @@ impl MomentumObserver {
             coriolis_t: zeros.clone(),
             gravity: zeros.clone(),
             forces: zeros.clone(),
+            friction: zeros.clone(),
             now_momentum: zeros.clone(),
             now_applied: zeros.clone(),
             now_explained: zeros,
@@ -144,6 +146,16 @@ impl MomentumObserver {
     /// samples have been seen.
     pub fn estimate(&self) -> &[f64] {
         &self.estimate
+    }
+
+    /// The torque to command for the model to carry the arm at the last sample's state, with
+    /// no motion asked of it: gravity, friction, cable stiffness and the effects' forces, times
+    /// the drive gain (as the drives are commanded). What the joints float under when a
+    /// collision stops a run: a hand moves them against nothing but the model's error.
+    pub fn compensation(&self, out: &mut [f64]) {
+        for (k, o) in out.iter_mut().enumerate().take(self.model.dof()) {
+            *o = (self.gravity[k] + self.friction[k] + self.forces[k]) * self.effects.drive_gain(k);
+        }
     }
 
     /// Start again from the next sample (after a gap in the data, or when the motors are
@@ -203,11 +215,11 @@ impl MomentumObserver {
         for k in 0..n {
             let row = &self.effect_inertia[k * n..(k + 1) * n];
             self.now_momentum[k] += row.iter().zip(qd).map(|(m, v)| m * v).sum::<f64>();
-            let joint = self.params[layout.viscous(k)] * qd[k]
+            self.friction[k] = self.params[layout.viscous(k)] * qd[k]
                 + self.params[layout.coulomb(k)] * (qd[k] / self.epsilon[k]).tanh()
                 + self.params[layout.stiffness(k)] * q[k];
             self.now_applied[k] = tau[k] / self.effects.drive_gain(k);
-            self.now_explained[k] = self.coriolis_t[k] - self.gravity[k] - joint - self.forces[k];
+            self.now_explained[k] = self.coriolis_t[k] - self.gravity[k] - self.friction[k] - self.forces[k];
         }
     }
 }

@@ -79,6 +79,7 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     let mut cycle_config = config.cycle_config(&model)?;
     cycle_config.drive.torque_constant.clone_from(&torque_constant.values);
     let cycle = ControlCycle::new(cycle_config, controller);
+    let (cycle, force) = with_force(cycle, &config, &model, start_model.as_ref())?;
 
     let (request_tx, request_rx) = rtrb::RingBuffer::new(64);
     let (garbage_tx, mut garbage_rx) = rtrb::RingBuffer::new(64);
@@ -197,6 +198,7 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
         drive: config.drive.clone(),
         torque_constant,
         robot: config.robot.clone(),
+        force,
     });
     let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
     let served = runtime.block_on(async {
@@ -213,4 +215,27 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     eprintln!("arash-daemon: stopped; timing {}", serde_json::to_string(&summary)?);
     let _ = sd_notify::notify(&[sd_notify::NotifyState::Stopping]);
     served
+}
+
+/// The hand's force observer on the model the daemon starts with (`[force]`), printed with what
+/// chose its settings; the cycle unchanged when it is switched off.
+fn with_force(
+    cycle: ControlCycle,
+    config: &DaemonConfig,
+    model: &Model,
+    resolved: Option<&startup::ResolvedModel>,
+) -> anyhow::Result<(ControlCycle, Option<crate::rt::force::ForceSetup>)> {
+    if !config.force.enabled {
+        return Ok((cycle, None));
+    }
+    let held_out = resolved.and_then(|r| r.held_out.as_ref());
+    let setup = crate::rt::force::ForceSetup::resolve(model, &config.force, held_out, config.control.rate_hz)
+        .map_err(|e| anyhow::anyhow!("[force]: {e}"))?;
+    let params = resolved.map_or_else(|| model.cad_parameters(), |r| r.params.clone());
+    let effects = resolved.map(|r| r.effects.clone()).unwrap_or_default();
+    let monitor = setup.build(model, &params, &effects).map_err(|e| anyhow::anyhow!("[force]: {e}"))?;
+    for reason in &setup.reasons {
+        eprintln!("arash-daemon: force observer: {reason}");
+    }
+    Ok((cycle.with_force(monitor), Some(setup)))
 }

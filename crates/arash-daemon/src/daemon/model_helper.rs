@@ -49,7 +49,7 @@ fn serve(request: &Request) -> Result<ResolvedModel, StartupError> {
         _ => file.consistent_controller_parameters(&model),
     }
     .map_err(|source| StartupError::Refused { path: request.path.clone(), kind: request.kind, source })?;
-    Ok(ResolvedModel { params, effects: file.effects, drive_gains: file.drive_gains })
+    Ok(ResolvedModel { params, effects: file.effects, drive_gains: file.drive_gains, held_out: file.held_out })
 }
 
 /// The first call of each binary's `main`: when started as the helper, serve the request on

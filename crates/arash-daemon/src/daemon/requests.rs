@@ -48,6 +48,8 @@ pub(super) struct Operator {
     /// The robot's URDF as configured (`None`: the built-in one): the model helper checks files
     /// against it.
     pub(super) robot: Option<PathBuf>,
+    /// The hand's force observer as set up at start (None: `force.enabled = false`).
+    pub(super) force: Option<crate::rt::force::ForceSetup>,
 }
 
 /// Queue `request` for the control thread; the ticket it returns is what [`applied`] waits for.
@@ -186,6 +188,7 @@ pub(super) fn status(operator: &Operator) -> serde_json::Value {
     let q: Vec<f64> = s.q[..operator.model.dof()].iter().map(|a| f64::from_bits(a.load(Ordering::Relaxed))).collect();
     let runs = operator.runs.lock().expect("registry lock").clone();
     let phase = ["hold", "approach", "run"][s.phase.load(Ordering::Relaxed).min(2) as usize];
+    let level = ["free", "contact", "collision"][s.force_level.load(Ordering::Relaxed).min(2) as usize];
     serde_json::json!({
         "cycle": load(&s.cycle),
         "mode": Mode::from_u32(s.mode.load(Ordering::Relaxed)),
@@ -206,6 +209,11 @@ pub(super) fn status(operator: &Operator) -> serde_json::Value {
         "live": operator.live.as_ref().map(|l| l.status()),
         "link": *s.link.lock().expect("link stats lock"),
         "runs": runs,
+        "force": operator.force.as_ref().map(|f| serde_json::json!({
+            "setup": f,
+            "level": level,
+            "collision_reaction": "float: the run stops, the joints float under the model's compensation until reset",
+        })),
     })
 }
 

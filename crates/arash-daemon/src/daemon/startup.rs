@@ -80,6 +80,9 @@ pub struct ResolvedModel {
     /// The effects a diagnosis added, which the model-based laws compensate.
     pub effects: Vec<arash_core::effects::EffectTerm>,
     pub drive_gains: Option<DriveGains>,
+    /// The file's residual on held-out data and its force observer's run there.
+    #[serde(default)]
+    pub held_out: Option<arash_core::model_file::HeldOut>,
 }
 
 /// Build a controller of `kind` for `model` with the parameters a model file resolved to (or

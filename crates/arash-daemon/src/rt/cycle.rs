@@ -34,15 +34,23 @@
 //!   the torque limit for `mismatch_cycles` cycles in a row latches `CURRENT_MISMATCH`;
 //! - **start-up:** the drive cannot be enabled before valid telemetry arrives;
 //! - faults latch until [`Request::ResetFault`], which leaves the drive disabled; enabling waits
-//!   until the drive has confirmed the reset.
+//!   until the drive has confirmed the reset;
+//! - **collision:** with a force observer ([`ControlCycle::with_force`]), an estimate at the
+//!   collision level during an approach or a run latches `COLLISION` in the same cycle: the run
+//!   is abandoned and the joints float under the model's gravity and friction compensation,
+//!   the drive still enabled, so that whatever the instrument hit is not pushed further and a
+//!   hand can move the arm away. New runs and enabling are refused until
+//!   [`Request::ResetFault`], which holds the arm where it is. Contacts are events.
 
 use arash_core::control::{Controller, Desired, Faults, SafetyGate, SafetyLimits, VelocityEstimator};
 use arash_core::record::{CycleRecord, Mode};
 
+use super::force::ForceMonitor;
 use super::reference::{Phase, PhaseChange, Reference, RunRequest};
 use crate::drive_config::DriveConfig;
 use crate::link::frame::status;
 use crate::link::{Command, MotorLink, Telemetry, MAX_JOINTS};
+use arash_core::force::Level;
 
 /// What the cycle is configured with (SI).
 #[derive(Clone, Debug)]
@@ -99,6 +107,11 @@ pub enum Event {
     RunStarted(u32),
     RunEnded(u32),
     ControllerSwitched,
+    /// The hand's force estimate crossed the contact level, or fell back below it.
+    ContactStarted,
+    ContactEnded,
+    /// A run was refused: a collision is latched.
+    RunRefused,
 }
 
 pub struct ControlCycle {
@@ -138,6 +151,16 @@ pub struct ControlCycle {
     tau_out: Vec<f64>,
     record: CycleRecord,
     events: [Option<Event>; 8],
+    /// The hand's force observer, its last level, and the collision it latched (the joints
+    /// float while it is latched and the drive enabled).
+    force: Option<ForceMonitor>,
+    level: Level,
+    collision: bool,
+    floating: bool,
+    /// Seconds between the last two telemetry frames.
+    telemetry_dt: f64,
+    /// A run a collision stopped, for dropping off the real-time thread.
+    stopped: Option<Box<RunRequest>>,
 }
 
 impl ControlCycle {
@@ -177,7 +200,30 @@ impl ControlCycle {
             tau_out: vec![0.0; dof],
             record,
             events: [None; 8],
+            force: None,
+            level: Level::Free,
+            collision: false,
+            floating: false,
+            telemetry_dt: 0.0,
+            stopped: None,
         }
+    }
+
+    /// Run the hand's force observer `monitor` on every telemetry frame.
+    pub fn with_force(mut self, monitor: ForceMonitor) -> Self {
+        monitor.prepare(&mut self.record);
+        self.force = Some(monitor);
+        self
+    }
+
+    /// The hand's force level at the last telemetry frame.
+    pub fn level(&self) -> Level {
+        self.level
+    }
+
+    /// A run the cycle stopped by itself (a collision), to drop off the real-time thread.
+    pub fn take_garbage(&mut self) -> Option<Garbage> {
+        self.stopped.take().map(Garbage::Run)
     }
 
     pub fn mode(&self) -> Mode {
@@ -255,6 +301,7 @@ impl ControlCycle {
                     && self.clearing == 0
                     && self.telemetry.faults == 0
                     && self.telemetry.status & status::ENABLED == 0
+                    && !self.collision
                 {
                     self.mode = Mode::Enabled;
                     self.enabling = true;
@@ -273,6 +320,7 @@ impl ControlCycle {
                 None
             }
             Request::Disable => {
+                self.floating = false;
                 if self.mode == Mode::Enabled {
                     self.mode = Mode::Disabled;
                     self.event(Event::Disabled);
@@ -280,6 +328,17 @@ impl ControlCycle {
                 None
             }
             Request::ResetFault => {
+                if self.collision {
+                    // The arm is held where the hand left it.
+                    self.collision = false;
+                    self.floating = false;
+                    let q = fixed(&self.record.q);
+                    self.controller.reset();
+                    self.event(Event::FaultsCleared);
+                    if self.mode != Mode::Faulted {
+                        return self.reference.hold_at(&q[..self.dof]).map(Garbage::Run);
+                    }
+                }
                 if self.mode == Mode::Faulted {
                     self.gate.clear();
                     self.mode = Mode::Disabled;
@@ -291,8 +350,13 @@ impl ControlCycle {
                 None
             }
             Request::Hold => {
+                self.floating = false;
                 let q = fixed(&self.record.q_des);
                 self.reference.hold_at(&q[..self.dof]).map(Garbage::Run)
+            }
+            Request::Run(run) if self.collision => {
+                self.event(Event::RunRefused);
+                Some(Garbage::Run(run))
             }
             Request::Run(run) => {
                 let q = fixed(&self.record.q_des);
@@ -317,6 +381,9 @@ impl ControlCycle {
     /// Run one cycle against `link`.
     pub fn step(&mut self, link: &mut dyn MotorLink, cycle: u64) {
         let fresh = self.read(link);
+        if fresh {
+            self.observe();
+        }
         self.count_down_reset();
         let t = self.time();
         self.reference_time = t;
@@ -342,12 +409,16 @@ impl ControlCycle {
             // The hold repeats the last command: it is what the log records and what the gate
             // sees, so that the rate limit does not run ahead on commands never sent.
             r.tau_cmd[..self.dof].copy_from_slice(&self.last_sent[..self.dof]);
+        } else if let (true, Some(force)) = (self.floating, &self.force) {
+            force.compensation(&mut r.tau_cmd);
         } else {
             self.controller.step(self.cfg.dt, q, qd, &desired, &mut r.tau_cmd);
         }
         if self.mode == Mode::Enabled {
             self.check_link();
-            self.check_following();
+            if !self.floating {
+                self.check_following();
+            }
             if fresh {
                 self.check_current();
             }
@@ -361,7 +432,37 @@ impl ControlCycle {
         let _ = link.send(&command); // a failed send is counted by the link, like a lost frame
         let r = &mut self.record;
         r.mode = self.mode;
-        r.faults = self.gate.faults();
+        r.faults = self.gate.faults() | if self.collision { Faults::COLLISION } else { Faults::NONE };
+    }
+
+    /// The hand's force on this telemetry frame: the estimate into the record, contacts as
+    /// events, and a collision during an approach or a run latched at once.
+    fn observe(&mut self) {
+        let Some(force) = self.force.as_mut() else { return };
+        let level = force.step(self.telemetry_dt, &mut self.record);
+        let was = std::mem::replace(&mut self.level, level);
+        match (was, level) {
+            (Level::Free, Level::Contact | Level::Collision) => self.event(Event::ContactStarted),
+            (Level::Contact | Level::Collision, Level::Free) => self.event(Event::ContactEnded),
+            _ => {}
+        }
+        let moving = matches!(self.reference.phase(), Phase::Approach | Phase::Run);
+        if level == Level::Collision && moving && self.mode == Mode::Enabled && !self.collision {
+            self.collision = true;
+            self.floating = true;
+            self.event(Event::FaultLatched(Faults::COLLISION));
+            if let Some(id) = self.reference.run_id().filter(|_| self.reference.phase() == Phase::Run) {
+                self.event(Event::RunEnded(id));
+            }
+            let q = fixed(&self.record.q);
+            self.stopped = self.reference.hold_at(&q[..self.dof]);
+        }
+        if self.floating {
+            // The reference follows the floating arm: no following error, and a reset holds it
+            // where it is.
+            let q = fixed(&self.record.q);
+            self.reference.hold_at(&q[..self.dof]);
+        }
     }
 
     /// Poll the link; on new telemetry update q, q̇, τ and the clock. Returns whether it was new.
@@ -387,6 +488,7 @@ impl ControlCycle {
         if self.have_telemetry {
             self.device_time += dt;
         }
+        self.telemetry_dt = dt;
         self.missing = 0;
         let r = &mut self.record;
         for k in 0..self.dof {

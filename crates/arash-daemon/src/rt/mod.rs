@@ -2,12 +2,14 @@
 //!
 //! - [`mod@reference`]: hold / approach / run a trajectory;
 //! - [`cycle`]: one control cycle and the daemon's safety rules;
+//! - [`force`]: the hand's force observer in the cycle;
 //! - [`clock`]: absolute deadlines, overrun skipping, SCHED_FIFO and mlockall;
 //! - [`runner`]: the control thread and its queues;
 //! - [`memory`]: what the locked process holds, and the stack and arena limits that keep it small.
 
 pub mod clock;
 pub mod cycle;
+pub mod force;
 pub mod memory;
 pub mod reference;
 pub mod runner;

@@ -25,6 +25,9 @@ pub struct CycleSample {
     pub q_des: [f64; MAX_JOINTS],
     pub qd_des: [f64; MAX_JOINTS],
     pub qdd_des: [f64; MAX_JOINTS],
+    /// The hand's force observer's estimate and the force at its frame, when it runs.
+    pub tau_ext: Option<[f64; MAX_JOINTS]>,
+    pub frame_force: Option<[f64; 3]>,
     pub controller: u32,
     pub mode: u32,
     pub faults: u32,
@@ -61,6 +64,8 @@ pub struct Shared {
     pub run_id: AtomicU32,
     pub last_run_ended: AtomicU32,
     pub have_telemetry: AtomicBool,
+    /// The hand's force level: 0 free, 1 contact, 2 collision.
+    pub force_level: AtomicU32,
     /// The drive's last reported status bits (low byte) and fault bits (next byte).
     pub drive: AtomicU32,
     pub missed: AtomicU64,
@@ -206,6 +211,9 @@ pub fn run(
             }
         }
         cycle.step(&mut link, n);
+        if let Some(g) = cycle.take_garbage() {
+            hand_back(&mut queues.garbage, g, shared);
+        }
         let exec = now_ns() - wake;
         let sample = sample(&cycle, &link, n, wake - previous_wake, exec, missed);
         previous_wake = wake;
@@ -254,6 +262,21 @@ impl CycleSample {
         ] {
             dst.copy_from_slice(&src[..self.dof]);
         }
+        // Sized on the first sample that carries them; later ones copy in place.
+        match self.tau_ext {
+            Some(v) => {
+                r.tau_ext.resize(self.dof, 0.0);
+                r.tau_ext.copy_from_slice(&v[..self.dof]);
+            }
+            None => r.tau_ext.clear(),
+        }
+        match self.frame_force {
+            Some(v) => {
+                r.frame_force.resize(3, 0.0);
+                r.frame_force.copy_from_slice(&v);
+            }
+            None => r.frame_force.clear(),
+        }
         r.controller = ControllerKind::from_u32(self.controller).unwrap_or(ControllerKind::None);
         r.mode = Mode::from_u32(self.mode).unwrap_or(Mode::Faulted);
         r.faults = Faults(self.faults);
@@ -281,6 +304,12 @@ fn sample(
         q_des: [0.0; MAX_JOINTS],
         qd_des: [0.0; MAX_JOINTS],
         qdd_des: [0.0; MAX_JOINTS],
+        tau_ext: (!r.tau_ext.is_empty()).then(|| {
+            let mut v = [0.0; MAX_JOINTS];
+            v[..dof].copy_from_slice(&r.tau_ext);
+            v
+        }),
+        frame_force: (r.frame_force.len() == 3).then(|| [r.frame_force[0], r.frame_force[1], r.frame_force[2]]),
         controller: r.controller as u32,
         mode: r.mode as u32,
         faults: r.faults.0,
@@ -335,6 +364,7 @@ fn publish(shared: &Shared, cycle: &ControlCycle, stats: &LinkStats) {
     );
     shared.run_id.store(cycle.run_id().unwrap_or(0), Ordering::Relaxed);
     shared.have_telemetry.store(cycle.has_telemetry(), Ordering::Relaxed);
+    shared.force_level.store(cycle.level() as u32, Ordering::Relaxed);
     let (status, faults) = cycle.drive_state();
     shared.drive.store(u32::from(status) | u32::from(faults) << 8, Ordering::Relaxed);
     for (a, &q) in shared.q.iter().zip(&r.q) {

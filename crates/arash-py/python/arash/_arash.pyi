@@ -289,7 +289,8 @@ class Excitation:
 def _design_excitation(robot: Robot, options: dict[str, Any], quiet: bool) -> Excitation: ...
 
 def read_log(path: Union[str, PathLike[str]]) -> dict[str, Any]:
-    """A flight log as numpy arrays (docs/flightlog.md): ``t``, ``q``, ``tau_meas``… as logged,
+    """A flight log as numpy arrays (docs/flightlog.md): ``t``, ``q``, ``tau_meas``… as logged
+    (``tau_ext`` and ``frame_force``, the daemon's force observer, None where it ran none),
     and ``uniform``: ``t``, ``q``, ``tau_meas``, ``q_des``, ``qd_des``, ``qdd_des`` on a uniform time
     grid (a daemon log repeats a time where telemetry was late) with ``repaired``, the samples
     that took; what ``identify`` and ``diagnose`` take."""

@@ -1,0 +1,228 @@
+//! The hand's force in the cycle: the momentum observer on the model in use, run on every
+//! telemetry frame in every mode, its estimate mapped to a frame, and the level (free, contact,
+//! collision) its thresholds give it. Built at start-up ([`ForceSetup::build`]); a step never
+//! allocates.
+
+use arash_core::control::gains::{compensation_epsilon, model_epsilon, RobustGains};
+use arash_core::force::{FrameForce, Level, MomentumObserver, ObserverError, Thresholds, TorqueTiming};
+use arash_core::force_log::{bandwidth_grid, default_frame, PEAK_MARGIN};
+use arash_core::model_file::HeldOut;
+use arash_core::record::CycleRecord;
+use arash_core::Model;
+
+/// The hand's force observer (docs/force.md, "In the daemon"): it runs on every telemetry
+/// frame, in every mode, on the model the daemon started with. A collision during a trajectory
+/// run latches `collision`: the run stops and the joints float under the model's gravity and
+/// friction compensation until the operator's reset.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ForceConfig {
+    pub enabled: bool,
+    /// The frame the force is mapped to; empty: the robot's instrument tip, where it names one.
+    pub frame: String,
+    /// Per joint (Hz); default: the model file's held-out observer run, else 20 Hz.
+    pub bandwidth_hz: Option<Vec<f64>>,
+    /// Thresholds by hand, per joint (N·m, N); default: multiples of the model file's σ.
+    pub contact: Option<Vec<f64>>,
+    pub collision: Option<Vec<f64>>,
+    pub contact_sigmas: f64,
+    pub collision_sigmas: f64,
+}
+
+impl Default for ForceConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            frame: String::new(),
+            bandwidth_hz: None,
+            contact: None,
+            collision: None,
+            contact_sigmas: arash_core::force::CONTACT_SIGMAS,
+            collision_sigmas: arash_core::force::COLLISION_SIGMAS,
+        }
+    }
+}
+
+impl ForceConfig {
+    /// Per-joint vectors of the robot's length, positive; thresholds both or neither, collision
+    /// at or above contact; the frame one the robot names.
+    pub fn validate(&self, model: &Model) -> Result<(), String> {
+        let dof = model.dof();
+        for (key, v) in [
+            ("force.bandwidth_hz", &self.bandwidth_hz),
+            ("force.contact", &self.contact),
+            ("force.collision", &self.collision),
+        ] {
+            let Some(v) = v else { continue };
+            if v.len() != dof {
+                return Err(format!("{key} has {} entries; the robot has {dof} joints", v.len()));
+            }
+            if let Some(&value) = v.iter().find(|x| !(x.is_finite() && **x > 0.0)) {
+                return Err(format!("{key} must be positive and finite, not {value}"));
+            }
+        }
+        match (&self.contact, &self.collision) {
+            (Some(c), Some(k)) if c.iter().zip(k).any(|(c, k)| k < c) => {
+                return Err("force.collision is below force.contact on some joint".into())
+            }
+            (Some(_), None) | (None, Some(_)) => return Err("force.contact and force.collision go together".into()),
+            _ => {}
+        }
+        for (key, value) in
+            [("force.contact_sigmas", self.contact_sigmas), ("force.collision_sigmas", self.collision_sigmas)]
+        {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(format!("{key} must be positive and finite, not {value}"));
+            }
+        }
+        if self.collision_sigmas < self.contact_sigmas {
+            return Err("force.collision_sigmas is below force.contact_sigmas".into());
+        }
+        if !self.frame.is_empty() {
+            model.frame(&self.frame).map_err(|e| format!("force.frame: {e}"))?;
+        }
+        Ok(())
+    }
+}
+
+/// The observer, its map and its thresholds.
+pub struct ForceMonitor {
+    observer: MomentumObserver,
+    map: Option<FrameForce>,
+    thresholds: Option<Thresholds>,
+    sigma: Vec<f64>,
+    level: Level,
+}
+
+/// What the monitor is built from, as the daemon resolved it; also what `ctl status` shows.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ForceSetup {
+    pub bandwidth_hz: Vec<f64>,
+    /// Each joint's σ of the estimate (N·m, N), when the model file records one.
+    pub sigma: Option<Vec<f64>>,
+    pub contact: Option<Vec<f64>>,
+    pub collision: Option<Vec<f64>>,
+    /// The frame the force is mapped to, and the frame its moment is about.
+    pub frame: Option<String>,
+    /// What chose each value.
+    pub reasons: Vec<String>,
+}
+
+impl ForceSetup {
+    /// Resolve the observer's settings: the configuration's, else the model file's held-out
+    /// observer run (`held_out`), else a hand's bandwidth at `rate_hz` and no thresholds.
+    pub fn resolve(
+        model: &Model,
+        config: &ForceConfig,
+        held_out: Option<&HeldOut>,
+        rate_hz: f64,
+    ) -> Result<Self, String> {
+        let n = model.dof();
+        let mut reasons = Vec::new();
+        let observer = held_out.and_then(|h| h.observer.as_ref());
+        let bandwidth_hz = match (&config.bandwidth_hz, observer) {
+            (Some(b), _) => b.clone(),
+            (None, Some(o)) => {
+                reasons.push(format!("bandwidth from the model file's held-out observer run: {}", o.reason));
+                o.bandwidth_hz.clone()
+            }
+            (None, None) => {
+                let b = bandwidth_grid(rate_hz)[0];
+                reasons.push(format!(
+                    "bandwidth {b} Hz: ten times a hand's band (the model file records no observer run)"
+                ));
+                vec![b; n]
+            }
+        };
+        let sigma = observer.map(|o| o.sigma.clone()).or_else(|| held_out.map(|h| h.rms.clone()));
+        let (contact, collision) = match (&config.contact, &config.collision, &sigma) {
+            (Some(c), Some(k), _) => {
+                reasons.push("thresholds set by hand in the configuration".into());
+                (Some(c.clone()), Some(k.clone()))
+            }
+            (None, None, Some(s)) => {
+                let t = Thresholds::from_sigma(s, config.contact_sigmas, config.collision_sigmas)
+                    .map_err(|e| e.to_string())?;
+                let peak = observer.map(|o| o.peak.clone()).unwrap_or_default();
+                let t = match peak.len() == n {
+                    true => t.with_collision_floor(&peak.iter().map(|p| PEAK_MARGIN * p).collect::<Vec<_>>()),
+                    false => t,
+                };
+                reasons.push(format!(
+                    "contact at {}σ and collision at {}σ of the model's held-out σ (collision at least {PEAK_MARGIN} × \
+                     the held-out peak)",
+                    config.contact_sigmas, config.collision_sigmas
+                ));
+                (Some(t.contact().to_vec()), Some(t.collision().to_vec()))
+            }
+            (None, None, None) => {
+                reasons.push(
+                    "no contact or collision is told: the model file records no held-out σ and no thresholds are set \
+                     (force.contact, force.collision)"
+                        .into(),
+                );
+                (None, None)
+            }
+            _ => return Err("force.contact and force.collision go together".into()),
+        };
+        let frame = match config.frame.as_str() {
+            "" => default_frame(model).map(|c| c.frame),
+            name => Some(name.to_string()),
+        };
+        Ok(Self { bandwidth_hz, sigma, contact, collision, frame, reasons })
+    }
+
+    /// The monitor on `model` with parameters `params` and `effects`.
+    pub fn build(
+        &self,
+        model: &Model,
+        params: &[f64],
+        effects: &[arash_core::effects::EffectTerm],
+    ) -> Result<ForceMonitor, String> {
+        // Online the velocity is the estimator's, noisy at rest: the controllers' Coulomb width.
+        let paper = RobustGains::paper(model).map(|g| g.epsilon);
+        let epsilon = compensation_epsilon(model, &paper.unwrap_or_else(|_| model_epsilon(model)));
+        let observer =
+            MomentumObserver::new(model, params, effects, &self.bandwidth_hz, &epsilon, TorqueTiming::Preceding)
+                .map_err(|e: ObserverError| e.to_string())?;
+        let about = default_frame(model).and_then(|c| c.about).unwrap_or_else(|| model.frames[0].name.clone());
+        let map = match &self.frame {
+            Some(f) => Some(FrameForce::new(model, f, &about, 1e-3).map_err(|e| e.to_string())?),
+            None => None,
+        };
+        let thresholds = match (&self.contact, &self.collision) {
+            (Some(c), Some(k)) => Some(Thresholds::by_hand(c, k, model.dof()).map_err(|e| e.to_string())?),
+            _ => None,
+        };
+        let sigma = self.sigma.clone().unwrap_or_else(|| vec![0.0; model.dof()]);
+        Ok(ForceMonitor { observer, map, thresholds, sigma, level: Level::Free })
+    }
+}
+
+impl ForceMonitor {
+    /// One telemetry frame `dt` after the last: the estimate into `r.tau_ext` (and the frame's
+    /// force into `r.frame_force`), from `r.q`, `r.qd` and `r.tau_meas`. Returns the level; a
+    /// non-finite input leaves the estimate as it was.
+    pub fn step(&mut self, dt: f64, r: &mut CycleRecord) -> Level {
+        let Ok(estimate) = self.observer.step(dt, &r.q, &r.qd, &r.tau_meas) else { return self.level };
+        r.tau_ext.copy_from_slice(estimate);
+        if let Some(map) = self.map.as_mut() {
+            r.frame_force.copy_from_slice(&map.map(&r.q, estimate, &self.sigma).force);
+        }
+        self.level = self.thresholds.as_ref().map_or(Level::Free, |t| t.level(estimate));
+        self.level
+    }
+
+    /// Size the record's observer fields.
+    pub fn prepare(&self, r: &mut CycleRecord) {
+        r.tau_ext = vec![0.0; r.q.len()];
+        if self.map.is_some() {
+            r.frame_force = vec![0.0; 3];
+        }
+    }
+
+    /// The model's compensation at the last sample (see [`MomentumObserver::compensation`]).
+    pub fn compensation(&self, out: &mut [f64]) {
+        self.observer.compensation(out);
+    }
+}
