@@ -507,7 +507,8 @@ fn interior(t: &[f64], bandwidth_hz: f64, velocity_cutoff_hz: f64) -> (f64, f64)
 }
 
 /// The observer run with no hand on a model's held-out runs at each bandwidth of
-/// [`bandwidth_grid`]: per joint, the estimate's RMS away from the runs' edges ([`interior`]),
+/// [`bandwidth_grid`]: per joint, the estimate's RMS away from the runs' edges (three velocity-filter
+/// periods at either end, five time constants at the start),
 /// and the widest bandwidth whose RMS is within [`NOISE_ALLOWANCE`] of the RMS at the least. What
 /// a force estimate on this model then uses as its bandwidth and σ.
 pub fn observer_held_out(

@@ -249,7 +249,8 @@ impl Identification {
     /// The model's residual on data it was not fitted on, as its file records it: "rms" per
     /// joint (N·m or N), "samples", "cutoff_hz", "source" and "observer" (None, or the force
     /// observer run hand-free on the held-out runs: "bandwidth_hz" and "sigma" per joint, the
-    /// force estimate's defaults, "grid_hz", "grid_sigma" (grid × dof) and "reason"); None when
+    /// force estimate's defaults, "grid_hz", "grid_sigma" (grid × dof), "reason" and "peak",
+    /// the largest hand-free estimate, which the collision threshold keeps above); None when
     /// the file records none (`with_held_out` records it; a diagnosis records the residual).
     #[getter]
     fn held_out<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
@@ -268,6 +269,7 @@ impl Identification {
                 od.set_item("grid_hz", vector_out(py, &o.grid_hz)?)?;
                 od.set_item("grid_sigma", matrix_out(py, &o.grid_sigma, self.model.dof())?)?;
                 od.set_item("reason", &o.reason)?;
+                od.set_item("peak", vector_out(py, &o.peak)?)?;
                 d.set_item("observer", od)?;
             }
         }

@@ -13,7 +13,7 @@ use crate::model::{Frame, Model, UnknownFrame};
 /// Gaussian, few enough to cost nothing per step.
 const TONES: usize = 16;
 
-/// The hand's force over time and its map to joint torque; [`Self::torque`] does not allocate.
+/// The hand's force over time and its map to joint torque; [`Self::add_torque`] does not allocate.
 pub struct HandForce {
     hand: Hand,
     frame: Frame,

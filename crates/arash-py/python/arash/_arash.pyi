@@ -230,8 +230,10 @@ class Identification:
         declared part (``arash.heldout_errors`` scores a diagnosis's effects too)."""
     @property
     def held_out(self) -> Optional[dict[str, Any]]:
-        """The model's residual on held-out data, as its file records it: "rms" per joint (the
-        force estimate's σ), "samples", "cutoff_hz" and "source"; None when it records none."""
+        """The model's residual on held-out data, as its file records it: "rms" per joint,
+        "samples", "cutoff_hz", "source" and "observer" (None, or the force observer run hand-free
+        on the held-out runs: "bandwidth_hz" and "sigma" per joint, the force estimate's defaults,
+        "grid_hz", "grid_sigma", "reason" and "peak"); None when it records none."""
     def with_held_out(
         self, runs: Sequence[tuple[_ArrayLike, _ArrayLike, _ArrayLike]], *, torque: str = "sampled"
     ) -> Identification:
