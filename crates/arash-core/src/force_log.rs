@@ -26,7 +26,7 @@ use crate::identify::filter::{Butterworth, FilterError};
 use crate::identify::signals::{central_difference, filter_columns};
 use crate::identify::Log;
 use crate::model::{Model, UnknownFrame};
-use crate::model_file::{ModelFile, ObserverHeldOut};
+use crate::model_file::{HeldOut, ModelFile, ObserverHeldOut};
 
 /// The model's band over the observer's bandwidth for a model file that records no observer run
 /// on held-out data: its σ was then measured in that band by a zero-phase Butterworth that cuts
@@ -57,10 +57,11 @@ pub const BANDWIDTH_GRID: [f64; 4] = [1.0, 2.0, 4.0, 8.0];
 /// widen, and so detect sooner, for nearly nothing.
 pub const NOISE_ALLOWANCE: f64 = 1.25;
 
-/// The bandwidths tried on a log sampled at `rate_hz`: the grid, capped at a tenth of the rate
-/// (a first-order lag sampled fewer than ten times per time constant's 2π is no longer one).
+/// The least bandwidth (Hz): ten times a hand's band.
 const HAND_BANDWIDTH: f64 = HAND_BAND_HZ * BANDWIDTH_PER_HAND_BAND;
 
+/// The bandwidths tried on a log sampled at `rate_hz`: the grid, capped at a tenth of the rate
+/// (a first-order lag sampled fewer than ten times per time constant's 2π is no longer one).
 pub fn bandwidth_grid(rate_hz: f64) -> Vec<f64> {
     let least = HAND_BANDWIDTH;
     let cap = 0.1 * rate_hz;
@@ -231,7 +232,11 @@ pub fn estimate_force(
                         .into(),
                 )),
                 false => {
-                    Some(with_peak(Thresholds::from_sigma(&sigma, *contact, *collision)?, file, options, &mut reasons))
+                    // The held-out peak belongs with the model's own σ, not with one given.
+                    let held_out = file.and_then(|f| f.held_out.as_ref()).filter(|_| options.sigma.is_none());
+                    let (t, why) = sigma_thresholds(&sigma, *contact, *collision, held_out)?;
+                    reasons.extend(why);
+                    Some(t)
                 }
             },
             ThresholdChoice::ByHand { contact, collision } => Some(Thresholds::by_hand(contact, collision, n)?),
@@ -290,27 +295,29 @@ pub fn estimate_force(
 /// a longer run than the held-out ones reaches further than they did.
 pub const PEAK_MARGIN: f64 = 1.5;
 
-/// The collision thresholds raised above the observer's held-out peak, where σ is the observer's
-/// own and the model records the peak.
-fn with_peak(
-    t: Thresholds,
-    file: Option<&ModelFile>,
-    options: &ForceLogOptions,
-    reasons: &mut Vec<String>,
-) -> Thresholds {
-    let peak = file.and_then(|f| f.held_out.as_ref()).and_then(|h| h.observer.as_ref()).map(|o| &o.peak);
-    match peak {
-        Some(peak) if options.sigma.is_none() && !peak.is_empty() => {
+/// Thresholds at `contact` and `collision` times each joint's σ, the collision level raised to
+/// [`PEAK_MARGIN`] times the largest hand-free estimate `held_out`'s observer run reached (where
+/// σ came from that run); with why, when the peak was used. The daemon's thresholds too.
+pub fn sigma_thresholds(
+    sigma: &[f64],
+    contact: f64,
+    collision: f64,
+    held_out: Option<&HeldOut>,
+) -> Result<(Thresholds, Option<String>), ThresholdError> {
+    let t = Thresholds::from_sigma(sigma, contact, collision)?;
+    let peak = held_out.and_then(|h| h.observer.as_ref()).map(|o| &o.peak).filter(|p| p.len() == sigma.len());
+    Ok(match peak {
+        Some(peak) => {
             let floor: Vec<f64> = peak.iter().map(|p| PEAK_MARGIN * p).collect();
-            reasons.push(format!(
+            let why = format!(
                 "the collision threshold is at least {PEAK_MARGIN} times the largest hand-free estimate on the held-out \
                  runs, {:?}",
                 round3(peak)
-            ));
-            t.with_collision_floor(&floor)
+            );
+            (t.with_collision_floor(&floor), Some(why))
         }
-        _ => t,
-    }
+        None => (t, None),
+    })
 }
 
 /// The robot's instrument tip and the remote centre its moment is taken about, where its URDF
@@ -373,30 +380,47 @@ fn bandwidth_of(
     if let Some(b) = &options.bandwidth_hz {
         return Ok(b.clone());
     }
-    if let Some(o) = file.and_then(|f| f.held_out.as_ref()).and_then(|h| h.observer.as_ref()) {
-        reasons.push(format!("the observer's bandwidth per joint is {:?} Hz: {}", round3(&o.bandwidth_hz), o.reason));
-        return Ok(o.bandwidth_hz.clone());
+    let held_out = file.and_then(|f| f.held_out.as_ref());
+    let (hz, why) = default_bandwidth(held_out, file.map(|f| f.settings.cutoff_hz), rate, n);
+    reasons.push(why);
+    Ok(hz)
+}
+
+/// The observer's bandwidth per joint when none is given, and why: the model file's held-out
+/// observer run; else, for a model whose σ was measured in a band (`held_out`'s, else the fit's
+/// `fitted_band_hz`), a quarter of it ([`BAND_PER_BANDWIDTH`]); else ten times a hand's band at
+/// `rate_hz`. The daemon's default too.
+pub fn default_bandwidth(
+    held_out: Option<&HeldOut>,
+    fitted_band_hz: Option<f64>,
+    rate_hz: f64,
+    n: usize,
+) -> (Vec<f64>, String) {
+    if let Some(o) = held_out.and_then(|h| h.observer.as_ref()) {
+        return (
+            o.bandwidth_hz.clone(),
+            format!("the observer's bandwidth per joint is {:?} Hz: {}", round3(&o.bandwidth_hz), o.reason),
+        );
     }
-    let hz = match file.and_then(|f| f.held_out.as_ref().map(|h| h.cutoff_hz).or(Some(f.settings.cutoff_hz))) {
+    match held_out.map(|h| h.cutoff_hz).or(fitted_band_hz) {
         Some(band) => {
             let hz = band / BAND_PER_BANDWIDTH;
-            reasons.push(format!(
+            let why = format!(
                 "the observer's bandwidth is {hz:.3} Hz, a quarter of the {band:.3} Hz band the model's σ was measured \
                  in: the model file records no observer run on held-out data (identify with --validate) to set it \
                  from, and at a wider bandwidth the estimate would pass what that σ never saw"
-            ));
-            hz
+            );
+            (vec![hz; n], why)
         }
         None => {
-            let hz = bandwidth_grid(rate)[0];
-            reasons.push(format!(
+            let hz = bandwidth_grid(rate_hz)[0];
+            let why = format!(
                 "the observer's bandwidth is {hz:.3} Hz, {BANDWIDTH_PER_HAND_BAND} times the {HAND_BAND_HZ} Hz band of a \
                  hand's force (at most a tenth of the sample rate)"
-            ));
-            hz
+            );
+            (vec![hz; n], why)
         }
-    };
-    Ok(vec![hz; n])
+    }
 }
 
 /// The σ given, or the model's held-out residual RMS, or none.
@@ -411,18 +435,26 @@ fn sigma_of(
             Err(ForceLogError::Input(format!("σ has {} entries; the robot has {n} joints", s.len())))
         }
         (Some(s), _) => Ok(s.clone()),
-        (None, Some(h)) if h.observer.is_some() => {
-            reasons.push(format!(
-                "σ is the observer's hand-free RMS at its bandwidth on the model's held-out data ({})",
-                h.source
-            ));
-            Ok(h.observer.as_ref().map(|o| o.sigma.clone()).unwrap_or_default())
-        }
         (None, Some(h)) => {
-            reasons.push(format!("σ is the model's held-out residual RMS ({}, {} samples)", h.source, h.samples));
-            Ok(h.rms.clone())
+            let (sigma, why) = held_out_sigma(h);
+            reasons.push(why);
+            Ok(sigma)
         }
         (None, None) => Ok(vec![0.0; n]),
+    }
+}
+
+/// The σ per joint a model's held-out data gives the estimate, and why: its observer run's,
+/// else its residual's RMS. The daemon's too.
+pub fn held_out_sigma(h: &HeldOut) -> (Vec<f64>, String) {
+    match &h.observer {
+        Some(o) => (
+            o.sigma.clone(),
+            format!("σ is the observer's hand-free RMS at its bandwidth on the model's held-out data ({})", h.source),
+        ),
+        None => {
+            (h.rms.clone(), format!("σ is the model's held-out residual RMS ({}, {} samples)", h.source, h.samples))
+        }
     }
 }
 
@@ -536,7 +568,7 @@ pub fn observer_held_out(
             let estimate = estimate_force(model, Source::File(file), input, &options)
                 .map_err(|e| ForceLogError::Input(format!("held-out run {name}: {e}")))?;
             let (from, to) = interior(log.t, b, velocity_cutoff(file.settings.cutoff_hz, b, rate));
-            for (_, row) in estimate.tau_ext.chunks(n).enumerate().filter(|(i, _)| (from..to).contains(&log.t[*i])) {
+            for (row, _) in estimate.tau_ext.chunks(n).zip(log.t).filter(|(_, t)| (from..to).contains(*t)) {
                 squares.iter_mut().zip(row).for_each(|(s, r)| *s += r * r);
                 for (k, r) in row.iter().enumerate() {
                     grid_peak[g * n + k] = grid_peak[g * n + k].max(r.abs());

@@ -71,11 +71,7 @@ fn the_observer_recovers_a_constant_torque_on_the_moving_arm_with_its_effects() 
     let (mut worst_knowing, mut worst_blind) = (0.0_f64, 0.0_f64);
     for i in 0..3000 {
         let t = i as f64 * DT;
-        let target = [0.5 * (3.0 * t).sin(), 0.3 + 0.4 * (2.0 * t).sin(), 0.01 * (4.0 * t).sin()];
-        let mut tau = [0.0; 3];
-        gravity_torque(&model, &mut data, &q, &params, &mut tau);
-        let (kp, kd) = ([20.0, 20.0, 400.0], [1.0, 1.0, 20.0]);
-        (0..3).for_each(|k| tau[k] += kp[k] * (target[k] - q[k]) - kd[k] * qd[k]);
+        let tau = pd_along_sinusoids(&model, &mut data, &params, t, &q, &qd);
         // The drive delivers τ; its log says (1 + g) τ on the pitch.
         let mut logged = tau;
         logged[1] *= 1.0 + gain;
@@ -120,11 +116,7 @@ fn a_drive_reports_the_torque_of_the_cycle_that_ended_and_preceding_reads_it() {
                 worst_held = worst_held.max((h[k] - external[k]).abs() / external[k].abs());
             }
         }
-        let target = [0.5 * (3.0 * t).sin(), 0.3 + 0.4 * (2.0 * t).sin(), 0.01 * (4.0 * t).sin()];
-        let mut tau = [0.0; 3];
-        gravity_torque(&model, &mut data, &q, &params, &mut tau);
-        let (kp, kd) = ([20.0, 20.0, 400.0], [1.0, 1.0, 20.0]);
-        (0..3).for_each(|k| tau[k] += kp[k] * (target[k] - q[k]) - kd[k] * qd[k]);
+        let tau = pd_along_sinusoids(&model, &mut data, &params, t, &q, &qd);
         let applied: Vec<f64> = (0..3).map(|k| tau[k] + external[k]).collect();
         rk4(&model, &mut data, &params, &[0.0; 3], &applied, &mut q, &mut qd);
         // Reported with the next sample's position, as telemetry answers the command.
@@ -132,6 +124,17 @@ fn a_drive_reports_the_torque_of_the_cycle_that_ended_and_preceding_reads_it() {
     }
     assert!(worst_preceding < 0.01, "read as preceding: worst relative error {worst_preceding:.2e}");
     assert!(worst_held > 3.0 * worst_preceding, "read as held: {worst_held:.2e}, no worse than preceding");
+}
+
+/// The PD law with gravity compensation both moving-arm tests drive the arm with, along
+/// sinusoids on every joint.
+fn pd_along_sinusoids(model: &Model, data: &mut Data, params: &[f64], t: f64, q: &[f64; 3], qd: &[f64; 3]) -> [f64; 3] {
+    let target = [0.5 * (3.0 * t).sin(), 0.3 + 0.4 * (2.0 * t).sin(), 0.01 * (4.0 * t).sin()];
+    let mut tau = [0.0; 3];
+    gravity_torque(model, data, q, params, &mut tau);
+    let (kp, kd) = ([20.0, 20.0, 400.0], [1.0, 1.0, 20.0]);
+    (0..3).for_each(|k| tau[k] += kp[k] * (target[k] - q[k]) - kd[k] * qd[k]);
+    tau
 }
 
 /// Ten RK4 steps of 0.1 ms across one cycle, the torque held.

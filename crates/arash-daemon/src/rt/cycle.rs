@@ -439,7 +439,7 @@ impl ControlCycle {
     /// events, and a collision during an approach or a run latched at once.
     fn observe(&mut self) {
         let Some(force) = self.force.as_mut() else { return };
-        let level = force.step(self.telemetry_dt, &mut self.record);
+        let Some(level) = force.step(self.telemetry_dt, &mut self.record) else { return };
         let was = std::mem::replace(&mut self.level, level);
         match (was, level) {
             (Level::Free, Level::Contact | Level::Collision) => self.event(Event::ContactStarted),
@@ -454,14 +454,14 @@ impl ControlCycle {
             if let Some(id) = self.reference.run_id().filter(|_| self.reference.phase() == Phase::Run) {
                 self.event(Event::RunEnded(id));
             }
-            let q = fixed(&self.record.q);
-            self.stopped = self.reference.hold_at(&q[..self.dof]);
         }
         if self.floating {
             // The reference follows the floating arm: no following error, and a reset holds it
-            // where it is.
+            // where it is. The run a collision stopped goes off the real-time thread.
             let q = fixed(&self.record.q);
-            self.reference.hold_at(&q[..self.dof]);
+            if let Some(run) = self.reference.hold_at(&q[..self.dof]) {
+                self.stopped = Some(run);
+            }
         }
     }
 

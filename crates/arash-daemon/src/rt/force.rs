@@ -5,7 +5,7 @@
 
 use arash_core::control::gains::{compensation_epsilon, model_epsilon, RobustGains};
 use arash_core::force::{FrameForce, Level, MomentumObserver, ObserverError, Thresholds, TorqueTiming};
-use arash_core::force_log::{bandwidth_grid, default_frame, PEAK_MARGIN};
+use arash_core::force_log::{default_bandwidth, default_frame, held_out_sigma, sigma_thresholds};
 use arash_core::model_file::HeldOut;
 use arash_core::record::CycleRecord;
 use arash_core::Model;
@@ -20,7 +20,8 @@ pub struct ForceConfig {
     pub enabled: bool,
     /// The frame the force is mapped to; empty: the robot's instrument tip, where it names one.
     pub frame: String,
-    /// Per joint (Hz); default: the model file's held-out observer run, else 20 Hz.
+    /// Per joint (Hz); default: the model file's held-out observer run, else a quarter of the
+    /// band its held-out σ was measured in, else 20 Hz (`force_log::default_bandwidth`).
     pub bandwidth_hz: Option<Vec<f64>>,
     /// Thresholds by hand, per joint (N·m, N); default: multiples of the model file's σ.
     pub contact: Option<Vec<f64>>,
@@ -91,7 +92,6 @@ pub struct ForceMonitor {
     map: Option<FrameForce>,
     thresholds: Option<Thresholds>,
     sigma: Vec<f64>,
-    level: Level,
 }
 
 /// What the monitor is built from, as the daemon resolved it; also what `ctl status` shows.
@@ -109,8 +109,9 @@ pub struct ForceSetup {
 }
 
 impl ForceSetup {
-    /// Resolve the observer's settings: the configuration's, else the model file's held-out
-    /// observer run (`held_out`), else a hand's bandwidth at `rate_hz` and no thresholds.
+    /// Resolve the observer's settings: the configuration's, else what the model file's held-out
+    /// data gives (`held_out`), by the rules an offline estimate follows (`force_log`); without
+    /// it a hand's bandwidth at `rate_hz` and no thresholds.
     pub fn resolve(
         model: &Model,
         config: &ForceConfig,
@@ -119,40 +120,32 @@ impl ForceSetup {
     ) -> Result<Self, String> {
         let n = model.dof();
         let mut reasons = Vec::new();
-        let observer = held_out.and_then(|h| h.observer.as_ref());
-        let bandwidth_hz = match (&config.bandwidth_hz, observer) {
-            (Some(b), _) => b.clone(),
-            (None, Some(o)) => {
-                reasons.push(format!("bandwidth from the model file's held-out observer run: {}", o.reason));
-                o.bandwidth_hz.clone()
-            }
-            (None, None) => {
-                let b = bandwidth_grid(rate_hz)[0];
-                reasons.push(format!(
-                    "bandwidth {b} Hz: ten times a hand's band (the model file records no observer run)"
-                ));
-                vec![b; n]
+        let bandwidth_hz = match &config.bandwidth_hz {
+            Some(b) => b.clone(),
+            None => {
+                let (b, why) = default_bandwidth(held_out, None, rate_hz, n);
+                reasons.push(why);
+                b
             }
         };
-        let sigma = observer.map(|o| o.sigma.clone()).or_else(|| held_out.map(|h| h.rms.clone()));
+        let sigma = held_out.map(|h| {
+            let (sigma, why) = held_out_sigma(h);
+            reasons.push(why);
+            sigma
+        });
         let (contact, collision) = match (&config.contact, &config.collision, &sigma) {
             (Some(c), Some(k), _) => {
                 reasons.push("thresholds set by hand in the configuration".into());
                 (Some(c.clone()), Some(k.clone()))
             }
             (None, None, Some(s)) => {
-                let t = Thresholds::from_sigma(s, config.contact_sigmas, config.collision_sigmas)
+                let (t, why) = sigma_thresholds(s, config.contact_sigmas, config.collision_sigmas, held_out)
                     .map_err(|e| e.to_string())?;
-                let peak = observer.map(|o| o.peak.clone()).unwrap_or_default();
-                let t = match peak.len() == n {
-                    true => t.with_collision_floor(&peak.iter().map(|p| PEAK_MARGIN * p).collect::<Vec<_>>()),
-                    false => t,
-                };
                 reasons.push(format!(
-                    "contact at {}σ and collision at {}σ of the model's held-out σ (collision at least {PEAK_MARGIN} × \
-                     the held-out peak)",
+                    "contact at {}σ and collision at {}σ of the model's held-out σ",
                     config.contact_sigmas, config.collision_sigmas
                 ));
+                reasons.extend(why);
                 (Some(t.contact().to_vec()), Some(t.collision().to_vec()))
             }
             (None, None, None) => {
@@ -195,22 +188,21 @@ impl ForceSetup {
             _ => None,
         };
         let sigma = self.sigma.clone().unwrap_or_else(|| vec![0.0; model.dof()]);
-        Ok(ForceMonitor { observer, map, thresholds, sigma, level: Level::Free })
+        Ok(ForceMonitor { observer, map, thresholds, sigma })
     }
 }
 
 impl ForceMonitor {
     /// One telemetry frame `dt` after the last: the estimate into `r.tau_ext` (and the frame's
-    /// force into `r.frame_force`), from `r.q`, `r.qd` and `r.tau_meas`. Returns the level; a
-    /// non-finite input leaves the estimate as it was.
-    pub fn step(&mut self, dt: f64, r: &mut CycleRecord) -> Level {
-        let Ok(estimate) = self.observer.step(dt, &r.q, &r.qd, &r.tau_meas) else { return self.level };
+    /// force into `r.frame_force`), from `r.q`, `r.qd` and `r.tau_meas`. Returns the level, or
+    /// None for a non-finite input, which leaves the estimate as it was.
+    pub fn step(&mut self, dt: f64, r: &mut CycleRecord) -> Option<Level> {
+        let estimate = self.observer.step(dt, &r.q, &r.qd, &r.tau_meas).ok()?;
         r.tau_ext.copy_from_slice(estimate);
         if let Some(map) = self.map.as_mut() {
             r.frame_force.copy_from_slice(&map.map(&r.q, estimate, &self.sigma).force);
         }
-        self.level = self.thresholds.as_ref().map_or(Level::Free, |t| t.level(estimate));
-        self.level
+        Some(self.thresholds.as_ref().map_or(Level::Free, |t| t.level(estimate)))
     }
 
     /// Size the record's observer fields.
