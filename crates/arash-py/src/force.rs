@@ -35,8 +35,12 @@ use crate::robot::Robot;
 /// and 8, docs/force.md) or a pair `(contact,
 /// collision)` per joint in N·m and N; the result then holds each sample's `level` (0 free, 1
 /// contact, 2 collision), the thresholds used and the `episodes` (start, end, level) found.
+///
+/// `zero_phase=True` (offline analysis): the estimate without the observer's lag and in a hand's
+/// band (5 Hz), the forward observer's lag run backward and a zero-phase Butterworth after it;
+/// `level` and the episodes stay the causal observer's, as the rig would have flagged them.
 #[pyfunction]
-#[pyo3(signature = (robot, t, q, tau, *, qd=None, model=None, params=None, bandwidth_hz=None, epsilon=None, sigma=None, frame=None, about=None, min_lever_m=None, torque="sampled", currents=false, thresholds=None, contact_sigmas=None, collision_sigmas=None))]
+#[pyo3(signature = (robot, t, q, tau, *, qd=None, model=None, params=None, bandwidth_hz=None, epsilon=None, sigma=None, frame=None, about=None, min_lever_m=None, torque="sampled", currents=false, thresholds=None, contact_sigmas=None, collision_sigmas=None, zero_phase=false))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn external_force<'py>(
     py: Python<'py>,
@@ -58,6 +62,7 @@ pub(crate) fn external_force<'py>(
     thresholds: Option<Bound<'py, PyAny>>,
     contact_sigmas: Option<f64>,
     collision_sigmas: Option<f64>,
+    zero_phase: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let core_model = &robot.model;
     let n = core_model.dof();
@@ -100,6 +105,7 @@ pub(crate) fn external_force<'py>(
         timing,
         effort: if currents { Effort::Current } else { Effort::Torque },
         thresholds,
+        zero_phase,
     };
     let params = params.as_ref().map(|p| vector("params", p)).transpose()?;
     let cad = core_model.cad_parameters();

@@ -56,6 +56,11 @@ pub struct Args {
     /// The logs hold motor currents (A), turned into torques by the model's drive gains.
     #[arg(long)]
     currents: bool,
+    /// The estimate without the observer's lag, in the hand's band (5 Hz): for measuring a
+    /// hand's force after the fact (docs/force.md). Contacts and collisions stay those the
+    /// causal observer, the rig's, finds.
+    #[arg(long)]
+    zero_phase: bool,
     /// Directory for force.csv, report.txt and force.png.
     #[arg(short, long)]
     output: PathBuf,
@@ -131,6 +136,7 @@ fn options(args: &Args, model: &Model, file: &ModelFile, logged: TorqueTiming) -
         timing: args.timing.unwrap_or(logged),
         effort: if args.currents { Effort::Current } else { Effort::Torque },
         thresholds,
+        zero_phase: args.zero_phase,
         ..Default::default()
     })
 }

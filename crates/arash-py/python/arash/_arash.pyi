@@ -175,11 +175,13 @@ def external_force(
     thresholds: Optional[Union[str, tuple[Union[float, Sequence[float]], Union[float, Sequence[float]]]]] = None,
     contact_sigmas: Optional[float] = None,
     collision_sigmas: Optional[float] = None,
+    zero_phase: bool = False,
 ) -> dict[str, Any]:
     """The external joint torque by the momentum observer ("tau_ext", its σ "sigma_joint"), the force
     at ``frame``, and with ``thresholds`` ("sigma", or ``(contact, collision)`` in N·m and N) each
     sample's "level" (0 free, 1 contact, 2 collision) and the "episodes" found. What was chosen
-    from the model (bandwidth, σ, q̇) is in "reasons"."""
+    from the model (bandwidth, σ, q̇) is in "reasons". ``zero_phase=True``: offline, without the
+    observer's lag and in a hand's 5 Hz band; the levels stay the causal observer's."""
 
 @final
 class Identification:

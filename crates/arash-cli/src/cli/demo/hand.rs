@@ -51,6 +51,10 @@ pub struct HandRow {
     pub relative_error: [f64; 3],
     /// The same for the moment about the remote centre, per base axis.
     pub moment_error: [f64; 3],
+    /// The same two for the zero-phase estimate (`arash force --zero-phase`): offline, without
+    /// the causal observer's lag and in the hand's band.
+    pub zero_phase_error: [f64; 3],
+    pub zero_phase_moment_error: [f64; 3],
     /// The contact threshold as a force per base axis (N).
     pub floor: [f64; 3],
     /// Episodes on the hand-free runs, their length (s), and the share of their samples at
@@ -121,6 +125,9 @@ pub fn run(
         let force_error = relative_error(&accuracy.local, &applied.local, &cycles.t, applied_rms);
         let moment_error = relative_error(&accuracy.moment, &applied.moment, &cycles.t, moment_rms);
         let floor = axis_floor(&accuracy);
+        let smooth = estimate(model, &file, &cycles, &ForceLogOptions { zero_phase: true, ..tuned.clone() })?;
+        let zero_phase_error = relative_error(&smooth.local, &applied.local, &cycles.t, applied_rms);
+        let zero_phase_moment_error = relative_error(&smooth.moment, &applied.moment, &cycles.t, moment_rms);
         let (false_contacts, false_collisions, hand_free_s, contact_share) =
             false_alarms(model, &file, hand_free, &logged_options)?;
         let steps = step_hand(&floor);
@@ -135,6 +142,8 @@ pub fn run(
             sigma: accuracy.sigma_joint.clone(),
             relative_error: force_error,
             moment_error,
+            zero_phase_error,
+            zero_phase_moment_error,
             floor,
             false_contacts,
             false_collisions,
@@ -344,24 +353,30 @@ impl HandChapter {
             f[0], f[1], f[2], m[0], m[1], m[2]
         );
         s.push_str(
-            "| model | bandwidth (Hz) | σ per joint | force error across / across / along (% of applied RMS) | moment \
-             error x / y / z (%) | detection floor x / y / z (N) | hand-free contacts / collisions (share of samples in contact) | steps detected \
+            "| model | bandwidth (Hz) | σ per joint | force error across / across / along (% of applied RMS): causal; \
+             zero-phase | moment error x / y / z (%): causal; zero-phase | detection floor x / y / z (N) | hand-free contacts / collisions (share of samples in contact) | steps detected \
              | slowest (ms) |\n|---|---|---|---|---|---|---|---|---|\n",
         );
         for r in &self.rows {
             let bw: Vec<String> = r.bandwidth_hz.iter().map(|b| format!("{b}")).collect();
             let sigma: Vec<String> = r.sigma.iter().map(|v| format!("{v:.4}")).collect();
             s.push_str(&format!(
-                "| {} | {} | {} | {:.1} / {:.1} / {:.1} | {:.1} / {:.1} / {:.1} | {:.3} / {:.3} / {:.3} | {} / {} in {:.0} s ({:.1} %) | {} of {} | {} |\n",
+                "| {} | {} | {} | {:.1} / {:.1} / {:.1}; {:.1} / {:.1} / {:.1} | {:.1} / {:.1} / {:.1}; {:.1} / {:.1} / {:.1} | {:.3} / {:.3} / {:.3} | {} / {} in {:.0} s ({:.1} %) | {} of {} | {} |\n",
                 r.label,
                 bw.join(", "),
                 sigma.join(", "),
                 100.0 * r.relative_error[0],
                 100.0 * r.relative_error[1],
                 100.0 * r.relative_error[2],
+                100.0 * r.zero_phase_error[0],
+                100.0 * r.zero_phase_error[1],
+                100.0 * r.zero_phase_error[2],
                 100.0 * r.moment_error[0],
                 100.0 * r.moment_error[1],
                 100.0 * r.moment_error[2],
+                100.0 * r.zero_phase_moment_error[0],
+                100.0 * r.zero_phase_moment_error[1],
+                100.0 * r.zero_phase_moment_error[2],
                 r.floor[0],
                 r.floor[1],
                 r.floor[2],
