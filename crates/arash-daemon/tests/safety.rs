@@ -752,3 +752,52 @@ fn a_collision_latches_in_the_cycle_its_estimate_crosses_the_threshold_and_the_a
     assert_eq!((rig.cycle.faults(), rig.cycle.record().faults), (Faults::NONE, Faults::NONE));
     assert_eq!(rig.cycle.mode(), Mode::Enabled);
 }
+
+/// A model file switched to at run time (`ctl controller KIND --model FILE`) takes the hand's
+/// observer with it. An arm held at rest by the CAD model's gravity torque reads nothing external
+/// on the CAD model; switched to a model 20 % heavier, the observer on it reads the 20 % its
+/// gravity says is missing (`τ_ext = g_model(q) − τ` at rest), and the old observer comes back to
+/// be dropped off the real-time thread. Without a running observer the new one is handed back.
+#[test]
+fn a_model_switched_at_run_time_moves_the_force_observer_to_it() {
+    use arash_daemon::rt::cycle::Garbage;
+    use arash_daemon::rt::force::{ForceConfig, ForceSetup};
+    let model = arash_core::arash_asist();
+    let params = model.cad_parameters();
+    let mut gravity = [0.0; 3];
+    arash_core::dynamics::gravity_torque(&model, &mut arash_core::Data::new(&model), &[0.0; 3], &params, &mut gravity);
+    let setup = ForceSetup::resolve(&model, &ForceConfig::default(), None, 1000.0).unwrap();
+    let heavier: Vec<f64> = params.iter().map(|p| 1.2 * p).collect();
+    let mut rig = Rig::new(gravity, |_| {});
+    let monitor = setup.build(&model, &params, &[]).unwrap();
+    rig.cycle = ControlCycle::new(config(|_| {}), Box::new(Constant(gravity.to_vec()))).with_force(monitor);
+    rig.step();
+    rig.enable();
+    rig.steps(300);
+    let held = rig.cycle.record().tau_ext.iter().map(|v| v.abs()).fold(0.0, f64::max);
+    assert!(held < 1e-4, "held by the CAD gravity, nothing is external on the CAD model: {held}");
+    let switch = Request::Controller(
+        Box::new(Constant(gravity.to_vec())),
+        Some(Box::new(setup.build(&model, &heavier, &[]).unwrap())),
+    );
+    let garbage = rig.cycle.request(switch);
+    assert!(matches!(garbage, Some(Garbage::Controller(_, Some(_)))), "the old observer comes back to be dropped");
+    rig.steps(300); // 20 Hz: 38 time constants
+    let read = rig.cycle.record().tau_ext.clone();
+    for k in 0..3 {
+        let missing = 0.2 * gravity[k];
+        assert!(
+            (read[k] - missing).abs() <= 1e-3 * gravity[k].abs().max(1e-3),
+            "joint {k}: {read:?} against {missing}"
+        );
+    }
+    // A cycle without an observer keeps none, and hands the offered one back.
+    let mut bare = Rig::new(gravity, |_| {});
+    let offered = Request::Controller(
+        Box::new(Constant(gravity.to_vec())),
+        Some(Box::new(setup.build(&model, &heavier, &[]).unwrap())),
+    );
+    assert!(matches!(bare.cycle.request(offered), Some(Garbage::Controller(_, Some(_)))));
+    bare.steps(10);
+    assert!(bare.cycle.record().tau_ext.is_empty(), "no observer fields in a cycle that runs none");
+}

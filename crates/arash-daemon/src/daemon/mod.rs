@@ -198,7 +198,8 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
         drive: config.drive.clone(),
         torque_constant,
         robot: config.robot.clone(),
-        force,
+        force_config: config.force.clone(),
+        force: Mutex::new(force),
     });
     let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
     let served = runtime.block_on(async {

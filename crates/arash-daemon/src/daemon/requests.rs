@@ -19,8 +19,9 @@ use crate::logger::{RunInfo, RunRegistry};
 use arash_core::identify::closed_loop::LoggedController;
 
 use super::model_helper;
-use super::startup::{build_controller, read_file, MAX_INPUT_FILE_BYTES};
+use super::startup::{build_controller, read_file, ResolvedModel, MAX_INPUT_FILE_BYTES};
 use crate::rt::cycle::Request;
+use crate::rt::force::{ForceMonitor, ForceSetup};
 use crate::rt::reference::RunRequest;
 use crate::rt::runner::Shared;
 
@@ -48,8 +49,10 @@ pub(super) struct Operator {
     /// The robot's URDF as configured (`None`: the built-in one): the model helper checks files
     /// against it.
     pub(super) robot: Option<PathBuf>,
-    /// The hand's force observer as set up at start (None: `force.enabled = false`).
-    pub(super) force: Option<crate::rt::force::ForceSetup>,
+    /// The `[force]` table, and the hand's force observer as set up at start or by the last
+    /// switch to a model file (None: `force.enabled = false`).
+    pub(super) force_config: crate::rt::force::ForceConfig,
+    pub(super) force: Mutex<Option<crate::rt::force::ForceSetup>>,
 }
 
 /// Queue `request` for the control thread; the ticket it returns is what [`applied`] waits for.
@@ -157,11 +160,36 @@ pub(super) async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::
             };
             let (controller, logged) =
                 build_controller(&operator.model, kind, resolved.as_ref(), operator.gains.as_ref())?;
-            applied(operator, send(operator, Request::Controller(controller))?).await?;
+            let observer = match &resolved {
+                Some(r) => observer_for(operator, r).context("the hand's force observer on the new model")?,
+                None => None,
+            };
+            let (monitor, setup) = observer.unzip();
+            applied(operator, send(operator, Request::Controller(controller, monitor))?).await?;
             *operator.controller.lock().expect("controller lock") = logged;
+            if let Some(setup) = setup {
+                *operator.force.lock().expect("force lock") = Some(setup);
+            }
             Ok(status(operator))
         }
     }
+}
+
+/// The hand's force observer on a model switched to at run time, set up as at start-up from the
+/// daemon's `[force]` and the model file's held-out data; None when the daemon runs none.
+fn observer_for(
+    operator: &Operator,
+    resolved: &ResolvedModel,
+) -> anyhow::Result<Option<(Box<ForceMonitor>, ForceSetup)>> {
+    if !operator.force_config.enabled {
+        return Ok(None);
+    }
+    let model = &operator.model;
+    let setup = ForceSetup::resolve(model, &operator.force_config, resolved.held_out.as_ref(), 1.0 / operator.dt)
+        .map_err(|e| anyhow::anyhow!("[force]: {e}"))?;
+    let monitor =
+        setup.build(model, &resolved.params, &resolved.effects).map_err(|e| anyhow::anyhow!("[force]: {e}"))?;
+    Ok(Some((Box::new(monitor), setup)))
 }
 
 /// A model switched to at run time must drive the currents as the running cycle does: its gains
@@ -209,7 +237,7 @@ pub(super) fn status(operator: &Operator) -> serde_json::Value {
         "live": operator.live.as_ref().map(|l| l.status()),
         "link": *s.link.lock().expect("link stats lock"),
         "runs": runs,
-        "force": operator.force.as_ref().map(|f| serde_json::json!({
+        "force": operator.force.lock().expect("force lock").as_ref().map(|f| serde_json::json!({
             "setup": f,
             "level": level,
             "collision_reaction": "float: the run stops, the joints float under the model's compensation until reset",

@@ -85,13 +85,16 @@ pub enum Request {
     /// Hold the present reference position (abandoning a run).
     Hold,
     Run(Box<RunRequest>),
-    Controller(Box<dyn Controller>),
+    /// A control law, and with a model file the hand's force observer on the same model (built
+    /// off the real-time thread with the daemon's `[force]` settings; ignored, and handed back,
+    /// when the daemon runs no observer).
+    Controller(Box<dyn Controller>, Option<Box<ForceMonitor>>),
 }
 
 /// Something that came back from the cycle and must be dropped off the real-time thread.
 pub enum Garbage {
     Run(Box<RunRequest>),
-    Controller(Box<dyn Controller>),
+    Controller(Box<dyn Controller>, Option<Box<ForceMonitor>>),
 }
 
 /// A notable change in one cycle, for the event log.
@@ -153,7 +156,7 @@ pub struct ControlCycle {
     events: [Option<Event>; 8],
     /// The hand's force observer, its last level, and the collision it latched (the joints
     /// float while it is latched and the drive enabled).
-    force: Option<ForceMonitor>,
+    force: Option<Box<ForceMonitor>>,
     level: Level,
     collision: bool,
     floating: bool,
@@ -212,7 +215,7 @@ impl ControlCycle {
     /// Run the hand's force observer `monitor` on every telemetry frame.
     pub fn with_force(mut self, monitor: ForceMonitor) -> Self {
         monitor.prepare(&mut self.record);
-        self.force = Some(monitor);
+        self.force = Some(Box::new(monitor));
         self
     }
 
@@ -363,11 +366,17 @@ impl ControlCycle {
                 let t = self.time();
                 self.reference.start(t, &q[..self.dof], run).map(Garbage::Run)
             }
-            Request::Controller(mut c) => {
+            Request::Controller(mut c, monitor) => {
                 c.reset();
                 self.record.controller = c.kind();
                 self.event(Event::ControllerSwitched);
-                Some(Garbage::Controller(std::mem::replace(&mut self.controller, c)))
+                // The new observer starts from the present sample: its estimate rises from zero
+                // through its lag, as at start-up. The level and a latched collision stay.
+                let monitor = match (monitor, self.force.as_mut()) {
+                    (Some(new), Some(running)) => Some(std::mem::replace(running, new)),
+                    (unused, _) => unused,
+                };
+                Some(Garbage::Controller(std::mem::replace(&mut self.controller, c), monitor))
             }
         }
     }
