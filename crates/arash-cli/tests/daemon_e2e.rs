@@ -525,7 +525,7 @@ fn systemd_hears_ready_after_telemetry_and_watchdog_while_running_and_sigterm_fi
     let notify = UnixDatagram::bind(dir.join("notify.sock")).unwrap();
     notify.set_read_timeout(Some(Duration::from_millis(500))).unwrap();
     // A pty nobody answers yet: no telemetry, so no READY.
-    let (master, slave, pty) = arash_daemon::mock::pseudo_terminal().unwrap();
+    let (master, slave, pty) = arash_mock::pseudo_terminal().unwrap();
     let err = std::fs::File::create(dir.join("daemon.err")).unwrap();
     let mut d = Proc(
         daemon_command(&dir, &pty, "[link]\nstartup_timeout_ms = 10000\n")
@@ -549,7 +549,7 @@ fn systemd_hears_ready_after_telemetry_and_watchdog_while_running_and_sigterm_fi
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let stop_mock = stop.clone();
     let mock = std::thread::spawn(move || {
-        let mut motor = arash_daemon::mock::MockMotor::new(
+        let mut motor = arash_mock::MockMotor::new(
             &model,
             &arash_core::sim::Scenario::default(),
             Default::default(),
@@ -594,7 +594,7 @@ fn systemd_hears_ready_after_telemetry_and_watchdog_while_running_and_sigterm_fi
 fn no_telemetry_within_the_startup_timeout_is_an_error_that_names_it() {
     let _serial = serial();
     let dir = Scratch::new("e2e", "startup");
-    let (_master, _slave, pty) = arash_daemon::mock::pseudo_terminal().unwrap();
+    let (_master, _slave, pty) = arash_mock::pseudo_terminal().unwrap();
     let out = daemon_command(&dir, &pty, "[link]\nstartup_timeout_ms = 300\n").output().unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);

@@ -13,13 +13,16 @@ pub mod blas_lapack;
 pub mod control;
 pub mod data;
 pub mod dense;
+#[cfg(feature = "identification")]
 pub mod diagnose;
 pub mod dynamics;
 pub mod effects;
 #[cfg(feature = "flightlog")]
 pub mod flightlog;
 pub mod force;
+#[cfg(feature = "identification")]
 pub mod force_log;
+#[cfg(feature = "identification")]
 pub mod identify;
 pub mod kinematics;
 pub mod model;
@@ -29,6 +32,8 @@ pub mod params;
 pub mod physical;
 pub mod record;
 pub mod regressor;
+pub mod signal;
+#[cfg(feature = "simulation")]
 pub mod sim;
 pub mod spatial;
 pub mod transmission;
@@ -50,6 +55,14 @@ pub use urdf::{load_urdf, parse_urdf, UrdfError};
 /// The bundled reconstruction of ARASH:ASiST (`robots/arash_asist.urdf`, kept inside the crate so
 /// that a packaged crate or sdist carries it; `robots/` links to it).
 pub const ARASH_ASIST_URDF: &str = include_str!("../robots/arash_asist.urdf");
+
+/// ARASH:ASiST's encoders: counts per motor revolution after quadrature, per joint (the drive
+/// configuration's and the simulated rig's default).
+pub const ARASH_ASIST_COUNTS_PER_REV: [f64; 3] = [8192.0; 3];
+
+/// ARASH:ASiST's transmissions: joint motion per motor radian (rad/rad for the yaw's and the
+/// pitch's 12:1 cable drives, m/rad for the insertion's capstan of 2.5 mm radius).
+pub const ARASH_ASIST_TRANSMISSION: [f64; 3] = [1.0 / 12.0, 1.0 / 12.0, 0.0025];
 
 /// The bundled ARASH:ASiST model.
 pub fn arash_asist() -> Model {

@@ -2,8 +2,9 @@
 //! crate, or the files of a folder module, lowest first, and no file may name a module listed
 //! after its own. Read from the source: `crate::<module>`, and `super::<sibling>` inside a
 //! folder. Comments and `#[cfg(test)]` sections are left out: a test may use anything. Between
-//! crates Cargo enforces the order (arash-core ← arash-daemon ← arash-cli, arash-core ← arash-py),
-//! and a test here checks that the rig's binary links no plotting or reports.
+//! crates Cargo enforces the order (arash-core ← arash-daemon ← arash-mock ← arash-cli,
+//! arash-core ← arash-py), and a test here checks that the rig's binary links no plotting,
+//! reports, identification or simulator.
 //!
 //! `cargo test -p arash-core --test layers` runs it.
 
@@ -13,6 +14,7 @@ use std::path::{Path, PathBuf};
 /// arash-core, leaf first.
 const CORE: &[&str] = &[
     "parallel",
+    "signal",
     "blas_lapack",
     "dense",
     "spatial",
@@ -28,9 +30,9 @@ const CORE: &[&str] = &[
     "physical",
     "effects",
     "control",
-    "force",
     "record",
     "model_file",
+    "force",
     "identify",
     "force_log",
     "diagnose",
@@ -41,8 +43,9 @@ const CORE: &[&str] = &[
 /// The files of arash-core's folder modules, leaf first (`mod.rs` is the folder's own face).
 const FOLDERS: &[(&str, &[&str])] = &[
     ("blas_lapack", &["args", "blas", "lapack"]),
-    ("control", &["gains", "safety", "fourier", "trajectory", "estimator", "feedforward", "laws"]),
-    ("force", &["thresholds", "frame_force", "observer"]),
+    ("control", &["gains", "safety", "fourier", "trajectory", "estimator", "feedforward", "laws", "logged"]),
+    ("force", &["thresholds", "settings", "frame_force", "observer"]),
+    ("signal", &["resample"]),
     (
         "identify",
         &[
@@ -89,7 +92,7 @@ const FOLDERS: &[(&str, &[&str])] = &[
 ];
 
 /// arash-daemon: the rig library, leaf first (its binary, `main.rs`, only calls `daemon`).
-const DAEMON: &[&str] = &["exit", "link", "drive_config", "ctl", "rt", "live", "logger", "config", "mock", "daemon"];
+const DAEMON: &[&str] = &["exit", "link", "drive_config", "ctl", "rt", "live", "logger", "config", "daemon"];
 
 /// The files of arash-daemon's folder modules, leaf first.
 const DAEMON_FOLDERS: &[(&str, &[&str])] = &[
@@ -272,11 +275,27 @@ fn same_features(
     );
 }
 
-/// systemd runs `arash-daemon`: the tools' plotting, fonts, progress bars and CSV are not in it.
-/// The same check on `arash` finds them, so it can fail.
+/// systemd runs `arash-daemon`: the tools' plotting, fonts, progress bars and CSV are not in it,
+/// nor the identification's SDP, optimiser, statistics, FFT and filter design, the thread pool
+/// they use, or the simulated rig (arash-core's `identification` and `simulation` features, and
+/// the mock motor's crate). The same check on `arash` finds them all, so it can fail.
 #[test]
 fn the_rig_links_no_plotting_or_reports() {
-    let tools = ["arash-cli", "plotters", "dejavu", "indicatif", "csv"];
+    let tools = [
+        "arash-cli",
+        "plotters",
+        "dejavu",
+        "indicatif",
+        "csv",
+        "clarabel",
+        "argmin",
+        "statrs",
+        "realfft",
+        "sci-rs",
+        "rayon",
+        "rand_distr",
+        "arash-mock",
+    ];
     let rig = dependencies("arash-daemon");
     let found: Vec<&&str> = tools.iter().filter(|t| rig.iter().any(|d| d == **t)).collect();
     assert!(found.is_empty(), "arash-daemon depends on {found:?}");

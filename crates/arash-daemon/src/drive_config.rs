@@ -2,7 +2,6 @@
 //! N·m or N). The mock motor uses the same conversion, so the two always agree.
 
 use arash_core::model_file::DriveGains;
-use arash_core::sim::scenario::Sensors;
 
 /// Joint torque per ampere of motor current: a 27.6 mN·m/A motor behind the 12:1 cable
 /// reductions of φ and ψ, and behind the 2.5 mm insertion capstan.
@@ -23,10 +22,9 @@ pub struct DriveConfig {
 
 impl Default for DriveConfig {
     fn default() -> Self {
-        let s = Sensors::default();
         Self {
-            counts_per_rev: s.counts_per_rev,
-            transmission: s.transmission,
+            counts_per_rev: arash_core::ARASH_ASIST_COUNTS_PER_REV.to_vec(),
+            transmission: arash_core::ARASH_ASIST_TRANSMISSION.to_vec(),
             torque_constant: DEFAULT_TORQUE_CONSTANT.to_vec(),
         }
     }

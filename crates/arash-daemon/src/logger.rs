@@ -65,7 +65,7 @@ pub struct RunInfo {
     /// Attached to the run's log; left out of `ctl status`, which polls often.
     #[serde(skip)]
     pub trajectory_json: String,
-    /// The controller that runs it ([`arash_core::identify::closed_loop::LoggedController`]),
+    /// The controller that runs it ([`arash_core::control::logged::LoggedController`]),
     /// attached to the run's log as `controller.json`.
     #[serde(skip)]
     pub controller_json: String,

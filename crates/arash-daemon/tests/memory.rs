@@ -40,11 +40,11 @@ impl Drop for Killed {
 
 /// The mock motor on a pseudo-terminal, served from a thread of this process until `stop`.
 fn mock_motor(stop: Arc<AtomicBool>) -> (String, std::thread::JoinHandle<()>) {
-    let (master, slave, path) = arash_daemon::mock::pseudo_terminal().unwrap();
+    let (master, slave, path) = arash_mock::pseudo_terminal().unwrap();
     let serving = std::thread::spawn(move || {
         let model = arash_core::arash_asist();
         let scenario = arash_core::sim::Scenario::default();
-        let mut motor = arash_daemon::mock::MockMotor::new(&model, &scenario, Default::default(), Default::default())
+        let mut motor = arash_mock::MockMotor::new(&model, &scenario, Default::default(), Default::default())
             .expect("the mock motor");
         motor.serve(master, &stop).unwrap();
         drop(slave);

@@ -14,11 +14,11 @@ use arash_core::control::{standard_controller, ControllerKind, RobustGains, Traj
 use arash_core::sim::Scenario;
 use arash_daemon::config::DaemonConfig;
 use arash_daemon::drive_config::DriveConfig;
-use arash_daemon::mock::{FaultPlan, InProcessLink, MockMotor};
 use arash_daemon::rt::clock::Pace;
 use arash_daemon::rt::cycle::{ControlCycle, Request};
 use arash_daemon::rt::reference::RunRequest;
 use arash_daemon::rt::runner::{run, Queues, Shared};
+use arash_mock::{FaultPlan, InProcessLink, MockMotor};
 use counting::{allocations, watch_this_thread, Counting};
 
 #[global_allocator]

@@ -393,7 +393,7 @@ fn a_drive_fault_latches_until_reset_and_reset_leaves_the_motors_disabled() {
 
 #[test]
 fn a_drive_left_powered_by_a_crashed_daemon_is_switched_off_in_the_first_cycle() {
-    use arash_daemon::mock::{InProcessLink, MockMotor};
+    use arash_mock::{InProcessLink, MockMotor};
     let model = arash_core::arash_asist();
     let mut motor =
         MockMotor::new(&model, &arash_core::sim::Scenario::default(), Default::default(), Default::default()).unwrap();
@@ -589,7 +589,7 @@ fn over_can_the_link_timeout_holds_for_n_minus_1_cycles_and_trips_at_n() {
 /// the plant still moves each period under the frame it was sent, as it does behind a stalled
 /// pseudo-terminal (docs/demo.md, "A stall long enough to end a run").
 struct Stalling {
-    link: arash_daemon::mock::InProcessLink,
+    link: arash_mock::InProcessLink,
     every: u64,
     frames: u64,
 }
@@ -619,8 +619,8 @@ impl MotorLink for Stalling {
 /// largest insertion error (m) of the run.
 fn track_with_telemetry_every(every: u64, edit: impl FnOnce(&mut DaemonConfig)) -> (Faults, f64) {
     use arash_core::control::{standard_controller, RobustGains, Trajectory};
-    use arash_daemon::mock::{InProcessLink, MockMotor};
     use arash_daemon::rt::reference::{Phase, RunRequest};
+    use arash_mock::{InProcessLink, MockMotor};
     let model = arash_core::arash_asist();
     let gains = RobustGains::paper(&model).unwrap();
     let controller =

@@ -7,8 +7,8 @@ use anyhow::Context;
 use arash_core::sim::Scenario;
 use arash_daemon::config::RtConfig;
 use arash_daemon::drive_config::DriveConfig;
-use arash_daemon::mock::{pseudo_terminal, FaultPlan, MockMotor};
 use arash_daemon::rt::clock::{setup_realtime, RtPolicy};
+use arash_mock::{pseudo_terminal, FaultPlan, MockMotor};
 
 #[derive(clap::Args)]
 pub struct Args {

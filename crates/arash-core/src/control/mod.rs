@@ -10,6 +10,7 @@ pub mod feedforward;
 pub mod fourier;
 pub mod gains;
 mod laws;
+pub mod logged;
 pub mod safety;
 pub mod trajectory;
 

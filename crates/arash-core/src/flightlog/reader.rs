@@ -9,8 +9,8 @@ use prost::Message;
 
 use super::schema::{Cycle, Truth};
 use super::{LogError, CYCLE_TOPIC, FORMAT, METADATA_NAME, TRUTH_TOPIC};
+use crate::control::logged::{LoggedController, LoggedControllerError};
 use crate::control::{ControllerKind, Faults};
-use crate::identify::closed_loop::{ClosedLoopError, LoggedController};
 use crate::record::{Columns, CycleRecord, Mode, TruthColumns, TruthRecord};
 
 /// A whole log.
@@ -46,7 +46,7 @@ impl FlightLog {
     /// The controller the log's run was made with, for IDIM-IV: the daemon attaches it to each
     /// run's log as `controller.json`, `arash simulate` names it in `run.json`. `None` when the
     /// log names none; an error when it names one that cannot be read.
-    pub fn logged_controller(&self) -> Option<Result<LoggedController, ClosedLoopError>> {
+    pub fn logged_controller(&self) -> Option<Result<LoggedController, LoggedControllerError>> {
         if let Some(text) = self.attachment_text("controller.json") {
             return Some(LoggedController::from_json(&text));
         }

@@ -6,7 +6,7 @@
 //! sample per logged cycle. `arash identify`, `arash diagnose` and the demo read daemon logs
 //! through this, and `arash.read_log` gives the result as `log["uniform"]`.
 
-use crate::identify::repair::resample;
+use crate::signal::resample::resample;
 
 /// Channels on a uniform grid: `t` (N) and each channel row-major (N × its width, as given).
 #[derive(Clone, Debug, PartialEq)]

@@ -5,6 +5,7 @@
 
 pub mod frame_force;
 pub mod observer;
+pub mod settings;
 pub mod thresholds;
 
 pub use frame_force::{FrameForce, FrameForceSample};

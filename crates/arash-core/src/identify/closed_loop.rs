@@ -26,104 +26,19 @@
 
 use super::options::{ConsistentOptions, PreprocessOptions};
 use faer::Mat;
-use serde::{Deserialize, Serialize};
 
 use super::consistent::identify_consistent;
 use super::estimate::{self, stack, stack_full, Fit};
 use super::preprocess::{preprocess, PreprocessError, Preprocessed};
 use crate::base_parameters::BaseParameters;
-use crate::control::{controller_with_effects, Controller, ControllerKind, Desired, PdGains, PdGravity, RobustGains};
+use crate::control::Desired;
 use crate::data::Data;
 use crate::dense;
 use crate::dynamics::forward_dynamics;
-use crate::effects::EffectTerm;
 use crate::model::Model;
 use crate::model_file::IdentifyMethod;
 
-/// The controller a closed-loop log ran, as IDIM-IV simulates it.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "law", rename_all = "kebab-case")]
-pub enum LoggedController {
-    /// PD with gravity compensation, `τ = g(q; π_c) − K_p (q − q_d) − K_d (q̇ − q̇_d)`, with the
-    /// controller's own parameter vector `params` and these gains.
-    Pd { params: Vec<f64>, kp: Vec<f64>, kd: Vec<f64> },
-    /// One of arash's controllers as `arash simulate` and the daemon build it
-    /// ([`crate::control::controller_with_effects`]): the law, its parameter vector, the effects it
-    /// compensates and the robust gains (PD sizes its own).
-    Standard {
-        kind: ControllerKind,
-        params: Vec<f64>,
-        #[serde(default)]
-        effects: Vec<EffectTerm>,
-        #[serde(default)]
-        gains: Option<RobustGains>,
-    },
-}
-
-/// The controller part of a run specification (`run.json`, which `arash simulate` attaches to
-/// its flight log and the daemon to each run's log).
-#[derive(Deserialize)]
-struct RunController {
-    controller: ControllerKind,
-    params: Vec<f64>,
-    #[serde(default)]
-    effects: Vec<EffectTerm>,
-    #[serde(default)]
-    gains: Option<RobustGains>,
-}
-
-impl LoggedController {
-    /// The controller named by a run specification (`run.json`): its law, parameter vector,
-    /// compensated effects and robust gains.
-    pub fn from_run_json(text: &str) -> Result<Self, ClosedLoopError> {
-        let run: RunController = serde_json::from_str(text)
-            .map_err(|e| ClosedLoopError::Controller(format!("run.json does not name one: {e}")))?;
-        Ok(Self::Standard { kind: run.controller, params: run.params, effects: run.effects, gains: run.gains })
-    }
-
-    /// Read from JSON (`{"law": "pd", "params": [...], "kp": [...], "kd": [...]}`, or
-    /// `{"law": "standard", "kind": "robust", "params": [...], "gains": {...}}`).
-    pub fn from_json(text: &str) -> Result<Self, ClosedLoopError> {
-        serde_json::from_str(text).map_err(|e| ClosedLoopError::Controller(format!("not a controller: {e}")))
-    }
-
-    pub fn to_json(&self) -> String {
-        serde_json::to_string(self).expect("a controller serialises")
-    }
-
-    /// The controller, built for `model`; an error names what does not fit the robot.
-    pub fn build(&self, model: &Model) -> Result<Box<dyn Controller>, ClosedLoopError> {
-        let (n, big_p) = (model.dof(), model.num_params());
-        let params = match self {
-            Self::Pd { params, .. } | Self::Standard { params, .. } => params,
-        };
-        if params.len() != big_p {
-            return Err(ClosedLoopError::Controller(format!(
-                "its parameter vector has {} entries; the robot has {big_p} parameters",
-                params.len()
-            )));
-        }
-        if let Some(x) = params.iter().find(|x| !x.is_finite()) {
-            return Err(ClosedLoopError::Controller(format!("its parameter vector holds {x}")));
-        }
-        match self {
-            Self::Pd { params, kp, kd } => {
-                for (name, gains) in [("kp", kp), ("kd", kd)] {
-                    if gains.len() != n || gains.iter().any(|g| !(g.is_finite() && *g >= 0.0)) {
-                        return Err(ClosedLoopError::Controller(format!(
-                            "{name} must hold {n} non-negative numbers, one per joint, not {gains:?}"
-                        )));
-                    }
-                }
-                Ok(Box::new(PdGravity::new(model, params, PdGains { kp: kp.clone(), kd: kd.clone() })))
-            }
-            Self::Standard { kind, params, effects, gains } => {
-                controller_with_effects(*kind, model, params, effects, gains.as_ref())
-                    .map_err(|e| ClosedLoopError::Controller(e.to_string()))
-            }
-        }
-    }
-}
+pub use crate::control::logged::{LoggedController, LoggedControllerError};
 
 /// What a closed-loop log holds beyond `(t, q, τ)`: the reference the controller followed at each
 /// sample (`samples × dof` each, SI) and the controller.
@@ -177,8 +92,8 @@ impl IvOptions {
 /// Why IDIM-IV could not run.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ClosedLoopError {
-    #[error("closed-loop identification: the logged controller cannot be rebuilt: {0}")]
-    Controller(String),
+    #[error("closed-loop identification: {0}")]
+    Controller(#[from] LoggedControllerError),
     #[error("closed-loop identification: {0}")]
     Setting(String),
     #[error(

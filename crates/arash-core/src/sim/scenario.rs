@@ -98,8 +98,8 @@ pub struct Sensors {
 impl Default for Sensors {
     fn default() -> Self {
         Self {
-            counts_per_rev: vec![8192.0; 3],
-            transmission: vec![1.0 / 12.0, 1.0 / 12.0, 0.0025],
+            counts_per_rev: crate::ARASH_ASIST_COUNTS_PER_REV.to_vec(),
+            transmission: crate::ARASH_ASIST_TRANSMISSION.to_vec(),
             torque_noise: vec![0.002, 0.002, 0.03],
             velocity_cutoff_hz: 50.0,
         }

@@ -16,7 +16,7 @@ use crate::ctl::CtlRequest;
 use crate::drive_config::TorqueConstants;
 use crate::live::server::LiveServer;
 use crate::logger::{RunInfo, RunRegistry};
-use arash_core::identify::closed_loop::LoggedController;
+use arash_core::control::logged::LoggedController;
 
 use super::model_helper;
 use super::startup::{build_controller, read_file, ResolvedModel, MAX_INPUT_FILE_BYTES};

@@ -15,7 +15,7 @@ use crate::drive_config::{DriveConfigError, TorqueConstants};
 use crate::link::MotorLink;
 use crate::live::server::LiveServer;
 use crate::live::LiveConfigError;
-use arash_core::identify::closed_loop::LoggedController;
+use arash_core::control::logged::LoggedController;
 
 use super::DaemonOptions;
 use crate::rt::clock::{Pace, RtPolicy};

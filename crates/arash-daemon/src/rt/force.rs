@@ -4,8 +4,8 @@
 //! allocates.
 
 use arash_core::control::gains::{compensation_epsilon, model_epsilon, RobustGains};
+use arash_core::force::settings::{default_bandwidth, default_frame, held_out_sigma, sigma_thresholds};
 use arash_core::force::{FrameForce, Level, MomentumObserver, ObserverError, Thresholds, TorqueTiming};
-use arash_core::force_log::{default_bandwidth, default_frame, held_out_sigma, sigma_thresholds};
 use arash_core::model_file::HeldOut;
 use arash_core::record::CycleRecord;
 use arash_core::Model;
@@ -21,7 +21,7 @@ pub struct ForceConfig {
     /// The frame the force is mapped to; empty: the robot's instrument tip, where it names one.
     pub frame: String,
     /// Per joint (Hz); default: the model file's held-out observer run, else a quarter of the
-    /// band its held-out σ was measured in, else 20 Hz (`force_log::default_bandwidth`).
+    /// band its held-out σ was measured in, else 20 Hz (`force::settings::default_bandwidth`).
     pub bandwidth_hz: Option<Vec<f64>>,
     /// Thresholds by hand, per joint (N·m, N); default: multiples of the model file's σ.
     pub contact: Option<Vec<f64>>,
@@ -111,7 +111,8 @@ pub struct ForceSetup {
 impl ForceSetup {
     /// Resolve the observer's settings: the configuration's, else what the model file's held-out
     /// data gives (`held_out`), by the rules an offline estimate follows (`force_log`); without
-    /// it a hand's bandwidth at `rate_hz` and no thresholds.
+    /// it a hand's bandwidth at `rate_hz` and no thresholds. Thresholds at multiples of σ need
+    /// the file's observer run (`held_out.observer`).
     pub fn resolve(
         model: &Model,
         config: &ForceConfig,
@@ -133,12 +134,18 @@ impl ForceSetup {
             reasons.push(why);
             sigma
         });
+        // Only the observer's own hand-free run gives a σ of the estimate and a peak to keep a
+        // collision above: a residual's RMS is the model's error in its fitted band, which the
+        // observer, on the cycle's velocity, exceeds (on the demo's rig a model file with only
+        // the diagnosis's residual flickered in and out of contact at once and latched a false
+        // collision within 0.2 s of a run).
+        let observed = held_out.is_some_and(|h| h.observer.is_some());
         let (contact, collision) = match (&config.contact, &config.collision, &sigma) {
             (Some(c), Some(k), _) => {
                 reasons.push("thresholds set by hand in the configuration".into());
                 (Some(c.clone()), Some(k.clone()))
             }
-            (None, None, Some(s)) => {
+            (None, None, Some(s)) if observed => {
                 let (t, why) = sigma_thresholds(s, config.contact_sigmas, config.collision_sigmas, held_out)
                     .map_err(|e| e.to_string())?;
                 reasons.push(format!(
@@ -147,6 +154,15 @@ impl ForceSetup {
                 ));
                 reasons.extend(why);
                 (Some(t.contact().to_vec()), Some(t.collision().to_vec()))
+            }
+            (None, None, Some(_)) => {
+                reasons.push(
+                    "no contact or collision is told: the model file's held-out σ is its residual's, not the \
+                     observer's (record the observer's run with `arash identify --validate`), and no thresholds are \
+                     set (force.contact, force.collision)"
+                        .into(),
+                );
+                (None, None)
             }
             (None, None, None) => {
                 reasons.push(
@@ -216,5 +232,51 @@ impl ForceMonitor {
     /// The model's compensation at the last sample (see [`MomentumObserver::compensation`]).
     pub fn compensation(&self, out: &mut [f64]) {
         self.observer.compensation(out);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use arash_core::model_file::ObserverHeldOut;
+
+    fn held_out(observer: bool) -> HeldOut {
+        HeldOut {
+            rms: vec![0.01, 0.02, 0.1],
+            samples: 1000,
+            cutoff_hz: 20.0,
+            source: "validation".into(),
+            observer: observer.then(|| ObserverHeldOut {
+                bandwidth_hz: vec![20.0, 40.0, 80.0],
+                sigma: vec![0.002, 0.003, 0.02],
+                grid_hz: vec![20.0],
+                grid_sigma: vec![0.002, 0.003, 0.02],
+                reason: "test".into(),
+                peak: vec![0.01, 0.05, 0.1],
+            }),
+        }
+    }
+
+    /// σ thresholds come only from the observer's own run, with its collision floor; a residual's
+    /// RMS alone tells no contact, and says how to get one.
+    #[test]
+    fn thresholds_at_multiples_of_sigma_need_the_observers_held_out_run() {
+        let model = arash_core::arash_asist();
+        let config = ForceConfig::default();
+        let residual = ForceSetup::resolve(&model, &config, Some(&held_out(false)), 1000.0).unwrap();
+        assert_eq!((residual.contact.as_ref(), residual.collision.as_ref()), (None, None));
+        assert!(residual.reasons.iter().any(|r| r.contains("identify --validate")), "{:?}", residual.reasons);
+        let observed = ForceSetup::resolve(&model, &config, Some(&held_out(true)), 1000.0).unwrap();
+        assert_eq!(observed.bandwidth_hz, vec![20.0, 40.0, 80.0]);
+        let contact = observed.contact.unwrap();
+        let collision = observed.collision.unwrap();
+        for k in 0..3 {
+            let sigma = [0.002, 0.003, 0.02][k];
+            assert!((contact[k] - config.contact_sigmas * sigma).abs() < 1e-12, "{contact:?}");
+            // Eight σ, or 1.5 times the held-out peak where that is higher (the pitch's 0.075).
+            let floor = [0.01, 0.05, 0.1][k] * arash_core::force::settings::PEAK_MARGIN;
+            let expected = (config.collision_sigmas * sigma).max(floor);
+            assert!((collision[k] - expected).abs() < 1e-12, "{collision:?} against {expected}");
+        }
     }
 }

@@ -1,10 +1,13 @@
-//! The mock motor: the far end of the motor link, with the simulated plant behind it
+//! `arash-mock`: the mock motor, the far end of the motor link with the simulated plant behind it
 //! (`arash_core::sim::Drive`: true parameters, undeclared effects, encoders, current sensing).
 //!
 //! It is clocked by the host: every host frame is one control period of simulated time, and is
 //! answered by one telemetry frame. Host jitter therefore changes nothing physical, which keeps
 //! runs over a pseudo-terminal reproducible. While the drive is disabled a brake holds the
 //! joints (the plant does not move). [`FaultPlan`] injects link and sensor faults.
+//!
+//! A test double, not part of the rig: `arash mock-motor` and the tests link it, the daemon
+//! binary does not (docs/architecture.md, "Crates").
 
 use std::io::{Read, Write};
 
@@ -13,9 +16,9 @@ use arash_core::Model;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::drive_config::DriveConfig;
-use crate::link::frame::{drive_fault, status, Command, FrameError, Message, Telemetry, MAX_JOINTS, MAX_WIRE};
-use crate::link::serial::Endpoint;
+use arash_daemon::drive_config::DriveConfig;
+use arash_daemon::link::frame::{drive_fault, status, Command, FrameError, Message, Telemetry, MAX_JOINTS, MAX_WIRE};
+use arash_daemon::link::serial::Endpoint;
 
 /// Faults to inject, by probability per telemetry frame or from a simulated time on.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -73,7 +76,7 @@ pub enum MockError {
     #[error("fault `{name}` = {joint}, but the robot has joints 0..{}", dof - 1)]
     Joint { name: &'static str, joint: usize, dof: usize },
     #[error(transparent)]
-    Drive(#[from] crate::drive_config::DriveConfigError),
+    Drive(#[from] arash_daemon::drive_config::DriveConfigError),
     #[error(transparent)]
     Plant(#[from] arash_core::sim::PlantError),
 }
@@ -186,7 +189,7 @@ impl MockMotor {
         while !stop.load(std::sync::atomic::Ordering::Relaxed) {
             // A wake-up on a pty's bytes can come late on a loaded host; with a 10 ms timeout
             // the daemon saw stale stretches of up to 9 cycles (docs/demo.md).
-            crate::link::wait_readable(fd, std::time::Duration::from_millis(1));
+            arash_daemon::link::wait_readable(fd, std::time::Duration::from_millis(1));
             inbox.clear();
             endpoint.receive(|m| inbox.push(m))?;
             for m in inbox.drain(..) {
@@ -281,7 +284,7 @@ impl MockMotor {
         self.release_held(endpoint);
         let Some(telemetry) = self.reply() else { return };
         let mut wire = [0u8; MAX_WIRE];
-        let n = crate::link::frame::encode(&Message::Telemetry(telemetry), &mut wire);
+        let n = arash_daemon::link::frame::encode(&Message::Telemetry(telemetry), &mut wire);
         let f = &self.faults;
         let (drop, corrupt, delay, reorder) = (f.drop, f.corrupt, f.delay, f.reorder);
         if self.rng.random_bool(drop) {
@@ -338,12 +341,12 @@ fn send<P: Read + Write>(endpoint: &mut Endpoint<P>, bytes: &[u8]) {
     let _ = endpoint.write_raw(bytes);
 }
 
-/// The mock motor in the same process, as a [`crate::link::MotorLink`]: each command is answered at once,
+/// The mock motor in the same process, as a [`arash_daemon::link::MotorLink`]: each command is answered at once,
 /// through the fault plan's silences (byte-level faults need the serial path).
 pub struct InProcessLink {
     pub motor: MockMotor,
     inbox: Option<Telemetry>,
-    stats: crate::link::LinkStats,
+    stats: arash_daemon::link::LinkStats,
 }
 
 impl InProcessLink {
@@ -352,7 +355,7 @@ impl InProcessLink {
     }
 }
 
-impl crate::link::MotorLink for InProcessLink {
+impl arash_daemon::link::MotorLink for InProcessLink {
     fn send(&mut self, command: &Command) -> std::io::Result<()> {
         self.motor.on_command(command).map_err(std::io::Error::other)?;
         self.stats.frames_sent += 1;
@@ -371,7 +374,7 @@ impl crate::link::MotorLink for InProcessLink {
         }
     }
 
-    fn stats(&self) -> crate::link::LinkStats {
+    fn stats(&self) -> arash_daemon::link::LinkStats {
         self.stats
     }
 }
