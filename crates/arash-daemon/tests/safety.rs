@@ -690,10 +690,7 @@ fn a_collision_latches_in_the_cycle_its_estimate_crosses_the_threshold_and_the_a
     use arash_daemon::rt::force::ForceConfig;
     use arash_daemon::rt::force::ForceSetup;
     use arash_daemon::rt::reference::{Phase, RunRequest};
-    let model = arash_core::arash_asist();
-    let params = model.cad_parameters();
-    let mut gravity = [0.0; 3];
-    arash_core::dynamics::gravity_torque(&model, &mut arash_core::Data::new(&model), &[0.0; 3], &params, &mut gravity);
+    let (model, params, gravity) = held_by_cad_gravity();
     let (contact, collision) = (vec![0.05, 0.05, 0.5], vec![0.2, 0.2, 2.0]);
     let force =
         ForceConfig { contact: Some(contact.clone()), collision: Some(collision.clone()), ..Default::default() };
@@ -753,6 +750,16 @@ fn a_collision_latches_in_the_cycle_its_estimate_crosses_the_threshold_and_the_a
     assert_eq!(rig.cycle.mode(), Mode::Enabled);
 }
 
+/// ARASH:ASiST, its CAD parameters, and the CAD gravity torque at `q = 0`, which holds the arm
+/// there.
+fn held_by_cad_gravity() -> (arash_core::Model, Vec<f64>, [f64; 3]) {
+    let model = arash_core::arash_asist();
+    let params = model.cad_parameters();
+    let mut gravity = [0.0; 3];
+    arash_core::dynamics::gravity_torque(&model, &mut arash_core::Data::new(&model), &[0.0; 3], &params, &mut gravity);
+    (model, params, gravity)
+}
+
 /// A model file switched to at run time (`ctl controller KIND --model FILE`) takes the hand's
 /// observer with it. An arm held at rest by the CAD model's gravity torque reads nothing external
 /// on the CAD model; switched to a model 20 % heavier, the observer on it reads the 20 % its
@@ -762,10 +769,7 @@ fn a_collision_latches_in_the_cycle_its_estimate_crosses_the_threshold_and_the_a
 fn a_model_switched_at_run_time_moves_the_force_observer_to_it() {
     use arash_daemon::rt::cycle::Garbage;
     use arash_daemon::rt::force::{ForceConfig, ForceSetup};
-    let model = arash_core::arash_asist();
-    let params = model.cad_parameters();
-    let mut gravity = [0.0; 3];
-    arash_core::dynamics::gravity_torque(&model, &mut arash_core::Data::new(&model), &[0.0; 3], &params, &mut gravity);
+    let (model, params, gravity) = held_by_cad_gravity();
     let setup = ForceSetup::resolve(&model, &ForceConfig::default(), None, 1000.0).unwrap();
     let heavier: Vec<f64> = params.iter().map(|p| 1.2 * p).collect();
     let mut rig = Rig::new(gravity, |_| {});
