@@ -12,6 +12,8 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
+import arash
+
 from support.paths import ROOT, loaded_host_config, mock_motor_args
 
 pytest.importorskip("websockets")
@@ -105,9 +107,69 @@ def test_every_topic_is_advertised_with_a_schema_and_nothing_can_be_commanded(li
     reader, received, _, _ = live_run
     assert reader.info["capabilities"] == []
     topics = {c["topic"]: c for c in reader.channels.values()}
-    assert set(topics) == {"/arash/cycle", "/arash/error", "/arash/timing", "/arash/event", "/robot_description"}
+    assert set(topics) == {
+        "/arash/cycle", "/arash/error", "/arash/timing", "/arash/event", "/robot_description", "/arash/transforms",
+        "/arash/hand_force_arrow",
+    }
+    assert topics["/arash/transforms"]["schemaName"] == "foxglove.FrameTransforms"
+    assert topics["/arash/hand_force_arrow"]["schemaName"] == "foxglove.SceneUpdate"
     assert topics["/arash/cycle"]["schemaName"] == "arash.Cycle"
     assert topics["/arash/error"]["metadata"]["units"] == "deg,deg,um"
+
+
+def test_the_3d_panel_puts_the_links_and_the_force_arrow_where_pinocchio_does(live_run):
+    """Each displayed cycle's transforms, chained from the base as Foxglove does, place every link
+    where Pinocchio's forward kinematics of the URDF puts it at the cycle's q; the hand's force
+    arrow starts at Pinocchio's instrument tip and points along the cycle's tip force, 20 mm per
+    newton."""
+    pin = pytest.importorskip("pinocchio")
+    from scipy.spatial.transform import Rotation
+    from support.independent import Expanded
+    from support.paths import ROBOT_FILES
+
+    _, received, _, _ = live_run
+    path = ROBOT_FILES["arash_asist"]
+    ref = Expanded(path, arash.Robot.from_urdf(str(path)))
+    cycles = {t: m for t, _, m in received["/arash/cycle"]}
+    transforms = [(t, m) for t, _, m in received["/arash/transforms"]]
+    assert len(transforms) >= 250, len(transforms)
+
+    def placement(msg):
+        return Rotation.from_quat([msg.rotation.x, msg.rotation.y, msg.rotation.z, msg.rotation.w]).as_matrix(), \
+            np.array([msg.translation.x, msg.translation.y, msg.translation.z])
+
+    checked = 0
+    for log_time, m in transforms[::25]:
+        pin.framesForwardKinematics(ref.model, ref.data, ref.configuration(np.array(cycles[log_time].q)))
+        parent_of = {t.child_frame_id: t for t in m.transforms}
+        for link in parent_of:
+            rot, pos, name = np.eye(3), np.zeros(3), link
+            while name in parent_of:
+                r, p = placement(parent_of[name])
+                rot, pos, name = r @ rot, r @ pos + p, parent_of[name].parent_frame_id
+            assert name == "base"
+            expected = ref.data.oMf[ref.model.getFrameId(link)]
+            np.testing.assert_allclose(rot, expected.rotation, atol=1e-9, err_msg=link)
+            np.testing.assert_allclose(pos, expected.translation, atol=1e-9, err_msg=link)
+            checked += 1
+    assert checked >= 8 * 10
+    arrows = 0
+    for log_time, _, update in received["/arash/hand_force_arrow"]:
+        cycle = cycles[log_time]
+        force = np.array(cycle.frame_force)
+        if not update.entities:
+            assert np.linalg.norm(force) < 1e-3 and update.deletions[0].id == "hand_force"
+            continue
+        arrow = update.entities[0].arrows[0]
+        pin.framesForwardKinematics(ref.model, ref.data, ref.configuration(np.array(cycle.q)))
+        tip = ref.data.oMf[ref.model.getFrameId("instrument_tip")].translation
+        o = arrow.pose.orientation
+        direction = Rotation.from_quat([o.x, o.y, o.z, o.w]).apply([1.0, 0.0, 0.0])
+        np.testing.assert_allclose([arrow.pose.position.x, arrow.pose.position.y, arrow.pose.position.z], tip, atol=1e-9)
+        np.testing.assert_allclose(direction, force / np.linalg.norm(force), atol=1e-9)
+        assert abs(arrow.shaft_length + arrow.head_length - 0.02 * np.linalg.norm(force)) < 1e-12
+        arrows += 1
+    assert arrows >= 100, arrows
 
 
 def test_the_decoded_cycles_equal_the_flight_logs_at_the_display_rate(live_run):
@@ -166,7 +228,7 @@ def test_ctl_status_counts_the_client_and_what_it_was_sent(live_run):
     live = status["live"]
     assert (live["clients"], live["connections"], live["dropped"]) == (1, 1, 0)
     assert live["sent"] >= sum(len(v) for v in received.values())
-    assert live["per_client"][0]["subscriptions"] == 5
+    assert live["per_client"][0]["subscriptions"] == 7
 
 
 def test_another_address_than_loopback_needs_the_flag_and_a_foreign_protocol_is_refused(tmp_path):

@@ -98,7 +98,7 @@ const DAEMON: &[&str] = &["exit", "link", "drive_config", "ctl", "rt", "live", "
 const DAEMON_FOLDERS: &[(&str, &[&str])] = &[
     ("link", &["frame", "serial", "can", "slcan", "canopen", "cia402", "drive_setup", "master"]),
     ("rt", &["clock", "memory", "reference", "force", "cycle", "runner"]),
-    ("live", &["window", "server"]),
+    ("live", &["window", "scene", "server"]),
     ("daemon", &["startup", "model_helper", "requests", "server"]),
 ];
 

@@ -226,7 +226,8 @@ pub(super) fn open_live(
     }
     eprintln!("arash-daemon: live stream on ws://{addr} (Foxglove: open connection, Foxglove WebSocket)");
     let units: Vec<&str> = scales.iter().map(|s| s.1).collect();
-    let server = LiveServer::new(addr, urdf, &units, config.live.client_queue)
+    let frame = config.force.enabled.then_some(config.force.frame.as_str());
+    let server = LiveServer::new(addr, urdf, &units, config.live.client_queue, frame)
         .map_err(|e| StartupError::LiveServer(format!("{e:#}")))?;
     Ok((Arc::new(server), listener))
 }

@@ -4,11 +4,13 @@
 //! - [`window`]: the display window, which thins the cycles to the display rate and keeps the
 //!   extremes of the tracking error in between; the logger writes its output to every daemon log
 //!   and hands it to the stream, so that one Foxglove layout opens both;
+//! - [`scene`]: the 3D panel's links and the hand's force arrow at the displayed cycle;
 //! - [`server`]: the server. The logger thread publishes into per-client bounded queues and
 //!   never waits; a client that does not read loses messages, which are counted.
 //!
 //! Off by default, on loopback by default; another address needs `live.allow_remote`.
 
+pub mod scene;
 pub mod server;
 pub mod window;
 

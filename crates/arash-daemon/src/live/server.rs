@@ -16,16 +16,20 @@ use std::sync::{Arc, Mutex};
 
 use arash_core::flightlog::schema::{descriptor_set, CYCLE_SCHEMA, ERROR_SCHEMA};
 use arash_core::flightlog::{CYCLE_TOPIC, ERROR_TOPIC, EVENT_TOPIC, ROBOT_DESCRIPTION_TOPIC, TIMING_TOPIC};
+use foxglove::messages::{FrameTransforms, SceneUpdate};
 use foxglove::ws_protocol::client::ClientMessage;
 use foxglove::ws_protocol::schema::Schema;
 use foxglove::ws_protocol::server::{Advertise, Channel, MessageData, ServerInfo};
 use foxglove::ws_protocol::{BinaryMessage, JsonMessage};
+use foxglove::Encode;
 use futures_util::{SinkExt, StreamExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::mpsc;
 use tokio_tungstenite::tungstenite::handshake::server::{ErrorResponse, Request, Response};
 use tokio_tungstenite::tungstenite::http::HeaderValue;
 use tokio_tungstenite::tungstenite::Message;
+
+use super::scene::{timestamp, Scene};
 
 /// The subprotocols a client may ask for, preferred first. Both carry the schemas inline in
 /// each advertisement, which is all this server sends.
@@ -44,9 +48,27 @@ pub enum Topic {
     Event = 4,
     /// `/robot_description`, the URDF, sent to each client when it subscribes.
     RobotDescription = 5,
+    /// `/arash/transforms`, each moving link in its parent at the window's cycle
+    /// (`foxglove.FrameTransforms`): the URDF moves in the 3D panel.
+    Transforms = 6,
+    /// `/arash/hand_force_arrow`, the hand's force as an arrow at its frame
+    /// (`foxglove.SceneUpdate`).
+    HandArrow = 7,
 }
 
-const TOPICS: [Topic; 5] = [Topic::Cycle, Topic::Error, Topic::Timing, Topic::Event, Topic::RobotDescription];
+const TOPICS: [Topic; 7] = [
+    Topic::Cycle,
+    Topic::Error,
+    Topic::Timing,
+    Topic::Event,
+    Topic::RobotDescription,
+    Topic::Transforms,
+    Topic::HandArrow,
+];
+
+/// The live stream's own topics, beside the flight log's.
+pub const TRANSFORMS_TOPIC: &str = "/arash/transforms";
+pub const HAND_ARROW_TOPIC: &str = "/arash/hand_force_arrow";
 
 impl Topic {
     fn from_id(id: u64) -> Option<Topic> {
@@ -60,6 +82,8 @@ impl Topic {
             Topic::Timing => TIMING_TOPIC,
             Topic::Event => EVENT_TOPIC,
             Topic::RobotDescription => ROBOT_DESCRIPTION_TOPIC,
+            Topic::Transforms => TRANSFORMS_TOPIC,
+            Topic::HandArrow => HAND_ARROW_TOPIC,
         }
     }
 }
@@ -90,12 +114,21 @@ pub struct LiveServer {
     advertise: String,
     info: String,
     robot_description: Vec<u8>,
+    /// The 3D panel's kinematics (the logger thread alone draws with it).
+    scene: Mutex<Scene>,
 }
 
 impl LiveServer {
     /// A server for a robot with `urdf` whose error display units are `units` (one per joint),
-    /// queueing up to `queue` messages per client.
-    pub fn new(address: std::net::SocketAddr, urdf: &str, units: &[&str], queue: usize) -> anyhow::Result<Self> {
+    /// queueing up to `queue` messages per client; the hand's force is drawn at `frame`.
+    pub fn new(
+        address: std::net::SocketAddr,
+        urdf: &str,
+        units: &[&str],
+        queue: usize,
+        frame: Option<&str>,
+    ) -> anyhow::Result<Self> {
+        let scene = Scene::new(arash_core::parse_urdf(urdf)?, frame)?;
         let info = ServerInfo::new("arash-daemon")
             .with_metadata([("arash_version".to_string(), env!("CARGO_PKG_VERSION").to_string())].into())
             .to_string();
@@ -107,6 +140,7 @@ impl LiveServer {
             advertise: advertisement(units)?,
             info,
             robot_description: serde_json::json!({ "data": urdf }).to_string().into_bytes(),
+            scene: Mutex::new(scene),
         })
     }
 
@@ -120,6 +154,30 @@ impl LiveServer {
                 continue;
             };
             self.offer(client, Message::Binary(MessageData::new(subscription, log_time, payload).to_bytes().into()));
+        }
+    }
+
+    /// The 3D panel at a window's cycle: the links at `q` and the hand's force `frame_force` (N,
+    /// base frame; empty without a frame) as an arrow, drawn only while someone watches.
+    pub fn publish_scene(&self, log_time: u64, q: &[f64], frame_force: &[f64]) {
+        let watched = |topic: Topic| {
+            self.clients
+                .lock()
+                .expect("client list lock")
+                .iter()
+                .any(|c| c.subscriptions.lock().expect("subscriptions lock").contains_key(&(topic as u64)))
+        };
+        let time = timestamp(log_time);
+        let mut scene = self.scene.lock().expect("scene lock");
+        let mut payload = Vec::new();
+        if watched(Topic::Transforms) {
+            scene.transforms(q, time).encode(&mut payload).expect("a Vec grows as needed");
+            self.publish(Topic::Transforms, log_time, &payload);
+        }
+        if watched(Topic::HandArrow) {
+            payload.clear();
+            scene.hand_arrow(q, frame_force, time).encode(&mut payload).expect("a Vec grows as needed");
+            self.publish(Topic::HandArrow, log_time, &payload);
         }
     }
 
@@ -296,6 +354,15 @@ fn advertisement(units: &[&str]) -> anyhow::Result<String> {
         ))
     };
     let object = r#"{"type":"object"}"#;
+    // Foxglove's own schemas, which its 3D panel draws.
+    let foxglove_schema = |topic: Topic, schema: Option<foxglove::Schema>| {
+        let schema = schema.expect("Foxglove's messages carry their schema");
+        Channel::builder(topic as u64, topic.name(), "protobuf").with_schema(Schema::new(
+            schema.name,
+            schema.encoding,
+            schema.data.into_owned(),
+        ))
+    };
     let channels = [
         protobuf(Topic::Cycle, CYCLE_SCHEMA),
         protobuf(Topic::Error, ERROR_SCHEMA).with_metadata([("units".to_string(), units.join(","))].into()),
@@ -307,6 +374,8 @@ fn advertisement(units: &[&str]) -> anyhow::Result<String> {
             "std_msgs/String",
             r#"{"type":"object","properties":{"data":{"type":"string"}}}"#,
         ),
+        foxglove_schema(Topic::Transforms, FrameTransforms::get_schema()),
+        foxglove_schema(Topic::HandArrow, SceneUpdate::get_schema()),
     ]
     .into_iter()
     .map(|builder| builder.build())
