@@ -115,8 +115,10 @@ def test_the_wheel_is_abi3_manylinux_and_self_contained(wheel, tmp_path):
     assert needed - loader <= ALLOWED, f"outside the manylinux allow-list: {needed - loader - ALLOWED}"
     assert not any("blas" in n or "lapack" in n for n in needed)
     for field in ("Name: arash", "Requires-Python: >=3.9", "Requires-Dist: numpy", "License-Expression: MIT OR Apache-2.0",
-                  "Description-Content-Type: text/markdown", "Classifier: Typing :: Typed"):
+                  "Description-Content-Type: text/markdown", "Classifier: Typing :: Typed", "Provides-Extra: sim"):
         assert field in metadata, f"{field!r} missing from the wheel's METADATA:\n{metadata[:2000]}"
+    extra = [line for line in metadata.splitlines() if line.startswith("Requires-Dist:") and "extra ==" in line]
+    assert {line.split()[1].split(">")[0] for line in extra} == {"python-can", "canopen"}, extra
 
 
 def test_the_wheel_installs_and_fits_in_a_fresh_venv_with_only_numpy(wheel, tmp_path):
@@ -125,6 +127,10 @@ def test_the_wheel_installs_and_fits_in_a_fresh_venv_with_only_numpy(wheel, tmp_
     installed = run(python, "-m", "pip", "list", "--format=freeze", env=clean_env())
     assert {line.split("==")[0].lower() for line in installed.split()} <= {"numpy", "arash", "pip", "setuptools"}
     smoke_test(python, tmp_path)
+    # The drive simulator is the `sim` extra's: without it, its import says how to get it.
+    missing = subprocess.run([python, "-c", "import arash.cia402_sim"], capture_output=True, text=True,
+                             env=clean_env(), cwd=tmp_path)
+    assert missing.returncode != 0 and "pip install 'arash[sim]'" in missing.stderr, missing.stderr
 
 
 def test_the_sdist_builds_and_installs_from_its_own_contents(tmp_path):

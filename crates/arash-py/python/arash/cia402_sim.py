@@ -46,11 +46,16 @@ import time
 import tty
 from dataclasses import dataclass, field
 
-import can
-import canopen
-from canopen.objectdictionary import (INTEGER8, INTEGER16, INTEGER32, UNSIGNED8, UNSIGNED16, UNSIGNED32,
-                                      ODArray, ODRecord, ODVariable, ObjectDictionary)
-from canopen.sdo import SdoAbortedError
+try:
+    import can
+    import canopen
+    from canopen.objectdictionary import (INTEGER8, INTEGER16, INTEGER32, UNSIGNED8, UNSIGNED16, UNSIGNED32,
+                                          ODArray, ODRecord, ODVariable, ObjectDictionary)
+    from canopen.sdo import SdoAbortedError
+except ImportError as missing:
+    raise ImportError(
+        f"arash.cia402_sim needs python-can and canopen ({missing.name} is not installed): pip install 'arash[sim]'"
+    ) from missing
 
 # Statuswords of CiA 402's states (bit 9 "remote" set, as drives under a master report it).
 SWITCH_ON_DISABLED = 0x0250
