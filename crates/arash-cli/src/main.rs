@@ -7,6 +7,8 @@
 #![allow(rustdoc::invalid_html_tags)]
 
 mod cli;
+#[cfg(test)]
+mod docs_check;
 mod report;
 mod runlog;
 

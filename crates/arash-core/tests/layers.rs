@@ -103,7 +103,7 @@ const DAEMON_FOLDERS: &[(&str, &[&str])] = &[
 ];
 
 /// arash-cli: the `arash` binary's modules (`main.rs` declares them), leaf first.
-const CLI: &[&str] = &["runlog", "report", "cli"];
+const CLI: &[&str] = &["runlog", "report", "cli", "docs_check"];
 
 fn src(krate: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(krate).join("src")
