@@ -52,10 +52,10 @@ try:
     from canopen.objectdictionary import (INTEGER8, INTEGER16, INTEGER32, UNSIGNED8, UNSIGNED16, UNSIGNED32,
                                           ODArray, ODRecord, ODVariable, ObjectDictionary)
     from canopen.sdo import SdoAbortedError
-except ImportError as missing:
+except ImportError as _missing:
     raise ImportError(
-        f"arash.cia402_sim needs python-can and canopen ({missing.name} is not installed): pip install 'arash[sim]'"
-    ) from missing
+        f"arash.cia402_sim needs python-can and canopen ({_missing.name} is not installed): pip install 'arash[sim]'"
+    ) from _missing
 
 # Statuswords of CiA 402's states (bit 9 "remote" set, as drives under a master report it).
 SWITCH_ON_DISABLED = 0x0250
