@@ -95,7 +95,7 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     metadata.insert("torque_constant_source".into(), serde_json::to_string(&torque_constant.sources)?);
     let scales = display_scales(&model);
     let live = match config.live.enabled {
-        true => Some(open_live(&config, &urdf, &scales)?),
+        true => Some(open_live(&config, &urdf, &scales, force.as_ref().and_then(|f| f.frame.as_deref()))?),
         false => None,
     };
     let context = LogContext {
@@ -230,11 +230,17 @@ fn with_force(
         return Ok((cycle, None));
     }
     let held_out = resolved.and_then(|r| r.held_out.as_ref());
-    let setup = crate::rt::force::ForceSetup::resolve(model, &config.force, held_out, config.control.rate_hz)
-        .map_err(|e| anyhow::anyhow!("[force]: {e}"))?;
     let params = resolved.map_or_else(|| model.cad_parameters(), |r| r.params.clone());
     let effects = resolved.map(|r| r.effects.clone()).unwrap_or_default();
-    let monitor = setup.build(model, &params, &effects).map_err(|e| anyhow::anyhow!("[force]: {e}"))?;
+    let (setup, monitor) = crate::rt::force::ForceSetup::monitor(
+        model,
+        &config.force,
+        held_out,
+        config.control.rate_hz,
+        &params,
+        &effects,
+    )
+    .map_err(|e| anyhow::anyhow!(e))?;
     for reason in &setup.reasons {
         eprintln!("arash-daemon: force observer: {reason}");
     }

@@ -184,11 +184,17 @@ fn observer_for(
     if !operator.force_config.enabled {
         return Ok(None);
     }
-    let model = &operator.model;
-    let setup = ForceSetup::resolve(model, &operator.force_config, resolved.held_out.as_ref(), 1.0 / operator.dt)
-        .map_err(|e| anyhow::anyhow!("[force]: {e}"))?;
-    let monitor =
-        setup.build(model, &resolved.params, &resolved.effects).map_err(|e| anyhow::anyhow!("[force]: {e}"))?;
+    let held_out = resolved.held_out.as_ref();
+    let rate_hz = 1.0 / operator.dt;
+    let (setup, monitor) = ForceSetup::monitor(
+        &operator.model,
+        &operator.force_config,
+        held_out,
+        rate_hz,
+        &resolved.params,
+        &resolved.effects,
+    )
+    .map_err(|e| anyhow::anyhow!(e))?;
     Ok(Some((Box::new(monitor), setup)))
 }
 

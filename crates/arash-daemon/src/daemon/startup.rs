@@ -206,11 +206,13 @@ fn start_drives<B: crate::link::can::CanBus + 'static>(
 }
 
 /// Bind the live stream's socket (before the control thread starts, so that a taken port stops
-/// the daemon at once) and build its server.
+/// the daemon at once) and build its server, which draws the hand's force at `force_frame` (the
+/// observer's, as resolved).
 pub(super) fn open_live(
     config: &DaemonConfig,
     urdf: &str,
     scales: &[(f64, &'static str)],
+    force_frame: Option<&str>,
 ) -> Result<(Arc<LiveServer>, std::net::TcpListener), StartupError> {
     let addr = config.live.socket_addr()?;
     let listener =
@@ -226,8 +228,7 @@ pub(super) fn open_live(
     }
     eprintln!("arash-daemon: live stream on ws://{addr} (Foxglove: open connection, Foxglove WebSocket)");
     let units: Vec<&str> = scales.iter().map(|s| s.1).collect();
-    let frame = config.force.enabled.then_some(config.force.frame.as_str());
-    let server = LiveServer::new(addr, urdf, &units, config.live.client_queue, frame)
+    let server = LiveServer::new(addr, urdf, &units, config.live.client_queue, force_frame)
         .map_err(|e| StartupError::LiveServer(format!("{e:#}")))?;
     Ok((Arc::new(server), listener))
 }

@@ -7,7 +7,6 @@
 //! starts at the frame's origin and points along the force, in the base frame, with a length of
 //! [`ARROW_M_PER_N`] per newton.
 
-use arash_core::force::settings::default_frame;
 use arash_core::kinematics::{forward_kinematics, frame_placement};
 use arash_core::spatial::{Mat3, Vec3};
 use arash_core::{Data, Frame, Model, UnknownFrame};
@@ -38,21 +37,21 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// The scene of `model`, with the hand's force drawn at `frame` (a frame name; empty: the
-    /// robot's instrument tip, as `force.frame`), if any.
+    /// The scene of `model`, with the hand's force drawn at `frame` (a frame name), if any.
     pub fn new(model: Model, frame: Option<&str>) -> Result<Self, UnknownFrame> {
-        let name = match frame {
-            Some("") => default_frame(&model).map(|c| c.frame),
-            other => other.map(str::to_string),
-        };
-        let frame = name.map(|name| model.frame(&name)).transpose()?;
+        let frame = frame.map(|name| model.frame(name)).transpose()?;
         let base = model.frames.first().map_or_else(|| "base".to_string(), |f| f.name.clone());
         Ok(Self { data: Data::new(&model), model, base, frame })
     }
 
-    /// Each moving body's placement in its parent link at `q` (joint units, SI), stamped `time`.
-    pub fn transforms(&mut self, q: &[f64], time: Timestamp) -> FrameTransforms {
+    /// Place the links at `q` (joint units, SI): what [`Self::transforms`] and
+    /// [`Self::hand_arrow`] then draw.
+    pub fn place(&mut self, q: &[f64]) {
         forward_kinematics(&self.model, &mut self.data, q);
+    }
+
+    /// Each moving body's placement in its parent link, as last placed, stamped `time`.
+    pub fn transforms(&self, time: Timestamp) -> FrameTransforms {
         let d = &self.data;
         let transforms = self
             .model
@@ -80,17 +79,16 @@ impl Scene {
         FrameTransforms { transforms }
     }
 
-    /// The hand's force `force` (N, base frame) as an arrow at the frame's origin at `q`; an
-    /// update that deletes the arrow when the force is below [`LEAST_ARROW_N`] or not finite, or
-    /// when there is no frame.
-    pub fn hand_arrow(&mut self, q: &[f64], force: &[f64], time: Timestamp) -> SceneUpdate {
+    /// The hand's force `force` (N, base frame) as an arrow at the frame's origin, as last
+    /// placed; an update that deletes the arrow when the force is below [`LEAST_ARROW_N`] or not
+    /// finite, or when there is no frame.
+    pub fn hand_arrow(&self, force: &[f64], time: Timestamp) -> SceneUpdate {
         let (Some(frame), [x, y, z]) = (&self.frame, force) else { return self.no_arrow(time) };
         let f = Vec3::new(*x, *y, *z);
         let size = f.norm();
         if !(size.is_finite() && size >= LEAST_ARROW_N) {
             return self.no_arrow(time);
         }
-        forward_kinematics(&self.model, &mut self.data, q);
         let (_, origin) = frame_placement(&self.data, frame);
         // The arrow points along its pose's x axis: the rotation that takes x onto the force.
         let along = Rotation3::rotation_between(&Vec3::x(), &f)
@@ -160,7 +158,8 @@ mod tests {
         let model = arash_core::arash_asist();
         let mut scene = Scene::new(model.clone(), Some("instrument_tip")).unwrap();
         let q = [0.3, -0.4, 0.012];
-        let published = scene.transforms(&q, timestamp(1_500_000_000));
+        scene.place(&q);
+        let published = scene.transforms(timestamp(1_500_000_000));
         assert_eq!(published.transforms.len(), model.bodies.len());
         let mut data = Data::new(&model);
         forward_kinematics(&model, &mut data, &q);
@@ -188,7 +187,8 @@ mod tests {
         let mut scene = Scene::new(model.clone(), Some("instrument_tip")).unwrap();
         let q = [0.2, 0.5, 0.018];
         let force = [0.3, -1.2, 0.4];
-        let update = scene.hand_arrow(&q, &force, timestamp(0));
+        scene.place(&q);
+        let update = scene.hand_arrow(&force, timestamp(0));
         let arrow = &update.entities[0].arrows[0];
         let pose = arrow.pose.as_ref().unwrap();
         let mut data = Data::new(&model);
@@ -202,13 +202,14 @@ mod tests {
         assert!((length - ARROW_M_PER_N * f.norm()).abs() < 1e-12);
         assert_eq!(update.entities[0].frame_id, "base");
         for quiet in [[0.0, 0.0, 1e-4], [f64::NAN, 0.0, 0.0]] {
-            let gone = scene.hand_arrow(&q, &quiet, timestamp(0));
+            let gone = scene.hand_arrow(&quiet, timestamp(0));
             assert!(gone.entities.is_empty() && gone.deletions[0].id == ARROW_ID);
         }
         let mut bare = Scene::new(model, None).unwrap();
-        assert!(bare.hand_arrow(&q, &force, timestamp(0)).entities.is_empty());
+        bare.place(&q);
+        assert!(bare.hand_arrow(&force, timestamp(0)).entities.is_empty());
         // A force straight against x still has a direction.
-        let back = scene.hand_arrow(&q, &[-2.0, 0.0, 0.0], timestamp(0));
+        let back = scene.hand_arrow(&[-2.0, 0.0, 0.0], timestamp(0));
         let pose = back.entities[0].arrows[0].pose.as_ref().unwrap();
         let direction = rotation(pose.orientation.as_ref().unwrap()) * Vec3::x();
         assert!((direction + Vec3::x()).norm() < 1e-12, "{direction}");

@@ -167,16 +167,21 @@ impl LiveServer {
                 .iter()
                 .any(|c| c.subscriptions.lock().expect("subscriptions lock").contains_key(&(topic as u64)))
         };
+        let (links, arrow) = (watched(Topic::Transforms), watched(Topic::HandArrow));
+        if !(links || arrow) {
+            return;
+        }
         let time = timestamp(log_time);
         let mut scene = self.scene.lock().expect("scene lock");
+        scene.place(q);
         let mut payload = Vec::new();
-        if watched(Topic::Transforms) {
-            scene.transforms(q, time).encode(&mut payload).expect("a Vec grows as needed");
+        if links {
+            scene.transforms(time).encode(&mut payload).expect("a Vec grows as needed");
             self.publish(Topic::Transforms, log_time, &payload);
         }
-        if watched(Topic::HandArrow) {
+        if arrow {
             payload.clear();
-            scene.hand_arrow(q, frame_force, time).encode(&mut payload).expect("a Vec grows as needed");
+            scene.hand_arrow(frame_force, time).encode(&mut payload).expect("a Vec grows as needed");
             self.publish(Topic::HandArrow, log_time, &payload);
         }
     }

@@ -181,6 +181,22 @@ impl ForceSetup {
         Ok(Self { bandwidth_hz, sigma, contact, collision, frame, reasons })
     }
 
+    /// The settings [`Self::resolve`] gives and the monitor [`Self::build`] makes with them, on
+    /// `model` with parameters `params` and `effects`: what the daemon runs at start-up and after
+    /// a switch to a model file. Errors are prefixed `[force]`.
+    pub fn monitor(
+        model: &Model,
+        config: &ForceConfig,
+        held_out: Option<&HeldOut>,
+        rate_hz: f64,
+        params: &[f64],
+        effects: &[arash_core::effects::EffectTerm],
+    ) -> Result<(Self, ForceMonitor), String> {
+        let setup = Self::resolve(model, config, held_out, rate_hz).map_err(|e| format!("[force]: {e}"))?;
+        let monitor = setup.build(model, params, effects).map_err(|e| format!("[force]: {e}"))?;
+        Ok((setup, monitor))
+    }
+
     /// The monitor on `model` with parameters `params` and `effects`.
     pub fn build(
         &self,
