@@ -740,6 +740,16 @@ fn a_collision_latches_in_the_cycle_its_estimate_crosses_the_threshold_and_the_a
     let run = RunRequest { id: 8, trajectory: Trajectory::Hold { q: vec![0.0; 3] }, duration_s: 1.0 };
     assert!(rig.cycle.request(Request::Run(Box::new(run))).is_some(), "refused, handed back");
     assert_eq!(rig.step(), vec![Event::RunRefused]);
+    // A model switch with its own observer does not walk the latch back: only the reset does.
+    let switch = Request::Controller(
+        Box::new(Constant(gravity.to_vec())),
+        Some(Box::new(setup.build(&model, &params, &[]).unwrap())),
+    );
+    assert!(rig.cycle.request(switch).is_some(), "the old law and observer come back to be dropped");
+    rig.steps(5);
+    assert!(rig.cycle.record().faults.contains(Faults::COLLISION), "{:?}", rig.cycle.record().faults);
+    let sent = rig.sent_torque();
+    assert!((0..3).all(|k| (sent[k] - gravity[k]).abs() < 1e-5), "still floating: {sent:?}");
     // The push goes; the reset holds the arm and clears the fault.
     rig.link.telemetry.amps[..3].copy_from_slice(&[0, 1, 2].map(|k| (gravity[k] / rig.kt[k]) as f32));
     rig.steps(200);
