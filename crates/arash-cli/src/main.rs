@@ -12,6 +12,9 @@ mod docs_check;
 mod report;
 mod runlog;
 
+// The BLAS and LAPACK that identification's SDP calls under their Fortran names: named here so
+// that the crate is linked (arash-core leaves the choice of BLAS to the binary).
+use arash_blas_lapack as _;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]

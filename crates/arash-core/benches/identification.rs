@@ -2,6 +2,8 @@
 //! 1 kHz of a 15 s, 5-harmonic excitation; CAD torques plus noise), step by step and whole.
 //! Run: cargo bench -p arash-core --bench identification
 
+// The consistent fit's SDP calls BLAS and LAPACK: arash's own, linked by naming the crate.
+use arash_blas_lapack as _;
 use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
 use std::hint::black_box;
 

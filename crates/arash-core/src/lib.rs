@@ -8,8 +8,6 @@
 //! Units are SI throughout: rad, m, s, kg, N·m, N.
 
 pub mod base_parameters;
-#[cfg(feature = "blas-lapack")]
-pub mod blas_lapack;
 pub mod control;
 pub mod data;
 pub mod dense;

@@ -2,6 +2,8 @@
 //! named first on the right joint and cuts the held-out error; the nominal rig gives no false
 //! positives; decoys are told apart; two effects at once are both found.
 
+// The consistent fit's SDP calls BLAS and LAPACK: arash's own, linked by naming the crate.
+use arash_blas_lapack as _;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::control::{standard_controller, ControllerKind, RobustGains, Trajectory};
 use arash_core::diagnose::{diagnose, DiagnoseError, DiagnoseOptions, Diagnosis, Runs};

@@ -2,6 +2,8 @@
 
 mod common;
 
+// The consistent fit's SDP calls BLAS and LAPACK: arash's own, linked by naming the crate.
+use arash_blas_lapack as _;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::identify::estimate::{fit, fit_stacked, EstimateError, Method};
 use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};

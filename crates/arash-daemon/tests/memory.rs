@@ -7,6 +7,8 @@
 //! Locking is the point: the test fails, saying so, where `mlockall` is refused (no
 //! CAP_IPC_LOCK and a `ulimit -l` below the budget), rather than pass on unlocked memory.
 
+// The consistent fit's SDP calls BLAS and LAPACK: arash's own, linked by naming the crate.
+use arash_blas_lapack as _;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command};
 use std::sync::atomic::{AtomicBool, Ordering};

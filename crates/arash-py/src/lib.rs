@@ -10,6 +10,10 @@
 //! - `force`: `external_force`, the momentum observer and the force at a frame over a log;
 //! - `identify`, `diagnose`, `simulate`, `transmission`: the rest of the API.
 
+// The BLAS and LAPACK that identification's SDP calls under their Fortran names: named here so
+// that the crate is linked (arash-core leaves the choice of BLAS to the binary), and exported by
+// the extension (tests/python/test_blas_lapack.py calls them).
+use arash_blas_lapack as _;
 use pyo3::prelude::*;
 
 mod batching;

@@ -108,11 +108,8 @@ pub fn identify_consistent_signed(
     let q: Vec<f64> = (0..p).map(|i| -2.0 * (wt_tau[(i, 0)] + reg(i) * cad[i]) / m).collect();
     let (a_mat, b, cones) = constraints(model, p, options.stiffness_bounds, extra_signs);
     let settings = DefaultSettingsBuilder::default().verbose(false).max_iter(200).build().expect("valid settings");
-    // The semidefinite cones call BLAS and LAPACK, which `blas_lapack` provides; holding the
-    // entry points here keeps them in the link whatever the linker's order. Without the feature
-    // the binary's own BLAS provides them.
-    #[cfg(feature = "blas-lapack")]
-    std::hint::black_box(crate::blas_lapack::entry_points());
+    // The semidefinite cones call BLAS and LAPACK under their Fortran names: the binary links
+    // them, arash's own (the arash-blas-lapack crate) or a system BLAS.
     let mut solver = DefaultSolver::new(&p_mat, &q, &a_mat, &b, &cones, settings).expect("well-formed problem");
     solver.solve();
     let status = solver.solution.status;

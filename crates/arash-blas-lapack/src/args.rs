@@ -132,8 +132,8 @@ pub unsafe fn vector_mut<'a, T>(x: *mut T, len: i64, inc: i64) -> MatMut<'a, T> 
 /// own (named as the symbol) where `T` names its precision, and re-exported beside it.
 macro_rules! exported {
     ($(#[$doc:meta])* $double:ident, $single:ident ($($arg:ident: $ty:ty),* $(,)?) $body:block) => {
-        $crate::blas_lapack::args::exported!(@one f64, $double, $(#[$doc])* ($($arg: $ty),*) $body);
-        $crate::blas_lapack::args::exported!(@one f32, $single, $(#[$doc])* ($($arg: $ty),*) $body);
+        $crate::args::exported!(@one f64, $double, $(#[$doc])* ($($arg: $ty),*) $body);
+        $crate::args::exported!(@one f32, $single, $(#[$doc])* ($($arg: $ty),*) $body);
     };
     (@one $real:ty, $name:ident, $(#[$doc:meta])* ($($arg:ident: $ty:ty),*) $body:block) => {
         pub use self::$name::$name;
