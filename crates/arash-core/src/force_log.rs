@@ -22,8 +22,8 @@ use crate::control::gains::{compensation_epsilon, model_epsilon, RobustGains};
 use crate::force::{
     episodes, Episode, FrameForce, Level, MomentumObserver, ObserverError, ThresholdError, Thresholds, TorqueTiming,
 };
+use crate::identify::conditioning::{central_difference, filter_columns};
 use crate::identify::filter::{Butterworth, FilterError};
-use crate::identify::signals::{central_difference, filter_columns};
 use crate::identify::Log;
 use crate::model::{Model, UnknownFrame};
 use crate::model_file::{ModelFile, ObserverHeldOut};

@@ -319,7 +319,7 @@ impl HeldOut {
 
 /// How the stacked problem is solved. Both treat the currents as measured with noise, which plain
 /// least squares in torque units does not: it shrinks a gain toward zero where the model leaves
-/// torque unexplained (`identify::gains`).
+/// torque unexplained (`identify::drive_gains`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum GainEstimator {
     /// Least squares of each row's residual in amperes, by Gauss–Newton (the default).
@@ -353,7 +353,7 @@ impl GainEstimator {
     }
 }
 
-/// Drive gains identified with a known load (`identify::gains`).
+/// Drive gains identified with a known load (`identify::drive_gains`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DriveGains {
     /// Per joint (N·m/A or N/A).
@@ -368,7 +368,7 @@ pub struct DriveGains {
     #[serde(default)]
     pub covariance: Vec<f64>,
     /// Per joint j, how the model's base parameters move with its gain, `∂β/∂ln kⱼ`
-    /// (`identify::gains::beta_per_gain`): a later diagnosis counts the gains' σ through it.
+    /// (`identify::drive_gains::beta_per_gain`): a later diagnosis counts the gains' σ through it.
     #[serde(default)]
     pub beta_per_gain: Vec<Vec<f64>>,
     /// Whether each gain is a datasheet's, taken where the load does not fix it.
@@ -383,7 +383,7 @@ pub struct DriveGains {
     /// Scaled condition number of the stacked problem of gains, base and load parameters.
     pub condition_number: f64,
     /// Per joint: the known load's share of its torque, the load's torque over what the model
-    /// leaves unexplained, and whether the load fixes its gain (`identify::gains::NOT_FIXED`).
+    /// leaves unexplained, and whether the load fixes its gain (`identify::drive_gains::NOT_FIXED`).
     pub load_share: Vec<f64>,
     pub load_over_unexplained: Vec<f64>,
     pub fixed: Vec<bool>,

@@ -30,54 +30,177 @@ impl ControllerKind {
     }
 }
 
-/// One control cycle (SI). `qdd` is empty when the acceleration is not estimated.
-#[derive(Clone, Debug, PartialEq)]
-pub struct CycleRecord {
-    pub cycle: u64,
-    /// Seconds since the start of the run.
-    pub t: f64,
-    /// Measured position (encoders).
-    pub q: Vec<f64>,
-    /// Estimated velocity.
-    pub qd: Vec<f64>,
-    pub qdd: Vec<f64>,
-    /// Torque the controller asked for, before the safety gate.
-    pub tau_cmd: Vec<f64>,
-    /// Torque measured from motor current.
-    pub tau_meas: Vec<f64>,
-    pub q_des: Vec<f64>,
-    pub qd_des: Vec<f64>,
-    pub qdd_des: Vec<f64>,
-    pub controller: ControllerKind,
-    pub mode: Mode,
-    pub faults: Faults,
-    /// The hand's force observer: the external joint torque (N·m, N), and the force at its
-    /// frame (base frame, N). Empty when no observer runs (and `frame_force` without a frame).
-    pub tau_ext: Vec<f64>,
-    pub frame_force: Vec<f64>,
+/// A field of the cycle record stored as a number code: its value in the flight log's message
+/// and in [`Columns`], and back (`None` for a code no version wrote).
+pub trait Code: Sized + Copy {
+    /// What a new record holds.
+    const INITIAL: Self;
+    fn code(self) -> u32;
+    fn from_code(code: u32) -> Option<Self>;
 }
 
-impl CycleRecord {
-    pub fn new(dof: usize) -> Self {
-        Self {
-            cycle: 0,
-            t: 0.0,
-            q: vec![0.0; dof],
-            qd: vec![0.0; dof],
-            qdd: Vec::new(),
-            tau_cmd: vec![0.0; dof],
-            tau_meas: vec![0.0; dof],
-            q_des: vec![0.0; dof],
-            qd_des: vec![0.0; dof],
-            qdd_des: vec![0.0; dof],
-            controller: ControllerKind::None,
-            mode: Mode::Disabled,
-            faults: Faults::NONE,
-            tau_ext: Vec::new(),
-            frame_force: Vec::new(),
-        }
+impl Code for ControllerKind {
+    const INITIAL: Self = ControllerKind::None;
+    fn code(self) -> u32 {
+        self as u32
+    }
+    fn from_code(code: u32) -> Option<Self> {
+        ControllerKind::from_u32(code)
     }
 }
+
+impl Code for Mode {
+    const INITIAL: Self = Mode::Disabled;
+    fn code(self) -> u32 {
+        self as u32
+    }
+    fn from_code(code: u32) -> Option<Self> {
+        Mode::from_u32(code)
+    }
+}
+
+impl Code for Faults {
+    const INITIAL: Self = Faults::NONE;
+    fn code(self) -> u32 {
+        self.0
+    }
+    fn from_code(code: u32) -> Option<Self> {
+        Some(Faults(code))
+    }
+}
+
+/// The fields of one control cycle, listed once: [`CycleRecord`] and [`Columns`] here, and the
+/// flight log's protobuf message, its descriptor and its decoding (`flightlog::schema`), are all
+/// written from this list by the macro it is handed. Each field is one of:
+/// - `scalars`: one number a cycle, with its protobuf type;
+/// - `joints`: a joint vector every cycle carries (`dof` values);
+/// - `optional`: a vector some runs leave empty (`width` values when present);
+/// - `codes`: a typed value stored as a number ([`Code`]).
+///
+/// The number after `=` is the protobuf field number: never reuse or renumber one, or older logs
+/// decode wrongly.
+macro_rules! cycle_fields {
+    ($then:ident) => {
+        $then! {
+            scalars {
+                /// The cycle's number in the run.
+                cycle: u64 as uint64 = "1",
+                /// Seconds since the start of the run.
+                t: f64 as double = "2",
+            }
+            joints {
+                /// Measured position (encoders).
+                q = "3",
+                /// Estimated velocity.
+                qd = "4",
+                /// Torque the controller asked for, before the safety gate.
+                tau_cmd = "6",
+                /// Torque measured from motor current.
+                tau_meas = "7",
+                q_des = "8",
+                qd_des = "9",
+                qdd_des = "10",
+            }
+            optional {
+                /// Estimated acceleration; empty when it is not estimated.
+                qdd: dof = "5",
+                /// The hand's force observer: the external joint torque (N·m, N); empty when no
+                /// observer runs.
+                tau_ext: dof = "14",
+                /// The force at the observer's frame (base frame, N); empty without a frame.
+                frame_force: 3 = "15",
+            }
+            codes {
+                /// 0 none, 1 PD, 2 inverse dynamics, 3 robust.
+                controller: ControllerKind = "11",
+                /// 0 disabled, 1 enabled, 2 faulted.
+                mode: Mode = "12",
+                /// Fault bits (docs/flightlog.md).
+                faults: Faults = "13",
+            }
+        }
+    };
+}
+pub(crate) use cycle_fields;
+
+/// An optional vector's width per cycle: `dof` (the joints) or a number.
+macro_rules! width {
+    ($dof:ident, dof) => {
+        $dof
+    };
+    ($dof:ident, $n:literal) => {
+        $n
+    };
+}
+
+/// [`CycleRecord`] and [`Columns`] from the list of [`cycle_fields`].
+macro_rules! record_and_columns {
+    (
+        scalars { $($(#[$sdoc:meta])* $scalar:ident: $stype:ty as $sproto:ident = $stag:literal,)* }
+        joints { $($(#[$jdoc:meta])* $joint:ident = $jtag:literal,)* }
+        optional { $($(#[$odoc:meta])* $optional:ident: $width:tt = $otag:literal,)* }
+        codes { $($(#[$cdoc:meta])* $code:ident: $ctype:ty = $ctag:literal,)* }
+    ) => {
+        /// One control cycle (SI), as the flight log stores it (its fields are listed once, in `record.rs`'s `cycle_fields!`).
+        #[derive(Clone, Debug, PartialEq)]
+        pub struct CycleRecord {
+            $($(#[$sdoc])* pub $scalar: $stype,)*
+            $($(#[$jdoc])* pub $joint: Vec<f64>,)*
+            $($(#[$odoc])* pub $optional: Vec<f64>,)*
+            $($(#[$cdoc])* pub $code: $ctype,)*
+        }
+
+        impl CycleRecord {
+            /// A record of `dof` joints: zero, the typed fields at their initial values
+            /// (disabled, no controller, no faults), and the optional vectors empty.
+            pub fn new(dof: usize) -> Self {
+                Self {
+                    $($scalar: Default::default(),)*
+                    $($joint: vec![0.0; dof],)*
+                    $($optional: Vec::new(),)*
+                    $($code: <$ctype as Code>::INITIAL,)*
+                }
+            }
+        }
+
+        /// The `/arash/cycle` messages as columns; joint vectors are row-major `N × dof`, the
+        /// typed fields their codes ([`Code`]).
+        #[derive(Clone, Debug, Default, PartialEq)]
+        pub struct Columns {
+            $($(#[$sdoc])* pub $scalar: Vec<$stype>,)*
+            $($(#[$jdoc])* pub $joint: Vec<f64>,)*
+            $($(#[$odoc])* pub $optional: Vec<f64>,)*
+            $($(#[$cdoc])* pub $code: Vec<u32>,)*
+        }
+
+        impl Columns {
+            /// The joint vectors every cycle carries (`N × dof`, row-major), by field name.
+            pub fn joint_vectors(&self) -> Vec<(&'static str, &Vec<f64>)> {
+                vec![$((stringify!($joint), &self.$joint)),*]
+            }
+
+            /// The vectors some runs leave empty, by field name, with their width per cycle
+            /// for `dof` joints: all cycles carry one or none does.
+            pub fn optional_vectors(&self, dof: usize) -> Vec<(&'static str, &Vec<f64>, usize)> {
+                vec![$((stringify!($optional), &self.$optional, width!(dof, $width))),*]
+            }
+
+            /// The typed fields' codes ([`Code`]), by field name.
+            pub fn codes(&self) -> Vec<(&'static str, &Vec<u32>)> {
+                vec![$((stringify!($code), &self.$code)),*]
+            }
+
+            /// Append one cycle.
+            pub fn push(&mut self, r: &CycleRecord) {
+                $(self.$scalar.push(r.$scalar);)*
+                $(self.$joint.extend(&r.$joint);)*
+                $(self.$optional.extend(&r.$optional);)*
+                $(self.$code.push(Code::code(r.$code));)*
+            }
+        }
+    };
+}
+cycle_fields!(record_and_columns);
 
 /// The simulator's ground truth for one cycle, beside the [`CycleRecord`].
 #[derive(Clone, Debug, PartialEq)]
@@ -115,28 +238,6 @@ impl TruthRecord {
     }
 }
 
-/// The `/arash/cycle` messages as columns; joint vectors are row-major `N × dof`.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Columns {
-    pub cycle: Vec<u64>,
-    pub t: Vec<f64>,
-    pub q: Vec<f64>,
-    pub qd: Vec<f64>,
-    /// Empty when no cycle carried an acceleration estimate.
-    pub qdd: Vec<f64>,
-    pub tau_cmd: Vec<f64>,
-    pub tau_meas: Vec<f64>,
-    pub q_des: Vec<f64>,
-    pub qd_des: Vec<f64>,
-    pub qdd_des: Vec<f64>,
-    pub controller: Vec<u32>,
-    pub mode: Vec<u32>,
-    pub faults: Vec<u32>,
-    /// Empty when no cycle carried the observer's estimate (`N × dof`, and `N × 3`).
-    pub tau_ext: Vec<f64>,
-    pub frame_force: Vec<f64>,
-}
-
 /// The `/arash/truth` messages as columns (simulated logs only).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TruthColumns {
@@ -151,41 +252,6 @@ pub struct TruthColumns {
     /// `N × 3`, row-major.
     pub hand_force: Vec<f64>,
     pub tau_hand: Vec<f64>,
-}
-
-impl Columns {
-    /// The joint vectors every cycle carries (`N × dof`, row-major), by field name; `qdd`, which
-    /// may be absent, is not among them.
-    pub fn joint_vectors(&self) -> [(&'static str, &Vec<f64>); 7] {
-        [
-            ("q", &self.q),
-            ("qd", &self.qd),
-            ("tau_cmd", &self.tau_cmd),
-            ("tau_meas", &self.tau_meas),
-            ("q_des", &self.q_des),
-            ("qd_des", &self.qd_des),
-            ("qdd_des", &self.qdd_des),
-        ]
-    }
-
-    /// Append one cycle.
-    pub fn push(&mut self, r: &CycleRecord) {
-        self.cycle.push(r.cycle);
-        self.t.push(r.t);
-        self.q.extend(&r.q);
-        self.qd.extend(&r.qd);
-        self.qdd.extend(&r.qdd);
-        self.tau_cmd.extend(&r.tau_cmd);
-        self.tau_meas.extend(&r.tau_meas);
-        self.q_des.extend(&r.q_des);
-        self.qd_des.extend(&r.qd_des);
-        self.qdd_des.extend(&r.qdd_des);
-        self.controller.push(r.controller as u32);
-        self.mode.push(r.mode as u32);
-        self.faults.push(r.faults.0);
-        self.tau_ext.extend(&r.tau_ext);
-        self.frame_force.extend(&r.frame_force);
-    }
 }
 
 impl TruthColumns {

@@ -7,31 +7,65 @@ use std::os::unix::net::UnixStream;
 use std::path::Path;
 use std::time::Duration;
 
-/// A request to the daemon.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+/// A request to the daemon: its JSON line on the socket (serde) and the `arash ctl` subcommand
+/// that sends it (clap), declared once. Paths are sent absolute ([`CtlRequest::absolute`]).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, clap::Subcommand)]
 #[serde(tag = "cmd", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum CtlRequest {
+    /// Print the daemon's state as JSON.
     Status,
+    /// Enable the motors (holding the present position).
     Enable,
+    /// Disable the motors.
     Disable,
-    /// Clear latched faults (the drive stays disabled).
+    /// Clear latched faults; the motors stay disabled.
     Reset,
     /// Hold the present reference, abandoning a run.
     Hold,
-    /// Play a trajectory (an `arash-trajectory/1` document) after approaching its start.
+    /// Approach the start of a trajectory file (an `arash-trajectory/1` document) and play it.
     Run {
+        /// The trajectory file (`arash excite -o`); the daemon gets its absolute path.
         trajectory: String,
+        /// Seconds to play; default: the trajectory's natural length.
+        #[arg(long = "duration", value_name = "SECONDS")]
         #[serde(default)]
         duration_s: Option<f64>,
+        /// Name for the run's log file; default: the trajectory file's name.
+        #[arg(long)]
         #[serde(default)]
         label: Option<String>,
     },
-    /// Switch the control law, optionally with a model file from `arash identify`.
+    /// Switch the control law.
     Controller {
+        /// pd, idc or robust.
         kind: String,
+        /// Model file from `arash identify`; default: CAD parameters. The daemon gets its
+        /// absolute path.
+        #[arg(long)]
         #[serde(default)]
         model: Option<String>,
     },
+}
+
+impl CtlRequest {
+    /// The request with its files named by absolute path, as the daemon (which runs elsewhere)
+    /// needs them, and a run's label defaulted to its trajectory file's name.
+    pub fn absolute(self) -> anyhow::Result<Self> {
+        let absolute = |what: &str, path: &str| -> anyhow::Result<String> {
+            Ok(std::fs::canonicalize(path).map_err(|e| anyhow::anyhow!("{what} {path}: {e}"))?.display().to_string())
+        };
+        Ok(match self {
+            CtlRequest::Run { trajectory, duration_s, label } => CtlRequest::Run {
+                label: label.or_else(|| Path::new(&trajectory).file_stem().map(|s| s.to_string_lossy().into_owned())),
+                trajectory: absolute("trajectory", &trajectory)?,
+                duration_s,
+            },
+            CtlRequest::Controller { kind, model } => {
+                CtlRequest::Controller { kind, model: model.map(|m| absolute("model file", &m)).transpose()? }
+            }
+            other => other,
+        })
+    }
 }
 
 /// Send one request and read the answer.

@@ -8,11 +8,11 @@ use arash_core::base_parameters::BaseParameters as CoreBase;
 use arash_core::control::trajectory::paper_validation_state;
 use arash_core::identify::closed_loop::{ClosedLoop, LoggedController};
 use arash_core::identify::consistent::identify_consistent;
-use arash_core::identify::gains::{Calibration, GainEstimator, KnownLoad};
+use arash_core::identify::drive_gains::{Calibration, GainEstimator, KnownLoad};
 use arash_core::identify::options::{ConsistentOptions, ExcitationOptions, PreprocessOptions};
 use arash_core::identify::repair::{repair, Signal};
 use arash_core::identify::{
-    held_out_residual, identify as core_identify, identify_in_closed_loop, identify_with_known_load, validate,
+    cross_validate, held_out_residual, identify as core_identify, identify_in_closed_loop, identify_with_known_load,
     Declared, IdentifyOptions, Log,
 };
 use arash_core::model_file::{IdentifyMethod, ModelFile as CoreIdentification};
@@ -235,7 +235,7 @@ impl Identification {
     ) -> PyResult<Bound<'py, PyDict>> {
         let (t, q, tau) = log_arrays(&t, &q, &tau, self.model.dof())?;
         let options = PreprocessOptions { periods, order: self.inner.settings.order, ..Default::default() };
-        let v = py.detach(|| validate(&self.model, &self.inner, &t, &q, &tau, &options)).map_err(value_error)?;
+        let v = py.detach(|| cross_validate(&self.model, &self.inner, &t, &q, &tau, &options)).map_err(value_error)?;
         let (m, dof) = (v.metrics, self.model.dof());
         let dict = PyDict::new(py);
         dict.set_item("cutoff_hz", v.cutoff_hz)?;

@@ -39,20 +39,15 @@ fn cycles_dict<'py>(py: Python<'py>, c: &Columns, dof: usize) -> PyResult<Bound<
     for (name, values) in c.joint_vectors() {
         d.set_item(name, matrix(py, values, dof)?)?;
     }
-    if c.qdd.is_empty() {
-        d.set_item("qdd", py.None())?;
-    } else {
-        d.set_item("qdd", matrix(py, &c.qdd, dof)?)?;
-    }
-    for (name, values, width) in [("tau_ext", &c.tau_ext, dof), ("frame_force", &c.frame_force, 3)] {
+    for (name, values, width) in c.optional_vectors(dof) {
         match values.is_empty() {
             true => d.set_item(name, py.None())?,
             false => d.set_item(name, matrix(py, values, width)?)?,
         }
     }
-    d.set_item("controller", integers(py, &c.controller))?;
-    d.set_item("mode", integers(py, &c.mode))?;
-    d.set_item("faults", integers(py, &c.faults))?;
+    for (name, codes) in c.codes() {
+        d.set_item(name, integers(py, codes))?;
+    }
     Ok(d)
 }
 

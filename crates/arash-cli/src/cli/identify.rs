@@ -6,10 +6,10 @@ use std::path::PathBuf;
 use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::identify::closed_loop::{ClosedLoop, IvOptions, LoggedController};
-use arash_core::identify::gains::{Calibration, GainEstimator, KnownLoad};
+use arash_core::identify::drive_gains::{Calibration, GainEstimator, KnownLoad};
 use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
 use arash_core::identify::{
-    held_out_residual, identify, identify_in_closed_loop, identify_with_known_load, validate, validation_table,
+    cross_validate, held_out_residual, identify, identify_in_closed_loop, identify_with_known_load, validation_table,
     Declared, IdentifyOptions, Log,
 };
 use arash_core::model_file::IdentifyMethod;
@@ -163,7 +163,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         for path in &args.validate {
             let v = args.runs.read(std::slice::from_ref(path), &model)?;
             let pre = PreprocessOptions { periods: args.validate_periods, order: args.order, ..Default::default() };
-            let validation = validate(&model, &identification, &v.t, &v.q, &v.tau, &pre)
+            let validation = cross_validate(&model, &identification, &v.t, &v.q, &v.tau, &pre)
                 .with_context(|| format!("validating on {}", path.display()))?;
             if validation.cutoff_hz != identification.settings.cutoff_hz {
                 eprintln!("note: {}: {}", path.display(), validation.reasons.last().map_or("", String::as_str));

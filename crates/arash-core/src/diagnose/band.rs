@@ -8,10 +8,10 @@
 //! difference).
 
 use super::options::MAX_VELOCITY_NOISE;
-use crate::identify::decide::bandwidth;
+use crate::identify::conditioning::{central_difference, filter_columns};
+use crate::identify::data_choices::bandwidth;
 use crate::identify::filter::{Butterworth, FilterError};
 use crate::identify::preprocess::{lowest_cutoff_hz, CUTOFF_PER_BANDWIDTH, EDGE_CUTOFF_PERIODS};
-use crate::identify::signals::{central_difference, filter_columns};
 
 /// The band the training log was filtered in, which a validation log is filtered in too.
 #[derive(Clone, Copy, Debug)]

@@ -25,13 +25,13 @@ use std::borrow::Cow;
 use super::band::{velocity_resolved_cutoff, Band, Positions};
 use super::options::{DiagnoseError, DiagnoseOptions, DIAGNOSIS_CUTOFF_HZ, DIAGNOSIS_CUTOFF_SHARE};
 use super::prepare::{declared_columns, filtered, kept_samples, lowest_kept_cutoff_hz, stride};
-use super::problem::{heldout_split, Split, BLOCK_MEMORIES, MIN_HELDOUT_BLOCKS};
 use super::regression::{gram, rhs, solve_scaled, Column, Rows};
+use super::weighted_fit::{heldout_split, Split, BLOCK_MEMORIES, MIN_HELDOUT_BLOCKS};
 use super::Runs;
 use crate::base_parameters::BaseParameters;
 use crate::effects::EffectKind;
 use crate::identify::cutoff::{motion_floor_hz, SEARCH_ABOVE_SPECTRAL};
-use crate::identify::decide::{
+use crate::identify::data_choices::{
     as_good_as_best, best_predicting, geometric_grid, Equal, Prediction, Prefer, EQUAL_PREDICTION_SIGMAS,
 };
 use crate::identify::estimate::joint_metrics;

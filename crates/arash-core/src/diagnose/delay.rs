@@ -2,13 +2,13 @@
 //! other effect because an unmodelled delay otherwise masquerades as velocity-dependent
 //! friction.
 
-use super::context::Context;
 use super::findings::{rejection, Finding, Rejection, RejectionReason};
+use super::inputs::Context;
 use super::prepare::Prepared;
-use super::problem::{sse, Problem};
 use super::regression::{least_squares, residual, test_group, Column, NormalEquations, Rows, Untested};
+use super::weighted_fit::{sse, Problem};
 use crate::effects::{EffectKind, EffectTerm};
-use crate::identify::signals::central_difference;
+use crate::identify::conditioning::central_difference;
 
 /// Search an integer shift of the torque against the position, and accept it only if it is
 /// significant (a block Wald test of the linearised delay, the derivative of the predicted

@@ -42,7 +42,7 @@ pub struct Finding {
     pub body: Option<String>,
     #[serde(default)]
     pub centre_of_mass_m: Option<[Option<f64>; 3]>,
-    /// Per coefficient, the part of its σ the calibrated drive gains give (`diagnose::calibration`;
+    /// Per coefficient, the part of its σ the calibrated drive gains give (`diagnose::gain_share`;
     /// empty when the torque did not come from currents through them). `term.sigma` counts it.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub sigma_from_gains: Vec<f64>,

@@ -17,24 +17,24 @@
 //! 6. the best is added, the model refitted, and the search repeated until nothing passes.
 //!
 //! On torque computed from currents with calibrated drive gains, each coefficient's σ also counts
-//! the gains' own (`diagnose/calibration.rs`).
+//! the gains' own (`diagnose/gain_share.rs`).
 
 mod band;
 mod band_choice;
-mod calibration;
 mod candidates;
-mod context;
 mod delay;
 mod findings;
+mod gain_share;
+mod inputs;
 mod noise;
 mod options;
 mod outcome;
 mod prepare;
-mod problem;
 mod refit;
 pub mod regression;
 mod report;
 mod search;
+mod weighted_fit;
 
 pub use crate::effects::{EffectKind, EffectTerm, TermState};
 pub use crate::identify::{Declared, Log};

@@ -3,8 +3,8 @@
 use super::findings::Series;
 use super::options::DiagnoseError;
 use super::prepare::Prepared;
-use super::problem::{Candidate, Problem};
 use super::regression::{self, Fitted};
+use super::weighted_fit::{Candidate, Problem};
 use crate::base_parameters::BaseParameters;
 use crate::identify::IdentifyError;
 use crate::model::Model;

@@ -4,17 +4,17 @@
 use std::borrow::Cow;
 
 use super::band_choice::choose_band;
-use super::calibration::GainErrors;
 use super::candidates::{candidates, not_the_cable};
-use super::context::Context;
 use super::delay::search_delay;
 use super::findings::{rejection, DiagnoseSettings, Diagnosis, Finding, Rejection, RejectionReason, Series, TooHeavy};
+use super::gain_share::GainErrors;
+use super::inputs::Context;
 use super::options::{DiagnoseError, DiagnoseOptions, PAYLOAD_MASS_SIGMAS};
 use super::outcome::{declared_model, series};
-use super::problem::{error_summary, model_columns, Candidate, HeldOut, HeldOutBase, Problem};
 use super::regression::{
     self, least_squares, residual, test_group, Column, Fitted, GroupTest, NormalEquations, Rows, Untested,
 };
+use super::weighted_fit::{error_summary, model_columns, Candidate, HeldOut, HeldOutBase, Problem};
 use super::Runs;
 use crate::effects::{EffectKind, EffectTerm};
 use crate::identify::{Declared, Log};

@@ -10,8 +10,7 @@ use prost::Message;
 use super::schema::{Cycle, Truth};
 use super::{LogError, CYCLE_TOPIC, FORMAT, METADATA_NAME, TRUTH_TOPIC};
 use crate::control::logged::{LoggedController, LoggedControllerError};
-use crate::control::{ControllerKind, Faults};
-use crate::record::{Columns, CycleRecord, Mode, TruthColumns, TruthRecord};
+use crate::record::{Columns, CycleRecord, TruthColumns, TruthRecord};
 
 /// A whole log.
 #[derive(Clone, Debug, Default)]
@@ -132,7 +131,7 @@ fn read_messages(bytes: &[u8], name: &str, log: &mut FlightLog) -> Result<(), Lo
         if Some(id) == cycle_channel {
             cycle.clear();
             cycle.merge(&*message.data).map_err(|e| decode_error(CYCLE_TOPIC, log.cycles.t.len(), e))?;
-            cycle_record(&cycle, &mut record).map_err(|problem| LogError::NotFlightLog {
+            cycle.to_record(&mut record).map_err(|problem| LogError::NotFlightLog {
                 path: name.into(),
                 problem: format!("message {} on {CYCLE_TOPIC}: {problem}", log.cycles.t.len()),
             })?;
@@ -156,30 +155,6 @@ fn read_messages(bytes: &[u8], name: &str, log: &mut FlightLog) -> Result<(), Lo
     Ok(())
 }
 
-fn cycle_record(m: &Cycle, r: &mut CycleRecord) -> Result<(), String> {
-    r.cycle = m.cycle;
-    r.t = m.t;
-    for (dst, src) in [
-        (&mut r.q, &m.q),
-        (&mut r.qd, &m.qd),
-        (&mut r.qdd, &m.qdd),
-        (&mut r.tau_cmd, &m.tau_cmd),
-        (&mut r.tau_meas, &m.tau_meas),
-        (&mut r.q_des, &m.q_des),
-        (&mut r.qd_des, &m.qd_des),
-        (&mut r.qdd_des, &m.qdd_des),
-        (&mut r.tau_ext, &m.tau_ext),
-        (&mut r.frame_force, &m.frame_force),
-    ] {
-        dst.clear();
-        dst.extend_from_slice(src);
-    }
-    r.controller = ControllerKind::from_u32(m.controller).ok_or(format!("unknown controller id {}", m.controller))?;
-    r.mode = Mode::from_u32(m.mode).ok_or(format!("unknown mode {}", m.mode))?;
-    r.faults = Faults(m.faults);
-    Ok(())
-}
-
 fn truth_record_from(m: &Truth, r: &mut TruthRecord) {
     r.t = m.t;
     for (dst, src) in [
@@ -197,7 +172,8 @@ fn truth_record_from(m: &Truth, r: &mut TruthRecord) {
     }
 }
 
-/// Every joint vector must have dof entries per cycle (qdd: all or none).
+/// Every joint vector must have dof entries per cycle, and each optional vector its width in
+/// every cycle or in none.
 fn check_shapes(log: &FlightLog, name: &str) -> Result<(), LogError> {
     let (n, dof) = (log.cycles.t.len(), log.dof());
     let c = &log.cycles;
@@ -209,7 +185,7 @@ fn check_shapes(log: &FlightLog, name: &str) -> Result<(), LogError> {
             });
         }
     }
-    for (field, v, width) in [("qdd", &c.qdd, dof), ("tau_ext", &c.tau_ext, dof), ("frame_force", &c.frame_force, 3)] {
+    for (field, v, width) in c.optional_vectors(dof) {
         if !v.is_empty() && v.len() != n * width {
             return Err(LogError::NotFlightLog {
                 path: name.into(),

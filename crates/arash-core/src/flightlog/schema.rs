@@ -8,73 +8,79 @@
 use prost_types::field_descriptor_proto::{Label, Type};
 use prost_types::{DescriptorProto, FieldDescriptorProto, FileDescriptorProto, FileDescriptorSet};
 
-/// One control cycle on topic `/arash/cycle`.
-#[derive(Clone, PartialEq, prost::Message)]
-pub struct Cycle {
-    #[prost(uint64, tag = "1")]
-    pub cycle: u64,
-    /// Seconds since the start of the run.
-    #[prost(double, tag = "2")]
-    pub t: f64,
-    #[prost(double, repeated, tag = "3")]
-    pub q: Vec<f64>,
-    #[prost(double, repeated, tag = "4")]
-    pub qd: Vec<f64>,
-    /// Empty when the acceleration is not estimated.
-    #[prost(double, repeated, tag = "5")]
-    pub qdd: Vec<f64>,
-    #[prost(double, repeated, tag = "6")]
-    pub tau_cmd: Vec<f64>,
-    #[prost(double, repeated, tag = "7")]
-    pub tau_meas: Vec<f64>,
-    #[prost(double, repeated, tag = "8")]
-    pub q_des: Vec<f64>,
-    #[prost(double, repeated, tag = "9")]
-    pub qd_des: Vec<f64>,
-    #[prost(double, repeated, tag = "10")]
-    pub qdd_des: Vec<f64>,
-    /// 0 none, 1 PD, 2 inverse dynamics, 3 robust.
-    #[prost(uint32, tag = "11")]
-    pub controller: u32,
-    /// 0 disabled, 1 enabled, 2 faulted.
-    #[prost(uint32, tag = "12")]
-    pub mode: u32,
-    /// Fault bits (see `docs/flightlog.md`).
-    #[prost(uint32, tag = "13")]
-    pub faults: u32,
-    /// The hand's force observer: the external joint torque, and the force at its frame (base
-    /// frame, N); empty when the daemon runs none.
-    #[prost(double, repeated, tag = "14")]
-    pub tau_ext: Vec<f64>,
-    #[prost(double, repeated, tag = "15")]
-    pub frame_force: Vec<f64>,
+use crate::record::{cycle_fields, Code, CycleRecord};
+
+/// The `/arash/cycle` message from the list of the record's fields (`record::cycle_fields`):
+/// its struct, the copies to and from a [`CycleRecord`], and its descriptor's table.
+macro_rules! cycle_message {
+    (
+        scalars { $($(#[$sdoc:meta])* $scalar:ident: $stype:ty as $sproto:ident = $stag:literal,)* }
+        joints { $($(#[$jdoc:meta])* $joint:ident = $jtag:literal,)* }
+        optional { $($(#[$odoc:meta])* $optional:ident: $width:tt = $otag:literal,)* }
+        codes { $($(#[$cdoc:meta])* $code:ident: $ctype:ty = $ctag:literal,)* }
+    ) => {
+        /// One control cycle on topic `/arash/cycle`.
+        #[derive(Clone, PartialEq, prost::Message)]
+        pub struct Cycle {
+            $($(#[$sdoc])* #[prost($sproto, tag = $stag)] pub $scalar: $stype,)*
+            $($(#[$jdoc])* #[prost(double, repeated, tag = $jtag)] pub $joint: Vec<f64>,)*
+            $($(#[$odoc])* #[prost(double, repeated, tag = $otag)] pub $optional: Vec<f64>,)*
+            $($(#[$cdoc])* #[prost(uint32, tag = $ctag)] pub $code: u32,)*
+        }
+
+        impl Cycle {
+            /// Copy `r` into this message, reusing its vectors.
+            pub fn fill(&mut self, r: &CycleRecord) {
+                $(self.$scalar = r.$scalar;)*
+                $(self.$joint.clear(); self.$joint.extend_from_slice(&r.$joint);)*
+                $(self.$optional.clear(); self.$optional.extend_from_slice(&r.$optional);)*
+                $(self.$code = Code::code(r.$code);)*
+            }
+
+            /// Copy this message into `r`, reusing its vectors; an error names a typed field whose
+            /// code no version wrote.
+            pub fn to_record(&self, r: &mut CycleRecord) -> Result<(), String> {
+                $(r.$scalar = self.$scalar;)*
+                $(r.$joint.clear(); r.$joint.extend_from_slice(&self.$joint);)*
+                $(r.$optional.clear(); r.$optional.extend_from_slice(&self.$optional);)*
+                $(r.$code = Code::from_code(self.$code)
+                    .ok_or_else(|| format!("unknown {} code {}", stringify!($code), self.$code))?;)*
+                Ok(())
+            }
+        }
+
+        /// (name, tag, type, repeated) of each field of [`Cycle`], for its descriptor.
+        const CYCLE_FIELDS: &[(&str, i32, Type, bool)] = &[
+            $((stringify!($scalar), tag($stag), proto_type!($sproto), false),)*
+            $((stringify!($joint), tag($jtag), Type::Double, true),)*
+            $((stringify!($optional), tag($otag), Type::Double, true),)*
+            $((stringify!($code), tag($ctag), Type::Uint32, false),)*
+        ];
+    };
 }
 
-impl Cycle {
-    /// Copy `r` into this message, reusing its vectors.
-    pub fn fill(&mut self, r: &crate::record::CycleRecord) {
-        self.cycle = r.cycle;
-        self.t = r.t;
-        for (dst, src) in [
-            (&mut self.q, &r.q),
-            (&mut self.qd, &r.qd),
-            (&mut self.qdd, &r.qdd),
-            (&mut self.tau_cmd, &r.tau_cmd),
-            (&mut self.tau_meas, &r.tau_meas),
-            (&mut self.q_des, &r.q_des),
-            (&mut self.qd_des, &r.qd_des),
-            (&mut self.qdd_des, &r.qdd_des),
-            (&mut self.tau_ext, &r.tau_ext),
-            (&mut self.frame_force, &r.frame_force),
-        ] {
-            dst.clear();
-            dst.extend_from_slice(src);
-        }
-        self.controller = r.controller as u32;
-        self.mode = r.mode as u32;
-        self.faults = r.faults.0;
-    }
+/// The descriptor's type of a scalar field, from its prost type.
+macro_rules! proto_type {
+    (uint64) => {
+        Type::Uint64
+    };
+    (double) => {
+        Type::Double
+    };
 }
+
+/// A field number written as prost's attribute wants it (`"12"`), as a number.
+const fn tag(text: &str) -> i32 {
+    let (digits, mut i, mut n) = (text.as_bytes(), 0, 0);
+    while i < digits.len() {
+        assert!(digits[i].is_ascii_digit(), "a field number is decimal digits");
+        n = 10 * n + (digits[i] - b'0') as i32;
+        i += 1;
+    }
+    n
+}
+
+cycle_fields!(cycle_message);
 
 /// The tracking error `q_des − q` over one display window of the daemon, on topic
 /// `/arash/error`: the last cycle's error and the extremes over the window, so that a spike
@@ -126,26 +132,8 @@ pub struct Truth {
 }
 
 /// (name, tag, type, repeated) of each field of the structs above. Files carry the descriptor
-/// built from this table; the Python tests decode them with it and compare against the Rust
+/// built from these tables; the Python tests decode them with it and compare against the Rust
 /// reader (which uses the structs), so a mismatch between the two fails there.
-const CYCLE_FIELDS: &[(&str, i32, Type, bool)] = &[
-    ("cycle", 1, Type::Uint64, false),
-    ("t", 2, Type::Double, false),
-    ("q", 3, Type::Double, true),
-    ("qd", 4, Type::Double, true),
-    ("qdd", 5, Type::Double, true),
-    ("tau_cmd", 6, Type::Double, true),
-    ("tau_meas", 7, Type::Double, true),
-    ("q_des", 8, Type::Double, true),
-    ("qd_des", 9, Type::Double, true),
-    ("qdd_des", 10, Type::Double, true),
-    ("controller", 11, Type::Uint32, false),
-    ("mode", 12, Type::Uint32, false),
-    ("faults", 13, Type::Uint32, false),
-    ("tau_ext", 14, Type::Double, true),
-    ("frame_force", 15, Type::Double, true),
-];
-
 const TRUTH_FIELDS: &[(&str, i32, Type, bool)] = &[
     ("cycle", 1, Type::Uint64, false),
     ("t", 2, Type::Double, false),
@@ -209,4 +197,66 @@ pub fn descriptor_set(name: &str) -> Vec<u8> {
         ..Default::default()
     };
     FileDescriptorSet { file: vec![file] }.encode_to_vec()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::control::{ControllerKind, Faults};
+    use crate::record::Mode;
+    use prost::Message;
+
+    /// A record with every field set, each vector to values of its own.
+    fn full_record() -> CycleRecord {
+        let mut r = CycleRecord::new(3);
+        let mut next = 0.0;
+        let mut fresh = |n: usize| -> Vec<f64> {
+            (0..n)
+                .map(|_| {
+                    next += 1.25;
+                    next
+                })
+                .collect()
+        };
+        (r.cycle, r.t) = (41, 0.041);
+        (r.q, r.qd, r.qdd, r.tau_cmd, r.tau_meas) = (fresh(3), fresh(3), fresh(3), fresh(3), fresh(3));
+        (r.q_des, r.qd_des, r.qdd_des, r.tau_ext, r.frame_force) = (fresh(3), fresh(3), fresh(3), fresh(3), fresh(3));
+        (r.controller, r.mode, r.faults) = (ControllerKind::Robust, Mode::Faulted, Faults(0b1010));
+        r
+    }
+
+    /// Every field survives the message: record → bytes → record.
+    #[test]
+    fn a_record_goes_through_the_message_unchanged() {
+        let record = full_record();
+        let mut message = Cycle::default();
+        message.fill(&record);
+        let decoded = Cycle::decode(&*message.encode_to_vec()).unwrap();
+        let mut back = CycleRecord::new(0);
+        decoded.to_record(&mut back).unwrap();
+        assert_eq!(back, record);
+    }
+
+    /// The descriptor names each field of the message once, with the number prost encodes it
+    /// under: a message holding only one field encodes that number in its first key.
+    #[test]
+    fn the_descriptor_numbers_the_fields_as_prost_encodes_them() {
+        let names: Vec<&str> = CYCLE_FIELDS.iter().map(|f| f.0).collect();
+        let unique: std::collections::BTreeSet<&str> = names.iter().copied().collect();
+        assert_eq!(unique.len(), names.len(), "{names:?}");
+        let numbers: std::collections::BTreeSet<i32> = CYCLE_FIELDS.iter().map(|f| f.1).collect();
+        assert_eq!(numbers, (1..=15).collect(), "the flight log's field numbers");
+        let only_q = Cycle { q: vec![1.0], ..Default::default() };
+        let key = only_q.encode_to_vec()[0];
+        assert_eq!(i32::from(key >> 3), CYCLE_FIELDS.iter().find(|f| f.0 == "q").unwrap().1);
+    }
+
+    #[test]
+    fn a_code_no_version_wrote_is_refused_by_its_field() {
+        let mut message = Cycle::default();
+        message.fill(&full_record());
+        message.mode = 7;
+        let err = message.to_record(&mut CycleRecord::new(0)).unwrap_err();
+        assert_eq!(err, "unknown mode code 7");
+    }
 }

@@ -17,9 +17,10 @@
 //!   each other's torque (`Folds`), so that a closed loop's noise cannot flatter the score.
 //!
 //! The candidates run from the lowest cut-off the log allows to [`SEARCH_ABOVE_SPECTRAL`] times
-//! the one the motion's spectrum suggests ([`super::decide`]), within a quarter of the sample rate.
+//! the one the motion's spectrum suggests ([`super::data_choices`]), within a quarter of the sample rate.
 
-use super::decide::{
+use super::conditioning::{filter_columns, mean_of, periods_of};
+use super::data_choices::{
     best_predicting, geometric_grid, most_accurate_prediction, Equal, Prediction, Prefer, EQUAL_PREDICTION_POINTS,
     EQUAL_PREDICTION_SIGMAS,
 };
@@ -33,7 +34,6 @@ use super::options::PreprocessOptions;
 use super::preprocess::{
     edge_limited_cutoff_hz, filtered_motion, preprocess, Choices, PreprocessError, Preprocessed, MIN_CUTOFF_HZ,
 };
-use super::signals::{filter_columns, mean_of, periods_of};
 use super::{Declared, Log};
 use std::borrow::Cow;
 
@@ -91,7 +91,7 @@ pub fn motion_floor_hz(bandwidth_hz: Option<f64>, repeats: bool) -> f64 {
 }
 
 /// The friction velocity's candidates are one octave apart: the fit changes little within one.
-const FRICTION_STEP: usize = super::decide::CUTOFFS_PER_OCTAVE;
+const FRICTION_STEP: usize = super::data_choices::CUTOFFS_PER_OCTAVE;
 
 /// One candidate cut-off, with the friction velocity that fitted best at it.
 #[derive(Clone, Debug)]

@@ -13,9 +13,9 @@
 use faer::prelude::*;
 use faer::{Mat, Scale};
 
+use super::conditioning::filter_columns;
 use super::filter::Butterworth;
 use super::preprocess::Preprocessed;
-use super::signals::filter_columns;
 use crate::base_parameters::BaseParameters;
 use crate::data::Data;
 use crate::dense::{self, dot};

@@ -11,8 +11,8 @@
 //! loop's do, so the direction column here is that mean (docs/identification.md gives what it
 //! changes).
 
+use super::conditioning::{central_difference, every_nth_row, filter_columns, mean_of, whole_periods, Averaging};
 use super::filter::{Butterworth, FilterError};
-use super::signals::{central_difference, every_nth_row, filter_columns, mean_of, whole_periods, Averaging};
 use crate::model::{CoulombLaws, CoulombShape};
 
 /// The friction velocity of a log: one series per averaged period (a single one for a log that

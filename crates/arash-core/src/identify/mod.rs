@@ -3,20 +3,20 @@
 //! printed as the paper's tables and used for prediction.
 
 pub mod closed_loop;
+pub mod conditioning;
 pub mod consistent;
 pub mod cutoff;
-pub mod decide;
+pub mod data_choices;
+pub mod drive_gains;
 pub mod estimate;
 pub mod excitation;
 pub mod filter;
 pub mod friction;
 pub mod friction_law;
-pub mod gains;
 pub mod options;
 pub mod preprocess;
 pub mod repair;
-pub mod rest;
-pub mod signals;
+pub mod resting;
 
 use crate::base_parameters::BaseParameters;
 use crate::model::Model;
@@ -58,7 +58,7 @@ pub enum IdentifyError {
     #[error(transparent)]
     ClosedLoop(#[from] ClosedLoopError),
     #[error(transparent)]
-    Gains(#[from] gains::GainsError),
+    Gains(#[from] drive_gains::GainsError),
     #[error(
         "method {0} needs the closed loop's reference (q_des, qd_des, qdd_des at every sample) and the controller that \
          ran it, and none was given; ols, wls and consistent work on the log alone"
@@ -112,25 +112,25 @@ pub fn identify_in_closed_loop(
     identify_with(declared, log, method, Some(closed_loop), options)
 }
 
-/// Identify from motor currents with drive gains ([`gains`]): `runs` are logs whose `tau` holds
+/// Identify from motor currents with drive gains ([`drive_gains`]): `runs` are logs whose `tau` holds
 /// currents (A), each with or without the known `load`. The gains, the base parameters and the
 /// load's unknowns are fitted together; the model file is then fitted as [`identify`] fits it, on
 /// the first unloaded run's torque `k̂ᵢ iᵢ`, and records the gains. Coulomb laws the robot does not
 /// declare are chosen on that run and used for all. A datasheet's gains, each `(k, σ)`, are
 /// checked against the load's and used where the load does not fix a gain
-/// ([`gains::with_datasheet`]).
+/// ([`drive_gains::with_datasheet`]).
 pub fn identify_with_known_load(
     declared: Declared,
     runs: &[(Log, bool)],
-    calibration: gains::Calibration,
+    calibration: drive_gains::Calibration,
     method: IdentifyMethod,
     options: &IdentifyOptions,
-) -> Result<(ModelFile, gains::GainFit), IdentifyError> {
-    let gains::Calibration { load, datasheet, estimator } = calibration;
+) -> Result<(ModelFile, drive_gains::GainFit), IdentifyError> {
+    let drive_gains::Calibration { load, datasheet, estimator } = calibration;
     let body = load.validate(declared.model)?;
-    let first = runs.iter().position(|(_, loaded)| !loaded).ok_or(gains::GainsError::MissingRuns("unloaded"))?;
+    let first = runs.iter().position(|(_, loaded)| !loaded).ok_or(drive_gains::GainsError::MissingRuns("unloaded"))?;
     if !runs.iter().any(|(_, loaded)| *loaded) {
-        return Err(gains::GainsError::MissingRuns("loaded").into());
+        return Err(drive_gains::GainsError::MissingRuns("loaded").into());
     }
     let against = cutoff::Against::Regressor;
     let (pre_first, laws) = preprocess_with_laws(declared, runs[first].0, &options.preprocess, against)?;
@@ -150,22 +150,25 @@ pub fn identify_with_known_load(
             false => cutoff::preprocess_for_fit(declared, *log, &options.preprocess, against)?,
         });
     }
-    let gain_runs: Vec<gains::GainRun> =
-        preprocessed.iter().zip(runs).map(|(data, (_, loaded))| gains::GainRun { data, loaded: *loaded }).collect();
+    let gain_runs: Vec<drive_gains::GainRun> = preprocessed
+        .iter()
+        .zip(runs)
+        .map(|(data, (_, loaded))| drive_gains::GainRun { data, loaded: *loaded })
+        .collect();
     let ls = if method == IdentifyMethod::Wls { Method::Wls } else { Method::Ols };
-    let fit = gains::fit_gains(model, declared.base, &gain_runs, load, body, ls, estimator)?;
+    let fit = drive_gains::fit_gains(model, declared.base, &gain_runs, load, body, ls, estimator)?;
     let dof = model.dof();
     let (mut reasons, mut warnings) = (fit.reasons.clone(), fit.warnings.clone());
     let (used, sigma, covariance, from_datasheet) = match datasheet {
         Some(given) => {
-            let checked = gains::with_datasheet(&fit, given, &model.joint_names())?;
+            let checked = drive_gains::with_datasheet(&fit, given, &model.joint_names())?;
             reasons.extend(checked.reasons);
             warnings.extend(checked.warnings);
             (checked.gains, checked.sigma, checked.covariance, checked.from_datasheet)
         }
         None => (fit.gains.clone(), fit.gain_sigma.clone(), fit.gain_covariance.clone(), vec![false; dof]),
     };
-    let beta_per_gain = gains::beta_per_gain(model, declared.base, &preprocessed[first], &used, ls)?;
+    let beta_per_gain = drive_gains::beta_per_gain(model, declared.base, &preprocessed[first], &used, ls)?;
     let log = runs[first].0;
     let torque: Vec<f64> = log.tau.iter().enumerate().map(|(i, c)| c * used[i % dof]).collect();
     let mut file = identify(declared, Log { tau: &torque, ..log }, method, options)?;
@@ -403,8 +406,9 @@ pub struct Validation {
     pub reasons: Vec<String>,
 }
 
-/// FP% per joint of `identification` on one validation log (same preprocessing as training).
-pub fn validate(
+/// FP% per joint of `identification` on one validation log (same preprocessing as training):
+/// one column of the paper's Table II, the cross-validation.
+pub fn cross_validate(
     model: &Model,
     identification: &ModelFile,
     t: &[f64],
@@ -420,7 +424,7 @@ pub fn validate(
     })
 }
 
-/// A validation run preprocessed as for [`validate`]: the time of each sample, the filtered
+/// A validation run preprocessed as for [`cross_validate`]: the time of each sample, the filtered
 /// measured torque and the model's prediction (both N × dof, row-major).
 #[derive(Clone, Debug)]
 pub struct ValidationSeries {
@@ -431,7 +435,7 @@ pub struct ValidationSeries {
     pub reasons: Vec<String>,
 }
 
-/// The series [`validate`] scores, for plotting measured against predicted torque.
+/// The series [`cross_validate`] scores, for plotting measured against predicted torque.
 ///
 /// The run is filtered at the training cut-offs, unless the caller says otherwise. A run that
 /// is not periodic and too short for that cut-off (the filter's start-up would fill more than

@@ -31,7 +31,7 @@ fn positive(name: &'static str, value: f64) -> Result<(), SettingError> {
 
 /// Settings for [`preprocess`](super::preprocess::preprocess): the one home of the preprocessing defaults, which every front end
 /// (CLI, Python, diagnosis, demo) starts from, overriding only what its user set. `Default` leaves
-/// the period and the cut-off to the data ([`super::decide`]) and keeps the paper's order 5.
+/// the period and the cut-off to the data ([`super::data_choices`]) and keeps the paper's order 5.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PreprocessOptions {
     /// Number of whole excitation periods in the log: `None` finds them from the data (and finds
@@ -55,7 +55,7 @@ pub struct PreprocessOptions {
     /// derivatives of the filtered position pass through the filter once, exactly as the torque
     /// does, which matters when the signals have content near the cut-off (the diagnosis).
     pub filter_derivatives: bool,
-    /// Leave each joint's resting samples out of the fit ([`super::rest`]). The diagnosis, which
+    /// Leave each joint's resting samples out of the fit ([`super::resting`]). The diagnosis, which
     /// builds and scores its own rows at every sample, turns it off.
     pub leave_out_rests: bool,
 }

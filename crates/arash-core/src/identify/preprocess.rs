@@ -6,11 +6,11 @@
 //! differentiated circularly (three periods side by side, the middle kept): one period of a
 //! periodic signal has no ends, so it gets no end effects.
 
-use super::decide::{bandwidth, find_period, harmonic_bandwidth, PERIODIC_MISMATCH};
+use super::conditioning::{averaged, central_difference, every_nth_row, filter_columns, periods_of, Averaging};
+use super::data_choices::{bandwidth, find_period, harmonic_bandwidth, PERIODIC_MISMATCH};
 use super::filter::{Butterworth, FilterError};
 use super::friction::{FrictionVelocity, RawVelocity};
 use super::options::{PreprocessOptions, SettingError};
-use super::signals::{averaged, central_difference, every_nth_row, filter_columns, periods_of, Averaging};
 use crate::model::CoulombLaws;
 
 /// Why a log cannot be preprocessed. Each variant names the offending input.
@@ -91,7 +91,7 @@ pub struct Preprocessed {
     /// The cut-off actually used (Hz).
     pub cutoff_hz: f64,
     /// The motion's bandwidth read from the positions (Hz), when the cut-off was left to the
-    /// data and there is motion above the noise ([`super::decide`]).
+    /// data and there is motion above the noise ([`super::data_choices`]).
     pub bandwidth_hz: Option<f64>,
     /// The cut-off of the friction velocity actually used (Hz).
     pub friction_cutoff_hz: f64,
@@ -108,7 +108,7 @@ pub struct Preprocessed {
     pub periodic: bool,
     /// Decimation factor applied after filtering.
     pub decimate: usize,
-    /// Whether each joint rests at each sample (`samples × dof`, [`super::rest`]): those rows are
+    /// Whether each joint rests at each sample (`samples × dof`, [`super::resting`]): those rows are
     /// left out of the fit.
     pub resting: Vec<bool>,
     /// The samples clear of the zero-phase filter's start-up transients (all of them for a
@@ -298,7 +298,7 @@ fn choose_periods(
         let samples = period_s * fs;
         let whole = (samples - samples.round()).abs() < 1e-6;
         let samples = if whole { samples.round() } else { samples };
-        let count = ((n + super::decide::SHORT_BY) as f64 / samples).floor() as usize;
+        let count = ((n + super::data_choices::SHORT_BY) as f64 / samples).floor() as usize;
         if count < 2 {
             return Err(PreprocessError::TooFewPeriods { periods: count, period_s });
         }
@@ -316,7 +316,7 @@ fn choose_periods(
                 return Err(PreprocessError::TooFewSamples { needed: 2 * count, got: n });
             }
             let period_s = per as f64 / fs;
-            let mismatch = super::decide::mismatch_of_columns(q, dof, per);
+            let mismatch = super::data_choices::mismatch_of_columns(q, dof, per);
             choices.reasons.push(format!("{count} periods of {period_s:.4} s: set by the user"));
             if mismatch > PERIODIC_MISMATCH {
                 choices.warnings.push(format!(
@@ -339,7 +339,7 @@ fn choose_periods(
                 ));
                 return Ok(None);
             }
-            if count < super::decide::FEW_PERIODS {
+            if count < super::data_choices::FEW_PERIODS {
                 choices.warnings.push(format!(
                     "only {count} periods to average: the noise falls by √{count} only, and a period found from {count} repeats is uncertain"
                 ));
@@ -499,10 +499,10 @@ pub fn preprocess(
     let ((q_f, qd, qdd), (tau_avg, tau_f, friction)) = (chain?, other?);
     let keep = |x: &[f64]| every_nth_row(x, dof, options.decimate);
     let resting = match options.leave_out_rests {
-        true => super::rest::resting(raw_q, dof, averaging, raw_dt, options.decimate),
+        true => super::resting::resting(raw_q, dof, averaging, raw_dt, options.decimate),
         false => vec![false; n.div_ceil(options.decimate) * dof],
     };
-    choices.reasons.extend(super::rest::explain(&resting, dof, settled.clone(), raw_dt));
+    choices.reasons.extend(super::resting::explain(&resting, dof, settled.clone(), raw_dt));
     let t_out: Vec<f64> = (0..n).step_by(options.decimate).map(|i| t[0] + i as f64 * dt).collect();
     Ok(Preprocessed {
         dof,

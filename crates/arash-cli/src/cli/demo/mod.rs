@@ -25,7 +25,8 @@ use arash_core::identify::estimate::joint_metrics;
 use arash_core::identify::excitation::design_excitation;
 use arash_core::identify::options::{ExcitationOptions, PreprocessOptions};
 use arash_core::identify::{
-    identify, identify_in_closed_loop, validate, validation_series, validation_table, Declared, IdentifyOptions, Log,
+    cross_validate, identify, identify_in_closed_loop, validation_series, validation_table, Declared, IdentifyOptions,
+    Log,
 };
 use arash_core::model_file::{IdentifyMethod, ModelFile};
 use arash_core::{BaseParameters, Model};
@@ -394,7 +395,7 @@ fn truth_file(
     file.settings.warnings.clear();
     let options = PreprocessOptions::default();
     // `training_ols` stays the calibration's: plain least squares on the same log, for comparison.
-    file.training = validate(model, &file, &training.t, &training.q, &training.tau, &options)?.metrics;
+    file.training = cross_validate(model, &file, &training.t, &training.q, &training.tau, &options)?.metrics;
     let path = dir.join("model_truth.json");
     crate::report::write_atomically(&path, &file.to_json())?;
     println!(
@@ -474,8 +475,8 @@ fn calibrate(
     for (i, (omega, v)) in validation.iter().enumerate() {
         let pre = PreprocessOptions::default();
         labels.push(format!("ω = {omega}"));
-        table_ii.0.push(validate(model, &ols, &v.t, &v.q, &v.tau, &pre)?.metrics.fp_percent);
-        // `validate` scores exactly this series; the plotted run keeps it for the figure.
+        table_ii.0.push(cross_validate(model, &ols, &v.t, &v.q, &v.tau, &pre)?.metrics.fp_percent);
+        // `cross_validate` scores exactly this series; the plotted run keeps it for the figure.
         let series = validation_series(model, &consistent, &v.t, &v.q, &v.tau, &pre)?;
         table_ii.1.push(joint_metrics(&series.measured, &series.predicted, model.dof()).fp_percent);
         if i == plotted {

@@ -11,7 +11,7 @@
 //!
 //! A rest is read from the raw encoder: a reading that holds for at least [`REST_HOLD_S`].
 
-use super::signals::Averaging;
+use super::conditioning::Averaging;
 
 /// A joint rests where its reading holds for at least this long (s). A reading repeated for a
 /// sample or two is slow motion across one encoder step; under closed-loop control a joint held by

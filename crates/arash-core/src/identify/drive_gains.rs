@@ -522,7 +522,7 @@ fn total_least_squares(x: &Mat<f64>, y: &[f64]) -> Option<Vec<f64>> {
 /// joint j, `∂β/∂ln kⱼ`, the fit of joint j's torque alone (the other joints' rows zero), with the
 /// joint weights `method` gives the whole torque. A gain's error scales its joint's torque, and a
 /// model fitted on it takes up part of that scale: what a later diagnosis sees of the error is the
-/// rest (`diagnose::calibration`). Exact for least squares; for a physically consistent fit whose
+/// rest (`diagnose::gain_share`). Exact for least squares; for a physically consistent fit whose
 /// constraints hold with margin, the same to first order.
 pub fn beta_per_gain(
     model: &Model,

@@ -1,5 +1,5 @@
 //! The drive gains' share of an effect's σ, when the torque was computed from motor currents with
-//! gains calibrated by a known load (`identify::gains`).
+//! gains calibrated by a known load (`identify::drive_gains`).
 //!
 //! A gain k̂ⱼ that is off by εⱼ = dkⱼ/kⱼ scales joint j's measured torque by 1 + εⱼ. The given
 //! model was fitted on torque computed with the same gains, so its held parameters moved with them
@@ -12,9 +12,9 @@
 
 use faer::Mat;
 
-use super::context::Context;
-use super::problem::Problem;
+use super::inputs::Context;
 use super::regression::{axpy, gram, rhs, solve_scaled, Column, Rows};
+use super::weighted_fit::Problem;
 use crate::dense;
 
 /// Per joint, the change of the weighted target per unit relative error of its gain, and the
