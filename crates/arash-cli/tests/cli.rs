@@ -488,3 +488,15 @@ fn the_binary_needs_only_the_c_runtime() {
         assert!(runtime.iter().any(|r| line.contains(r)), "the arash binary needs {line}:\n{text}");
     }
 }
+
+/// `arash ctl --wait` waits for a run, so with any other request it is refused before the
+/// daemon is asked anything (the socket here does not exist: a refusal that named it would have
+/// tried to connect).
+#[test]
+fn ctl_wait_without_a_run_is_refused_before_the_daemon_is_asked() {
+    let out = arash(&["ctl", "--socket", "/nonexistent/arash.sock", "enable", "--wait"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("--wait") && err.contains("arash ctl run"), "{err}");
+    assert!(!err.contains("connecting"), "{err}");
+}

@@ -309,7 +309,7 @@ fn ctrl_c_disables_the_motors_and_keeps_the_logs() {
         .max()
         .expect("cycles were logged");
     assert_eq!(
-        arash_core::record::Mode::from_u32(last_mode),
+        <arash_core::record::Mode as arash_core::record::Code>::from_code(last_mode),
         Some(arash_core::record::Mode::Disabled),
         "cycle {last_cycle}: the motors were not disabled at the end"
     );

@@ -16,20 +16,6 @@ pub enum Mode {
     Faulted = 2,
 }
 
-impl Mode {
-    pub fn from_u32(v: u32) -> Option<Mode> {
-        [Mode::Disabled, Mode::Enabled, Mode::Faulted].into_iter().find(|m| *m as u32 == v)
-    }
-}
-
-impl ControllerKind {
-    pub fn from_u32(v: u32) -> Option<ControllerKind> {
-        [ControllerKind::None, ControllerKind::Pd, ControllerKind::Idc, ControllerKind::Robust]
-            .into_iter()
-            .find(|m| *m as u32 == v)
-    }
-}
-
 /// A field of the cycle record stored as a number code: its value in the flight log's message
 /// and in [`Columns`], and back (`None` for a code no version wrote).
 pub trait Code: Sized + Copy {
@@ -45,7 +31,9 @@ impl Code for ControllerKind {
         self as u32
     }
     fn from_code(code: u32) -> Option<Self> {
-        ControllerKind::from_u32(code)
+        [ControllerKind::None, ControllerKind::Pd, ControllerKind::Idc, ControllerKind::Robust]
+            .into_iter()
+            .find(|k| *k as u32 == code)
     }
 }
 
@@ -55,7 +43,7 @@ impl Code for Mode {
         self as u32
     }
     fn from_code(code: u32) -> Option<Self> {
-        Mode::from_u32(code)
+        [Mode::Disabled, Mode::Enabled, Mode::Faulted].into_iter().find(|m| *m as u32 == code)
     }
 }
 

@@ -9,7 +9,7 @@ use std::time::Duration;
 use anyhow::Context;
 use arash_core::control::{ControllerKind, Faults, PlanLimits, RobustGains, Trajectory};
 use arash_core::model_file::DriveGains;
-use arash_core::record::Mode;
+use arash_core::record::{Code, Mode};
 use arash_core::Model;
 
 use crate::ctl::CtlRequest;
@@ -81,7 +81,7 @@ async fn applied(operator: &Operator, ticket: u64) -> anyhow::Result<()> {
 }
 
 pub(super) async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::Result<serde_json::Value> {
-    let mode = |s: &Shared| Mode::from_u32(s.mode.load(Ordering::Relaxed));
+    let mode = |s: &Shared| Mode::from_code(s.mode.load(Ordering::Relaxed));
     match request {
         CtlRequest::Status => Ok(status(operator)),
         CtlRequest::Enable => {
@@ -129,7 +129,7 @@ pub(super) async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::
                 *next += 1;
                 *next
             };
-            let controller = ControllerKind::from_u32(operator.shared.controller.load(Ordering::Relaxed))
+            let controller = ControllerKind::from_code(operator.shared.controller.load(Ordering::Relaxed))
                 .map_or("unknown".to_string(), |k| format!("{k:?}").to_lowercase());
             operator.runs.lock().expect("registry lock").insert(
                 id,
@@ -225,9 +225,9 @@ pub(super) fn status(operator: &Operator) -> serde_json::Value {
     let level = ["free", "contact", "collision"][s.force_level.load(Ordering::Relaxed).min(2) as usize];
     serde_json::json!({
         "cycle": load(&s.cycle),
-        "mode": Mode::from_u32(s.mode.load(Ordering::Relaxed)),
+        "mode": Mode::from_code(s.mode.load(Ordering::Relaxed)),
         "faults": faults.names(),
-        "controller": ControllerKind::from_u32(s.controller.load(Ordering::Relaxed)),
+        "controller": ControllerKind::from_code(s.controller.load(Ordering::Relaxed)),
         "phase": phase,
         "run_id": s.run_id.load(Ordering::Relaxed),
         "last_run_ended": s.last_run_ended.load(Ordering::Relaxed),

@@ -10,7 +10,7 @@ use super::cycle::{ControlCycle, Event, Garbage, Request};
 use super::reference::Phase;
 use crate::link::{Command, LinkStats, MotorLink, Telemetry, MAX_JOINTS};
 use arash_core::control::{ControllerKind, Faults};
-use arash_core::record::{CycleRecord, Mode};
+use arash_core::record::{Code, CycleRecord, Mode};
 
 /// One cycle as the logger receives it: fixed-size, so queuing it never allocates.
 #[derive(Clone, Copy, Debug)]
@@ -277,8 +277,8 @@ impl CycleSample {
             }
             None => r.frame_force.clear(),
         }
-        r.controller = ControllerKind::from_u32(self.controller).unwrap_or(ControllerKind::None);
-        r.mode = Mode::from_u32(self.mode).unwrap_or(Mode::Faulted);
+        r.controller = ControllerKind::from_code(self.controller).unwrap_or(ControllerKind::None);
+        r.mode = Mode::from_code(self.mode).unwrap_or(Mode::Faulted);
         r.faults = Faults(self.faults);
     }
 }

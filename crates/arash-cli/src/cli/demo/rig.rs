@@ -180,8 +180,8 @@ impl Rig {
 
     /// Switch the control law, with a model file or the CAD parameters.
     pub fn controller(&self, kind: &str, model: Option<&Path>) -> anyhow::Result<()> {
-        let model = model.map(|m| std::fs::canonicalize(m).map(|p| p.display().to_string())).transpose()?;
-        self.call(&CtlRequest::Controller { kind: kind.into(), model })
+        let model = model.map(|m| m.display().to_string());
+        self.call(&CtlRequest::Controller { kind: kind.into(), model }.absolute()?)
             .with_context(|| format!("switching to the {kind} controller"))?;
         Ok(())
     }
@@ -197,11 +197,9 @@ impl Rig {
     /// Play `trajectory` for `duration_s` (its natural length if `None`), showing progress, and
     /// return the run's log file once it is finished.
     pub fn run(&self, trajectory: &Path, duration_s: Option<f64>, label: &str) -> anyhow::Result<PathBuf> {
-        let answer = self.call(&CtlRequest::Run {
-            trajectory: std::fs::canonicalize(trajectory)?.display().to_string(),
-            duration_s,
-            label: Some(label.into()),
-        })?;
+        let request =
+            CtlRequest::Run { trajectory: trajectory.display().to_string(), duration_s, label: Some(label.into()) };
+        let answer = self.call(&request.absolute()?)?;
         let id = answer["run_id"].as_u64().unwrap_or(0);
         let total = answer["duration_s"].as_f64().unwrap_or(0.0);
         let mut running_since: Option<Instant> = None;
