@@ -117,8 +117,8 @@ def timing(repeats):
                 model = arash.identify(robot, *log, method=method, **(given if "i" in method[:2] else {}))
             seconds.append(time.perf_counter() - start)
         medians[method] = float(np.median(seconds))
-        line = next((r for r in model.settings["reasons"] if ": the closed loop simulated" in r), "")
-        iterations = line.split(", ")[1].split(" ")[0] if line else "–"
+        loop = next((c for c in model.settings["choices"] if c["code"] == "closed_loop"), None)
+        iterations = loop["iterations"] if loop else "–"
         print(f"| {method} | {medians[method]:.2f} | {medians[method] / medians['ols']:.2f} | {iterations} |")
 
 

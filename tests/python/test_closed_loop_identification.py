@@ -44,9 +44,10 @@ def test_the_estimate_settles_and_its_sigma_cover_the_truth_of_an_independent_lo
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
             model = arash.identify(robot, *log, method=method, reference=reference, controller=controller)
-        reasons = " ".join(model.settings["reasons"])
-        assert f"{name}: the closed loop simulated" in reasons, reasons
-        assert not any(name in w for w in model.settings["warnings"]), model.settings["warnings"]
+        simulated = [c for c in model.settings["choices"] if c["code"] == "closed_loop" and c["estimator"] == name]
+        assert simulated, model.settings["reasons"]
+        unsettled = [c for c in model.settings["concerns"] if c["code"] == "closed_loop_not_settled"]
+        assert not unsettled, model.settings["warnings"]
         covered.extend(within_three_sigma(model, truth))
         print(f"seed {seed}: {model.settings['reasons'][-1]}; {np.mean(within_three_sigma(model, truth)):.2f} within 3σ")
     assert np.mean(covered) >= 0.9, f"{name}'s 3σ cover {100 * np.mean(covered):.1f} % of the base parameters"
@@ -95,7 +96,7 @@ def test_a_simulated_run_and_its_flight_log_carry_the_controller_idim_iv_needs(t
         ols = arash.identify(robot, *log)
         iv = arash.identify(robot, *log, method="idim-iv", reference=reference, controller=logged["logged_controller"])
     assert iv.method == "idim-iv"
-    assert "IDIM-IV" in " ".join(iv.settings["reasons"])
+    assert any(c["code"] == "closed_loop" and c["estimator"] == "IDIM-IV" for c in iv.settings["choices"])
     np.testing.assert_allclose(iv.fp_percent, ols.fp_percent, atol=0.5)
 
 
@@ -214,11 +215,12 @@ def test_a_noisy_sign_law_closed_loop_keeps_sign_where_a_smooth_law_would_fit_th
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         model = arash.identify(robot, *log)
-    laws = next(r for r in model.settings["reasons"] if r.startswith("Coulomb laws chosen"))
+    laws = next(c for c in model.settings["choices"] if c["code"] == "laws_chosen")
     validation = paper_validation_fp(model.robot, model, truth, "sign")
-    print(f"{laws}\nFP% on the paper's trajectories:\n{np.round(validation, 2)}")
-    assert model.robot.friction_velocities[2] is None, laws
-    assert "joint 2's fittest tanh" in laws and "law of the filter" in laws, laws
+    print(f"{laws['text']}\nFP% on the paper's trajectories:\n{np.round(validation, 2)}")
+    assert model.robot.friction_velocities[2] is None, laws["text"]
+    # The fittest smooth law was a law of the filter, and the choice names the joint it refused.
+    assert 2 in [u["joint"] for u in laws["unresolved"]], laws["text"]
     assert np.all(validation >= 95.0), validation
 
 
@@ -234,9 +236,9 @@ def test_a_closed_loop_that_sticks_validates_with_its_resting_samples_left_out(s
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         model = arash.identify(robot, *log)
-    rests = [r for r in model.settings["reasons"] if r.startswith("resting samples left out")]
-    assert rests and "joint 2" in rests[0], model.settings["reasons"]
+    rests = [c for c in model.settings["choices"] if c["code"] == "resting"]
+    assert rests and rests[0]["shares"][2] > 0.0, model.settings["reasons"]
     validation = paper_validation_fp(robot if declared else model.robot, model, truth, "sign")
-    print(f"{rests[0]}\nlaws {model.robot.friction_velocities}; FP% on the paper's trajectories:\n"
+    print(f"{rests[0]['text']}\nlaws {model.robot.friction_velocities}; FP% on the paper's trajectories:\n"
           f"{np.round(validation, 2)}")
     assert np.all(validation >= 95.0), validation

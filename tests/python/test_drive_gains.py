@@ -48,7 +48,9 @@ def test_the_gains_of_a_kuka_are_found_and_a_second_payload_comes_out_in_kilogra
     assert np.all(np.abs(error) <= 3 * g["sigma"]), (error, g["sigma"])
     assert np.all(np.abs(error) <= 0.02 * gains), 100 * error / gains
     assert g["load_body"] == "lwr_7_link" and g["load_mass"] == 2.0 and all(g["fixed"])
-    assert model.settings["reasons"][0].startswith("drive gains fitted with the base parameters")
+    fitted = model.settings["choices"][0]
+    assert fitted["code"] == "drive_gains_fitted" and fitted["mass_kg"] == 2.0, model.settings["reasons"]
+    np.testing.assert_allclose([j["gain"] for j in fitted["joints"]], g["gains"], rtol=1e-12)
     # A second, unknown payload on a later run: with the calibrated gains, in kilograms.
     second = Payload("lwr_7_link", 1.0, (0.0, 0.03, 0.02))
     logs = [make_log(Condition(*shape, seed=seed + s), truth=truth, payload=second)[1] for s in (200, 300)]

@@ -57,10 +57,14 @@ def test_the_repair_trims_the_corrupt_rows_and_interpolates_as_numpy_does(logs):
     _, _, (t, q, tau) = logs
     r = arash.repair_log(t, q, tau, q[:, :1])
     kept = slice(LEADING, len(t) - 1)
-    assert r.report[0].startswith(f"rows 0–{LEADING - 1} trimmed from the start: t goes back from"), r.report
-    assert r.report[1].startswith(f"rows {len(t) - 1}–{len(t) - 1} trimmed from the end: row {len(t) - 1} has tau "
-                                  "not finite"), r.report
-    assert "resampled rows" in r.report[2] and len(r.report) == 3, r.report
+    start, end, resampled = r.choices
+    assert (start["code"], start["end"], start["first"], start["last"]) == ("trimmed", "start", 0, LEADING - 1), start
+    assert start["why"]["code"] == "time_goes_back" and start["why"]["row"] == LEADING, start
+    last = len(t) - 1
+    assert (end["end"], end["first"], end["last"], end["why"]) == (
+        "end", last, last, {"code": "not_finite", "row": last, "signal": "tau"}), end
+    assert resampled["code"] == "resampled" and resampled["first"] == LEADING, resampled
+    assert r.report == [c["text"] for c in r.choices]
     # The grid is the median step from the first kept stamp, as long as the kept rows span.
     t0, span = t[kept][0], t[kept][-1] - t[kept][0]
     np.testing.assert_allclose(r.t, t0 + np.arange(round(span / DT) + 1) * DT, rtol=0, atol=1e-9)
@@ -81,8 +85,10 @@ def test_a_repaired_log_fits_as_the_uniform_log_of_the_same_robot(logs):
         arash.identify(robot, *irregular)
     clean = arash.identify(robot, *uniform)
     repaired = arash.identify(robot, *irregular, repair=True)
-    reasons = repaired.settings["reasons"]
-    assert reasons[0].startswith("rows 0–3 trimmed from the start") and "resampled rows" in reasons[2], reasons[:3]
+    choices = repaired.settings["choices"]
+    trimmed, resampled = choices[0], choices[2]
+    assert trimmed["code"] == "trimmed" and trimmed["end"] == "start" and trimmed["last"] == LEADING - 1, choices[:3]
+    assert resampled["code"] == "resampled", choices[:3]
     # The stamps taken at face value instead (bad rows dropped, t made uniform): every sample
     # after a missed one is a step late.
     t, q, tau = irregular
@@ -132,10 +138,13 @@ def test_the_cli_repairs_a_csv_on_request_and_records_it(logs, tmp_path):
     assert refused.returncode != 0 and "--repair" in refused.stderr, refused.stderr
     done = subprocess.run(common + ["--repair"], capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
-    assert "note: " in done.stderr and "trimmed from the start" in done.stderr, done.stderr
+    assert "note: " in done.stderr, done.stderr
     reasons = json.loads(out.read_text())["settings"]["reasons"]
-    assert reasons[0].startswith(f"{path}: rows 0–3 trimmed from the start: t goes back from"), reasons[:3]
-    assert any("resampled rows" in r for r in reasons[:3]), reasons[:3]
+    first = reasons[0]
+    assert (first["code"], first["log"], first["end"], first["last"]) == ("trimmed", str(path), "start", LEADING - 1), first
+    assert first["why"]["code"] == "time_goes_back", first
+    assert any(r["code"] == "resampled" for r in reasons[:3]), reasons[:3]
+    assert first["text"] in done.stderr, (first["text"], done.stderr)
 
 
 def test_diagnose_repairs_the_training_log_and_each_held_out_run(logs):
@@ -144,7 +153,8 @@ def test_diagnose_repairs_the_training_log_and_each_held_out_run(logs):
     half = len(t) // 2
     runs = [(t[:half], q[:half], tau[:half]), (t[half:], q[half:], tau[half:])]
     d = arash.diagnose(robot, *irregular, validation=runs, effects=[], repair=True)
-    reasons = d.settings["reasons"]
-    assert reasons[0].startswith("training log: rows 0–3 trimmed"), reasons[:6]
-    assert any(r.startswith("validation[0]: rows 0–3 trimmed") for r in reasons[:8]), reasons[:8]
-    assert any(r.startswith("validation[1]: rows") and "trimmed from the end" in r for r in reasons[:8]), reasons[:8]
+    trims = [(c["log"], c["end"], c["first"], c["last"]) for c in d.settings["choices"] if c["code"] == "trimmed"]
+    assert trims[0] == ("training log", "start", 0, LEADING - 1), trims
+    assert ("validation[0]", "start", 0, LEADING - 1) in trims, trims
+    assert any(log == "validation[1]" and end == "end" for log, end, _, _ in trims), trims
+    assert d.settings["reasons"][0] == d.settings["choices"][0]["text"]

@@ -55,16 +55,20 @@ def test_defaults_find_the_period_and_fit_as_well_as_the_best_cutoff(condition):
         warnings.simplefilter("always")
         ident = arash.identify(robot, *log)
     raised = [str(w.message) for w in raised if issubclass(w.category, UserWarning)]
-    assert any("periods to average" in w for w in raised) == (condition.periods in (2, 3)), raised
     settings = ident.settings
+    few = [c for c in settings["concerns"] if c["code"] == "few_periods"]
+    assert bool(few) == (condition.periods in (2, 3)), settings["warnings"]
+    assert all(any(c["text"] in w for w in raised) for c in few), raised  # each concern is a UserWarning
     reasons = "\n".join(settings["reasons"])
+    codes = [c["code"] for c in settings["choices"]]
     if condition.periods:
         assert settings["periods"] == condition.periods, reasons
         assert settings["period_s"] == pytest.approx(condition.duration / condition.periods, rel=1e-4), reasons
-        assert f"{condition.periods} periods of" in reasons
+        found = next(c for c in settings["choices"] if c["code"] == "periods_found")
+        assert found["count"] == condition.periods, reasons
     else:
-        assert settings["periods"] is None and reasons.startswith("not periodic"), reasons
-    assert "cut-off" in reasons and "Coulomb" in reasons, reasons
+        assert settings["periods"] is None and codes[0] in ("never_moves_away", "does_not_repeat"), reasons
+    assert "cutoff_searched" in codes and "friction_cutoff_searched" in codes, reasons
     grid = fits_by_cutoff(robot, log, condition.fs, condition.top_frequency)
     best = grid[np.argmax(grid.mean(axis=1))]
     print(f"\n{condition.label}: cut-off {ident.cutoff_hz:.2f} Hz, default FP% {np.round(ident.fp_percent, 2)}; "

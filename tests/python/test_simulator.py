@@ -137,7 +137,7 @@ def test_the_cli_log_identifies_like_the_python_arrays(tmp_path):
     # either, and they must agree on the choices, their reasons and the fitted model.
     ident = arash.identify(arash.Robot.arash_asist(), t, q, tau)
     assert cli.cutoff_hz == ident.cutoff_hz
-    assert cli.settings["reasons"] == ident.settings["reasons"]
+    assert cli.settings["choices"] == ident.settings["choices"]
     np.testing.assert_allclose(cli.beta, ident.beta, rtol=1e-9, atol=1e-12)
 
 

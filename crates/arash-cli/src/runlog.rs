@@ -28,7 +28,7 @@ pub struct Log {
     /// moved between them, so nothing is to be filtered across these samples.
     pub starts: Vec<usize>,
     /// What `--repair` did to the runs ([`Log::repaired`]), one line per change, each naming its file.
-    pub repairs: Vec<String>,
+    pub repairs: Vec<arash_core::choices::Choice>,
     /// How the logged torque acted between its sample and the next: the daemon's telemetry
     /// reports the current over the cycle that ended at its sample, `arash simulate` records the
     /// one over the cycle that follows, a CSV is taken as sampled.
@@ -62,7 +62,9 @@ impl Log {
 
     /// This log repaired ([`arash_core::identify::repair`]): a corrupt block at either end trimmed
     /// and irregular stamps resampled, the reference alike. Returns the log and what was done.
-    pub fn repaired(self) -> Result<(Log, Vec<String>), arash_core::identify::repair::RepairError> {
+    pub fn repaired(
+        self,
+    ) -> Result<(Log, Vec<arash_core::choices::Choice>), arash_core::identify::repair::RepairError> {
         let dof = self.q.len() / self.t.len().max(1);
         let mut signals = vec![("q", self.q.as_slice(), dof), ("tau", self.tau.as_slice(), dof)];
         if let Some(c) = &self.closed_loop {

@@ -18,6 +18,7 @@
 //!   widen it against a noisy velocity;
 //! - currents become torques through the drive gains the model was calibrated with.
 
+use crate::choices::ForceChoice;
 use crate::control::gains::{compensation_epsilon, model_epsilon, RobustGains};
 use crate::force::{
     episodes, Episode, FrameForce, Level, MomentumObserver, ObserverError, ThresholdError, Thresholds, TorqueTiming,
@@ -28,11 +29,11 @@ use crate::identify::Log;
 use crate::model::{Model, UnknownFrame};
 use crate::model_file::{ModelFile, ObserverHeldOut};
 
+use crate::force::settings::HAND_BANDWIDTH;
 pub use crate::force::settings::{
     bandwidth_grid, default_bandwidth, default_frame, held_out_sigma, sigma_thresholds, FrameChoice, BANDWIDTH_GRID,
     BANDWIDTH_PER_HAND_BAND, BAND_PER_BANDWIDTH, HAND_BAND_HZ, NOISE_ALLOWANCE, PEAK_MARGIN,
 };
-use crate::force::settings::{round3, HAND_BANDWIDTH};
 
 /// The velocity filter's band over the observer's bandwidth. The momentum path differentiates
 /// `M q̇`, so the velocity's noise (an encoder's steps) reaches the estimate amplified by `K`
@@ -157,7 +158,7 @@ pub struct ForceLog {
     pub thresholds: Option<Thresholds>,
     pub episodes: Vec<Episode>,
     /// What chose each value that was not given.
-    pub reasons: Vec<String>,
+    pub reasons: Vec<ForceChoice>,
 }
 
 /// A log: times (s), positions, the applied effort and, if measured, velocities (row-major,
@@ -277,12 +278,12 @@ pub fn estimate_force(
 /// Each joint's Coulomb width: the model's own law where it has one (the velocity offline has no
 /// noise a sign would chatter on), else the robust controller's ε (the paper's where it has gains
 /// for the robot, the joint kinds' default elsewhere).
-fn epsilon_of(model: &Model, reasons: &mut Vec<String>) -> Vec<f64> {
+fn epsilon_of(model: &Model, reasons: &mut Vec<ForceChoice>) -> Vec<f64> {
     let paper = RobustGains::paper(model).map(|g| g.epsilon);
     let controller = compensation_epsilon(model, &paper.unwrap_or_else(|_| model_epsilon(model)));
     let own: Vec<Option<f64>> = (0..model.dof()).map(|k| model.coulomb_laws.shape(k).epsilon()).collect();
     if own.iter().any(Option::is_none) {
-        reasons.push("Coulomb friction switches as the controllers' tanh(q̇/ε) where the model's law is sign(q̇)".into());
+        reasons.push(ForceChoice::TanhForSign);
     }
     own.iter().zip(controller).map(|(o, c)| o.unwrap_or(c)).collect()
 }
@@ -321,7 +322,7 @@ fn bandwidth_of(
     options: &ForceLogOptions,
     rate: f64,
     n: usize,
-    reasons: &mut Vec<String>,
+    reasons: &mut Vec<ForceChoice>,
 ) -> Result<Vec<f64>, ForceLogError> {
     if let Some(b) = &options.bandwidth_hz {
         return Ok(b.clone());
@@ -337,7 +338,7 @@ fn sigma_of(
     file: Option<&ModelFile>,
     options: &ForceLogOptions,
     n: usize,
-    reasons: &mut Vec<String>,
+    reasons: &mut Vec<ForceChoice>,
 ) -> Result<Vec<f64>, ForceLogError> {
     match (&options.sigma, file.and_then(|f| f.held_out.as_ref())) {
         (Some(s), _) if s.len() != n => {
@@ -382,7 +383,7 @@ fn zero_phase(
     t: &[f64],
     bandwidth_hz: &[f64],
     file: Option<&ModelFile>,
-    reasons: &mut Vec<String>,
+    reasons: &mut Vec<ForceChoice>,
 ) -> Result<Vec<f64>, ForceLogError> {
     let n = bandwidth_hz.len();
     let mut back = tau_ext.to_vec();
@@ -396,11 +397,12 @@ fn zero_phase(
     let rate = (t.len() - 1) as f64 / (t[t.len() - 1] - t[0]);
     let order = file.map_or(4, |f| f.settings.order);
     let filter = Butterworth::lowpass(order, ZERO_PHASE_BAND_HZ.min(0.2 * rate), rate)?;
-    reasons.push(format!(
-        "zero-phase: the observer's lag undone backward, then band-limited to {ZERO_PHASE_BAND_HZ} Hz \
-         ({ZERO_PHASE_BAND_PER_HAND_BAND} times a hand's {HAND_BAND_HZ} Hz, order {order}); σ and the levels are the \
-         causal observer's"
-    ));
+    reasons.push(ForceChoice::ZeroPhase {
+        band_hz: ZERO_PHASE_BAND_HZ,
+        per_hand_band: ZERO_PHASE_BAND_PER_HAND_BAND,
+        hand_band_hz: HAND_BAND_HZ,
+        order,
+    });
     Ok(filter_columns(&filter, &back, n, false)?)
 }
 
@@ -411,7 +413,7 @@ fn velocity_of(
     input: &ForceInput<'_>,
     bandwidth_hz: &[f64],
     zero_phase: bool,
-    reasons: &mut Vec<String>,
+    reasons: &mut Vec<ForceChoice>,
 ) -> Result<Vec<f64>, ForceLogError> {
     let n = bandwidth_hz.len();
     let Some(file) = file else {
@@ -439,18 +441,16 @@ fn velocity_of(
             qd.iter_mut().skip(j).step_by(n).zip(rate.iter().skip(j).step_by(n)).for_each(|(o, v)| *o = *v);
         }
     }
-    let why = match zero_phase {
-        true => format!("{ZERO_PHASE_VELOCITY_PER_BAND} times the zero-phase estimate's band"),
-        false => format!(
-            "the model's band ({:.3} Hz) or {VELOCITY_BAND_PER_BANDWIDTH} times the joint's bandwidth, whichever is wider",
-            file.settings.cutoff_hz
-        ),
-    };
-    reasons.push(format!(
-        "q̇ is the central difference of q filtered zero-phase at {:?} Hz per joint (order {}): {why}",
-        round3(&cutoffs),
-        file.settings.order,
-    ));
+    reasons.push(ForceChoice::Velocity {
+        cutoffs_hz: cutoffs,
+        order: file.settings.order,
+        zero_phase,
+        per_band: match zero_phase {
+            true => ZERO_PHASE_VELOCITY_PER_BAND,
+            false => VELOCITY_BAND_PER_BANDWIDTH,
+        },
+        model_band_hz: file.settings.cutoff_hz,
+    });
     Ok(qd)
 }
 
@@ -523,13 +523,12 @@ pub fn observer_held_out(
         sigma[k] = column[chosen];
         peak[k] = grid_peak[chosen * n + k];
     }
-    let names: Vec<&str> = runs.iter().map(|(name, _)| *name).collect();
-    let reason = format!(
-        "the widest of {grid:?} Hz (from {HAND_BANDWIDTH:.0} Hz, ten times a hand's {HAND_BAND_HZ} Hz band) at which \
-         the observer's hand-free RMS on the held-out runs ({}) is within {NOISE_ALLOWANCE} times its value at \
-         {:.0} Hz: wider, what the band lets through (noise grows √2 per octave) outgrows the error already there",
-        names.join(", "),
-        grid[0]
-    );
+    let reason = ForceChoice::ObserverRun {
+        grid_hz: grid.clone(),
+        hand_bandwidth_hz: HAND_BANDWIDTH,
+        hand_band_hz: HAND_BAND_HZ,
+        runs: runs.iter().map(|(name, _)| name.to_string()).collect(),
+        allowance: NOISE_ALLOWANCE,
+    };
     Ok(ObserverHeldOut { bandwidth_hz, sigma, grid_hz: grid, grid_sigma, reason, peak })
 }

@@ -8,6 +8,7 @@
 //! Units are SI throughout: rad, m, s, kg, N·m, N.
 
 pub mod base_parameters;
+pub mod choices;
 pub mod control;
 pub mod data;
 pub mod dense;

@@ -10,6 +10,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::base_parameters::BaseParameters;
+use crate::choices::{Choice, Concern, ForceChoice};
 use crate::data::Data;
 use crate::model::{CoulombLaws, CoulombShape, Model};
 use crate::physical::{min_pseudo_inertia_eigenvalues, nearest_standard_parameters, CONSISTENCY_TOLERANCE};
@@ -152,13 +153,13 @@ pub struct Settings {
     pub pull: f64,
     /// Cable stiffness bounds; `None` is unbounded (JSON has no infinity).
     pub stiffness_bounds: (Option<f64>, Option<f64>),
-    /// One line per preprocessing choice: its value and why (files before these fields read as
-    /// empty).
-    #[serde(default)]
-    pub reasons: Vec<String>,
+    /// Each preprocessing choice: its value and why, as data with its text (files before these
+    /// fields read as empty, files before they were data as their text).
+    #[serde(default, with = "crate::choices::said")]
+    pub reasons: Vec<Choice>,
     /// Choices the data support only weakly.
-    #[serde(default)]
-    pub warnings: Vec<String>,
+    #[serde(default, with = "crate::choices::said")]
+    pub warnings: Vec<Concern>,
 }
 
 impl Settings {
@@ -260,8 +261,9 @@ pub struct ObserverHeldOut {
     /// The bandwidths tried (Hz) and the RMS at each, per joint (`grid × dof`, row-major).
     pub grid_hz: Vec<f64>,
     pub grid_sigma: Vec<f64>,
-    /// Why each joint's bandwidth was chosen.
-    pub reason: String,
+    /// Why each joint's bandwidth was chosen (text in files before it was data).
+    #[serde(with = "crate::choices::said::one")]
+    pub reason: ForceChoice,
     /// The largest hand-free estimate per joint at its bandwidth (N·m or N): the collision
     /// threshold stays above it. Empty in files from before it was kept.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]

@@ -5,6 +5,7 @@ mod common;
 // The consistent fit's SDP calls BLAS and LAPACK: arash's own, linked by naming the crate.
 use arash_blas_lapack as _;
 use arash_core::base_parameters::BaseParameterOptions;
+use arash_core::choices::{Choice, Concern};
 use arash_core::identify::estimate::{fit, fit_stacked, EstimateError, Method};
 use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
 use arash_core::identify::preprocess::{preprocess, Preprocessed};
@@ -494,7 +495,7 @@ fn a_closed_loop_log_does_not_lead_the_cutoff_into_the_encoders_noise() {
         &IdentifyOptions::default(),
     )
     .unwrap();
-    let reasons = file.settings.reasons.join("\n");
+    let reasons = file.settings.reasons.iter().map(|r| r.to_string()).collect::<Vec<_>>().join("\n");
     // Predict the noise-free torque on the true states of one period.
     let (mut error, mut power) = ([0.0f64; 3], [0.0f64; 3]);
     for (predicted, exact) in predicted_and_true(&model, &file.with_its_law(&model), &base, &pi, &file.beta, states) {
@@ -677,11 +678,12 @@ fn closed_loop_coverage(method: arash_core::model_file::IdentifyMethod) {
             &IdentifyOptions::default(),
         )
         .unwrap();
-        let reasons = iv.settings.reasons.join("\n");
         let name = arash_core::identify::closed_loop::Estimator::of(method).unwrap().name();
         eprintln!("{method} seed {seed}: {}", iv.settings.reasons.last().unwrap());
-        assert!(iv.settings.warnings.iter().all(|w| !w.contains(name)), "{:?}", iv.settings.warnings);
-        assert!(reasons.contains(&format!("{name}: the closed loop simulated")), "{reasons}");
+        let unsettled = |w: &Concern| matches!(w, Concern::ClosedLoopNotSettled { estimator, .. } if estimator == name);
+        assert!(!iv.settings.warnings.iter().any(unsettled), "{:?}", iv.settings.warnings);
+        let simulated = |r: &Choice| matches!(r, Choice::ClosedLoop { estimator, .. } if estimator == name);
+        assert!(iv.settings.reasons.iter().any(simulated), "{:?}", iv.settings.reasons);
         for ((beta, sigma_percent), truth) in iv.beta.iter().zip(&iv.sigma_percent).zip(&beta_true) {
             covered += usize::from((beta - truth).abs() <= 3.0 * sigma_percent / 100.0 * beta.abs());
             total += 1;

@@ -20,6 +20,7 @@ const CORE: &[&str] = &[
     "transmission",
     "params",
     "model",
+    "choices",
     "urdf",
     "data",
     "kinematics",

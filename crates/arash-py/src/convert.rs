@@ -3,6 +3,7 @@
 
 use std::borrow::Cow;
 
+use arash_core::choices::{said, Choice, Concern};
 use numpy::ndarray::{ArrayD, IxDyn};
 use numpy::{IntoPyArray, PyArrayDyn, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
@@ -123,4 +124,34 @@ pub(crate) fn each_option(
 
 pub(crate) fn value_error(e: impl std::fmt::Display) -> PyErr {
     PyValueError::new_err(e.to_string())
+}
+
+/// Choices or concerns ([`arash_core::choices`]) as Python dicts: each its `code`, its figures
+/// and its `text`, as a model file holds them (`said::values`).
+pub(crate) fn said_out(py: Python<'_>, values: Vec<serde_json::Value>) -> PyResult<Vec<Bound<'_, PyAny>>> {
+    let loads = py.import("json")?.getattr("loads")?;
+    values.iter().map(|value| loads.call1((value.to_string(),))).collect()
+}
+
+/// Dicts given back from Python as [`said_out`] made them (a repair's, labelled with its log),
+/// as JSON values for `said::read`.
+pub(crate) fn said_in(value: &Bound<'_, PyAny>) -> PyResult<Vec<serde_json::Value>> {
+    let dumps = value.py().import("json")?.getattr("dumps")?;
+    let text: String = dumps.call1((value,))?.extract()?;
+    serde_json::from_str(&text).map_err(value_error)
+}
+
+/// A run's choices and concerns in a settings dict: `reasons` and `warnings` as the sentences a
+/// user reads, `choices` and `concerns` as data (`code`, figures, `text`) a program asks.
+pub(crate) fn set_said(d: &Bound<'_, pyo3::types::PyDict>, reasons: &[Choice], warnings: &[Concern]) -> PyResult<()> {
+    let py = d.py();
+    d.set_item("reasons", reasons.iter().map(ToString::to_string).collect::<Vec<_>>())?;
+    d.set_item("warnings", warnings.iter().map(ToString::to_string).collect::<Vec<_>>())?;
+    d.set_item("choices", said_out(py, said::values(reasons))?)?;
+    d.set_item("concerns", said_out(py, said::values(warnings))?)
+}
+
+/// Choices given back from Python (a repair's), dicts or plain text.
+pub(crate) fn choices_in(value: &Bound<'_, PyAny>) -> PyResult<Vec<Choice>> {
+    Ok(said_in(value)?.into_iter().map(said::read).collect())
 }

@@ -327,7 +327,7 @@ impl Diagnosis {
         d.set_item("friction_cutoff_hz", s.friction_cutoff_hz)?;
         d.set_item("coulomb_epsilon", s.coulomb_epsilon)?;
         d.set_item("friction_velocities", s.friction_velocities.clone())?;
-        d.set_item("reasons", s.reasons.clone())?;
+        crate::convert::set_said(&d, &s.reasons, &s.warnings)?;
         d.set_item("decimate", s.decimate)?;
         d.set_item("block_s", s.block_s)?;
         d.set_item("blocks", s.blocks)?;
@@ -444,7 +444,7 @@ type Arrays<'py> = (PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>, 
 /// `validation_starts`: where each concatenated held-out run after the first begins;
 /// `repair_report`: what `arash.repair_log` did to the logs, put first among the reasons.
 #[pyfunction]
-#[pyo3(signature = (robot, log, options, model=None, validation=None, validation_starts=Vec::new(), repair_report=Vec::new()))]
+#[pyo3(signature = (robot, log, options, model=None, validation=None, validation_starts=Vec::new(), repair_report=None))]
 #[allow(clippy::too_many_arguments)]
 fn _diagnose<'py>(
     py: Python<'py>,
@@ -454,7 +454,7 @@ fn _diagnose<'py>(
     model: Option<&Identification>,
     validation: Option<Arrays<'py>>,
     validation_starts: Vec<usize>,
-    repair_report: Vec<String>,
+    repair_report: Option<Bound<'_, PyAny>>,
 ) -> PyResult<Diagnosis> {
     let dof = robot.model.dof();
     let (t, q, tau) = log_arrays(&log.0, &log.1, &log.2, dof)?;
@@ -491,6 +491,7 @@ fn _diagnose<'py>(
         })
         .map_err(value_error)?;
     let mut inner = inner;
+    let repair_report = repair_report.map(|r| crate::convert::choices_in(&r)).transpose()?.unwrap_or_default();
     inner.settings.reasons.splice(0..0, repair_report);
     Ok(Diagnosis { robot: robot_model, inner, consistent })
 }

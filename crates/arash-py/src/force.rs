@@ -131,7 +131,8 @@ pub(crate) fn external_force<'py>(
     out.set_item("tau_ext", matrix_out(py, &result.tau_ext, n)?)?;
     out.set_item("sigma_joint", vector_out(py, &result.sigma_joint)?)?;
     out.set_item("bandwidth_hz", vector_out(py, &result.bandwidth_hz)?)?;
-    out.set_item("reasons", &result.reasons)?;
+    out.set_item("reasons", result.reasons.iter().map(ToString::to_string).collect::<Vec<_>>())?;
+    out.set_item("choices", crate::convert::said_out(py, arash_core::choices::said::values(&result.reasons))?)?;
     if result.frame.is_some() {
         out.set_item("force", matrix_out(py, &result.force, 3)?)?;
         out.set_item("local", matrix_out(py, &result.local, 3)?)?;

@@ -124,7 +124,8 @@ impl Identification {
     }
     /// The preprocessing as used: periods averaged (None: not periodic), period_s, cutoff_hz,
     /// friction_cutoff_hz, order, decimate, and `reasons` (one line per choice: the user's, or
-    /// what in the data made it) and `warnings` (choices the data support only weakly).
+    /// what in the data made it) and `warnings` (choices the data support only weakly), with
+    /// `choices` and `concerns` the same as data: dicts with a `code`, its figures and `text`.
     #[getter]
     fn settings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let s = &self.inner.settings;
@@ -136,8 +137,7 @@ impl Identification {
         d.set_item("friction_cutoff_hz", s.friction_cutoff_hz)?;
         d.set_item("order", s.order)?;
         d.set_item("decimate", s.decimate)?;
-        d.set_item("reasons", s.reasons.clone())?;
-        d.set_item("warnings", s.warnings.clone())?;
+        crate::convert::set_said(&d, &s.reasons, &s.warnings)?;
         Ok(d)
     }
     #[getter]
@@ -239,7 +239,8 @@ impl Identification {
         let (m, dof) = (v.metrics, self.model.dof());
         let dict = PyDict::new(py);
         dict.set_item("cutoff_hz", v.cutoff_hz)?;
-        dict.set_item("reasons", v.reasons)?;
+        dict.set_item("reasons", v.reasons.iter().map(ToString::to_string).collect::<Vec<_>>())?;
+        dict.set_item("choices", crate::convert::said_out(py, arash_core::choices::said::values(&v.reasons))?)?;
         dict.set_item("fp_percent", to_numpy(py, m.fp_percent, false, dof, &[])?)?;
         dict.set_item("rel", to_numpy(py, m.relative_error, false, dof, &[])?)?;
         dict.set_item("rms", to_numpy(py, m.rms, false, dof, &[])?)?;
@@ -268,7 +269,9 @@ impl Identification {
                 od.set_item("sigma", vector_out(py, &o.sigma)?)?;
                 od.set_item("grid_hz", vector_out(py, &o.grid_hz)?)?;
                 od.set_item("grid_sigma", matrix_out(py, &o.grid_sigma, self.model.dof())?)?;
-                od.set_item("reason", &o.reason)?;
+                od.set_item("reason", o.reason.to_string())?;
+                let choice = arash_core::choices::said::values(std::slice::from_ref(&o.reason));
+                od.set_item("choice", crate::convert::said_out(py, choice)?.pop())?;
                 od.set_item("peak", vector_out(py, &o.peak)?)?;
                 d.set_item("observer", od)?;
             }
@@ -380,11 +383,11 @@ fn _identify<'py>(
     let mut reference: Option<[Batch; 3]> = None;
     let mut controller: Option<String> = None;
     let mut keep_weak = false;
-    let mut repair_report: Vec<String> = Vec::new();
+    let mut repair_report = Vec::new();
     crate::convert::each_option(options, |key, value| {
         match key {
             "keep_weak" => keep_weak = value.extract()?,
-            "repair_report" => repair_report = value.extract()?,
+            "repair_report" => repair_report = crate::convert::choices_in(value)?,
             "reference" => {
                 let (a, b, c): (PyReadonlyArrayDyn<f64>, PyReadonlyArrayDyn<f64>, PyReadonlyArrayDyn<f64>) =
                     value.extract()?;
@@ -491,7 +494,7 @@ fn _repair_log<'py>(
     py: Python<'py>,
     t: PyReadonlyArrayDyn<'py, f64>,
     signals: Vec<(String, PyReadonlyArrayDyn<'py, f64>)>,
-) -> PyResult<(NumpyArray<'py>, Vec<NumpyArray<'py>>, Vec<String>)> {
+) -> PyResult<(NumpyArray<'py>, Vec<NumpyArray<'py>>, Vec<Bound<'py, PyAny>>)> {
     if t.ndim() != 1 {
         return Err(PyValueError::new_err(format!("t must be one-dimensional, got shape {:?}", t.shape())));
     }
@@ -520,7 +523,8 @@ fn _repair_log<'py>(
             to_numpy(py, values.clone(), false, rows, &tail)
         })
         .collect::<PyResult<Vec<_>>>()?;
-    Ok((vector_out(py, &repaired.t)?, out, repaired.report))
+    let report = crate::convert::said_out(py, arash_core::choices::said::values(&repaired.report))?;
+    Ok((vector_out(py, &repaired.t)?, out, report))
 }
 
 /// The closed loop's reference `(q_des, qd_des, qdd_des)`, each `(N, dof)`, and its controller (JSON),
@@ -696,11 +700,11 @@ fn _design_excitation(py: Python<'_>, robot: &Robot, options: &Bound<'_, PyDict>
     use arash_core::identify::excitation::design_excitation as design;
     let mut o = ExcitationOptions::default();
     let mut keep_weak = false;
-    let mut repair_report: Vec<String> = Vec::new();
+    let mut repair_report = Vec::new();
     crate::convert::each_option(options, |key, value| {
         match key {
             "keep_weak" => keep_weak = value.extract()?,
-            "repair_report" => repair_report = value.extract()?,
+            "repair_report" => repair_report = crate::convert::choices_in(value)?,
             "harmonics" => o.harmonics = value.extract()?,
             "period_s" => o.period_s = value.extract()?,
             "restarts" => o.restarts = value.extract()?,

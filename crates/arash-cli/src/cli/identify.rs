@@ -166,7 +166,11 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             let validation = cross_validate(&model, &identification, &v.t, &v.q, &v.tau, &pre)
                 .with_context(|| format!("validating on {}", path.display()))?;
             if validation.cutoff_hz != identification.settings.cutoff_hz {
-                eprintln!("note: {}: {}", path.display(), validation.reasons.last().map_or("", String::as_str));
+                eprintln!(
+                    "note: {}: {}",
+                    path.display(),
+                    validation.reasons.last().map_or(String::new(), ToString::to_string)
+                );
             }
             labels.push(path.file_stem().map_or("run".into(), |s| s.to_string_lossy().into_owned()));
             fp.push(validation.metrics.fp_percent);

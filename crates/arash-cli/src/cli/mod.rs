@@ -110,7 +110,7 @@ impl Runs {
                     eprintln!("note: {}: {line}", path.display());
                 }
                 log = repaired;
-                log.repairs = report.iter().map(|l| format!("{}: {l}", path.display())).collect();
+                log.repairs = report.into_iter().map(|r| r.of_log(&path.display().to_string())).collect();
             }
             if let Some(t) = &transmission {
                 (log.q, log.tau) = t.to_joints(&log.q, &log.tau).with_context(|| format!("{}", path.display()))?;

@@ -8,6 +8,7 @@
 //! difference).
 
 use super::options::MAX_VELOCITY_NOISE;
+use crate::choices::Choice;
 use crate::identify::conditioning::{central_difference, filter_columns};
 use crate::identify::data_choices::bandwidth;
 use crate::identify::filter::{Butterworth, FilterError};
@@ -26,7 +27,7 @@ const STEPS_PER_OCTAVE: i32 = 4;
 /// A friction velocity's cut-off and why.
 pub(super) struct Chosen {
     pub(super) cutoff_hz: f64,
-    pub(super) reason: String,
+    pub(super) reason: Choice,
 }
 
 /// What the band's choice reads from a log's positions, once: each joint's encoder step
@@ -68,14 +69,11 @@ pub(super) fn velocity_resolved_cutoff(
     order: usize,
 ) -> Result<Chosen, FilterError> {
     if positions.steps.iter().all(Option::is_none) {
-        let reason = format!(
-            "Coulomb columns switch with the velocity filtered at {cutoff:.3} Hz: the band's cut-off; no joint's \
-             positions sit on an encoder's grid, so what the velocity holds there is motion"
-        );
+        let reason = Choice::FrictionAtBandNoGrid { cutoff_hz: cutoff };
         return Ok(Chosen { cutoff_hz: cutoff, reason });
     }
     let floor = positions.floor.min(cutoff);
-    let limit = 100.0 * MAX_VELOCITY_NOISE;
+    let limit = MAX_VELOCITY_NOISE;
     let mut at_band: Option<NoiseShare> = None;
     let mut candidate = cutoff;
     loop {
@@ -83,25 +81,19 @@ pub(super) fn velocity_resolved_cutoff(
         let first = *at_band.get_or_insert(share);
         let narrower = candidate * 0.5_f64.powf(1.0 / STEPS_PER_OCTAVE as f64);
         if share.value <= MAX_VELOCITY_NOISE || narrower < floor {
-            let reason = match (candidate == cutoff, share.value <= MAX_VELOCITY_NOISE) {
-                (true, _) => format!(
-                    "Coulomb columns switch with the velocity filtered at {candidate:.3} Hz: the band's cut-off; the \
-                     encoders' quantisation makes up {} there (at most {limit:.3} %)",
-                    share.describe_speed()
-                ),
-                (false, true) => format!(
-                    "Coulomb columns switch with the velocity filtered at {candidate:.3} Hz: the encoders' \
-                     quantisation makes up {} at the band's {cutoff:.3} Hz and {} here (at most {limit:.3} %, a \
-                     tenth of the slowest Stribeck velocity searched); wider, the friction columns would switch with the \
-                     encoder's steps",
-                    first.describe_speed(),
-                    share.describe_speed()
-                ),
-                (false, false) => format!(
-                    "Coulomb columns switch with the velocity filtered at {candidate:.3} Hz, the lowest the motion \
-                     allows: the encoders' quantisation makes up {} there (at most {limit:.3} % asked)",
-                    share.describe_speed()
-                ),
+            let (cutoff_hz, joint, share) = (candidate, share.joint, share.value);
+            let reason = match (candidate == cutoff, share <= MAX_VELOCITY_NOISE) {
+                (true, _) => Choice::FrictionAtBand { cutoff_hz, joint, share, limit },
+                (false, true) => Choice::FrictionNarrowed {
+                    cutoff_hz,
+                    band_hz: cutoff,
+                    band_joint: first.joint,
+                    band_share: first.value,
+                    joint,
+                    share,
+                    limit,
+                },
+                (false, false) => Choice::FrictionLowest { cutoff_hz, joint, share, limit },
             };
             return Ok(Chosen { cutoff_hz: candidate, reason });
         }
@@ -134,12 +126,6 @@ fn velocity_noise(positions: &Positions, cutoff: f64, order: usize) -> Result<No
 struct NoiseShare {
     joint: usize,
     value: f64,
-}
-
-impl NoiseShare {
-    fn describe_speed(&self) -> String {
-        format!("{:.2} % of joint {}'s RMS speed", 100.0 * self.value, self.joint)
-    }
 }
 
 /// q̇ (`times` = 1) or q̈ (2) as the diagnosis computes them: the position filtered at `cutoff`,
@@ -257,7 +243,7 @@ mod tests {
         // 12 bits would need a velocity slower than the motion allows: it stops there, and says so.
         let coarse = velocity_resolved_cutoff(&Positions::of(&rig_log(fs, 60.0, 12, 0.0), 3, fs), band, 5).unwrap();
         assert!(
-            coarse.cutoff_hz < friction && coarse.reason.contains("the lowest the motion allows"),
+            coarse.cutoff_hz < friction && matches!(coarse.reason, Choice::FrictionLowest { .. }),
             "{}",
             coarse.reason
         );
@@ -267,7 +253,11 @@ mod tests {
         // Positions on no grid (filtered, or a smooth real log): no step to blame, the band stays.
         let smooth: Vec<f64> = q.iter().enumerate().map(|(k, x)| x + 1e-7 * (0.1234 * k as f64).sin()).collect();
         let unstepped = velocity_resolved_cutoff(&Positions::of(&smooth, 3, fs), band, 5).unwrap();
-        assert!(unstepped.cutoff_hz == band && unstepped.reason.contains("no joint's"), "{}", unstepped.reason);
+        assert!(
+            unstepped.cutoff_hz == band && matches!(unstepped.reason, Choice::FrictionAtBandNoGrid { .. }),
+            "{}",
+            unstepped.reason
+        );
     }
 
     /// A daemon log resampled where its time stamps jittered holds a few positions between the

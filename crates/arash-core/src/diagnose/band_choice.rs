@@ -29,6 +29,7 @@ use super::regression::{gram, rhs, solve_scaled, Column, Rows};
 use super::weighted_fit::{heldout_split, Split, BLOCK_MEMORIES, MIN_HELDOUT_BLOCKS};
 use super::Runs;
 use crate::base_parameters::BaseParameters;
+use crate::choices::{Choice, Concern};
 use crate::effects::EffectKind;
 use crate::identify::cutoff::{motion_floor_hz, SEARCH_ABOVE_SPECTRAL};
 use crate::identify::data_choices::{
@@ -58,8 +59,8 @@ pub(super) struct BandChoice {
     pub(super) band: Band,
     /// The lines that replace the preprocessing's own for the cut-off and the friction velocity,
     /// and the friction laws' when they were chosen.
-    pub(super) reasons: Vec<String>,
-    pub(super) warnings: Vec<String>,
+    pub(super) reasons: Vec<Choice>,
+    pub(super) warnings: Vec<Concern>,
     /// The narrowest band that predicts as well: what the chosen one holds above it, the declared
     /// model does not predict (`noise.rs`, [`super::noise::NoiseFloor::above`]).
     pub(super) narrowest: Band,
@@ -102,15 +103,10 @@ pub(super) fn choose_band(
         best_predicting(&predictions, search.equal(&predictions), Prefer::Widest).ok_or(DiagnoseError::Singular)?;
     let (cutoff, mut reasons, mut warnings) = match options.preprocess.cutoff_hz {
         None => (trials[best].cutoff_hz, vec![search.explain(&trials, best)], vec![]),
-        Some(user) => {
-            let line = format!("cut-off {user:.3} Hz: set by the user");
-            (user, vec![line], search.compare_user(&trials, best, user))
-        }
+        Some(user) => (user, vec![Choice::CutoffGiven { cutoff_hz: user }], search.compare_user(&trials, best, user)),
     };
     let friction = match options.preprocess.friction_cutoff_hz {
-        Some(user) => {
-            (user, format!("Coulomb columns switch with the velocity filtered at {user:.3} Hz (set by the user)"))
-        }
+        Some(user) => (user, Choice::FrictionCutoff { cutoff_hz: user, given: true, at_most_quarter: false }),
         None => {
             let chosen = velocity_resolved_cutoff(&positions, cutoff, order).map_err(training)?;
             (chosen.cutoff_hz, chosen.reason)
@@ -166,7 +162,7 @@ struct Search<'a> {
     /// The largest alignment shift tried (samples): none when delay is not searched.
     max_shift: isize,
     /// A doubt about the search the report should carry (a band at the edge of what was tried).
-    warning: Option<String>,
+    warning: Option<Concern>,
 }
 
 impl<'a> Search<'a> {
@@ -246,12 +242,11 @@ impl<'a> Search<'a> {
             _ => 1.0,
         };
         let scored_s = scored_rows.len() as f64 * spacing / fs;
-        let warning = (floor == blocks_floor && blocks_floor > motion_floor).then(|| {
-            format!(
-                "the diagnosis's band cannot go below {floor:.2} Hz on a {duration_s:.1} s log: its {MIN_HELDOUT_BLOCKS} \
-                 held-out blocks must each span {BLOCK_MEMORIES} filter memories; a longer log or a validation log \
-                 would allow a narrower one"
-            )
+        let warning = (floor == blocks_floor && blocks_floor > motion_floor).then_some(Concern::BandFloorFromLength {
+            floor_hz: floor,
+            duration_s,
+            blocks: MIN_HELDOUT_BLOCKS,
+            memories: BLOCK_MEMORIES,
         });
         Ok(Self {
             base,
@@ -404,47 +399,37 @@ impl<'a> Search<'a> {
         Ok(best)
     }
 
-    /// The reason line of the chosen cut-off.
-    fn explain(&self, trials: &[Trial], best: usize) -> String {
-        let held = match self.validation {
-            Some(_) => "the validation runs",
-            None => "the odd-numbered held-out blocks (the model fitted on the even ones)",
-        };
+    /// The reason of the chosen cut-off.
+    fn explain(&self, trials: &[Trial], best: usize) -> Choice {
         let predictions: Vec<Prediction> = trials.iter().map(Trial::prediction).collect();
         let good = as_good_as_best(&predictions, self.equal(&predictions));
         let most = (0..trials.len()).max_by(|&a, &b| trials[a].fp.total_cmp(&trials[b].fp)).unwrap_or(best);
-        let equal: Vec<String> =
-            (0..trials.len()).filter(|&i| good[i]).map(|i| format!("{:.2}", trials[i].cutoff_hz)).collect();
-        format!(
-            "cut-off {:.3} Hz: of {} cut-offs from {:.2} to {:.2} Hz, the widest of those whose declared model predicts \
-             the unfiltered torque of {held} as well as the best ({:.2} Hz, mean FP% {:.2}) within \
-             {EQUAL_PREDICTION_SIGMAS} of the best's sampling errors ({} Hz): as much of the \
-             motion, in as many independent samples, as the data carry; mean FP% by cut-off: {}",
-            trials[best].cutoff_hz,
-            trials.len(),
-            trials[0].cutoff_hz,
-            trials[trials.len() - 1].cutoff_hz,
-            trials[most].cutoff_hz,
-            trials[most].fp,
-            equal.join(", "),
-            trials.iter().map(|t| format!("{:.2} Hz {:.2}", t.cutoff_hz, t.fp)).collect::<Vec<_>>().join(", "),
-        )
+        Choice::BandSearched {
+            cutoff_hz: trials[best].cutoff_hz,
+            trials: trials.iter().map(|t| [t.cutoff_hz, t.fp]).collect(),
+            validation_runs: self.validation.is_some(),
+            most_accurate_hz: trials[most].cutoff_hz,
+            most_accurate_fp: trials[most].fp,
+            sigmas: EQUAL_PREDICTION_SIGMAS,
+            equal_hz: (0..trials.len()).filter(|&i| good[i]).map(|i| trials[i].cutoff_hz).collect(),
+        }
     }
 
     /// A warning when the user's cut-off predicts held-out torque worse than the data's choice.
-    fn compare_user(&self, trials: &[Trial], best: usize, user: f64) -> Vec<String> {
+    fn compare_user(&self, trials: &[Trial], best: usize, user: f64) -> Vec<Concern> {
         let predictions: Vec<Prediction> = trials.iter().map(Trial::prediction).collect();
         let good = as_good_as_best(&predictions, self.equal(&predictions));
         let Some(at) = trials.iter().position(|t| t.cutoff_hz == user) else { return vec![] };
         if good[at] {
             return vec![];
         }
-        vec![format!(
-            "the cut-off set ({user:.3} Hz) predicts held-out torque worse than the data's choice would ({:.3} Hz), by \
-             more than {EQUAL_PREDICTION_SIGMAS} of its sampling errors: mean FP% {:.2} \
-             against {:.2}; leave the cut-off to the data, or read the effects found with that in mind",
-            trials[best].cutoff_hz, trials[at].fp, trials[best].fp
-        )]
+        vec![Concern::CutoffGivenPredictsWorse {
+            cutoff_hz: user,
+            chosen_hz: trials[best].cutoff_hz,
+            sigmas: EQUAL_PREDICTION_SIGMAS,
+            fp: trials[at].fp,
+            chosen_fp: trials[best].fp,
+        }]
     }
 }
 

@@ -3,6 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::choices::{Choice, Concern};
 use crate::effects::{EffectKind, EffectTerm, NotSearched};
 use crate::model::Model;
 use crate::model_file::{Metrics, ModelFile};
@@ -281,11 +282,11 @@ pub struct DiagnoseSettings {
     #[serde(default)]
     pub friction_velocities: Vec<Option<f64>>,
     /// The preprocessing's choices and why (as in a model file).
-    #[serde(default)]
-    pub reasons: Vec<String>,
+    #[serde(default, with = "crate::choices::said")]
+    pub reasons: Vec<Choice>,
     /// Choices the data support only weakly, or a setting the data disagree with.
-    #[serde(default)]
-    pub warnings: Vec<String>,
+    #[serde(default, with = "crate::choices::said")]
+    pub warnings: Vec<Concern>,
     pub decimate: usize,
     /// The held-out split's blocks (s) and how many there were.
     pub block_s: f64,

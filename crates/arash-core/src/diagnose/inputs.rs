@@ -54,7 +54,7 @@ impl<'a> Context<'a> {
         let (train_log, validation_runs) = (train, validation);
         let mut train = prepare(model, base, train.into(), options, band, margin).map_err(DiagnoseError::Training)?;
         let choices = &mut train.pre.choices;
-        choices.reasons.retain(|r| !r.starts_with("cut-off") && !r.starts_with("Coulomb"));
+        choices.reasons.retain(|r| !r.is_cutoff() && !r.is_friction());
         choices.reasons.extend(choice.reasons.iter().cloned());
         choices.warnings.extend(choice.warnings.iter().cloned());
         // The held-out log is filtered in the band chosen on the training log.

@@ -4,6 +4,7 @@
 //! be trusted").
 
 use super::{ThresholdError, Thresholds};
+use crate::choices::ForceChoice;
 use crate::model::Model;
 use crate::model_file::HeldOut;
 
@@ -71,17 +72,13 @@ pub fn sigma_thresholds(
     contact: f64,
     collision: f64,
     held_out: Option<&HeldOut>,
-) -> Result<(Thresholds, Option<String>), ThresholdError> {
+) -> Result<(Thresholds, Option<ForceChoice>), ThresholdError> {
     let t = Thresholds::from_sigma(sigma, contact, collision)?;
     let peak = held_out.and_then(|h| h.observer.as_ref()).map(|o| &o.peak).filter(|p| p.len() == sigma.len());
     Ok(match peak {
         Some(peak) => {
             let floor: Vec<f64> = peak.iter().map(|p| PEAK_MARGIN * p).collect();
-            let why = format!(
-                "the collision threshold is at least {PEAK_MARGIN} times the largest hand-free estimate on the held-out \
-                 runs, {:?}",
-                round3(peak)
-            );
+            let why = ForceChoice::CollisionFloor { margin: PEAK_MARGIN, peak: peak.clone() };
             (t.with_collision_floor(&floor), Some(why))
         }
         None => (t, None),
@@ -105,29 +102,24 @@ pub fn default_bandwidth(
     fitted_band_hz: Option<f64>,
     rate_hz: f64,
     n: usize,
-) -> (Vec<f64>, String) {
+) -> (Vec<f64>, ForceChoice) {
     if let Some(o) = held_out.and_then(|h| h.observer.as_ref()) {
-        return (
-            o.bandwidth_hz.clone(),
-            format!("the observer's bandwidth per joint is {:?} Hz: {}", round3(&o.bandwidth_hz), o.reason),
-        );
+        let run = Box::new(o.reason.clone());
+        return (o.bandwidth_hz.clone(), ForceChoice::BandwidthFromRun { bandwidth_hz: o.bandwidth_hz.clone(), run });
     }
     match held_out.map(|h| h.cutoff_hz).or(fitted_band_hz) {
         Some(band) => {
             let hz = band / BAND_PER_BANDWIDTH;
-            let why = format!(
-                "the observer's bandwidth is {hz:.3} Hz, a quarter of the {band:.3} Hz band the model's σ was measured \
-                 in: the model file records no observer run on held-out data (identify with --validate) to set it \
-                 from, and at a wider bandwidth the estimate would pass what that σ never saw"
-            );
+            let why = ForceChoice::BandwidthFromBand { bandwidth_hz: hz, band_hz: band };
             (vec![hz; n], why)
         }
         None => {
             let hz = bandwidth_grid(rate_hz)[0];
-            let why = format!(
-                "the observer's bandwidth is {hz:.3} Hz, {BANDWIDTH_PER_HAND_BAND} times the {HAND_BAND_HZ} Hz band of a \
-                 hand's force (at most a tenth of the sample rate)"
-            );
+            let why = ForceChoice::BandwidthFromHand {
+                bandwidth_hz: hz,
+                per_hand_band: BANDWIDTH_PER_HAND_BAND,
+                hand_band_hz: HAND_BAND_HZ,
+            };
             (vec![hz; n], why)
         }
     }
@@ -135,18 +127,9 @@ pub fn default_bandwidth(
 
 /// The σ per joint a model's held-out data gives the estimate, and why: its observer run's,
 /// else its residual's RMS. The daemon's too.
-pub fn held_out_sigma(h: &HeldOut) -> (Vec<f64>, String) {
+pub fn held_out_sigma(h: &HeldOut) -> (Vec<f64>, ForceChoice) {
     match &h.observer {
-        Some(o) => (
-            o.sigma.clone(),
-            format!("σ is the observer's hand-free RMS at its bandwidth on the model's held-out data ({})", h.source),
-        ),
-        None => {
-            (h.rms.clone(), format!("σ is the model's held-out residual RMS ({}, {} samples)", h.source, h.samples))
-        }
+        Some(o) => (o.sigma.clone(), ForceChoice::SigmaFromObserver { source: h.source.clone() }),
+        None => (h.rms.clone(), ForceChoice::SigmaFromResidual { source: h.source.clone(), samples: h.samples }),
     }
-}
-
-pub(crate) fn round3(v: &[f64]) -> Vec<f64> {
-    v.iter().map(|x| (x * 1000.0).round() / 1000.0).collect()
 }

@@ -35,6 +35,7 @@ use super::preprocess::{
     edge_limited_cutoff_hz, filtered_motion, preprocess, Choices, PreprocessError, Preprocessed, MIN_CUTOFF_HZ,
 };
 use super::{Declared, Log};
+use crate::choices::{Choice, Concern};
 use std::borrow::Cow;
 
 /// The search goes this far above the cut-off the motion's spectrum suggests: the torque holds
@@ -452,69 +453,43 @@ fn explain(
     best: &Trial,
     length_limited: bool,
 ) -> Choices {
-    let from_last = |r: &String| r.starts_with("Coulomb") || r.contains("left out of the fit");
-    let mut reasons: Vec<String> = reference.choices.reasons.iter().filter(|r| !from_last(r)).cloned().collect();
+    let mut reasons: Vec<Choice> = reference.choices.reasons.iter().filter(|r| !r.follows_cutoff()).cloned().collect();
     let mut warnings = reference.choices.warnings.clone();
-    let at = reasons.iter().position(|r| r.starts_with("cut-off")).unwrap_or(reasons.len());
+    let at = reasons.iter().position(Choice::is_cutoff).unwrap_or(reasons.len());
     if options.cutoff_hz.is_none() {
-        let spectral = reasons.get(at).cloned().unwrap_or_default();
-        let spectral = spectral.trim_start_matches(&format!("cut-off {:.3} Hz: ", reference.cutoff_hz));
         let (lo, hi) = (trials[0].cutoff_hz, trials[trials.len() - 1].cutoff_hz);
         let most = most_accurate(trials).unwrap_or(best);
-        let target = match reference.periodic {
-            true => "unfiltered torque of the other half of the periods (even and odd periods predict each other)",
-            false => "unfiltered torque",
+        let searched = Choice::CutoffSearched {
+            cutoff_hz: best.cutoff_hz,
+            trials: trials.iter().map(|t| [t.cutoff_hz, t.predicted_fp]).collect(),
+            periodic: reference.periodic,
+            most_accurate_hz: most.cutoff_hz,
+            training_fp: best.training_fp,
+            predicted_fp: best.predicted_fp,
+            most_accurate_fp: most.predicted_fp,
+            sigmas: EQUAL_PREDICTION_SIGMAS,
+            points: EQUAL_PREDICTION_POINTS,
+            spectral: reasons.get(at).cloned().map(Box::new),
         };
-        let line = format!(
-            "cut-off {:.3} Hz: of {} cut-offs from {lo:.2} to {hi:.2} Hz whose fitted models predict the {target} \
-             as well as the best one ({:.2} Hz) within {EQUAL_PREDICTION_SIGMAS} standard errors and \
-             {EQUAL_PREDICTION_POINTS} point, the one that fits \
-             its filtered torque best (mean FP% {:.2}; on the unfiltered torque {:.2} against {:.2}); the motion's \
-             spectrum suggests {:.2} Hz ({spectral}); mean FP% on the unfiltered torque by cut-off: {}",
-            best.cutoff_hz,
-            trials.len(),
-            most.cutoff_hz,
-            best.training_fp,
-            best.predicted_fp,
-            most.predicted_fp,
-            reference.cutoff_hz,
-            trials
-                .iter()
-                .map(|t| format!("{:.2} Hz {:.2}", t.cutoff_hz, t.predicted_fp))
-                .collect::<Vec<_>>()
-                .join(", "),
-        );
         match at < reasons.len() {
-            true => reasons[at] = line,
-            false => reasons.push(line),
+            true => reasons[at] = searched,
+            false => reasons.push(searched),
         }
         if trials.len() > 1 && most.cutoff_hz == lo && length_limited {
-            warnings.push(format!(
-                "the model predicts best at the lowest cut-off the log's length allows ({lo:.2} Hz): a lower one may \
-                 predict better still; a longer log would allow it"
-            ));
+            warnings.push(Concern::BestAtLowestCutoff { cutoff_hz: lo });
         }
         if trials.len() > 1 && best.cutoff_hz == hi && hi >= 0.25 * reference.sample_rate_hz * (1.0 - 1e-9) {
-            warnings.push(format!(
-                "the best cut-off is the highest tried, a quarter of the sample rate ({hi:.1} Hz): the torque the model \
-                 explains reaches the sampling limit (sample faster, or the model lacks a fast effect)"
-            ));
+            warnings.push(Concern::BestAtHighestCutoff { cutoff_hz: hi });
         }
     }
-    reasons.extend(last.reasons.iter().filter(|r| from_last(r) && !r.starts_with("Coulomb")).cloned());
+    reasons.extend(last.reasons.iter().filter(|r| r.follows_cutoff() && !r.is_friction()).cloned());
     reasons.push(match options.friction_cutoff_hz {
-        Some(_) => format!(
-            "Coulomb columns switch with the velocity filtered at {:.3} Hz (set by the user, at most fs/4)",
-            best.friction_hz
-        ),
-        None => format!(
-            "Coulomb columns switch with the velocity filtered at {:.3} Hz: the best fit at the {:.3} Hz cut-off of {} \
-             velocity cut-offs, an octave apart (mean FP% {})",
-            best.friction_hz,
-            best.cutoff_hz,
-            best.frictions.len(),
-            best.frictions.iter().map(|(f, fp)| format!("{f:.2} Hz {fp:.2}")).collect::<Vec<_>>().join(", "),
-        ),
+        Some(_) => Choice::FrictionCutoff { cutoff_hz: best.friction_hz, given: true, at_most_quarter: true },
+        None => Choice::FrictionCutoffSearched {
+            cutoff_hz: best.friction_hz,
+            band_hz: best.cutoff_hz,
+            trials: best.frictions.iter().map(|&(f, fp)| [f, fp]).collect(),
+        },
     });
     Choices { reasons, warnings }
 }

@@ -10,6 +10,8 @@
 use realfft::num_complex::Complex;
 use realfft::RealFftPlanner;
 
+use crate::choices::Choice;
+
 /// Consecutive periods of a periodic log differ by at most this share of the motion's variance
 /// (10 % in RMS): far above encoder noise, far below two unrelated stretches of motion (~100 %).
 pub const PERIODIC_MISMATCH: f64 = 0.01;
@@ -43,7 +45,7 @@ pub struct Period {
 #[derive(Clone, Debug)]
 pub struct PeriodSearch {
     pub period: Option<Period>,
-    pub reason: String,
+    pub reason: Choice,
 }
 
 /// Joints whose position moves: the others carry no spectrum or period to read.
@@ -139,27 +141,23 @@ fn parabola_vertex(left: f64, middle: f64, right: f64) -> f64 {
 /// the log holds, which brings the error to a fraction of a sample over the whole log.
 pub fn find_period(q: &[f64], dof: usize, fs: f64) -> PeriodSearch {
     let columns = moving_columns(q, dof);
-    let aperiodic = |reason: String| PeriodSearch { period: None, reason };
+    let aperiodic = |reason: Choice| PeriodSearch { period: None, reason };
     if columns.is_empty() || columns[0].len() < 8 {
-        return aperiodic("not periodic: no joint moves".into());
+        return aperiodic(Choice::NoJointMoves);
     }
     let n = columns[0].len();
     let mismatch = mismatch_by_lag(&columns);
     let Some(apart) = mismatch.iter().position(|m| *m > 0.5) else {
-        return aperiodic(format!(
-            "not periodic: the motion never moves away from itself within half the log ({:.1} s)",
-            n as f64 / fs / 2.0
-        ));
+        return aperiodic(Choice::NeverMovesAway { half_log_s: n as f64 / fs / 2.0 });
     };
     let (best_lag, best) =
         (apart..mismatch.len()).map(|l| (l, mismatch[l])).min_by(|a, b| a.1.total_cmp(&b.1)).expect("apart < len");
     if best > PERIODIC_MISMATCH {
-        return aperiodic(format!(
-            "not periodic: the closest repeat (after {:.3} s) differs by {:.1} % of the motion's variance (periodic is ≤ {:.0} %)",
-            best_lag as f64 / fs,
-            100.0 * best,
-            100.0 * PERIODIC_MISMATCH
-        ));
+        return aperiodic(Choice::DoesNotRepeat {
+            after_s: best_lag as f64 / fs,
+            mismatch: best,
+            limit: PERIODIC_MISMATCH,
+        });
     }
     // The fundamental is the first lag that repeats about as well as the best (a multiple of it).
     let good_enough = (2.0 * best).max(best + 0.1 * PERIODIC_MISMATCH);
@@ -174,11 +172,7 @@ pub fn find_period(q: &[f64], dof: usize, fs: f64) -> PeriodSearch {
     let count = ((n + SHORT_BY) as f64 / samples).floor() as usize;
     PeriodSearch {
         period: Some(Period { samples, count, mismatch: mismatch[lag] }),
-        reason: format!(
-            "{count} periods of {:.4} s detected (consecutive periods differ by {:.3} % of the motion's variance)",
-            samples / fs,
-            100.0 * mismatch[lag]
-        ),
+        reason: Choice::PeriodsFound { count, period_s: samples / fs, mismatch: mismatch[lag] },
     }
 }
 
@@ -543,7 +537,8 @@ mod tests {
             .collect();
         let found = find_period(&q, 2, fs);
         assert!(found.period.is_none(), "{:?}", found.period);
-        assert!(found.reason.starts_with("not periodic"), "{}", found.reason);
+        let aperiodic = matches!(found.reason, Choice::NeverMovesAway { .. } | Choice::DoesNotRepeat { .. });
+        assert!(aperiodic, "{}", found.reason);
     }
 
     #[test]

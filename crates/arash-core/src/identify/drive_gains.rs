@@ -23,6 +23,7 @@
 use super::estimate::{fit_stacked, sandwich_covariance, stack, EstimateError, Fit, Method};
 use super::preprocess::Preprocessed;
 use crate::base_parameters::BaseParameters;
+use crate::choices::{Choice, Concern, JointGain, LooseGain};
 use crate::dense;
 use crate::model::Model;
 use crate::params::{body as body_params, PER_BODY};
@@ -186,9 +187,9 @@ pub struct GainFit {
     pub fixed: Vec<bool>,
     /// The fit of the stacked problem (conditioning, σ%, what sets each σ).
     pub fit: Fit,
-    pub reasons: Vec<String>,
+    pub reasons: Vec<Choice>,
     /// Gains the load does not fix.
-    pub warnings: Vec<String>,
+    pub warnings: Vec<Concern>,
 }
 
 /// Fit the drive gains, the base parameters and the load's unknowns from `runs` (at least one with
@@ -354,16 +355,10 @@ pub fn with_datasheet(fit: &GainFit, datasheet: &[(f64, f64)], joints: &[String]
     let (mut reasons, mut warnings) = (Vec::new(), Vec::new());
     for (j, &(k, s)) in datasheet.iter().enumerate() {
         let z = (fit.gains[j] - k) / (fit.gain_sigma[j].powi(2) + s * s).sqrt();
+        let (joint, datasheet, load) = (joints[j].clone(), [k, s], [fit.gains[j], fit.gain_sigma[j]]);
         match fit.fixed[j] {
-            true if z.abs() > 3.0 => warnings.push(format!(
-                "{}: the datasheet's gain {k:.4} ± {s:.4} and the load's {:.4} ± {:.4} differ by {z:.1} σ; the load's \
-                 is kept (check the datasheet, the current sensor's scale and the load)",
-                joints[j], fit.gains[j], fit.gain_sigma[j]
-            )),
-            true => reasons.push(format!(
-                "{}: the datasheet's gain {k:.4} ± {s:.4} agrees with the load's {:.4} ± {:.4} ({z:+.1} σ)",
-                joints[j], fit.gains[j], fit.gain_sigma[j]
-            )),
+            true if z.abs() > 3.0 => warnings.push(Concern::DatasheetDisagrees { joint, datasheet, load, z }),
+            true => reasons.push(Choice::DatasheetAgrees { joint, datasheet, load, z }),
             false => {
                 (gains[j], sigma[j], taken[j]) = (k, s, true);
                 // A datasheet's error is its own, independent of the fit's.
@@ -371,11 +366,7 @@ pub fn with_datasheet(fit: &GainFit, datasheet: &[(f64, f64)], joints: &[String]
                     (covariance[i * dof + j], covariance[j * dof + i]) = (0.0, 0.0);
                 }
                 covariance[j * dof + j] = s * s;
-                reasons.push(format!(
-                    "{}: the load does not fix its gain, so the datasheet's {k:.4} ± {s:.4} is used (the load's fit \
-                     gave {:.4} ± {:.4})",
-                    joints[j], fit.gains[j], fit.gain_sigma[j]
-                ));
+                reasons.push(Choice::DatasheetUsed { joint, datasheet, load });
             }
         }
     }
@@ -390,8 +381,8 @@ pub struct Checked {
     /// Row-major, joints × joints.
     pub covariance: Vec<f64>,
     pub from_datasheet: Vec<bool>,
-    pub reasons: Vec<String>,
-    pub warnings: Vec<String>,
+    pub reasons: Vec<Choice>,
+    pub warnings: Vec<Concern>,
 }
 
 /// Gauss–Newton steps of the fit in current units, at most this many; each one is a least-squares
@@ -667,69 +658,39 @@ struct Judged<'a> {
     over: &'a [f64],
 }
 
-fn explain(model: &Model, judged: Judged, unknown: &[usize], load: &KnownLoad) -> (Vec<String>, Vec<String>) {
+fn explain(model: &Model, judged: Judged, unknown: &[usize], load: &KnownLoad) -> (Vec<Choice>, Vec<Concern>) {
     let Judged { gains, sigma, share, over } = judged;
     let joints = model.joint_names();
-    let each: Vec<String> = joints
-        .iter()
-        .zip(gains.iter().zip(sigma))
-        .zip(share.iter().zip(over))
-        .map(|((j, (k, s)), (l, o))| {
-            format!("{j} {k:.4} ± {s:.4} (load {:.1} % of its torque, {o:.1} × what the model leaves)", 100.0 * l)
+    let each = (0..joints.len())
+        .map(|j| JointGain {
+            joint: joints[j].clone(),
+            gain: gains[j],
+            sigma: sigma[j],
+            load_share: share[j],
+            over_unexplained: over[j],
         })
         .collect();
-    let estimated: Vec<&str> = unknown.iter().map(|&c| LOAD_NAMES[c]).collect();
-    let mut reasons = vec![format!(
-        "drive gains fitted with the base parameters from runs with and without a {} kg load on {} (Gautier and \
-         Briot 2014){}: {}",
-        load.mass,
-        load.body,
-        match estimated.is_empty() {
-            true => String::new(),
-            false => format!(", its {} estimated with them", estimated.join(", ")),
-        },
-        each.join("; ")
-    )];
-    let loose: Vec<String> = (0..joints.len())
+    let estimated = unknown.iter().map(|&c| LOAD_NAMES[c].to_string()).collect();
+    let mut reasons =
+        vec![Choice::DriveGainsFitted { mass_kg: load.mass, body: load.body.clone(), estimated, joints: each }];
+    let loose: Vec<LooseGain> = (0..joints.len())
         .filter(|&j| !fixed(gains[j], sigma[j], share[j], over[j]))
-        .map(|j| {
-            let least = match share[j] >= LOAD_SHARE_FLOOR {
-                true => format!(
-                    "; about {:.3} kg at the same place would fix it",
-                    least_mass(load.mass, gains[j], sigma[j], over[j])
-                ),
-                false => String::new(),
-            };
-            format!(
-                "{} (σ {:.0} %, load {:.1} × the unexplained{least})",
-                joints[j],
-                100.0 * sigma[j] / gains[j].abs(),
-                over[j]
-            )
+        .map(|j| LooseGain {
+            joint: joints[j].clone(),
+            relative_sigma: sigma[j] / gains[j].abs(),
+            over_unexplained: over[j],
+            mass_that_fixes_kg: (share[j] >= LOAD_SHARE_FLOOR)
+                .then(|| least_mass(load.mass, gains[j], sigma[j], over[j])),
         })
         .collect();
     let mut warnings = Vec::new();
     if !loose.is_empty() {
-        warnings.push(format!(
-            "not fixed by this load: the gains of {}. A gain is fixed when its σ is under {:.0} % (a datasheet's ±10 % \
-             at 2σ) and, on a joint the load loads, the load's torque is at least {:.0} × what the model leaves \
-             unexplained there (what the model misses biases the gain by up to their ratio). Keep a datasheet's value \
-             for them, or calibrate again with a load these joints carry more of",
-            loose.join(", "),
-            100.0 * NOT_FIXED,
-            1.0 / NOT_FIXED
-        ));
+        warnings.push(Concern::GainsNotFixed { joints: loose, max_sigma: NOT_FIXED, min_over: 1.0 / NOT_FIXED });
     }
-    let barely: Vec<&str> =
-        joints.iter().zip(share).filter(|(_, s)| **s < LOAD_SHARE_FLOOR).map(|(j, _)| j.as_str()).collect();
+    let barely: Vec<String> =
+        joints.iter().zip(share).filter(|(_, s)| **s < LOAD_SHARE_FLOOR).map(|(j, _)| j.clone()).collect();
     if !barely.is_empty() {
-        reasons.push(format!(
-            "the known load makes under {:.0} % of the torque of {}: their gains are fixed only through parameters \
-             they share with the other joints, and their σ says how well; a load on a body these joints move, \
-             carried over motion that loads them, fixes them directly",
-            100.0 * LOAD_SHARE_FLOOR,
-            barely.join(", ")
-        ));
+        reasons.push(Choice::LoadBarelyLoads { floor: LOAD_SHARE_FLOOR, joints: barely });
     }
     (reasons, warnings)
 }

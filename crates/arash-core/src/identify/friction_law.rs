@@ -27,6 +27,7 @@ use super::estimate::{coulomb_positions, regressor_rows};
 use super::filter::Butterworth;
 use super::preprocess::{PreprocessError, Preprocessed};
 use crate::base_parameters::BaseParameters;
+use crate::choices::{Choice, JointLaw, UnresolvedLaw};
 use crate::dense::{self, dot, Unseen};
 use crate::effects::FRICTION_VELOCITY_SHARES;
 use crate::model::{CoulombLaws, CoulombShape, Model};
@@ -69,7 +70,7 @@ pub struct ChosenLaws {
     /// Per joint with a Coulomb column: each candidate's law and its held-out weighted squared
     /// error over the error with `sign(q̇)`, at the last pass.
     pub scores: Vec<(usize, Vec<(CoulombShape, f64)>)>,
-    pub reason: String,
+    pub reason: Choice,
 }
 
 /// The candidate laws of a joint whose RMS speed (filtered, as the friction velocity is) is
@@ -96,13 +97,14 @@ pub fn choose_laws<E>(
     let samples = problem.y.len() / problem.dof.max(1);
     let fold_total = fold_count(samples, problem.guard);
     if fold_total < LAW_MIN_FOLDS {
-        let reason = format!(
-            "Coulomb laws not chosen from the data, kept as {}: its {samples} samples hold {fold_total} stretches of \
-             {GUARDS_PER_FOLD} filter memories ({} samples each), fewer than the {LAW_MIN_FOLDS} that choosing a law \
-             needs; a longer log or a wider cut-off would allow it",
-            CoulombLaws::declared(shapes.clone()),
-            problem.guard
-        );
+        let reason = Choice::LawsKept {
+            velocities: shapes.iter().map(|s| s.epsilon()).collect(),
+            samples,
+            folds: fold_total,
+            guards_per_fold: GUARDS_PER_FOLD,
+            guard: problem.guard,
+            min_folds: LAW_MIN_FOLDS,
+        };
         return Ok(ChosenLaws { laws: CoulombLaws::declared(shapes), scores: Vec::new(), reason });
     }
     // Each Coulomb joint's candidate laws, their weighted columns filtered together.
@@ -164,15 +166,13 @@ pub fn choose_laws<E>(
         }
     }
     let laws = CoulombLaws::declared(shapes);
-    let mut reason = explain(&laws, &scores, rms_speed, fold_total);
-    for (k, v, r) in unresolved {
-        reason.push_str(&format!(
-            "; joint {k}'s fittest tanh(q̇/{v:.3e}) not kept: where it acts, its friction velocity strays from the \
-             velocity at the main cut-off by {:.3e} RMS ({} samples), more than the law's v, so it is a law of the \
-             filter, not of the motion",
-            r.stray, r.samples
-        ));
-    }
+    let unresolved = unresolved.into_iter().map(|(joint, velocity, r)| UnresolvedLaw {
+        joint,
+        velocity,
+        stray: r.stray,
+        samples: r.samples,
+    });
+    let reason = explain(&laws, &scores, rms_speed, fold_total, unresolved.collect());
     Ok(ChosenLaws { laws, scores, reason })
 }
 
@@ -488,40 +488,37 @@ fn weighted(mut values: Vec<f64>, weight: f64) -> Vec<f64> {
     values
 }
 
-/// One line for the reasons: each joint's law, its friction velocity against its RMS speed, and
-/// how much better it fits than `sign(q̇)`.
+/// The reason: each joint's law, its friction velocity against its RMS speed, and how much
+/// better it fits than `sign(q̇)`.
 fn explain(
     laws: &CoulombLaws,
     scores: &[(usize, Vec<(CoulombShape, f64)>)],
     rms_speed: &[f64],
     folds: usize,
-) -> String {
-    let joints: Vec<String> = scores
+    unresolved: Vec<UnresolvedLaw>,
+) -> Choice {
+    let joints = scores
         .iter()
         .map(|(k, errors)| {
             let law = laws.shape(*k);
             let error = errors.iter().find(|(l, _)| *l == law).map_or(1.0, |(_, e)| *e);
-            match law.epsilon() {
-                None => format!("joint {k} sign(q̇)"),
-                Some(v) => format!(
-                    "joint {k} tanh(q̇/{v:.3e}) ({:.3} × its RMS speed; held-out squared error {:.1} % of sign(q̇)'s)",
-                    v / rms_speed[*k],
-                    100.0 * error
-                ),
+            let velocity = law.epsilon();
+            JointLaw {
+                joint: *k,
+                velocity,
+                per_rms_speed: velocity.map_or(0.0, |v| v / rms_speed[*k]),
+                error_share: error,
             }
         })
         .collect();
-    format!(
-        "Coulomb laws chosen from the data, each joint's sign(q̇) unless the tanh(q̇/v), for v from {} to {} × its \
-         RMS speed, that best predicts {folds} stretches of the log, each fitted without, predicts them better by \
-         more than {LAW_STANDARD_ERRORS} standard error of the stretches' differences (as Student's t with {} \
-         degrees of freedom: {:.2}): {}",
-        FRICTION_VELOCITY_SHARES[0],
-        FRICTION_VELOCITY_SHARES[FRICTION_VELOCITY_SHARES.len() - 1],
-        folds - 1,
-        standard_errors(folds),
-        joints.join("; ")
-    )
+    Choice::LawsChosen {
+        joints,
+        shares: [FRICTION_VELOCITY_SHARES[0], FRICTION_VELOCITY_SHARES[FRICTION_VELOCITY_SHARES.len() - 1]],
+        folds,
+        standard_errors: LAW_STANDARD_ERRORS,
+        t: standard_errors(folds),
+        unresolved,
+    }
 }
 
 /// `XᵀX` and `Xᵀy` of the problem's columns and `yᵀy` over a stretch of its samples.
@@ -766,11 +763,15 @@ mod tests {
         let stray = |share: f64| move |_: usize, v: f64| Resolution { stray: share * v, samples: 50 };
         let refused = choose_laws(problem(), &[rms], &CoulombLaws::undeclared(1), columns, stray(2.0)).unwrap();
         assert_eq!(refused.laws.shape(0), CoulombShape::Sign, "{}", refused.reason);
-        assert!(refused.reason.contains("joint 0's fittest tanh") && refused.reason.contains("(50 samples)"));
+        let named = |r: &Choice| match r {
+            Choice::LawsChosen { unresolved, .. } => unresolved.iter().map(|u| (u.joint, u.samples)).collect(),
+            _ => Vec::new(),
+        };
+        assert_eq!(named(&refused.reason), [(0, 50)], "{}", refused.reason);
         let kept = choose_laws(problem(), &[rms], &CoulombLaws::undeclared(1), columns, stray(0.5)).unwrap();
         let found = kept.laws.shape(0).epsilon().expect("the smooth law is kept");
         assert!((found / truth.epsilon().unwrap() - 1.0).abs() < 0.03, "{}", kept.reason);
-        assert!(!kept.reason.contains("not kept"), "{}", kept.reason);
+        assert!(named(&kept.reason).is_empty(), "{}", kept.reason);
     }
 
     /// A log too short, for its filter's memory, to hold [`LAW_MIN_FOLDS`] stretches that share no
@@ -801,7 +802,9 @@ mod tests {
         )
         .unwrap();
         assert_eq!(short.laws.shape(0), CoulombShape::Sign, "{}", short.reason);
-        assert!(short.reason.contains(&format!("fewer than the {LAW_MIN_FOLDS}")), "{}", short.reason);
+        let too_few =
+            matches!(short.reason, Choice::LawsKept { folds, min_folds: LAW_MIN_FOLDS, .. } if folds < LAW_MIN_FOLDS);
+        assert!(too_few, "{}", short.reason);
         let long_enough =
             choose_laws(problem(5), &[rms], &CoulombLaws::undeclared(1), columns, |_, _| Resolution::EXACT).unwrap();
         assert!(long_enough.laws.shape(0).epsilon().is_some(), "{}", long_enough.reason);

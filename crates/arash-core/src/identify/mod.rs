@@ -19,6 +19,7 @@ pub mod repair;
 pub mod resting;
 
 use crate::base_parameters::BaseParameters;
+use crate::choices::{Choice, Concern};
 use crate::model::Model;
 use crate::model_file::{DataSummary, Fitted, HeldOut, IdentifyMethod, Metrics, ModelFile, ModelFileError, Settings};
 use crate::physical::{min_pseudo_inertia_eigenvalues, nearest_standard_parameters};
@@ -193,16 +194,9 @@ pub fn identify_with_known_load(
 }
 
 /// Why the base parameters are fewer than the exact rank: the weak ones, regrouped.
-fn weak_reason(base: &BaseParameters) -> String {
-    let names: Vec<&str> = base.weak.iter().map(|w| w.name.as_str()).collect();
+fn weak_reason(base: &BaseParameters) -> Choice {
     let (kept, weak) = base.reach_gap.unwrap_or_default(); // the test ran: there are weak ones
-    format!(
-        "base parameters: {}; {} regrouped, since no trajectory within the limits separates {} from the others (residual \
-         ≤ {weak:.1e} against ≥ {kept:.1e} for every kept one); keep_weak=True / --keep-weak fits every exact one",
-        base.rank,
-        names.join(", "),
-        if names.len() == 1 { "it" } else { "them" },
-    )
+    Choice::Regrouped { rank: base.rank, names: base.weak.iter().map(|w| w.name.clone()).collect(), weak, kept }
 }
 
 /// The log preprocessed at the cut-offs the data choose, and, where the robot declares no Coulomb
@@ -237,10 +231,7 @@ fn preprocess_with_laws(
         if round == LAW_ROUNDS {
             // The cut-offs are those of the laws kept, so that the fit is the one they were chosen for.
             pre.choices.reasons.push(chosen.reason);
-            pre.choices.warnings.push(format!(
-                "the Coulomb laws and the cut-offs had not settled after {LAW_ROUNDS} rounds of choosing each with \
-                 the other: the laws kept are the last chosen, at the cut-offs chosen for them"
-            ));
+            pre.choices.warnings.push(Concern::LawsNotSettled { rounds: LAW_ROUNDS });
         }
     }
     Ok((pre, Some(laws)))
@@ -293,25 +284,24 @@ fn identify_with(
             let start = ClosedLoopStart { t: log.t, pre: &pre, preprocess: &options.preprocess, fit: &ls };
             let settings = ClosedLoopSettings { estimator, iv: &options.iv, consistent: &options.consistent };
             let iv = closed_loop_fit(model, base, &closed_loop, start, settings)?;
-            let name = estimator.name();
-            pre.choices.reasons.push(format!(
-                "{name}: the closed loop simulated with the estimate, {} iteration(s); the last moved no β by more than \
-                 {:.3} σ",
-                iv.iterations, iv.last_change_sigma
-            ));
-            if let Some(first) = iv.detours.first() {
-                pre.choices.reasons.push(format!(
-                    "{name}: the estimate of {} of the {} iteration(s) did not simulate (first: iteration {first}); their \
-                     simulation used the nearest physically consistent model",
-                    iv.detours.len(),
-                    iv.iterations
-                ));
+            let name = estimator.name().to_string();
+            let (iterations, last_change_sigma) = (iv.iterations, iv.last_change_sigma);
+            pre.choices.reasons.push(Choice::ClosedLoop { estimator: name.clone(), iterations, last_change_sigma });
+            if let Some(first) = iv.detours.first().cloned() {
+                let detours = iv.detours.len();
+                pre.choices.reasons.push(Choice::ClosedLoopDetours {
+                    estimator: name.clone(),
+                    detours,
+                    iterations,
+                    first,
+                });
             }
             if !iv.converged {
-                pre.choices.warnings.push(format!(
-                    "{name} did not settle in {} iterations (the last moved a β by {:.2} σ): the estimate is the last one",
-                    iv.iterations, iv.last_change_sigma
-                ));
+                pre.choices.warnings.push(Concern::ClosedLoopNotSettled {
+                    estimator: name,
+                    iterations,
+                    last_change_sigma,
+                });
             }
             (iv.fit, Some((estimator, iv.instruments)))
         }
@@ -403,7 +393,7 @@ pub struct Validation {
     pub cutoff_hz: f64,
     /// The validation log's preprocessing choices (period, trimmed ends, and the cut-off when it
     /// had to differ from training's).
-    pub reasons: Vec<String>,
+    pub reasons: Vec<Choice>,
 }
 
 /// FP% per joint of `identification` on one validation log (same preprocessing as training):
@@ -432,7 +422,7 @@ pub struct ValidationSeries {
     pub measured: Vec<f64>,
     pub predicted: Vec<f64>,
     pub cutoff_hz: f64,
-    pub reasons: Vec<String>,
+    pub reasons: Vec<Choice>,
 }
 
 /// The series [`cross_validate`] scores, for plotting measured against predicted torque.
@@ -459,9 +449,7 @@ pub fn validation_series(
         Err(PreprocessError::TooShortForCutoff { cutoff_hz, lowest_hz, .. }) => {
             let mut pre =
                 preprocess(t, q, tau, model.dof(), &PreprocessOptions { cutoff_hz: Some(lowest_hz), ..options })?;
-            pre.choices.reasons.push(format!(
-                "validated at {lowest_hz:.3} Hz, the lowest cut-off this log allows, not training's {cutoff_hz:.3} Hz"
-            ));
+            pre.choices.reasons.push(Choice::ValidatedAtLowest { lowest_hz, cutoff_hz });
             pre
         }
         other => other?,

@@ -11,6 +11,7 @@ use super::data_choices::{bandwidth, find_period, harmonic_bandwidth, PERIODIC_M
 use super::filter::{Butterworth, FilterError};
 use super::friction::{FrictionVelocity, RawVelocity};
 use super::options::{PreprocessOptions, SettingError};
+use crate::choices::{Choice, Concern};
 use crate::model::CoulombLaws;
 
 /// Why a log cannot be preprocessed. Each variant names the offending input.
@@ -66,10 +67,10 @@ pub enum PreprocessError {
 /// What preprocessing chose, each with its reason, and the choices it is unsure of.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Choices {
-    /// One line per choice: the value, and whether the user set it or what in the data set it.
-    pub reasons: Vec<String>,
+    /// Each choice: the value, and whether the user set it or what in the data set it.
+    pub reasons: Vec<Choice>,
     /// Choices the data support only weakly (too few periods, bandwidth near the cap, ...).
-    pub warnings: Vec<String>,
+    pub warnings: Vec<Concern>,
 }
 
 /// Preprocessed signals, row-major `samples × dof`, ready for the regressor.
@@ -302,12 +303,12 @@ fn choose_periods(
         if count < 2 {
             return Err(PreprocessError::TooFewPeriods { periods: count, period_s });
         }
-        choices.reasons.push(format!("{count} periods of {period_s:.4} s: period set by the user"));
+        choices.reasons.push(Choice::PeriodGiven { count, period_s });
         return Ok(Some(Averaging { count, samples }));
     }
     match periods {
         Some(1) => {
-            choices.reasons.push("not averaged over periods: periods = 1 was given".into());
+            choices.reasons.push(Choice::NotAveraged);
             Ok(None)
         }
         Some(count) => {
@@ -317,12 +318,9 @@ fn choose_periods(
             }
             let period_s = per as f64 / fs;
             let mismatch = super::data_choices::mismatch_of_columns(q, dof, per);
-            choices.reasons.push(format!("{count} periods of {period_s:.4} s: set by the user"));
+            choices.reasons.push(Choice::PeriodsGiven { count, period_s });
             if mismatch > PERIODIC_MISMATCH {
-                choices.warnings.push(format!(
-                    "the {count} periods given do not repeat: consecutive ones differ by {:.1} % of the motion's variance",
-                    100.0 * mismatch
-                ));
+                choices.warnings.push(Concern::PeriodsDoNotRepeat { count, mismatch });
             }
             Ok(Some(Averaging { count, samples: per as f64 }))
         }
@@ -332,17 +330,14 @@ fn choose_periods(
             let Some(period) = search.period else { return Ok(None) };
             let count = period.count;
             if count < 2 {
-                choices.warnings.push(format!(
-                    "the motion repeats after {:.4} s, but the log holds {:.2} such periods: not averaged",
-                    period.samples / fs,
-                    n as f64 / period.samples
-                ));
+                choices.warnings.push(Concern::UnderTwoPeriods {
+                    period_s: period.samples / fs,
+                    periods: n as f64 / period.samples,
+                });
                 return Ok(None);
             }
             if count < super::data_choices::FEW_PERIODS {
-                choices.warnings.push(format!(
-                    "only {count} periods to average: the noise falls by √{count} only, and a period found from {count} repeats is uncertain"
-                ));
+                choices.warnings.push(Concern::FewPeriods { count });
             }
             Ok(Some(Averaging { count, samples: period.samples }))
         }
@@ -364,7 +359,7 @@ fn choose_cutoff(
     choices: &mut Choices,
 ) -> (f64, Option<f64>) {
     if let Some(cutoff) = user {
-        choices.reasons.push(format!("cut-off {cutoff:.3} Hz: set by the user"));
+        choices.reasons.push(Choice::CutoffGiven { cutoff_hz: cutoff });
         return (cutoff, None);
     }
     let cap = fs / 4.0;
@@ -379,25 +374,25 @@ fn choose_cutoff(
         None => bandwidth(q, dof, fs, false),
     };
     let Some(signal) = found else {
-        choices.reasons.push(format!("cut-off {floor:.3} Hz: no motion above the noise, the lowest cut-off"));
+        choices.reasons.push(Choice::CutoffNoMotion { cutoff_hz: floor });
         return (floor, None);
     };
     let wanted = CUTOFF_PER_BANDWIDTH * signal;
     let cutoff = wanted.max(floor).min(cap);
-    let what = match periodic {
-        true => format!("highest harmonic that repeats from period to period {signal:.3} Hz"),
-        false => format!("the motion stands above the position noise floor up to {signal:.3} Hz"),
-    };
-    let why = match wanted < floor {
-        true => format!("the lowest cut-off the log allows, {floor:.3} Hz ({what})"),
-        false => format!("{CUTOFF_PER_BANDWIDTH} × the bandwidth ({what})"),
-    };
-    choices.reasons.push(format!("cut-off {cutoff:.3} Hz: {why}"));
+    choices.reasons.push(Choice::CutoffFromSpectrum {
+        cutoff_hz: cutoff,
+        signal_hz: signal,
+        factor: CUTOFF_PER_BANDWIDTH,
+        periodic,
+        lowest_hz: (wanted < floor).then_some(floor),
+    });
     if wanted > cap {
-        choices.warnings.push(format!(
-            "the motion reaches {signal:.1} Hz, so {CUTOFF_PER_BANDWIDTH} × it is beyond a quarter of the {fs:.1} Hz sample \
-             rate: the cut-off is capped at {cap:.1} Hz and the filter bends the highest harmonics"
-        ));
+        choices.warnings.push(Concern::CutoffCapped {
+            signal_hz: signal,
+            factor: CUTOFF_PER_BANDWIDTH,
+            sample_rate_hz: fs,
+            cap_hz: cap,
+        });
     }
     (cutoff, Some(signal))
 }
@@ -416,12 +411,7 @@ pub fn preprocess(
     let mut choices = Choices::default();
     let shake = jitter(t, dt);
     if shake > REPORTED_JITTER {
-        choices.reasons.push(format!(
-            "time stamps jitter by up to {:.0} % of the step with no gap: the samples are taken as a uniform {:.3} Hz stream \
-             (the mean rate)",
-            100.0 * shake,
-            1.0 / dt
-        ));
+        choices.reasons.push(Choice::Jitter { share: shake, rate_hz: 1.0 / dt });
     }
     let averaging = choose_periods(q, dof, 1.0 / dt, options.periods, options.period_s, &mut choices)?;
     let periodic = averaging.is_some();
@@ -464,22 +454,16 @@ pub fn preprocess(
         });
     }
     if edge > 0 {
-        choices.reasons.push(format!(
-            "not periodic: {:.3} s ({EDGE_CUTOFF_PERIODS} cut-off periods) at each end left out of the fit, where the \
-             zero-phase filter starts up",
-            edge as f64 * dt
-        ));
+        choices.reasons.push(Choice::EdgesLeftOut { edge_s: edge as f64 * dt, cutoff_periods: EDGE_CUTOFF_PERIODS });
     }
     // Decimated indices whose samples lie at least `edge` samples from either end.
     let settled = edge.div_ceil(options.decimate)..(n - edge).div_ceil(options.decimate);
     let friction_cutoff_hz = friction_cutoff_hz(options.friction_cutoff_hz, cutoff_hz, fs);
-    choices.reasons.push(format!(
-        "Coulomb columns switch with the velocity filtered at {friction_cutoff_hz:.3} Hz ({})",
-        match options.friction_cutoff_hz {
-            Some(_) => "set by the user, at most fs/4",
-            None => "the main cut-off",
-        }
-    ));
+    choices.reasons.push(Choice::FrictionCutoff {
+        cutoff_hz: friction_cutoff_hz,
+        given: options.friction_cutoff_hz.is_some(),
+        at_most_quarter: true,
+    });
     let positions = || filtered_motion(&filter, &q, dof, dt, periodic, options.filter_derivatives);
     let torque_and_friction = || -> Result<_, FilterError> {
         let tau_avg = averaged(tau, dof, averaging);
@@ -666,7 +650,7 @@ mod tests {
         let shaky: Vec<f64> =
             t.iter().enumerate().map(|(i, x)| x + 2e-4 * ((i * 7919 % 13) as f64 / 6.0 - 1.0)).collect();
         let out = preprocess(&shaky, &q, &tau, 3, &opts).unwrap();
-        assert!(out.choices.reasons.iter().any(|r| r.contains("jitter by up to")), "{:?}", out.choices.reasons);
+        assert!(out.choices.reasons.iter().any(|r| matches!(r, Choice::Jitter { .. })), "{:?}", out.choices.reasons);
         assert!((out.sample_rate_hz - 1000.0).abs() < 1e-3, "{}", out.sample_rate_hz);
         let zero = PreprocessOptions { periods: Some(0), ..Default::default() };
         assert!(err(preprocess(&t, &q, &tau, 3, &zero)).contains("periods = 0 cannot be used"));

@@ -16,6 +16,8 @@
 
 pub use crate::signal::resample::resample;
 
+use crate::choices::{Choice, LogEnd, RunBreak};
+
 /// A step of up to this many median steps is filled by interpolation (two samples missed); a
 /// longer one is a gap, across which the log is not one run.
 pub const MAX_FILLED_STEPS: f64 = 3.0;
@@ -47,8 +49,8 @@ pub enum RepairError {
 pub struct Repaired {
     pub t: Vec<f64>,
     pub signals: Vec<Vec<f64>>,
-    /// One line per change, for the reasons; empty when the log needed nothing.
-    pub report: Vec<String>,
+    /// One choice per change, for the reasons; empty when the log needed nothing.
+    pub report: Vec<Choice>,
 }
 
 /// A signal to repair alongside `t`: its name (for errors), values (row-major) and width.
@@ -81,14 +83,26 @@ pub fn repair(t: &[f64], signals: &[Signal]) -> Result<Repaired, RepairError> {
     let mut report = Vec::new();
     let why_at = |i: usize| describe_break(t, i, median, &unusable);
     if first > 0 {
-        report.push(format!("rows 0–{} trimmed from the start: {}", first - 1, why_at(first)));
+        report.push(Choice::Trimmed {
+            log: String::new(),
+            end: LogEnd::Start,
+            first: 0,
+            last: first - 1,
+            why: why_at(first),
+        });
     }
     if end < n {
-        report.push(format!("rows {end}–{} trimmed from the end: {}", n - 1, why_at(end)));
+        report.push(Choice::Trimmed {
+            log: String::new(),
+            end: LogEnd::End,
+            first: end,
+            last: n - 1,
+            why: why_at(end),
+        });
     }
     let share = (n - (end - first)) as f64 / n as f64;
     if share > MAX_TRIMMED_SHARE {
-        let why = report.join("; ");
+        let why = report.iter().map(Choice::to_string).collect::<Vec<_>>().join("; ");
         return Err(RepairError::TooMuchTrimmed {
             first,
             last: end - 1,
@@ -110,15 +124,18 @@ pub fn repair(t: &[f64], signals: &[Signal]) -> Result<Repaired, RepairError> {
     let (resampled, blended) = resample(run_t, &run, &widths, &grid);
     let (shortest, longest) =
         run_t.windows(2).map(|w| w[1] - w[0]).fold((f64::INFINITY, 0.0f64), |(a, b), s| (a.min(s), b.max(s)));
-    report.push(format!(
-        "resampled rows {first}–{} ({} rows) onto a uniform {:.4} Hz grid of {count} samples by linear interpolation \
-         ({blended} blended between two logged samples): the stamps leave one uniform line by up to {off:.2} steps \
-         (half a step or more is a sample's own time, not stamping noise), steps from {shortest:.6} to {longest:.6} s \
-         against the median {median:.6} s",
-        end - 1,
-        end - first,
-        1.0 / median
-    ));
+    report.push(Choice::Resampled {
+        log: String::new(),
+        first,
+        last: end - 1,
+        rate_hz: 1.0 / median,
+        samples: count,
+        blended,
+        off_steps: off,
+        shortest_s: shortest,
+        longest_s: longest,
+        median_s: median,
+    });
     Ok(Repaired { t: grid, signals: resampled, report })
 }
 
@@ -164,16 +181,17 @@ fn longest_run<'a>(
 
 /// Why the run starts or stops at row `i` (the first row after the trimmed block, or the first
 /// row trimmed): the unusable row, the step back, or the gap.
-fn describe_break<'a>(t: &[f64], i: usize, median: f64, unusable: &dyn Fn(usize) -> Option<&'a str>) -> String {
+fn describe_break<'a>(t: &[f64], i: usize, median: f64, unusable: &dyn Fn(usize) -> Option<&'a str>) -> RunBreak {
     let bad = [i - 1, i].into_iter().find_map(|r| unusable(r).map(|name| (r, name)));
     match bad {
-        Some((r, name)) => format!("row {r} has {name} not finite"),
-        None if t[i] <= t[i - 1] => format!("t goes back from {} s to {} s at row {i}", t[i - 1], t[i]),
-        None => format!(
-            "a gap of {:.1} median steps ({:.6} s) before row {i}, longer than the {MAX_FILLED_STEPS} interpolation fills",
-            (t[i] - t[i - 1]) / median,
-            t[i] - t[i - 1]
-        ),
+        Some((row, name)) => RunBreak::NotFinite { row, signal: name.to_string() },
+        None if t[i] <= t[i - 1] => RunBreak::TimeGoesBack { row: i, from_s: t[i - 1], to_s: t[i] },
+        None => RunBreak::Gap {
+            row: i,
+            steps: (t[i] - t[i - 1]) / median,
+            seconds: t[i] - t[i - 1],
+            max_steps: MAX_FILLED_STEPS,
+        },
     }
 }
 
@@ -239,11 +257,23 @@ mod tests {
         q[2 * last + 1] = f64::NAN;
         let out = repair(&t, &[("q", &q, 2)]).unwrap();
         assert_eq!(out.report.len(), 3, "{:?}", out.report);
-        assert!(out.report[0].starts_with("rows 0–2 trimmed from the start: t goes back from 50.02 s to 0 s at row 3"));
-        assert!(
-            out.report[1].starts_with(&format!("rows {last}–{last} trimmed from the end: row {last} has q not finite"))
-        );
-        assert!(out.report[2].contains("resampled rows 3–"), "{}", out.report[2]);
+        let start = Choice::Trimmed {
+            log: String::new(),
+            end: LogEnd::Start,
+            first: 0,
+            last: 2,
+            why: RunBreak::TimeGoesBack { row: 3, from_s: 50.02, to_s: 0.0 },
+        };
+        assert_eq!(out.report[0], start);
+        let end = Choice::Trimmed {
+            log: String::new(),
+            end: LogEnd::End,
+            first: last,
+            last,
+            why: RunBreak::NotFinite { row: last, signal: "q".into() },
+        };
+        assert_eq!(out.report[1], end);
+        assert!(matches!(out.report[2], Choice::Resampled { first: 3, .. }), "{}", out.report[2]);
         assert_eq!(out.t.len(), 100);
         for (i, (t, q)) in out.t.iter().zip(out.signals[0].chunks(2)).enumerate() {
             assert!((t - i as f64 * 0.01).abs() < 1e-12);

@@ -12,6 +12,7 @@
 //! A rest is read from the raw encoder: a reading that holds for at least [`REST_HOLD_S`].
 
 use super::conditioning::Averaging;
+use crate::choices::Choice;
 
 /// A joint rests where its reading holds for at least this long (s). A reading repeated for a
 /// sample or two is slow motion across one encoder step; under closed-loop control a joint held by
@@ -78,23 +79,16 @@ pub fn resting(q: &[f64], dof: usize, averaging: Option<Averaging>, dt: f64, dec
     arranged.chunks(dof.max(1)).step_by(decimate.max(1)).flatten().copied().collect()
 }
 
-/// One line for the reasons: each joint's share of resting samples among `samples` (indices of
-/// `resting`, `samples × dof`), when any joint rests.
-pub fn explain(resting: &[bool], dof: usize, samples: std::ops::Range<usize>, dt: f64) -> Option<String> {
+/// The reason: each joint's share of resting samples among `samples` (indices of `resting`,
+/// `samples × dof`), when any joint rests.
+pub fn explain(resting: &[bool], dof: usize, samples: std::ops::Range<usize>, dt: f64) -> Option<Choice> {
     let count = samples.len().max(1) as f64;
     let shares: Vec<f64> =
         (0..dof).map(|k| samples.clone().filter(|&s| resting[s * dof + k]).count() as f64 / count).collect();
     if shares.iter().all(|s| *s == 0.0) {
         return None;
     }
-    let each: Vec<String> = shares.iter().enumerate().map(|(k, s)| format!("joint {k} {:.1} %", 100.0 * s)).collect();
-    Some(format!(
-        "resting samples left out of the fit ({}): the reading held for {} samples ({:.0} ms) or more, where dry \
-         friction holds the joint with a force that is no law of its velocity",
-        each.join(", "),
-        hold_samples(dt),
-        1e3 * REST_HOLD_S
-    ))
+    Some(Choice::Resting { shares, hold_samples: hold_samples(dt), hold_s: REST_HOLD_S })
 }
 
 #[cfg(test)]

@@ -3,6 +3,7 @@
 //! collision) its thresholds give it. Built at start-up ([`ForceSetup::build`]); a step never
 //! allocates.
 
+use arash_core::choices::ForceChoice;
 use arash_core::control::gains::{compensation_epsilon, model_epsilon, RobustGains};
 use arash_core::force::settings::{default_bandwidth, default_frame, held_out_sigma, sigma_thresholds};
 use arash_core::force::{FrameForce, Level, MomentumObserver, ObserverError, Thresholds, TorqueTiming};
@@ -105,7 +106,7 @@ pub struct ForceSetup {
     /// The frame the force is mapped to, and the frame its moment is about.
     pub frame: Option<String>,
     /// What chose each value.
-    pub reasons: Vec<String>,
+    pub reasons: Vec<ForceChoice>,
 }
 
 impl ForceSetup {
@@ -142,34 +143,25 @@ impl ForceSetup {
         let observed = held_out.is_some_and(|h| h.observer.is_some());
         let (contact, collision) = match (&config.contact, &config.collision, &sigma) {
             (Some(c), Some(k), _) => {
-                reasons.push("thresholds set by hand in the configuration".into());
+                reasons.push(ForceChoice::ThresholdsByHand);
                 (Some(c.clone()), Some(k.clone()))
             }
             (None, None, Some(s)) if observed => {
                 let (t, why) = sigma_thresholds(s, config.contact_sigmas, config.collision_sigmas, held_out)
                     .map_err(|e| e.to_string())?;
-                reasons.push(format!(
-                    "contact at {}σ and collision at {}σ of the model's held-out σ",
-                    config.contact_sigmas, config.collision_sigmas
-                ));
+                reasons.push(ForceChoice::ThresholdsFromSigma {
+                    contact: config.contact_sigmas,
+                    collision: config.collision_sigmas,
+                });
                 reasons.extend(why);
                 (Some(t.contact().to_vec()), Some(t.collision().to_vec()))
             }
             (None, None, Some(_)) => {
-                reasons.push(
-                    "no contact or collision is told: the model file's held-out σ is its residual's, not the \
-                     observer's (record the observer's run with `arash identify --validate`), and no thresholds are \
-                     set (force.contact, force.collision)"
-                        .into(),
-                );
+                reasons.push(ForceChoice::NoThresholdsResidualSigma);
                 (None, None)
             }
             (None, None, None) => {
-                reasons.push(
-                    "no contact or collision is told: the model file records no held-out σ and no thresholds are set \
-                     (force.contact, force.collision)"
-                        .into(),
-                );
+                reasons.push(ForceChoice::NoThresholdsNoSigma);
                 (None, None)
             }
             _ => return Err("force.contact and force.collision go together".into()),
@@ -267,7 +259,7 @@ mod tests {
                 sigma: vec![0.002, 0.003, 0.02],
                 grid_hz: vec![20.0],
                 grid_sigma: vec![0.002, 0.003, 0.02],
-                reason: "test".into(),
+                reason: ForceChoice::Recorded { text: "test".into() },
                 peak: vec![0.01, 0.05, 0.1],
             }),
         }
@@ -281,7 +273,8 @@ mod tests {
         let config = ForceConfig::default();
         let residual = ForceSetup::resolve(&model, &config, Some(&held_out(false)), 1000.0).unwrap();
         assert_eq!((residual.contact.as_ref(), residual.collision.as_ref()), (None, None));
-        assert!(residual.reasons.iter().any(|r| r.contains("identify --validate")), "{:?}", residual.reasons);
+        let said = residual.reasons.iter().any(|r| matches!(r, ForceChoice::NoThresholdsResidualSigma));
+        assert!(said, "{:?}", residual.reasons);
         let observed = ForceSetup::resolve(&model, &config, Some(&held_out(true)), 1000.0).unwrap();
         assert_eq!(observed.bandwidth_hz, vec![20.0, 40.0, 80.0]);
         let contact = observed.contact.unwrap();

@@ -133,13 +133,16 @@ def _as_list(value: Any) -> Any:
 
 class RepairedLog(NamedTuple):
     """A log after ``repair_log``: ``t``, ``q``, ``tau``, the ``extra`` arrays in the order given,
-    and ``report``, one line per change (empty when the log needed none)."""
+    ``report``, one line per change (empty when the log needed none), and ``choices``, the same
+    changes as data: each a dict with its ``code`` (``trimmed``, ``resampled``), its rows and
+    figures, and its ``text``."""
 
     t: Any
     q: Any
     tau: Any
     extra: tuple[Any, ...]
     report: list[str]
+    choices: list[dict[str, Any]]
 
 
 def repair_log(t: Any, q: Any, tau: Any, *extra: Any) -> RepairedLog:
@@ -155,8 +158,8 @@ def repair_log(t: Any, q: Any, tau: Any, *extra: Any) -> RepairedLog:
     (docs/identification.md, "Logs as controllers write them")."""
     names = ["q", "tau"] + [f"extra[{k}]" for k in range(len(extra))]
     arrays = [_np.asarray(a, dtype=float) for a in (q, tau, *extra)]
-    t, out, report = _repair_log(_np.asarray(t, dtype=float), list(zip(names, arrays)))
-    return RepairedLog(t, out[0], out[1], tuple(out[2:]), report)
+    t, out, choices = _repair_log(_np.asarray(t, dtype=float), list(zip(names, arrays)))
+    return RepairedLog(t, out[0], out[1], tuple(out[2:]), [c["text"] for c in choices], choices)
 
 
 def identify(
@@ -236,10 +239,10 @@ def identify(
                          "run(s): loaded=(t, q, i)")
     if isinstance(controller, dict):
         controller = _json.dumps(controller, default=_as_list)
-    report: Optional[list[str]] = None
+    report: Optional[list[dict[str, Any]]] = None
     if repair:
         repaired = repair_log(t, q, tau, *(reference or ()))
-        t, q, tau, report = repaired.t, repaired.q, repaired.tau, repaired.report
+        t, q, tau, report = repaired.t, repaired.q, repaired.tau, repaired.choices
         reference = repaired.extra if reference is not None else None
     options = _given(periods=periods, period_s=period_s, cutoff_hz=cutoff_hz, order=order, decimate=decimate,
                      friction_cutoff_hz=friction_cutoff_hz, pull=pull, stiffness_bounds=stiffness_bounds,
@@ -376,7 +379,7 @@ def diagnose(
     calibrated gain times its current, so that a payload comes out in kilograms, and a gain that
     changed since is searched as ``drive_gain`` (docs/currents.md).
     """
-    report: list[str] = []
+    report: list[dict[str, Any]] = []
     if repair:
         (t, q, tau), report = _repaired((t, q, tau), "training log")
         if isinstance(validation, list):
@@ -410,12 +413,12 @@ def diagnose(
     return _diagnose(robot, (t, q, tau), options, model, validation, starts, report)
 
 
-def _repaired(run: Any, label: str) -> tuple[tuple[Any, Any, Any], list[str]]:
-    """``repair_log`` of one ``(t, q, tau)``, its report lines labelled with the run."""
+def _repaired(run: Any, label: str) -> tuple[tuple[Any, Any, Any], list[dict[str, Any]]]:
+    """``repair_log`` of one ``(t, q, tau)``, its choices labelled with the run (``log``)."""
     if not isinstance(run, tuple) or len(run) != 3:
         raise ValueError(f"{label}: expected a tuple (t, q, tau)")
     r = repair_log(*run)
-    return (r.t, r.q, r.tau), [f"{label}: {line}" for line in r.report]
+    return (r.t, r.q, r.tau), [{**c, "log": label} for c in r.choices]
 
 
 def _runs(validation: Any) -> tuple[Optional[tuple[Any, Any, Any]], list[int]]:

@@ -209,7 +209,8 @@ class Identification:
     def cutoff_hz(self) -> float: ...
     @property
     def settings(self) -> dict[str, Any]:
-        """The preprocessing as used, with ``reasons`` (what chose each value) and ``warnings``."""
+        """The preprocessing as used, with ``reasons`` (what chose each value) and ``warnings`` as
+        sentences, and ``choices`` and ``concerns`` as the same data (``code``, figures, ``text``)."""
     @property
     def condition_number(self) -> float: ...
     @property
@@ -266,7 +267,7 @@ def _identify_with_load(
 
 def _repair_log(
     t: _ArrayLike, signals: list[tuple[str, _ArrayLike]]
-) -> tuple[_Array, list[_Array], list[str]]: ...
+) -> tuple[_Array, list[_Array], list[dict[str, Any]]]: ...
 
 def load_model(path: Union[str, PathLike[str]]) -> Identification: ...
 
@@ -412,7 +413,8 @@ class Diagnosis:
         ``p_value``, ``heldout_gain``, ``round``."""
     @property
     def settings(self) -> dict[str, Any]:
-        """The settings it ran with; ``reasons`` says what chose the cut-offs."""
+        """The settings it ran with; ``reasons`` says what chose the cut-offs, ``warnings`` what the
+        data support weakly, and ``choices`` and ``concerns`` are the same as data."""
     @property
     def joint_names(self) -> list[str]: ...
     @property
@@ -445,5 +447,5 @@ def _diagnose(
     model: Optional[Identification] = None,
     validation: Optional[tuple[_ArrayLike, _ArrayLike, _ArrayLike]] = None,
     validation_starts: list[int] = ...,
-    repair_report: list[str] = ...,
+    repair_report: Optional[list[dict[str, Any]]] = None,
 ) -> Diagnosis: ...

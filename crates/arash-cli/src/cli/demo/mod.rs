@@ -390,8 +390,7 @@ fn truth_file(
         arash_core::CoulombLaws::uniform(arash_core::model::CoulombShape::Tanh { epsilon: truth.epsilon }, model.dof());
     (file.settings.coulomb_epsilon, file.settings.friction_velocities) =
         arash_core::model_file::Settings::law_fields(&laws);
-    file.settings.reasons =
-        vec!["the simulated rig's own parameters of the declared model (its scenario and seed): not estimated".into()];
+    file.settings.reasons = vec![arash_core::choices::Choice::SimulatedRigsOwn];
     file.settings.warnings.clear();
     let options = PreprocessOptions::default();
     // `training_ols` stays the calibration's: plain least squares on the same log, for comparison.
