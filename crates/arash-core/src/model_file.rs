@@ -196,29 +196,14 @@ pub struct ModelFile {
     pub base_expressions: Vec<String>,
     /// Indices of the standard parameters forming `Y_r`.
     pub base_independent: Vec<usize>,
-    /// β̂ (for `consistent`, `B π̂`).
-    pub beta: Vec<f64>,
-    /// Relative standard deviation of each β̂ from the least-squares fit (%).
-    pub sigma_percent: Vec<f64>,
-    /// The full standard parameters (only for `consistent`).
-    pub params: Option<Vec<f64>>,
-    /// Fit quality on the training data of the returned model.
-    pub training: Metrics,
-    /// Fit quality of plain OLS on the same data (to show what consistency costs).
-    pub training_ols: Metrics,
-    /// Smallest pseudo-inertia eigenvalue per body: of the consistent estimate, or of the standard
-    /// parameters nearest CAD that reproduce the OLS/WLS β (negative = not physical).
-    pub min_pseudo_inertia_eigenvalue: Vec<f64>,
-    /// Scaled condition number of the stacked reduced regressor.
-    pub condition_number: f64,
+    /// What the estimator produced, its fields at the file's top level.
+    #[serde(flatten)]
+    pub fitted: Fitted,
     pub settings: Settings,
     pub data: DataSummary,
     /// Effects beyond the declared model, added by `arash diagnose` (see `docs/diagnosis.md`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub effects: Vec<crate::effects::EffectTerm>,
-    /// Per base parameter, what sets its σ% (files written before it was kept have none).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub determination: Vec<Determination>,
     /// The drive gains, when the model was identified from motor currents with a known load: the
     /// torque of joint j is `gains[j]` times its current, and the model's parameters are in
     /// physical units.
@@ -510,17 +495,27 @@ pub struct CauseCounts {
     pub noisy: usize,
 }
 
-/// The fitted part of a model file: what an estimator produced.
-#[derive(Clone, Debug)]
+/// The fitted part of a model file: what an estimator produced. The file lists these fields
+/// at its top level (`#[serde(flatten)]`), so this is their one definition.
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Fitted {
+    /// β̂ (for `consistent`, `B π̂`).
     pub beta: Vec<f64>,
+    /// Relative standard deviation of each β̂ from the least-squares fit (%).
     pub sigma_percent: Vec<f64>,
+    /// The full standard parameters (only for `consistent`).
     pub params: Option<Vec<f64>>,
+    /// Fit quality on the training data of the returned model.
     pub training: Metrics,
+    /// Fit quality of plain OLS on the same data (to show what consistency costs).
     pub training_ols: Metrics,
+    /// Smallest pseudo-inertia eigenvalue per body: of the consistent estimate, or of the standard
+    /// parameters nearest CAD that reproduce the OLS/WLS β (negative = not physical).
     pub min_pseudo_inertia_eigenvalue: Vec<f64>,
+    /// Scaled condition number of the stacked reduced regressor.
     pub condition_number: f64,
-    /// Per base parameter, what sets its σ% (empty where not computed).
+    /// Per base parameter, what sets its σ% (files written before it was kept have none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub determination: Vec<Determination>,
 }
 
@@ -544,14 +539,7 @@ impl ModelFile {
             base_names: base.names.clone(),
             base_expressions: base.expressions.clone(),
             base_independent: base.independent.clone(),
-            beta: fitted.beta,
-            sigma_percent: fitted.sigma_percent,
-            params: fitted.params,
-            training: fitted.training,
-            training_ols: fitted.training_ols,
-            min_pseudo_inertia_eigenvalue: fitted.min_pseudo_inertia_eigenvalue,
-            condition_number: fitted.condition_number,
-            determination: fitted.determination,
+            fitted,
             settings,
             data,
             effects: vec![],
@@ -645,7 +633,7 @@ impl ModelFile {
         let (body, worst) =
             eigenvalues.iter().copied().enumerate().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap_or((0, f64::INFINITY));
         if worst < -CONSISTENCY_TOLERANCE {
-            let claimed = self.min_pseudo_inertia_eigenvalue.iter().copied().fold(f64::INFINITY, f64::min);
+            let claimed = self.fitted.min_pseudo_inertia_eigenvalue.iter().copied().fold(f64::INFINITY, f64::min);
             return Err(ModelFileError::NotConsistent {
                 body: model.bodies[body].name.clone(),
                 eigenvalue: worst,
@@ -659,7 +647,7 @@ impl ModelFile {
     /// standard parameters nearest CAD that reproduce β̂.
     pub fn recomputed_pseudo_inertia_eigenvalues(&self, model: &Model) -> Result<Vec<f64>, ModelFileError> {
         self.check_shape(model)?;
-        if let Some(params) = &self.params {
+        if let Some(params) = &self.fitted.params {
             return Ok(min_pseudo_inertia_eigenvalues(model, params));
         }
         let Some(base) = BaseParameters::with_independent(model, &self.base_independent)? else {
@@ -667,7 +655,7 @@ impl ModelFile {
                 "its base parameters are not this robot's (independent columns differ)".into(),
             ));
         };
-        Ok(min_pseudo_inertia_eigenvalues(model, &nearest_standard_parameters(model, &base, &self.beta)))
+        Ok(min_pseudo_inertia_eigenvalues(model, &nearest_standard_parameters(model, &base, &self.fitted.beta)))
     }
 
     /// The file's vectors against `model`: same robot, matching lengths, finite values.
@@ -683,27 +671,27 @@ impl ModelFile {
             ));
         }
         let big_p = model.num_params();
-        if let Some(p) = &self.params {
+        if let Some(p) = &self.fitted.params {
             if p.len() != big_p {
                 return file(format!("`params` has {} entries; the robot has {big_p} parameters", p.len()));
             }
         }
-        if self.beta.len() != self.base_independent.len() {
+        if self.fitted.beta.len() != self.base_independent.len() {
             return file(format!(
                 "`beta` has {} entries but `base_independent` names {} columns",
-                self.beta.len(),
+                self.fitted.beta.len(),
                 self.base_independent.len()
             ));
         }
         if let Some(&j) = self.base_independent.iter().find(|&&j| j >= big_p) {
             return file(format!("`base_independent` names column {j}; the robot has {big_p} parameters"));
         }
-        let values = self.beta.iter().chain(self.params.iter().flatten());
+        let values = self.fitted.beta.iter().chain(self.fitted.params.iter().flatten());
         if let Some(x) = values.copied().find(|x| !x.is_finite()) {
             return file(format!("a parameter is {x}; every value must be finite"));
         }
         match &self.drive_gains {
-            Some(g) => g.check_shape(model.dof(), self.beta.len()).map_err(ModelFileError::Shape),
+            Some(g) => g.check_shape(model.dof(), self.fitted.beta.len()).map_err(ModelFileError::Shape),
             None => Ok(()),
         }
     }
@@ -711,9 +699,9 @@ impl ModelFile {
     /// A P-vector whose product with the full regressor is the prediction: π̂, or β̂ placed on the
     /// independent columns (zeros elsewhere).
     pub fn full_or_base_vector(&self) -> Vec<f64> {
-        self.params.clone().unwrap_or_else(|| {
+        self.fitted.params.clone().unwrap_or_else(|| {
             let mut v = vec![0.0; self.parameter_names.len()];
-            for (&j, b) in self.base_independent.iter().zip(&self.beta) {
+            for (&j, b) in self.base_independent.iter().zip(&self.fitted.beta) {
                 v[j] = *b;
             }
             v
@@ -749,10 +737,10 @@ impl ModelFile {
     /// Per base parameter, why its σ% is above [`WELL_DETERMINED_PERCENT`] (`None` where it is
     /// not); `None` for a file without [`Determination`]s.
     pub fn causes(&self) -> Option<Vec<Option<String>>> {
-        if self.determination.len() != self.beta.len() {
+        if self.fitted.determination.len() != self.fitted.beta.len() {
             return None;
         }
-        let causes = self.determination.iter().zip(&self.sigma_percent);
+        let causes = self.fitted.determination.iter().zip(&self.fitted.sigma_percent);
         Some(causes.map(|(d, s)| (!well_determined(*s)).then(|| d.cause(&self.base_names))).collect())
     }
 
@@ -760,11 +748,11 @@ impl ModelFile {
     /// others how many are collinear, small and noisy (one can be both collinear and small);
     /// `None` for a file without [`Determination`]s.
     pub fn cause_counts(&self) -> Option<CauseCounts> {
-        if self.determination.len() != self.beta.len() {
+        if self.fitted.determination.len() != self.fitted.beta.len() {
             return None;
         }
         let mut counts = CauseCounts::default();
-        for (d, s) in self.determination.iter().zip(&self.sigma_percent) {
+        for (d, s) in self.fitted.determination.iter().zip(&self.fitted.sigma_percent) {
             if well_determined(*s) {
                 counts.well_determined += 1;
                 continue;
@@ -784,7 +772,7 @@ impl ModelFile {
             self.data.samples_used,
             self.data.samples_in,
             self.settings.cutoff_hz,
-            self.condition_number
+            self.fitted.condition_number
         );
         // The consistent β is a constrained estimate; its spread is reported from the least squares.
         let sigma = match self.settings.method {
@@ -800,30 +788,36 @@ impl ModelFile {
         let why = causes.as_ref().map_or(String::new(), |_| format!("  why σ% > {WELL_DETERMINED_PERCENT}"));
         s += &format!("{:<4} {:<34} {:>14} {:>10}{why}\n", "", "parameter", "value", sigma);
         for (i, name) in self.base_names.iter().enumerate() {
-            s += &format!("β{:<3} {:<34} {:>14.6e} {:>10.2}", i + 1, name, self.beta[i], self.sigma_percent[i]);
+            s += &format!(
+                "β{:<3} {:<34} {:>14.6e} {:>10.2}",
+                i + 1,
+                name,
+                self.fitted.beta[i],
+                self.fitted.sigma_percent[i]
+            );
             match causes.as_ref().and_then(|c| c[i].as_ref()) {
                 Some(cause) => s += &format!("  {cause}\n"),
                 None => s += "\n",
             }
         }
         s += "\nTraining fit per joint:      ";
-        s += &(0..self.training.fp_percent.len())
+        s += &(0..self.fitted.training.fp_percent.len())
             .map(|k| format!("{:>10}", format!("joint {}", k + 1)))
             .collect::<String>();
         let row = |label: &str, v: &[f64], fmt: &dyn Fn(f64) -> String| {
             format!("\n  {label:<26} {}", v.iter().map(|x| format!("{:>10}", fmt(*x))).collect::<String>())
         };
-        s += &row("FP% (this model)", &self.training.fp_percent, &|x| format!("{x:.2}"));
-        s += &row("FP% (OLS)", &self.training_ols.fp_percent, &|x| format!("{x:.2}"));
-        s += &row("‖τ − τ̂‖/‖τ‖", &self.training.relative_error, &|x| format!("{x:.4}"));
-        s += &row("RMS (N·m or N)", &self.training.rms, &|x| format!("{x:.2e}"));
+        s += &row("FP% (this model)", &self.fitted.training.fp_percent, &|x| format!("{x:.2}"));
+        s += &row("FP% (OLS)", &self.fitted.training_ols.fp_percent, &|x| format!("{x:.2}"));
+        s += &row("‖τ − τ̂‖/‖τ‖", &self.fitted.training.relative_error, &|x| format!("{x:.4}"));
+        s += &row("RMS (N·m or N)", &self.fitted.training.rms, &|x| format!("{x:.2e}"));
         if let Some(g) = &self.drive_gains {
             s += &row("drive gain (per A)", &g.gains, &|x| format!("{x:.4}"));
             s += &row("  its σ", &g.sigma, &|x| format!("{x:.4}"));
             let fixed: Vec<f64> = g.fixed.iter().map(|f| f64::from(u8::from(*f))).collect();
             s += &row("  fixed by the load (1/0)", &fixed, &|x| format!("{x:.0}"));
         }
-        let worst = self.min_pseudo_inertia_eigenvalue.iter().copied().fold(f64::INFINITY, f64::min);
+        let worst = self.fitted.min_pseudo_inertia_eigenvalue.iter().copied().fold(f64::INFINITY, f64::min);
         s += &format!(
             "\n\nSmallest pseudo-inertia eigenvalue over bodies: {worst:.3e} ({})\n",
             if worst >= -CONSISTENCY_TOLERANCE { "physical" } else { "NOT physical" }

@@ -59,7 +59,8 @@ impl Code for Faults {
 
 /// The fields of one control cycle, listed once: [`CycleRecord`] and [`Columns`] here, and the
 /// flight log's protobuf message, its descriptor and its decoding (`flightlog::schema`), are all
-/// written from this list by the macro it is handed. Each field is one of:
+/// written from this list by the macro it is handed. After the `names` of what is written, each
+/// field is one of:
 /// - `scalars`: one number a cycle, with its protobuf type;
 /// - `joints`: a joint vector every cycle carries (`dof` values);
 /// - `optional`: a vector some runs leave empty (`width` values when present);
@@ -70,6 +71,20 @@ impl Code for Faults {
 macro_rules! cycle_fields {
     ($then:ident) => {
         $then! {
+            names {
+                /// One control cycle (SI), as the flight log stores it (its fields are listed
+                /// once, in `record.rs`'s `cycle_fields!`).
+                record CycleRecord,
+                /// The `/arash/cycle` messages as columns; joint vectors are row-major `N × dof`,
+                /// the typed fields their codes ([`Code`]).
+                columns Columns,
+                /// One control cycle on topic `/arash/cycle`.
+                message Cycle,
+                table CYCLE_FIELDS,
+                /// One control cycle in fixed-size storage, for at most `MAX` joints: `Copy`, so
+                /// it crosses a real-time queue without allocating.
+                snapshot CycleSnapshot,
+            }
             scalars {
                 /// The cycle's number in the run.
                 cycle: u64 as uint64 = "1",
@@ -109,59 +124,114 @@ macro_rules! cycle_fields {
         }
     };
 }
+#[cfg(feature = "flightlog")]
 pub(crate) use cycle_fields;
+
+/// The simulator's ground truth for one cycle, beside the [`CycleRecord`]: its fields listed
+/// once, as [`cycle_fields`] lists the cycle's, and written by the same macros.
+macro_rules! truth_fields {
+    ($then:ident) => {
+        $then! {
+            names {
+                /// The simulator's ground truth for one cycle (its fields are listed once, in
+                /// `record.rs`'s `truth_fields!`).
+                record TruthRecord,
+                /// The `/arash/truth` messages as columns (simulated logs only).
+                columns TruthColumns,
+                /// The simulator's ground truth on topic `/arash/truth`.
+                message Truth,
+                table TRUTH_FIELDS,
+            }
+            scalars {
+                /// The cycle's number in the run.
+                cycle: u64 as uint64 = "1",
+                t: f64 as double = "2",
+            }
+            joints {
+                q = "3",
+                qd = "4",
+                /// Joint acceleration at the start of the cycle.
+                qdd = "5",
+                /// Torque the motors applied over the cycle (after saturation).
+                tau_motor = "6",
+                /// Motor position in joint units (differs from q with cable compliance).
+                motor_q = "7",
+                /// Motor velocity in joint units.
+                motor_qd = "8",
+                /// The joint torque the operator's hand exerts at the cycle's start.
+                tau_hand = "10",
+            }
+            optional {
+                /// The hand's force at its frame (base frame, N; zero without a hand).
+                hand_force: 3 = "9",
+            }
+            codes {}
+        }
+    };
+}
+#[cfg(feature = "flightlog")]
+pub(crate) use truth_fields;
 
 /// An optional vector's width per cycle: `dof` (the joints) or a number.
 macro_rules! width {
     ($dof:ident, dof) => {
         $dof
     };
-    ($dof:ident, $n:literal) => {
+    // `dof` is named still, so a list whose widths are all numbers leaves no argument unused.
+    ($dof:ident, $n:literal) => {{
+        let _ = $dof;
         $n
-    };
+    }};
 }
 
-/// [`CycleRecord`] and [`Columns`] from the list of [`cycle_fields`].
+/// A record and its columns from a list of fields ([`cycle_fields`], [`truth_fields`]).
 macro_rules! record_and_columns {
     (
+        names {
+            $(#[$rdoc:meta])* record $record:ident,
+            $(#[$cldoc:meta])* columns $columns:ident,
+            $(#[$mdoc:meta])* message $message:ident,
+            table $table:ident,
+            $($(#[$fdoc:meta])* snapshot $snapshot:ident,)?
+        }
         scalars { $($(#[$sdoc:meta])* $scalar:ident: $stype:ty as $sproto:ident = $stag:literal,)* }
         joints { $($(#[$jdoc:meta])* $joint:ident = $jtag:literal,)* }
         optional { $($(#[$odoc:meta])* $optional:ident: $width:tt = $otag:literal,)* }
         codes { $($(#[$cdoc:meta])* $code:ident: $ctype:ty = $ctag:literal,)* }
     ) => {
-        /// One control cycle (SI), as the flight log stores it (its fields are listed once, in `record.rs`'s `cycle_fields!`).
+        $(#[$rdoc])*
         #[derive(Clone, Debug, PartialEq)]
-        pub struct CycleRecord {
+        pub struct $record {
             $($(#[$sdoc])* pub $scalar: $stype,)*
             $($(#[$jdoc])* pub $joint: Vec<f64>,)*
             $($(#[$odoc])* pub $optional: Vec<f64>,)*
             $($(#[$cdoc])* pub $code: $ctype,)*
         }
 
-        impl CycleRecord {
+        impl $record {
             /// A record of `dof` joints: zero, the typed fields at their initial values
-            /// (disabled, no controller, no faults), and the optional vectors empty.
+            /// (disabled, no controller, no faults), and the optional vectors empty, with room
+            /// for their width so that filling them never allocates.
             pub fn new(dof: usize) -> Self {
                 Self {
                     $($scalar: Default::default(),)*
                     $($joint: vec![0.0; dof],)*
-                    $($optional: Vec::new(),)*
+                    $($optional: Vec::with_capacity(width!(dof, $width)),)*
                     $($code: <$ctype as Code>::INITIAL,)*
                 }
             }
         }
 
-        /// The `/arash/cycle` messages as columns; joint vectors are row-major `N × dof`, the
-        /// typed fields their codes ([`Code`]).
+        $(#[$cldoc])*
         #[derive(Clone, Debug, Default, PartialEq)]
-        pub struct Columns {
+        pub struct $columns {
             $($(#[$sdoc])* pub $scalar: Vec<$stype>,)*
             $($(#[$jdoc])* pub $joint: Vec<f64>,)*
             $($(#[$odoc])* pub $optional: Vec<f64>,)*
             $($(#[$cdoc])* pub $code: Vec<u32>,)*
         }
 
-        impl Columns {
+        impl $columns {
             /// The joint vectors every cycle carries (`N × dof`, row-major), by field name.
             pub fn joint_vectors(&self) -> Vec<(&'static str, &Vec<f64>)> {
                 vec![$((stringify!($joint), &self.$joint)),*]
@@ -179,7 +249,7 @@ macro_rules! record_and_columns {
             }
 
             /// Append one cycle.
-            pub fn push(&mut self, r: &CycleRecord) {
+            pub fn push(&mut self, r: &$record) {
                 $(self.$scalar.push(r.$scalar);)*
                 $(self.$joint.extend(&r.$joint);)*
                 $(self.$optional.extend(&r.$optional);)*
@@ -189,84 +259,67 @@ macro_rules! record_and_columns {
     };
 }
 cycle_fields!(record_and_columns);
+truth_fields!(record_and_columns);
 
-/// The simulator's ground truth for one cycle, beside the [`CycleRecord`].
-#[derive(Clone, Debug, PartialEq)]
-pub struct TruthRecord {
-    pub t: f64,
-    pub q: Vec<f64>,
-    pub qd: Vec<f64>,
-    /// Joint acceleration at the start of the cycle.
-    pub qdd: Vec<f64>,
-    /// Torque the motors applied over the cycle (after saturation).
-    pub tau_motor: Vec<f64>,
-    /// Motor position in joint units (differs from q with cable compliance).
-    pub motor_q: Vec<f64>,
-    /// Motor velocity in joint units.
-    pub motor_qd: Vec<f64>,
-    /// The operator's hand over the cycle: its force at its frame (base frame, N; zero without
-    /// a hand) and the joint torque it exerts at the cycle's start.
-    pub hand_force: Vec<f64>,
-    pub tau_hand: Vec<f64>,
-}
-
-impl TruthRecord {
-    pub fn new(dof: usize) -> Self {
-        Self {
-            t: 0.0,
-            q: vec![0.0; dof],
-            qd: vec![0.0; dof],
-            qdd: vec![0.0; dof],
-            tau_motor: vec![0.0; dof],
-            motor_q: vec![0.0; dof],
-            motor_qd: vec![0.0; dof],
-            hand_force: vec![0.0; 3],
-            tau_hand: vec![0.0; dof],
+/// A record's fixed-size copy, from a list of fields that names a `snapshot` ([`cycle_fields`]).
+macro_rules! snapshot {
+    (
+        names {
+            $(#[$rdoc:meta])* record $record:ident,
+            $(#[$cldoc:meta])* columns $columns:ident,
+            $(#[$mdoc:meta])* message $message:ident,
+            table $table:ident,
+            $(#[$fdoc:meta])* snapshot $snapshot:ident,
         }
-    }
-}
+        scalars { $($(#[$sdoc:meta])* $scalar:ident: $stype:ty as $sproto:ident = $stag:literal,)* }
+        joints { $($(#[$jdoc:meta])* $joint:ident = $jtag:literal,)* }
+        optional { $($(#[$odoc:meta])* $optional:ident: $width:tt = $otag:literal,)* }
+        codes { $($(#[$cdoc:meta])* $code:ident: $ctype:ty = $ctag:literal,)* }
+    ) => {
+        $(#[$fdoc])*
+        #[derive(Clone, Copy, Debug, PartialEq)]
+        pub struct $snapshot<const MAX: usize> {
+            /// The joints in use: the first `dof` entries of each joint vector.
+            pub dof: usize,
+            $($(#[$sdoc])* pub $scalar: $stype,)*
+            $($(#[$jdoc])* pub $joint: [f64; MAX],)*
+            $($(#[$odoc])* pub $optional: Option<[f64; MAX]>,)*
+            $($(#[$cdoc])* pub $code: $ctype,)*
+        }
 
-/// The `/arash/truth` messages as columns (simulated logs only).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct TruthColumns {
-    pub cycle: Vec<u64>,
-    pub t: Vec<f64>,
-    pub q: Vec<f64>,
-    pub qd: Vec<f64>,
-    pub qdd: Vec<f64>,
-    pub tau_motor: Vec<f64>,
-    pub motor_q: Vec<f64>,
-    pub motor_qd: Vec<f64>,
-    /// `N × 3`, row-major.
-    pub hand_force: Vec<f64>,
-    pub tau_hand: Vec<f64>,
-}
+        impl<const MAX: usize> $snapshot<MAX> {
+            /// A copy of `r`, its empty optional vectors `None`. Panics when a vector of `r`
+            /// is longer than `MAX`.
+            pub fn of(r: &$record) -> Self {
+                let fixed = |v: &[f64]| {
+                    let mut a = [0.0; MAX];
+                    a[..v.len()].copy_from_slice(v);
+                    a
+                };
+                Self {
+                    dof: [$(r.$joint.len()),*][0],
+                    $($scalar: r.$scalar,)*
+                    $($joint: fixed(&r.$joint),)*
+                    $($optional: (!r.$optional.is_empty()).then(|| fixed(&r.$optional)),)*
+                    $($code: r.$code,)*
+                }
+            }
 
-impl TruthColumns {
-    /// The joint vectors (`N × dof`, row-major), by field name.
-    pub fn joint_vectors(&self) -> [(&'static str, &Vec<f64>); 7] {
-        [
-            ("q", &self.q),
-            ("qd", &self.qd),
-            ("qdd", &self.qdd),
-            ("tau_motor", &self.tau_motor),
-            ("motor_q", &self.motor_q),
-            ("motor_qd", &self.motor_qd),
-            ("tau_hand", &self.tau_hand),
-        ]
-    }
-
-    /// Append the truth of cycle `cycle`.
-    pub fn push(&mut self, cycle: u64, r: &TruthRecord) {
-        self.cycle.push(cycle);
-        self.t.push(r.t);
-        self.q.extend(&r.q);
-        self.qd.extend(&r.qd);
-        self.qdd.extend(&r.qdd);
-        self.tau_motor.extend(&r.tau_motor);
-        self.motor_q.extend(&r.motor_q);
-        self.motor_qd.extend(&r.motor_qd);
-        self.hand_force.extend(&r.hand_force);
-        self.tau_hand.extend(&r.tau_hand);
-    }
+            /// Fill `r` from this copy, in place once its vectors have room (a record made by
+            /// `new(dof)` has).
+            pub fn write_into(&self, r: &mut $record) {
+                let dof = self.dof;
+                $(r.$scalar = self.$scalar;)*
+                $(r.$joint.clear(); r.$joint.extend_from_slice(&self.$joint[..dof]);)*
+                $(
+                    r.$optional.clear();
+                    if let Some(v) = &self.$optional {
+                        r.$optional.extend_from_slice(&v[..width!(dof, $width)]);
+                    }
+                )*
+                $(r.$code = self.$code;)*
+            }
+        }
+    };
 }
+cycle_fields!(snapshot);

@@ -77,8 +77,8 @@ fn true_model(model: &Model, base: &BaseParameters, seed: u64) -> ModelFile {
     .unwrap();
     let scenario = Scenario { seed, ..Scenario::default() };
     let truth = arash_core::sim::true_parameters(model, &scenario);
-    base.project(&truth, &mut id.beta);
-    id.params = Some(truth);
+    base.project(&truth, &mut id.fitted.beta);
+    id.fitted.params = Some(truth);
     id
 }
 
@@ -271,10 +271,10 @@ fn a_model_heavier_than_the_rig_is_not_a_negative_payload() {
     let carriage = model.bodies.iter().position(|b| b.name == "insertion_carriage").unwrap();
     let against = |extra_kg: f64| {
         let mut given = truth.clone();
-        let params = given.params.as_mut().unwrap();
+        let params = given.fitted.params.as_mut().unwrap();
         arash_core::sim::truth::add_payload(params, carriage, extra_kg, &[0.0, 0.0, 0.01]);
         let params = params.clone();
-        base.project(&params, &mut given.beta);
+        base.project(&params, &mut given.fitted.beta);
         let options = DiagnoseOptions { transmission: Some(transmission()), ..DiagnoseOptions::default() };
         let log = Log { t: &run.t, q: &run.q, tau: &run.tau };
         diagnose(Declared { model: &model, base: &base, urdf: ARASH_ASIST_URDF }, log, None, Some(&given), &options)
@@ -449,10 +449,10 @@ fn against_a_given_model_only_its_friction_is_refitted() {
     let mut moved = 0;
     for (i, &j) in base.independent.iter().enumerate() {
         if friction.contains(&j) {
-            moved += usize::from(updated.beta[i] != given.beta[i]);
-            assert_eq!(updated.params.as_ref().unwrap()[j], updated.beta[i], "{}", base.names[i]);
+            moved += usize::from(updated.fitted.beta[i] != given.fitted.beta[i]);
+            assert_eq!(updated.fitted.params.as_ref().unwrap()[j], updated.fitted.beta[i], "{}", base.names[i]);
         } else {
-            assert_eq!(updated.beta[i], given.beta[i], "{} is held", base.names[i]);
+            assert_eq!(updated.fitted.beta[i], given.fitted.beta[i], "{} is held", base.names[i]);
         }
     }
     assert!(moved > 0, "no friction coefficient was refitted");
@@ -560,7 +560,7 @@ fn the_consistent_refit_with_the_effects_found_is_physical_and_tracks_the_wiring
     let refit =
         arash_core::diagnose::consistent_with_effects(&model, &base, log, &d.model, &refit_options, &consistent)
             .unwrap();
-    let params = refit.params.clone().expect("the full parameters");
+    let params = refit.fitted.params.clone().expect("the full parameters");
     for b in 0..model.bodies.len() {
         let p = &params[10 * b..10 * b + 10];
         let (m, h) = (p[0], nalgebra::Vector3::new(p[1], p[2], p[3]));
@@ -577,7 +577,7 @@ fn the_consistent_refit_with_the_effects_found_is_physical_and_tracks_the_wiring
     let wiring = refit.effects.iter().find(|t| t.joint == Some(1)).expect("the wiring term");
     eprintln!("wiring term: consistent {:?}, least squares {:?}", wiring.coefficients, d.accepted[0].term.coefficients);
 
-    let without = tracking_error(&model, scenario, 3, plain.params.as_ref().unwrap(), &[]);
+    let without = tracking_error(&model, scenario, 3, plain.fitted.params.as_ref().unwrap(), &[]);
     let with = tracking_error(&model, scenario, 3, &params, &refit.effects);
     eprintln!("RMS tracking error without the effects {without:?}, with {with:?}");
     assert!(with[1] < 0.25 * without[1], "pitch: {} with the wiring term, {} without", with[1], without[1]);

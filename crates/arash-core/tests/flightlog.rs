@@ -31,9 +31,9 @@ fn write(spec: &RunSpec, path: &std::path::Path) -> (Columns, TruthColumns) {
     for _ in 0..spec.cycles() {
         rig.step().unwrap();
         log.write_cycle(rig.record()).unwrap();
-        log.write_truth(rig.record().cycle, rig.truth()).unwrap();
+        log.write_truth(rig.truth()).unwrap();
         cycles.push(rig.record());
-        truth.push(rig.record().cycle, rig.truth());
+        truth.push(rig.truth());
     }
     log.finish().unwrap();
     (cycles, truth)

@@ -406,7 +406,7 @@ fn a_model_file_is_judged_by_its_parameters_not_by_what_it_claims() {
         )
         .unwrap();
         let recomputed = id.recomputed_pseudo_inertia_eigenvalues(&model).unwrap();
-        for (a, b) in recomputed.iter().zip(&id.min_pseudo_inertia_eigenvalue) {
+        for (a, b) in recomputed.iter().zip(&id.fitted.min_pseudo_inertia_eigenvalue) {
             assert!((a - b).abs() <= 1e-9 * b.abs().max(1.0), "{method:?}: {a} recomputed, {b} written");
         }
         let file: serde_json::Value = serde_json::from_str(&id.to_json()).unwrap();
@@ -498,7 +498,9 @@ fn a_closed_loop_log_does_not_lead_the_cutoff_into_the_encoders_noise() {
     let reasons = file.settings.reasons.iter().map(|r| r.to_string()).collect::<Vec<_>>().join("\n");
     // Predict the noise-free torque on the true states of one period.
     let (mut error, mut power) = ([0.0f64; 3], [0.0f64; 3]);
-    for (predicted, exact) in predicted_and_true(&model, &file.with_its_law(&model), &base, &pi, &file.beta, states) {
+    for (predicted, exact) in
+        predicted_and_true(&model, &file.with_its_law(&model), &base, &pi, &file.fitted.beta, states)
+    {
         for k in 0..3 {
             error[k] += (predicted[k] - exact[k]).powi(2);
             power[k] += exact[k].powi(2);
@@ -684,7 +686,7 @@ fn closed_loop_coverage(method: arash_core::model_file::IdentifyMethod) {
         assert!(!iv.settings.warnings.iter().any(unsettled), "{:?}", iv.settings.warnings);
         let simulated = |r: &Choice| matches!(r, Choice::ClosedLoop { estimator, .. } if estimator == name);
         assert!(iv.settings.reasons.iter().any(simulated), "{:?}", iv.settings.reasons);
-        for ((beta, sigma_percent), truth) in iv.beta.iter().zip(&iv.sigma_percent).zip(&beta_true) {
+        for ((beta, sigma_percent), truth) in iv.fitted.beta.iter().zip(&iv.fitted.sigma_percent).zip(&beta_true) {
             covered += usize::from((beta - truth).abs() <= 3.0 * sigma_percent / 100.0 * beta.abs());
             total += 1;
         }

@@ -75,7 +75,7 @@ fn run(scenario: &Scenario, seconds: f64) -> Run {
     for _ in 0..(seconds * 1000.0) as usize {
         rig.step().unwrap();
         cycles.push(rig.record());
-        truth.push(rig.record().cycle, rig.truth());
+        truth.push(rig.truth());
     }
     let truth_model = rig.plant().model().clone();
     Run { model, truth_model, params, cycles, truth }

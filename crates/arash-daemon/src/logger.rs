@@ -292,10 +292,10 @@ impl Logger {
     fn cycle(&mut self, s: &CycleSample) -> anyhow::Result<()> {
         self.link_now = s.link;
         let r = &mut self.record;
-        s.write_into(r);
+        s.record.write_into(r);
         let segment = self.segment.as_mut().expect("a segment is open");
-        let t0 = *segment.t0.get_or_insert(s.t);
-        r.t = s.t - t0;
+        let t0 = *segment.t0.get_or_insert(s.record.t);
+        r.t = s.record.t - t0;
         segment.last_t = r.t;
         let log_time = segment.writer.log_time(r.t);
         let cycle = segment.writer.write_cycle(r)?;
@@ -317,13 +317,13 @@ impl Logger {
         }
         self.blackbox.push_back(*s);
         if let Some(faults) = self.blackbox_pending.take() {
-            self.write_blackbox(s.cycle, faults)?;
+            self.write_blackbox(s.record.cycle, faults)?;
         }
         self.rotate_if_due()
     }
 
     fn timing(&mut self, s: &CycleSample) -> anyhow::Result<()> {
-        if s.cycle > 0 {
+        if s.record.cycle > 0 {
             let error_us = (s.period_ns as f64 - self.nominal_ns) / 1e3;
             let exec_us = s.exec_ns as f64 / 1e3;
             let h = &mut self.histograms;
@@ -335,14 +335,14 @@ impl Logger {
             self.exec_us.add(exec_us);
         }
         let per_second = self.ctx.rate_hz.round().max(1.0) as u64;
-        if s.cycle % per_second != per_second - 1 {
+        if s.record.cycle % per_second != per_second - 1 {
             return Ok(());
         }
         let h = std::mem::take(&mut self.histograms);
         let dropped = self.shared.log_dropped.load(Ordering::Relaxed);
         let link = s.link;
         let json = serde_json::json!({
-            "cycle": s.cycle,
+            "cycle": s.record.cycle,
             "bin_upper_edges_us": EDGES_US,
             "period_error_us": h.period_error,
             "exec_us": h.exec,
@@ -354,7 +354,7 @@ impl Logger {
         })
         .to_string();
         let segment = self.segment.as_mut().expect("a segment is open");
-        let t = s.t - segment.t0.unwrap_or(s.t);
+        let t = s.record.t - segment.t0.unwrap_or(s.record.t);
         segment.writer.write_json(TIMING_TOPIC, t, &json)?;
         if let Some(live) = &self.live {
             live.publish(Topic::Timing, segment.writer.log_time(t.max(0.0)), json.as_bytes());
@@ -375,7 +375,7 @@ impl Logger {
                 bus.malformed - was.malformed,
                 dropped - self.last_dropped,
             );
-            self.write_event(s.cycle, s.t, &text)?;
+            self.write_event(s.record.cycle, s.record.t, &text)?;
         }
         self.last_link = link;
         self.last_dropped = dropped;
@@ -388,10 +388,10 @@ impl Logger {
         header.metadata.insert("faults".into(), faults.names().join(", "));
         let mut writer = LogWriter::create(&path, &header, self.ctx.rate_hz)?;
         let mut record = CycleRecord::new(self.ctx.joint_names.len());
-        let t0 = self.blackbox.front().map_or(0.0, |s| s.t);
+        let t0 = self.blackbox.front().map_or(0.0, |s| s.record.t);
         for s in &self.blackbox {
-            s.write_into(&mut record);
-            record.t = s.t - t0;
+            s.record.write_into(&mut record);
+            record.t = s.record.t - t0;
             writer.write_cycle(&record)?;
         }
         writer.finish()?;

@@ -85,8 +85,8 @@ fn base_only_model_file(dir: &Path) -> PathBuf {
     let declared = Declared { model: &model, base: &base, urdf: ARASH_ASIST_URDF };
     let log = Log { t: &t, q: &q, tau: &tau };
     let mut file = identify(declared, log, IdentifyMethod::Ols, &IdentifyOptions::default()).unwrap();
-    base.project(&model.cad_parameters(), &mut file.beta);
-    file.params = None;
+    base.project(&model.cad_parameters(), &mut file.fitted.beta);
+    file.fitted.params = None;
     let path = dir.join("base_only.json");
     file.save(&path).unwrap();
     path

@@ -86,37 +86,37 @@ impl Identification {
     }
     #[getter]
     fn beta<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
-        vector_out(py, &self.inner.beta)
+        vector_out(py, &self.inner.fitted.beta)
     }
     #[getter]
     fn sigma_percent<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
-        vector_out(py, &self.inner.sigma_percent)
+        vector_out(py, &self.inner.fitted.sigma_percent)
     }
     /// FP% per joint on the training data.
     #[getter]
     fn fp_percent<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
-        vector_out(py, &self.inner.training.fp_percent)
+        vector_out(py, &self.inner.fitted.training.fp_percent)
     }
     /// FP% per joint of plain OLS on the same data.
     #[getter]
     fn fp_percent_ols<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
-        vector_out(py, &self.inner.training_ols.fp_percent)
+        vector_out(py, &self.inner.fitted.training_ols.fp_percent)
     }
     #[getter]
     fn relative_error<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
-        vector_out(py, &self.inner.training.relative_error)
+        vector_out(py, &self.inner.fitted.training.relative_error)
     }
     #[getter]
     fn rms<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
-        vector_out(py, &self.inner.training.rms)
+        vector_out(py, &self.inner.fitted.training.rms)
     }
     #[getter]
     fn params<'py>(&self, py: Python<'py>) -> PyResult<Option<NumpyArray<'py>>> {
-        self.inner.params.as_ref().map(|p| vector_out(py, p)).transpose()
+        self.inner.fitted.params.as_ref().map(|p| vector_out(py, p)).transpose()
     }
     #[getter]
     fn min_pseudo_inertia_eigenvalue<'py>(&self, py: Python<'py>) -> PyResult<NumpyArray<'py>> {
-        vector_out(py, &self.inner.min_pseudo_inertia_eigenvalue)
+        vector_out(py, &self.inner.fitted.min_pseudo_inertia_eigenvalue)
     }
     #[getter]
     fn cutoff_hz(&self) -> f64 {
@@ -142,7 +142,7 @@ impl Identification {
     }
     #[getter]
     fn condition_number(&self) -> f64 {
-        self.inner.condition_number
+        self.inner.fitted.condition_number
     }
     /// The drive gains of a model identified from currents with a known load: "gains" and
     /// "sigma" (per joint, N·m/A or N/A), "covariance" (joints × joints, None in a file written
@@ -183,12 +183,12 @@ impl Identification {
         let m = &self.inner;
         let Some(causes) = m.causes() else { return Ok(None) };
         let d = PyDict::new(py);
-        let apart: Vec<f64> = m.determination.iter().map(|x| x.apart).collect();
-        let column: Vec<f64> = m.determination.iter().map(|x| x.column_over_torque).collect();
+        let apart: Vec<f64> = m.fitted.determination.iter().map(|x| x.apart).collect();
+        let column: Vec<f64> = m.fitted.determination.iter().map(|x| x.column_over_torque).collect();
         d.set_item("apart", vector_out(py, &apart)?)?;
-        d.set_item("leans_on", m.determination.iter().map(|x| x.leans_on).collect::<Vec<_>>())?;
+        d.set_item("leans_on", m.fitted.determination.iter().map(|x| x.leans_on).collect::<Vec<_>>())?;
         d.set_item("column_over_torque", vector_out(py, &column)?)?;
-        let share: Vec<f64> = m.determination.iter().map(|x| x.torque_share).collect();
+        let share: Vec<f64> = m.fitted.determination.iter().map(|x| x.torque_share).collect();
         d.set_item("torque_share", vector_out(py, &share)?)?;
         d.set_item("cause", causes)?;
         Ok(Some(d))
@@ -359,8 +359,8 @@ impl Identification {
         format!(
             "Identification(method='{}', p={}, fp_percent={:?})",
             self.method(),
-            self.inner.beta.len(),
-            self.inner.training.fp_percent.iter().map(|v| (v * 100.0).round() / 100.0).collect::<Vec<_>>()
+            self.inner.fitted.beta.len(),
+            self.inner.fitted.training.fp_percent.iter().map(|v| (v * 100.0).round() / 100.0).collect::<Vec<_>>()
         )
     }
 }

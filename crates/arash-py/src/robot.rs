@@ -72,6 +72,27 @@ impl Robot {
         self.model.warnings.iter().map(ToString::to_string).collect()
     }
 
+    /// The same as data, one dict each: its `code`, its figures and its `text`.
+    #[getter]
+    fn concerns<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, pyo3::types::PyDict>>> {
+        self.model
+            .warnings
+            .iter()
+            .map(|warning| {
+                let d = pyo3::types::PyDict::new(py);
+                match warning {
+                    core::ModelWarning::SemidefiniteInertia { link, eigenvalues } => {
+                        d.set_item("code", "semidefinite_inertia")?;
+                        d.set_item("link", link)?;
+                        d.set_item("eigenvalues", eigenvalues.to_vec())?;
+                    }
+                }
+                d.set_item("text", warning.to_string())?;
+                Ok(d)
+            })
+            .collect()
+    }
+
     /// The bundled ARASH:ASiST reconstruction.
     #[staticmethod]
     #[pyo3(signature = (coulomb_epsilon=None, friction_velocities=None))]

@@ -58,7 +58,9 @@ fn truth_dict<'py>(py: Python<'py>, c: &TruthColumns, dof: usize) -> PyResult<Bo
     for (name, values) in c.joint_vectors() {
         d.set_item(name, matrix(py, values, dof)?)?;
     }
-    d.set_item("hand_force", matrix(py, &c.hand_force, 3)?)?;
+    for (name, values, width) in c.optional_vectors(dof) {
+        d.set_item(name, matrix(py, values, width)?)?;
+    }
     Ok(d)
 }
 
@@ -219,11 +221,11 @@ fn _simulate<'py>(
             for i in 0..spec.cycles() {
                 rig.step().map_err(|e| format!("cycle {i}: {e}"))?;
                 columns.push(rig.record());
-                truth.push(rig.record().cycle, rig.truth());
+                truth.push(rig.truth());
                 if let Some(w) = writer.as_mut() {
                     w.write_cycle(rig.record()).map_err(|e| e.to_string())?;
                     if log_truth {
-                        w.write_truth(rig.record().cycle, rig.truth()).map_err(|e| e.to_string())?;
+                        w.write_truth(rig.truth()).map_err(|e| e.to_string())?;
                     }
                 }
             }

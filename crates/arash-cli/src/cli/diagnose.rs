@@ -234,8 +234,8 @@ pub fn write_consistent(
 
 /// One paragraph on the consistent refit: its fit and its effects' coefficients.
 pub fn consistent_summary(refit: &ModelFile, joint_names: &[String]) -> String {
-    let fp: Vec<String> = refit.training.fp_percent.iter().map(|f| format!("{f:.2}")).collect();
-    let worst = refit.min_pseudo_inertia_eigenvalue.iter().copied().fold(f64::INFINITY, f64::min);
+    let fp: Vec<String> = refit.fitted.training.fp_percent.iter().map(|f| format!("{f:.2}")).collect();
+    let worst = refit.fitted.min_pseudo_inertia_eigenvalue.iter().copied().fold(f64::INFINITY, f64::min);
     let mut s = format!(
         "The physically consistent model fitted with the effects found: training FP% {}, smallest pseudo-inertia eigenvalue {worst:.3e}",
         fp.join(" / ")

@@ -134,7 +134,7 @@ fn simulate_into(model: &Model, urdf: &str, spec: &RunSpec, output: &Path, with_
         rig.step().with_context(|| format!("cycle {i}"))?;
         log.write_cycle(rig.record())?;
         if with_truth {
-            log.write_truth(rig.record().cycle, rig.truth())?;
+            log.write_truth(rig.truth())?;
         }
         worst_faults |= rig.record().faults;
         if i % 1000 == 999 {

@@ -47,8 +47,9 @@ impl AgainstTruth {
         let estimators = [("OLS", &calibration.ols), ("IDIM-IV", &calibration.closed_loop)]
             .into_iter()
             .map(|(name, m)| {
-                let sigma = m.beta.iter().zip(&m.sigma_percent).map(|(b, p)| p / 100.0 * b.abs()).collect();
-                (name, m.beta.clone(), sigma)
+                let sigma =
+                    m.fitted.beta.iter().zip(&m.fitted.sigma_percent).map(|(b, p)| p / 100.0 * b.abs()).collect();
+                (name, m.fitted.beta.clone(), sigma)
             })
             .collect();
         Some(Self { names: calibration.ols.base_names.clone(), truth, estimators })
@@ -334,7 +335,14 @@ impl RealRobot {
             s,
             "Identification (OLS): cut-off {:.2} Hz, training FP% {}.\n",
             self.identification.settings.cutoff_hz,
-            self.identification.training.fp_percent.iter().map(|f| format!("{f:.1}")).collect::<Vec<_>>().join(" / ")
+            self.identification
+                .fitted
+                .training
+                .fp_percent
+                .iter()
+                .map(|f| format!("{f:.1}"))
+                .collect::<Vec<_>>()
+                .join(" / ")
         );
         let _ = writeln!(s, "Held-out error per joint before and after the effects found:\n");
         let _ = writeln!(s, "| joint | RMS before | RMS after | FP% before | FP% after |\n|---|---|---|---|---|");
@@ -370,7 +378,7 @@ impl RealRobot {
             "robot": self.name,
             "samples": self.samples,
             "identification_cutoff_hz": self.identification.settings.cutoff_hz,
-            "identification_fp_percent": self.identification.training.fp_percent,
+            "identification_fp_percent": self.identification.fitted.training.fp_percent,
             "accepted": accepted(&self.diagnosis),
             "error_before": self.diagnosis.before,
             "error_after": self.diagnosis.after,
@@ -588,9 +596,9 @@ fn summary(model: &Model, calibration: &Calibration, diagnosis: &Diagnosis, trac
         "format": "arash-demo-summary/1",
         "joint_names": model.joint_names(),
         "training_fp_percent": {
-            "ols": calibration.ols.training.fp_percent,
-            "idim_iv": calibration.closed_loop.training.fp_percent,
-            "consistent": calibration.consistent.training.fp_percent,
+            "ols": calibration.ols.fitted.training.fp_percent,
+            "idim_iv": calibration.closed_loop.fitted.training.fp_percent,
+            "consistent": calibration.consistent.fitted.training.fp_percent,
         },
         "table_i_causes": {
             "idim_iv": calibration.closed_loop.cause_counts(),

@@ -149,7 +149,7 @@ pub(super) fn not_the_cable(
     const CABLE_SHARE: f64 = 0.5;
     let (EffectKind::Compliance, Some(k)) = (term.kind, term.joint) else { return None };
     let j = base.independent.iter().position(|&p| p == model.layout().coulomb(k))?;
-    let coulomb = if free[j] { coef[free[..j].iter().filter(|f| **f).count()] } else { given?.beta[j] };
+    let coulomb = if free[j] { coef[free[..j].iter().filter(|f| **f).count()] } else { given?.fitted.beta[j] };
     let p_value = test.p_value;
     if coulomb <= 0.0 {
         return Some(RejectionReason::NoFrictionForACable { p_value, coulomb });

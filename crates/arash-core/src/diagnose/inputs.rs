@@ -170,7 +170,7 @@ impl<'a> Context<'a> {
         let dof = data.dof;
         let mut pred = vec![0.0; data.samples() * dof];
         if let (Some(g), false) = (self.given, self.refit) {
-            for ((c, b), _) in data.declared.iter().zip(&g.beta).zip(&self.free).filter(|(_, f)| !**f) {
+            for ((c, b), _) in data.declared.iter().zip(&g.fitted.beta).zip(&self.free).filter(|(_, f)| !**f) {
                 regression::axpy(&mut pred, *b, c, dof);
             }
             let (gains, others): (Vec<_>, Vec<_>) = g.effects.iter().partition(|t| t.kind == EffectKind::DriveGain);

@@ -49,7 +49,7 @@ pub fn consistent_with_effects(
         prepare(model, base, train.into(), options, band, options.max_delay_s).map_err(DiagnoseError::Training)?;
     // What a drive gain scales: the found model's declared torque.
     let mut predicted = vec![0.0; data.samples() * dof];
-    for (column, b) in data.declared.iter().zip(&found.beta) {
+    for (column, b) in data.declared.iter().zip(&found.fitted.beta) {
         super::regression::axpy(&mut predicted, *b, column, dof);
     }
     data.predicted = predicted;
@@ -88,10 +88,10 @@ pub fn consistent_with_effects(
     let mut beta = vec![0.0; base.rank];
     base.project(&params, &mut beta);
     let mut model_out = found.clone();
-    model_out.beta = beta;
-    model_out.params = Some(params);
-    model_out.min_pseudo_inertia_eigenvalue = fit.min_pseudo_inertia_eigenvalue;
-    model_out.training = joint_metrics(&tau, &predicted, dof).into();
+    model_out.fitted.beta = beta;
+    model_out.fitted.params = Some(params);
+    model_out.fitted.min_pseudo_inertia_eigenvalue = fit.min_pseudo_inertia_eigenvalue;
+    model_out.fitted.training = joint_metrics(&tau, &predicted, dof).into();
     model_out.settings.method = IdentifyMethod::Consistent;
     model_out.settings.pull = consistent.pull;
     if delay != 0 {

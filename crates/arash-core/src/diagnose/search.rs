@@ -469,16 +469,16 @@ impl Search<'_> {
         };
         if ctx.refit {
             // A refitted model keeps the OLS of `declared_model`, made with the effects taken out.
-            updated.params = None;
+            updated.fitted.params = None;
         } else {
             // Against a given model its freed (friction) coefficients take the joint fit's values,
             // which come first in `x_after`, in the order of the base parameters.
             let mut fitted = x_after.iter();
-            let freed = updated.beta.iter_mut().zip(&ctx.base.independent).zip(&ctx.free).filter(|(_, f)| **f);
+            let freed = updated.fitted.beta.iter_mut().zip(&ctx.base.independent).zip(&ctx.free).filter(|(_, f)| **f);
             for ((b, j), _) in freed {
                 *b = *fitted.next().expect("one coefficient per free column");
                 // A refitted friction coefficient is a standard parameter of its own.
-                if let Some(params) = updated.params.as_mut() {
+                if let Some(params) = updated.fitted.params.as_mut() {
                     params[*j] = *b;
                 }
             }

@@ -128,13 +128,14 @@ fn read_messages(bytes: &[u8], name: &str, log: &mut FlightLog) -> Result<(), Lo
             index,
             source,
         };
+        let not_a_record = |topic: &str, index: usize, problem| LogError::NotFlightLog {
+            path: name.into(),
+            problem: format!("message {index} on {topic}: {problem}"),
+        };
         if Some(id) == cycle_channel {
             cycle.clear();
             cycle.merge(&*message.data).map_err(|e| decode_error(CYCLE_TOPIC, log.cycles.t.len(), e))?;
-            cycle.to_record(&mut record).map_err(|problem| LogError::NotFlightLog {
-                path: name.into(),
-                problem: format!("message {} on {CYCLE_TOPIC}: {problem}", log.cycles.t.len()),
-            })?;
+            cycle.to_record(&mut record).map_err(|p| not_a_record(CYCLE_TOPIC, log.cycles.t.len(), p))?;
             log.cycles.push(&record);
         } else if let Some(channel) = stream.get_channel(id).filter(|c| c.message_encoding == "json") {
             let start = log.metadata.get("start_unix_ns").and_then(|s| s.parse::<u64>().ok()).unwrap_or(0);
@@ -145,31 +146,14 @@ fn read_messages(bytes: &[u8], name: &str, log: &mut FlightLog) -> Result<(), Lo
         } else if Some(id) == truth_channel {
             truth_msg.clear();
             truth_msg.merge(&*message.data).map_err(|e| decode_error(TRUTH_TOPIC, truth.t.len(), e))?;
-            truth_record_from(&truth_msg, &mut truth_record);
-            truth.push(truth_msg.cycle, &truth_record);
+            truth_msg.to_record(&mut truth_record).map_err(|p| not_a_record(TRUTH_TOPIC, truth.t.len(), p))?;
+            truth.push(&truth_record);
         }
     }
     if truth_channel.is_some() {
         log.truth = Some(truth);
     }
     Ok(())
-}
-
-fn truth_record_from(m: &Truth, r: &mut TruthRecord) {
-    r.t = m.t;
-    for (dst, src) in [
-        (&mut r.q, &m.q),
-        (&mut r.qd, &m.qd),
-        (&mut r.qdd, &m.qdd),
-        (&mut r.tau_motor, &m.tau_motor),
-        (&mut r.motor_q, &m.motor_q),
-        (&mut r.motor_qd, &m.motor_qd),
-        (&mut r.hand_force, &m.hand_force),
-        (&mut r.tau_hand, &m.tau_hand),
-    ] {
-        dst.clear();
-        dst.extend_from_slice(src);
-    }
 }
 
 /// Every joint vector must have dof entries per cycle, and each optional vector its width in

@@ -8,29 +8,36 @@
 use prost_types::field_descriptor_proto::{Label, Type};
 use prost_types::{DescriptorProto, FieldDescriptorProto, FileDescriptorProto, FileDescriptorSet};
 
-use crate::record::{cycle_fields, Code, CycleRecord};
+use crate::record::{cycle_fields, truth_fields, Code, CycleRecord, TruthRecord};
 
-/// The `/arash/cycle` message from the list of the record's fields (`record::cycle_fields`):
-/// its struct, the copies to and from a [`CycleRecord`], and its descriptor's table.
-macro_rules! cycle_message {
+/// A message from a list of a record's fields (`record::cycle_fields`, `record::truth_fields`):
+/// its struct, the copies to and from the record, and its descriptor's table.
+macro_rules! message {
     (
+        names {
+            $(#[$rdoc:meta])* record $record:ident,
+            $(#[$cldoc:meta])* columns $columns:ident,
+            $(#[$mdoc:meta])* message $message:ident,
+            table $table:ident,
+            $($(#[$fdoc:meta])* snapshot $snapshot:ident,)?
+        }
         scalars { $($(#[$sdoc:meta])* $scalar:ident: $stype:ty as $sproto:ident = $stag:literal,)* }
         joints { $($(#[$jdoc:meta])* $joint:ident = $jtag:literal,)* }
         optional { $($(#[$odoc:meta])* $optional:ident: $width:tt = $otag:literal,)* }
         codes { $($(#[$cdoc:meta])* $code:ident: $ctype:ty = $ctag:literal,)* }
     ) => {
-        /// One control cycle on topic `/arash/cycle`.
+        $(#[$mdoc])*
         #[derive(Clone, PartialEq, prost::Message)]
-        pub struct Cycle {
+        pub struct $message {
             $($(#[$sdoc])* #[prost($sproto, tag = $stag)] pub $scalar: $stype,)*
             $($(#[$jdoc])* #[prost(double, repeated, tag = $jtag)] pub $joint: Vec<f64>,)*
             $($(#[$odoc])* #[prost(double, repeated, tag = $otag)] pub $optional: Vec<f64>,)*
             $($(#[$cdoc])* #[prost(uint32, tag = $ctag)] pub $code: u32,)*
         }
 
-        impl Cycle {
+        impl $message {
             /// Copy `r` into this message, reusing its vectors.
-            pub fn fill(&mut self, r: &CycleRecord) {
+            pub fn fill(&mut self, r: &$record) {
                 $(self.$scalar = r.$scalar;)*
                 $(self.$joint.clear(); self.$joint.extend_from_slice(&r.$joint);)*
                 $(self.$optional.clear(); self.$optional.extend_from_slice(&r.$optional);)*
@@ -39,7 +46,7 @@ macro_rules! cycle_message {
 
             /// Copy this message into `r`, reusing its vectors; an error names a typed field whose
             /// code no version wrote.
-            pub fn to_record(&self, r: &mut CycleRecord) -> Result<(), String> {
+            pub fn to_record(&self, r: &mut $record) -> Result<(), String> {
                 $(r.$scalar = self.$scalar;)*
                 $(r.$joint.clear(); r.$joint.extend_from_slice(&self.$joint);)*
                 $(r.$optional.clear(); r.$optional.extend_from_slice(&self.$optional);)*
@@ -49,8 +56,8 @@ macro_rules! cycle_message {
             }
         }
 
-        /// (name, tag, type, repeated) of each field of [`Cycle`], for its descriptor.
-        const CYCLE_FIELDS: &[(&str, i32, Type, bool)] = &[
+        /// (name, tag, type, repeated) of each field of the message, for its descriptor.
+        const $table: &[(&str, i32, Type, bool)] = &[
             $((stringify!($scalar), tag($stag), proto_type!($sproto), false),)*
             $((stringify!($joint), tag($jtag), Type::Double, true),)*
             $((stringify!($optional), tag($otag), Type::Double, true),)*
@@ -80,7 +87,8 @@ const fn tag(text: &str) -> i32 {
     n
 }
 
-cycle_fields!(cycle_message);
+cycle_fields!(message);
+truth_fields!(message);
 
 /// The tracking error `q_des − q` over one display window of the daemon, on topic
 /// `/arash/error`: the last cycle's error and the extremes over the window, so that a spike
@@ -106,47 +114,9 @@ pub struct TrackingError {
     pub cycles: u32,
 }
 
-/// The simulator's ground truth on topic `/arash/truth`.
-#[derive(Clone, PartialEq, prost::Message)]
-pub struct Truth {
-    #[prost(uint64, tag = "1")]
-    pub cycle: u64,
-    #[prost(double, tag = "2")]
-    pub t: f64,
-    #[prost(double, repeated, tag = "3")]
-    pub q: Vec<f64>,
-    #[prost(double, repeated, tag = "4")]
-    pub qd: Vec<f64>,
-    #[prost(double, repeated, tag = "5")]
-    pub qdd: Vec<f64>,
-    #[prost(double, repeated, tag = "6")]
-    pub tau_motor: Vec<f64>,
-    #[prost(double, repeated, tag = "7")]
-    pub motor_q: Vec<f64>,
-    #[prost(double, repeated, tag = "8")]
-    pub motor_qd: Vec<f64>,
-    #[prost(double, repeated, tag = "9")]
-    pub hand_force: Vec<f64>,
-    #[prost(double, repeated, tag = "10")]
-    pub tau_hand: Vec<f64>,
-}
-
-/// (name, tag, type, repeated) of each field of the structs above. Files carry the descriptor
-/// built from these tables; the Python tests decode them with it and compare against the Rust
-/// reader (which uses the structs), so a mismatch between the two fails there.
-const TRUTH_FIELDS: &[(&str, i32, Type, bool)] = &[
-    ("cycle", 1, Type::Uint64, false),
-    ("t", 2, Type::Double, false),
-    ("q", 3, Type::Double, true),
-    ("qd", 4, Type::Double, true),
-    ("qdd", 5, Type::Double, true),
-    ("tau_motor", 6, Type::Double, true),
-    ("motor_q", 7, Type::Double, true),
-    ("motor_qd", 8, Type::Double, true),
-    ("hand_force", 9, Type::Double, true),
-    ("tau_hand", 10, Type::Double, true),
-];
-
+/// (name, tag, type, repeated) of each field of the tracking error's message. Files carry the
+/// descriptors built from these tables; the Python tests decode them with it and compare against
+/// the Rust reader (which uses the structs), so a mismatch between the two fails there.
 const ERROR_FIELDS: &[(&str, i32, Type, bool)] = &[
     ("cycle", 1, Type::Uint64, false),
     ("t", 2, Type::Double, false),
@@ -235,6 +205,50 @@ mod tests {
         let mut back = CycleRecord::new(0);
         decoded.to_record(&mut back).unwrap();
         assert_eq!(back, record);
+    }
+
+    /// The fixed-size copy the daemon queues keeps every field, with and without the optional
+    /// vectors, and fills a record without growing it.
+    #[test]
+    fn a_record_goes_through_its_snapshot_unchanged() {
+        let mut record = full_record();
+        let mut back = CycleRecord::new(3);
+        let capacity = back.tau_ext.capacity();
+        crate::record::CycleSnapshot::<8>::of(&record).write_into(&mut back);
+        assert_eq!(back, record);
+        assert_eq!(back.tau_ext.capacity(), capacity);
+        (record.tau_ext, record.frame_force) = (vec![], vec![]);
+        let snapshot = crate::record::CycleSnapshot::<8>::of(&record);
+        assert!(snapshot.tau_ext.is_none() && snapshot.frame_force.is_none());
+        snapshot.write_into(&mut back);
+        assert_eq!(back, record);
+    }
+
+    /// The truth's message is written from its list as the cycle's is: every field survives.
+    #[test]
+    fn a_truth_goes_through_its_message_unchanged() {
+        let mut truth = TruthRecord::new(2);
+        let fields = [
+            &mut truth.q,
+            &mut truth.qd,
+            &mut truth.qdd,
+            &mut truth.tau_motor,
+            &mut truth.motor_q,
+            &mut truth.motor_qd,
+            &mut truth.tau_hand,
+        ];
+        for (k, v) in fields.into_iter().enumerate() {
+            *v = vec![k as f64 + 0.5, -(k as f64)];
+        }
+        (truth.cycle, truth.t, truth.hand_force) = (7, 0.007, vec![1.0, -2.0, 3.0]);
+        let mut message = Truth::default();
+        message.fill(&truth);
+        let decoded = Truth::decode(&*message.encode_to_vec()).unwrap();
+        let mut back = TruthRecord::new(0);
+        decoded.to_record(&mut back).unwrap();
+        assert_eq!(back, truth);
+        let numbers: std::collections::BTreeSet<i32> = TRUTH_FIELDS.iter().map(|f| f.1).collect();
+        assert_eq!(numbers, (1..=10).collect(), "the truth's field numbers");
     }
 
     /// The descriptor names each field of the message once, with the number prost encodes it

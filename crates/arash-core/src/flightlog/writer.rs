@@ -147,29 +147,14 @@ impl LogWriter {
         Ok(&self.buffer)
     }
 
-    /// Append the ground truth of cycle `cycle` (only for logs created `with_truth`).
-    pub fn write_truth(&mut self, cycle: u64, r: &TruthRecord) -> Result<(), LogError> {
+    /// Append the ground truth of a cycle (only for logs created `with_truth`).
+    pub fn write_truth(&mut self, r: &TruthRecord) -> Result<(), LogError> {
         let channel_id = self.truth_channel.expect("the log was created without the truth channel");
-        let m = &mut self.truth;
-        m.cycle = cycle;
-        m.t = r.t;
-        for (dst, src) in [
-            (&mut m.q, &r.q),
-            (&mut m.qd, &r.qd),
-            (&mut m.qdd, &r.qdd),
-            (&mut m.tau_motor, &r.tau_motor),
-            (&mut m.motor_q, &r.motor_q),
-            (&mut m.motor_qd, &r.motor_qd),
-            (&mut m.hand_force, &r.hand_force),
-            (&mut m.tau_hand, &r.tau_hand),
-        ] {
-            dst.clear();
-            dst.extend_from_slice(src);
-        }
+        self.truth.fill(r);
         self.buffer.clear();
         self.truth.encode(&mut self.buffer).expect("a Vec grows as needed");
         let time = self.log_time(r.t);
-        let header = MessageHeader { channel_id, sequence: cycle as u32, log_time: time, publish_time: time };
+        let header = MessageHeader { channel_id, sequence: r.cycle as u32, log_time: time, publish_time: time };
         self.writer.write_to_known_channel(&header, &self.buffer).map_err(|e| self.mcap_error(e))
     }
 

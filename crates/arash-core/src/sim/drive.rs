@@ -114,6 +114,7 @@ impl Drive {
     /// sensors measure it, and the plant integrates with it held. Never allocates.
     pub fn apply(&mut self, dt: f64, tau: &[f64]) -> Result<(), PlantError> {
         let tr = &mut self.truth;
+        tr.cycle = self.cycles;
         tr.t = self.plant.time();
         tr.q.copy_from_slice(self.plant.q());
         tr.qd.copy_from_slice(self.plant.qd());
@@ -125,7 +126,8 @@ impl Drive {
         self.measure_torque();
         self.plant.advance(dt, &self.truth.tau_motor)?;
         self.truth.qdd.copy_from_slice(self.plant.qdd());
-        self.truth.hand_force.copy_from_slice(self.plant.hand_force());
+        self.truth.hand_force.clear();
+        self.truth.hand_force.extend_from_slice(self.plant.hand_force());
         self.truth.tau_hand.copy_from_slice(self.plant.hand_torque());
         self.cycles += 1;
         Ok(())

@@ -9,28 +9,13 @@ use super::clock::{now_ns, sleep_until, Pace, Schedule};
 use super::cycle::{ControlCycle, Event, Garbage, Request};
 use super::reference::Phase;
 use crate::link::{Command, LinkStats, MotorLink, Telemetry, MAX_JOINTS};
-use arash_core::control::{ControllerKind, Faults};
-use arash_core::record::{Code, CycleRecord, Mode};
+use arash_core::record::CycleSnapshot;
 
 /// One cycle as the logger receives it: fixed-size, so queuing it never allocates.
 #[derive(Clone, Copy, Debug)]
 pub struct CycleSample {
-    pub cycle: u64,
-    pub t: f64,
-    pub dof: usize,
-    pub q: [f64; MAX_JOINTS],
-    pub qd: [f64; MAX_JOINTS],
-    pub tau_cmd: [f64; MAX_JOINTS],
-    pub tau_meas: [f64; MAX_JOINTS],
-    pub q_des: [f64; MAX_JOINTS],
-    pub qd_des: [f64; MAX_JOINTS],
-    pub qdd_des: [f64; MAX_JOINTS],
-    /// The hand's force observer's estimate and the force at its frame, when it runs.
-    pub tau_ext: Option<[f64; MAX_JOINTS]>,
-    pub frame_force: Option<[f64; 3]>,
-    pub controller: u32,
-    pub mode: u32,
-    pub faults: u32,
+    /// The cycle as the flight log records it, its `cycle` the runner's count.
+    pub record: CycleSnapshot<MAX_JOINTS>,
     /// Wake-to-wake time (ns) and time spent in the cycle (ns).
     pub period_ns: u64,
     pub exec_ns: u64,
@@ -217,7 +202,7 @@ pub fn run(
         let exec = now_ns() - wake;
         let sample = sample(&cycle, &link, n, wake - previous_wake, exec, missed);
         previous_wake = wake;
-        let t = sample.t;
+        let t = sample.record.t;
         cycle.drain_events(|event| {
             if let Event::RunEnded(id) = event {
                 shared.last_run_ended.store(id, Ordering::Release);
@@ -246,43 +231,6 @@ pub fn run(
     shared.running.store(false, Ordering::Release);
 }
 
-impl CycleSample {
-    /// Fill a flight-log record (sized for `dof` joints) from this sample; `t` as sampled.
-    pub fn write_into(&self, r: &mut CycleRecord) {
-        r.cycle = self.cycle;
-        r.t = self.t;
-        for (dst, src) in [
-            (&mut r.q, &self.q),
-            (&mut r.qd, &self.qd),
-            (&mut r.tau_cmd, &self.tau_cmd),
-            (&mut r.tau_meas, &self.tau_meas),
-            (&mut r.q_des, &self.q_des),
-            (&mut r.qd_des, &self.qd_des),
-            (&mut r.qdd_des, &self.qdd_des),
-        ] {
-            dst.copy_from_slice(&src[..self.dof]);
-        }
-        // Sized on the first sample that carries them; later ones copy in place.
-        match self.tau_ext {
-            Some(v) => {
-                r.tau_ext.resize(self.dof, 0.0);
-                r.tau_ext.copy_from_slice(&v[..self.dof]);
-            }
-            None => r.tau_ext.clear(),
-        }
-        match self.frame_force {
-            Some(v) => {
-                r.frame_force.resize(3, 0.0);
-                r.frame_force.copy_from_slice(&v);
-            }
-            None => r.frame_force.clear(),
-        }
-        r.controller = ControllerKind::from_code(self.controller).unwrap_or(ControllerKind::None);
-        r.mode = Mode::from_code(self.mode).unwrap_or(Mode::Faulted);
-        r.faults = Faults(self.faults);
-    }
-}
-
 fn sample(
     cycle: &ControlCycle,
     link: &dyn MotorLink,
@@ -291,45 +239,9 @@ fn sample(
     exec_ns: u64,
     missed: u64,
 ) -> CycleSample {
-    let r = cycle.record();
-    let dof = r.q.len();
-    let mut s = CycleSample {
-        cycle: n,
-        t: r.t,
-        dof,
-        q: [0.0; MAX_JOINTS],
-        qd: [0.0; MAX_JOINTS],
-        tau_cmd: [0.0; MAX_JOINTS],
-        tau_meas: [0.0; MAX_JOINTS],
-        q_des: [0.0; MAX_JOINTS],
-        qd_des: [0.0; MAX_JOINTS],
-        qdd_des: [0.0; MAX_JOINTS],
-        tau_ext: (!r.tau_ext.is_empty()).then(|| {
-            let mut v = [0.0; MAX_JOINTS];
-            v[..dof].copy_from_slice(&r.tau_ext);
-            v
-        }),
-        frame_force: (r.frame_force.len() == 3).then(|| [r.frame_force[0], r.frame_force[1], r.frame_force[2]]),
-        controller: r.controller as u32,
-        mode: r.mode as u32,
-        faults: r.faults.0,
-        period_ns,
-        exec_ns,
-        missed,
-        link: link.stats(),
-    };
-    for (dst, src) in [
-        (&mut s.q, &r.q),
-        (&mut s.qd, &r.qd),
-        (&mut s.tau_cmd, &r.tau_cmd),
-        (&mut s.tau_meas, &r.tau_meas),
-        (&mut s.q_des, &r.q_des),
-        (&mut s.qd_des, &r.qd_des),
-        (&mut s.qdd_des, &r.qdd_des),
-    ] {
-        dst[..dof].copy_from_slice(src);
-    }
-    s
+    let mut record = CycleSnapshot::of(cycle.record());
+    record.cycle = n;
+    CycleSample { record, period_ns, exec_ns, missed, link: link.stats() }
 }
 
 /// Queue for the logger; a full queue drops the item and counts it.

@@ -80,6 +80,10 @@ class Robot:
     @property
     def warnings(self) -> list[str]: ...
     @property
+    def concerns(self) -> list[dict[str, Any]]:
+        """The warnings as data: ``code`` (``semidefinite_inertia``), ``link``, ``eigenvalues``
+        (kg·m²) and ``text``."""
+    @property
     def dof(self) -> int: ...
     @property
     def num_params(self) -> int: ...

@@ -203,7 +203,7 @@ fn simulate(
     for _ in 0..spec.cycles() {
         rig.step()?;
         cycles.push(rig.record());
-        truth.push(rig.record().cycle, rig.truth());
+        truth.push(rig.truth());
     }
     Ok((cycles, truth))
 }

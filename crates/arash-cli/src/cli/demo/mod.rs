@@ -353,7 +353,7 @@ fn hand_chapter(
     args: &Args,
 ) -> anyhow::Result<hand::HandChapter> {
     let mut cad = consistent.clone();
-    cad.params = Some(model.cad_parameters());
+    cad.fitted.params = Some(model.cad_parameters());
     cad.effects.clear();
     let text = std::fs::read_to_string(with_effects).with_context(|| format!("reading {}", with_effects.display()))?;
     let effects = ModelFile::from_json(&text)?;
@@ -381,10 +381,11 @@ fn truth_file(
     training: &runlog::Log,
 ) -> anyhow::Result<(PathBuf, Vec<f64>)> {
     let mut file = consistent.clone();
-    file.params = Some(truth.params.clone());
-    base.project(&truth.params, &mut file.beta);
-    file.sigma_percent = vec![0.0; file.beta.len()];
-    file.min_pseudo_inertia_eigenvalue = arash_core::physical::min_pseudo_inertia_eigenvalues(model, &truth.params);
+    file.fitted.params = Some(truth.params.clone());
+    base.project(&truth.params, &mut file.fitted.beta);
+    file.fitted.sigma_percent = vec![0.0; file.fitted.beta.len()];
+    file.fitted.min_pseudo_inertia_eigenvalue =
+        arash_core::physical::min_pseudo_inertia_eigenvalues(model, &truth.params);
     file.effects.clear();
     let laws =
         arash_core::CoulombLaws::uniform(arash_core::model::CoulombShape::Tanh { epsilon: truth.epsilon }, model.dof());
@@ -394,14 +395,14 @@ fn truth_file(
     file.settings.warnings.clear();
     let options = PreprocessOptions::default();
     // `training_ols` stays the calibration's: plain least squares on the same log, for comparison.
-    file.training = cross_validate(model, &file, &training.t, &training.q, &training.tau, &options)?.metrics;
+    file.fitted.training = cross_validate(model, &file, &training.t, &training.q, &training.tau, &options)?.metrics;
     let path = dir.join("model_truth.json");
     crate::report::write_atomically(&path, &file.to_json())?;
     println!(
         "    the rig's own parameters explain FP% {} of the excitation's torque (model_truth.json)",
-        file.training.fp_percent.iter().map(|f| format!("{f:.2}")).collect::<Vec<_>>().join(" / ")
+        file.fitted.training.fp_percent.iter().map(|f| format!("{f:.2}")).collect::<Vec<_>>().join(" / ")
     );
-    Ok((path, file.beta))
+    Ok((path, file.fitted.beta))
 }
 
 /// The paper's validation trajectory at `omega`, as a file the daemon reads.

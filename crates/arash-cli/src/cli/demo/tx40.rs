@@ -67,7 +67,7 @@ pub fn run(out: &Path) -> anyhow::Result<RealRobot> {
     println!(
         "    identification (OLS, defaults): cut-off {:.2} Hz, FP% {}",
         identification.settings.cutoff_hz,
-        identification.training.fp_percent.iter().map(|f| format!("{f:.1}")).collect::<Vec<_>>().join(" / ")
+        identification.fitted.training.fp_percent.iter().map(|f| format!("{f:.1}")).collect::<Vec<_>>().join(" / ")
     );
     let exact = BaseParameters::compute(&model, &BaseParameterOptions::diagnosed())?;
     let options = DiagnoseOptions { motors: Some(transmission), ..DiagnoseOptions::default() };
