@@ -44,7 +44,7 @@ const CORE: &[&str] = &[
 const FOLDERS: &[(&str, &[&str])] = &[
     ("control", &["gains", "safety", "fourier", "trajectory", "estimator", "feedforward", "laws", "logged"]),
     ("force", &["thresholds", "settings", "frame_force", "observer"]),
-    ("signal", &["resample"]),
+    ("signal", &["encoder", "resample"]),
     (
         "identify",
         &[
