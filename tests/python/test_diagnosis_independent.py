@@ -169,6 +169,28 @@ def test_a_coarse_encoder_slows_the_friction_velocity_and_stribeck_friction_is_f
     assert found >= 9, [s["reasons"] for s in settings]
 
 
+# 1 kHz, 16-bit encoders, 1 % torque noise, 30 s: Stribeck friction on the insertion whose
+# velocity lies between the diagnosis's grid points (shares 0.1 and 0.2 of the RMS speed).
+STRIBECK_BETWEEN = ("arash_asist", 1000, 16, 0.01, "sign", None, 30.0)
+
+
+@pytest.mark.parametrize("share", [0.07, 0.14])
+def test_a_stribeck_velocity_between_the_grid_points_is_measured(share):
+    """The diagnosis's grid of Stribeck velocities is a factor of 2 apart; the accepted term's
+    velocity is refined between its neighbours, and on Pinocchio's log it is the generator's
+    within 5 %, its coefficient within 5 %; at the grid's nearest point alone it would be up to
+    41 % off."""
+    effect = Injected("stribeck", 2, 0.15, speed_share=share)
+    robot, train, truth = make_log(Condition(*STRIBECK_BETWEEN, seed=8200), effect=effect)
+    d = arash.diagnose(robot, *train)
+    found = [f for f in d.accepted if f.name == "stribeck" and f.joints == [2]]
+    assert found, d.report()
+    v_s, truth_v_s = found[0].scale, share * truth["speed_rms"][2]
+    assert found[0].refined is not None, d.report()
+    assert abs(v_s / truth_v_s - 1) < 0.05, (v_s, truth_v_s, found[0].refined)
+    assert abs(found[0].coefficients[0] / truth["effect"] - 1) < 0.05, (found[0].coefficients, truth["effect"])
+
+
 def test_the_former_band_and_friction_velocity_miss_stribeck_friction():
     """The control: the same logs in the former fixed 20 Hz band, the friction velocity at the
     band, as it was (4 of 10 on 2026-11-27)."""

@@ -258,6 +258,24 @@ impl Effect {
     fn round(&self) -> usize {
         self.finding.round
     }
+    /// The term's constant (a Stribeck or friction velocity, a travel, a cogging count, a
+    /// delay in samples), `None` for a term without one.
+    #[getter]
+    fn scale(&self) -> Option<f64> {
+        self.finding.term.scale
+    }
+    /// Where the scale was refined between the grid's points: `grid` (the grid's scale),
+    /// `bracket` (its neighbours) and `residual_drop` (the share of the training residual's sum
+    /// of squares the refined scale removes beyond the grid's). `None` otherwise.
+    #[getter]
+    fn refined<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(r) = &self.finding.refined else { return Ok(None) };
+        let d = PyDict::new(py);
+        d.set_item("grid", r.grid)?;
+        d.set_item("bracket", r.bracket.to_vec())?;
+        d.set_item("residual_drop", r.residual_drop)?;
+        Ok(Some(d))
+    }
     fn __repr__(&self) -> String {
         format!(
             "Effect({:?}, p={:.2e}, heldout_gain={:.3})",

@@ -298,6 +298,8 @@ class Injected:
     # motion per radian of that joint on ``joint``'s scale (the TX40's wrist: joint 5, ratio 1).
     with_joint: Optional[int] = None
     ratio: float = 1.0
+    # For "stribeck": the Stribeck velocity as a share of the joint's RMS speed.
+    speed_share: float = 0.1
 
 
 @dataclass(frozen=True)
@@ -341,8 +343,8 @@ def joint_shape(effect, robot, q, qd, qdd, tau):
         # A torque constant off by a share of itself: the joint's whole torque, scaled.
         return tau[:, k]
     if effect.kind == "stribeck":
-        # The excess of static over Coulomb friction, decaying over a tenth of the RMS speed.
-        vs = 0.1 * np.sqrt(np.mean(qd[:, k] ** 2))
+        # The excess of static over Coulomb friction, decaying over a share of the RMS speed.
+        vs = effect.speed_share * np.sqrt(np.mean(qd[:, k] ** 2))
         return np.exp(-((qd[:, k] / vs) ** 2)) * np.sign(qd[:, k])
     raise ValueError(f"unknown injected effect {effect.kind!r}")
 
@@ -371,7 +373,7 @@ def make_log(condition, states=None, truth=None, effect=None, payload=None):
         rms = np.maximum(np.sqrt(np.mean(rigid**2, axis=0)), RMS_FLOOR_SHARE * np.sqrt(np.mean(rigid**2, axis=0)).max())
         speed = np.sqrt(np.mean(qd**2, axis=0))
         truth = {"params": params, "fv": FRICTION_SHARE * rms / speed, "fc": FRICTION_SHARE * rms,
-                 "noise": condition.noise * rms, "vc": SMOOTH_SHARE * speed}
+                 "noise": condition.noise * rms, "vc": SMOOTH_SHARE * speed, "speed_rms": speed}
     tau = rigid + friction(truth, qd, condition.coulomb)
     effects = () if effect is None else effect if isinstance(effect, tuple) else (effect,)
     declared = tau.copy()

@@ -132,5 +132,6 @@ fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
         centre_of_mass_m: None,
         sigma_from_gains: vec![],
         round: 0,
+        refined: None,
     })
 }

@@ -49,6 +49,20 @@ pub struct Finding {
     pub sigma_from_gains: Vec<f64>,
     /// Search round in which it was accepted (0: the delay search).
     pub round: usize,
+    /// Where its scale (a Stribeck or friction velocity, a travel) was refined between the
+    /// grid's points; `term.scale` is then the refined one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refined: Option<ScaleRefinement>,
+}
+
+/// A scale refined between the grid's points: the one the grid chose, the bracket its
+/// neighbours on the grid set, and how much of the training residual's sum of squares (weighted)
+/// the refined scale removes beyond the grid's.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ScaleRefinement {
+    pub grid: f64,
+    pub bracket: [f64; 2],
+    pub residual_drop: f64,
 }
 
 impl Finding {

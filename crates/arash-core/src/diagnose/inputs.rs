@@ -239,16 +239,24 @@ impl<'a> Context<'a> {
     /// Each template's weighted columns on the training log (and the validation log); templates
     /// without columns on this data are dropped.
     pub(super) fn pool(&self, templates: Vec<EffectTerm>, problem: &Problem, heldout: &HeldOut) -> Vec<Candidate> {
-        crate::parallel::map(templates, |term| {
-            let columns = problem.weighted(term_columns(self.model, &term, &self.train));
-            let validation = match (heldout, &self.validation) {
-                (HeldOut::Validation(p), Some(v)) => p.weighted(term_columns(self.model, &term, v)),
-                _ => vec![],
-            };
-            Candidate { term, columns, validation }
-        })
-        .into_iter()
-        .filter(|c| !c.columns.is_empty())
-        .collect()
+        crate::parallel::map(templates, |term| self.candidate(term, problem, heldout))
+            .into_iter()
+            .filter(|c| !c.columns.is_empty())
+            .collect()
+    }
+
+    /// One term's weighted columns on the training log (and the validation log).
+    pub(super) fn candidate(&self, term: EffectTerm, problem: &Problem, heldout: &HeldOut) -> Candidate {
+        let columns = self.training_columns(&term, problem);
+        let validation = match (heldout, &self.validation) {
+            (HeldOut::Validation(p), Some(v)) => p.weighted(term_columns(self.model, &term, v)),
+            _ => vec![],
+        };
+        Candidate { term, columns, validation }
+    }
+
+    /// One term's weighted columns on the training log alone.
+    pub(super) fn training_columns(&self, term: &EffectTerm, problem: &Problem) -> Vec<Column> {
+        problem.weighted(term_columns(self.model, term, &self.train))
     }
 }

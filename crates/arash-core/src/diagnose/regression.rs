@@ -449,6 +449,25 @@ fn plateau(walds: &[(usize, f64)]) -> Option<usize> {
     (0..walds.len().saturating_sub(1)).find(|&i| settled(i))
 }
 
+/// The sum of squares of `e0` (the residual of `base`'s fit over its rows) that adding `group`
+/// to the fit explains: `rᵀH⁻¹r`, with `H = CᵀC − (XᵀC)ᵀ(XᵀX)⁻¹XᵀC` the group's Gram matrix
+/// once `base` is partialled out and `r = Cᵀe0` (the partialled columns' product with `e0` is
+/// the columns' own, since `e0` is orthogonal to `base`). From `base`'s Gram matrix, without
+/// forming the partialled columns: a one-joint column costs its own rows only. `None` where the
+/// group lies in `base`'s span.
+pub fn explained(base: &NormalEquations, e0: &[f64], group: &[&Column]) -> Option<f64> {
+    let (dof, rows, k) = (base.dof, base.rows, group.len());
+    let r: Vec<f64> = group.iter().map(|c| dot_dense(c, e0, dof, rows)).collect();
+    let xc: Vec<Vec<f64>> = group.iter().map(|c| base.columns.iter().map(|x| dot(x, c, dof, rows)).collect()).collect();
+    let through: Vec<Vec<f64>> = match base.columns.is_empty() {
+        true => vec![vec![]; k],
+        false => xc.iter().map(|v| solve_scaled(&base.gram, v)).collect::<Option<_>>()?,
+    };
+    let h = Mat::from_fn(k, k, |i, j| dot(group[i], group[j], dof, rows) - dense::dot(&xc[i], &through[j]));
+    let gamma = solve_scaled(&h, &r)?;
+    Some(r.iter().zip(&gamma).map(|(r, g)| r * g).sum())
+}
+
 /// `C − X (XᵀX)⁻¹ XᵀC` for each column of the group, dense over every row.
 fn partial_out(base: &NormalEquations, group: &[&Column]) -> Option<Vec<Vec<f64>>> {
     let dof = base.dof;
@@ -539,6 +558,34 @@ mod tests {
         let b = Column::dense((0..9).map(|i| i as f64).collect(), dof);
         assert_eq!(dot(&a, &b, dof, Rows::All), dot(&dense, &b, dof, Rows::All));
         assert_eq!(dot(&a, &a, dof, Rows::Where(&[true, false, true])), 10.0);
+    }
+
+    /// What a group explains of the base fit's residual is the drop of the residual sum of
+    /// squares from fitting the base alone to fitting both, for dense and one-joint columns.
+    #[test]
+    fn what_a_group_explains_is_the_drop_of_the_residual() {
+        let (dof, samples) = (2, 400);
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let noise = |rng: &mut ChaCha8Rng, n: usize| (0..n).map(|_| rng.random_range(-1.0..1.0)).collect::<Vec<f64>>();
+        let base_columns =
+            [Column::dense(noise(&mut rng, samples * dof), dof), Column::Joint(0, noise(&mut rng, samples))];
+        let group = [Column::Joint(1, noise(&mut rng, samples)), Column::dense(noise(&mut rng, samples * dof), dof)];
+        let y = noise(&mut rng, samples * dof);
+        let sse = |columns: &[&Column]| {
+            let fit = least_squares(columns, &y, dof, Rows::All).unwrap();
+            residual(columns, &fit, &y, dof).iter().map(|e| e * e).sum::<f64>()
+        };
+        let base: Vec<&Column> = base_columns.iter().collect();
+        let normal = NormalEquations::over(base.clone(), &y, dof, Rows::All);
+        let e0 = residual(&base, &normal.solve().unwrap(), &y, dof);
+        let both: Vec<&Column> = base.iter().copied().chain(&group).collect();
+        let drop = sse(&base) - sse(&both);
+        let group: Vec<&Column> = group.iter().collect();
+        let said = explained(&normal, &e0, &group).unwrap();
+        assert!((said - drop).abs() < 1e-9 * drop, "{said} against {drop}");
+        let empty = NormalEquations::over(vec![], &y, dof, Rows::All);
+        let alone = explained(&empty, &y, &group).unwrap();
+        assert!((alone - (y.iter().map(|v| v * v).sum::<f64>() - sse(&group))).abs() < 1e-9 * alone);
     }
 
     /// AR(1) noise `x ← ρx + u`, u uniform on ±1.

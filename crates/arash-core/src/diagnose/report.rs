@@ -55,6 +55,16 @@ impl Diagnosis {
                     f.threshold,
                     100.0 * f.heldout_gain
                 );
+                if let Some(r) = &f.refined {
+                    s += &format!(
+                        "       scale refined from the grid's {:.3e} within its neighbours {:.3e}–{:.3e}: {:.3} % more of \
+                         the training residual explained\n",
+                        r.grid,
+                        r.bracket[0],
+                        r.bracket[1],
+                        100.0 * r.residual_drop
+                    );
+                }
                 for ((name, c), sd) in f.term.columns.iter().zip(&f.term.coefficients).zip(&f.term.sigma) {
                     s += &format!("       {name:<24} {c:>12.4e} ± {sd:.1e}\n");
                 }

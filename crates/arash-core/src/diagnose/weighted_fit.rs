@@ -221,9 +221,14 @@ impl<'a> HeldOutBase<'a> {
     /// error above the noise `floor` ([`NoiseFloor::gains`]), and over all joints together (in
     /// the weighted units, where every joint counts by its noise).
     pub(super) fn gain(&self, floor: &NoiseFloor, i: usize) -> (Vec<f64>, f64) {
+        self.gain_of(floor, &self.pool[i])
+    }
+
+    /// [`Self::gain`] of a candidate outside the pool (a pool's term at another scale).
+    pub(super) fn gain_of(&self, floor: &NoiseFloor, candidate: &Candidate) -> (Vec<f64>, f64) {
         let (problem, heldout, pool, chosen) = (self.problem, self.heldout, self.pool, &self.chosen[..]);
         let dof = problem.dof;
-        let group: Vec<&Column> = pool[i].columns.iter().collect();
+        let group: Vec<&Column> = candidate.columns.iter().collect();
         let after = match self.training.with_group(&group, &problem.y) {
             None => self.sse.clone(),
             Some(x) => match heldout {
@@ -234,7 +239,7 @@ impl<'a> HeldOutBase<'a> {
                 }
                 HeldOut::Validation(v) => {
                     let all: Vec<&Column> =
-                        validation_columns(v, pool, chosen).into_iter().chain(pool[i].validation.iter()).collect();
+                        validation_columns(v, pool, chosen).into_iter().chain(candidate.validation.iter()).collect();
                     sse(&all, &x, &v.y, dof, Rows::All)
                 }
             },

@@ -41,6 +41,9 @@ impl Effect for FrictionVelocity {
     fn physical_sign(&self) -> Option<f64> {
         Some(1.0)
     }
+    fn scale_is_continuous(&self) -> bool {
+        true
+    }
     fn plotted_against(&self) -> &'static str {
         "qd"
     }

@@ -131,6 +131,12 @@ impl EffectKind {
         self.law().filtered_like_torque()
     }
 
+    /// Whether its `scale` is a continuous constant (a velocity or a travel) that the diagnosis
+    /// refines between the grid's points, rather than a count such as cogging's periods.
+    pub fn scale_is_continuous(self) -> bool {
+        self.law().scale_is_continuous()
+    }
+
     /// The sign its first coefficient (a payload's mass) must have to be the physical effect
     /// (`None`: either).
     /// A fit with the other sign is some other error that happens to correlate.
@@ -275,6 +281,11 @@ pub trait Effect: Sync {
     /// See [`EffectKind::physical_sign`].
     fn physical_sign(&self) -> Option<f64> {
         None
+    }
+
+    /// See [`EffectKind::scale_is_continuous`].
+    fn scale_is_continuous(&self) -> bool {
+        false
     }
 
     /// Whether every coefficient, not only the first, must have [`Self::physical_sign`].

@@ -6,7 +6,7 @@ use super::{Effect, EffectKind, EffectTerm, JointData, NotSearched, Sample, Term
 pub struct Stribeck;
 
 /// The Stribeck velocities tried, as fractions of the joint's RMS speed.
-const VELOCITY_FRACTIONS: [f64; 4] = [SLOWEST_STRIBECK_FRACTION, 0.05, 0.1, 0.2];
+const VELOCITY_FRACTIONS: [f64; 5] = [SLOWEST_STRIBECK_FRACTION, 0.05, 0.1, 0.2, 0.4];
 
 /// The slowest Stribeck velocity tried, as a fraction of the joint's RMS speed: the finest
 /// velocity scale any friction column has, which the friction velocity must resolve
@@ -26,6 +26,9 @@ impl Effect for Stribeck {
     /// Static friction is above Coulomb friction.
     fn physical_sign(&self) -> Option<f64> {
         Some(1.0)
+    }
+    fn scale_is_continuous(&self) -> bool {
+        true
     }
     fn plotted_against(&self) -> &'static str {
         "qd"

@@ -401,6 +401,12 @@ class Effect:
     def centre_of_mass_m(self) -> Optional[list[Optional[float]]]: ...
     @property
     def round(self) -> int: ...
+    @property
+    def scale(self) -> Optional[float]:
+        """The term's constant: a Stribeck or friction velocity, a travel, a cogging count."""
+    @property
+    def refined(self) -> Optional[dict[str, Any]]:
+        """Where the scale was refined between the grid's points: grid, bracket, residual_drop."""
 
 @final
 class Diagnosis:
