@@ -4,15 +4,15 @@
 
 /// Positions that are whole multiples of a step, as an encoder's are, cut by at most this share of
 /// the step.
-const ON_THE_GRID: f64 = 1e-3;
+pub const ON_THE_GRID: f64 = 1e-3;
 
 /// The share of a joint's moves that must lie on its step's grid. A log resampled onto a uniform
 /// grid where its time stamps jittered (the daemon's, `flightlog::on_uniform_grid`) holds a few interpolated
 /// positions between the steps; they must not hide the encoder of all the others.
-const ON_THE_GRID_SHARE: f64 = 0.99;
+pub const ON_THE_GRID_SHARE: f64 = 0.99;
 
 /// How many of the smallest distinct moves are tried as the step.
-const STEP_CANDIDATES: usize = 32;
+pub const STEP_CANDIDATES: usize = 32;
 
 /// Joint `j`'s encoder step, when at least [`ON_THE_GRID_SHARE`] of its moves between two samples
 /// are whole multiples of one of its smallest moves; `None` when they are not (filtered positions)
