@@ -39,7 +39,9 @@ mod weighted_fit;
 pub use crate::effects::{EffectKind, EffectTerm, TermState};
 pub use crate::identify::{Declared, Log};
 pub use delay::ALIGNMENT_SAMPLES;
-pub use findings::{DiagnoseSettings, Diagnosis, ErrorSummary, Finding, Rejection, RejectionReason, Series};
+pub use findings::{
+    DiagnoseSettings, Diagnosis, ErrorSummary, Finding, Rejection, RejectionReason, ScaleRefinement, Series,
+};
 pub use options::{DiagnoseError, DiagnoseOptions, OptionsError};
 pub use refit::consistent_with_effects;
 pub use search::diagnose;
