@@ -333,11 +333,9 @@ pub fn fit_gains(
     })
 }
 
-/// Gains from a datasheet, each `(k, σ)`, checked against the load's: where the load fixes a gain
-/// ([`fixed`]) its own value is kept, and a datasheet value more than 3 combined σ away is a
-/// warning (a wrong datasheet, a wrong current scale, or a load that was not what was declared);
-/// where it does not, the datasheet's value and σ are taken.
-pub fn with_datasheet(fit: &GainFit, datasheet: &[(f64, f64)], joints: &[String]) -> Result<Checked, GainsError> {
+/// A datasheet has one finite, non-zero gain per joint, each with a finite, non-negative σ;
+/// checked before the calibration's fit, so that a bad one is refused at once.
+pub fn check_datasheet(datasheet: &[(f64, f64)], joints: &[String]) -> Result<(), GainsError> {
     if datasheet.len() != joints.len() {
         return Err(GainsError::BadDatasheet(format!("{} given for {} joints", datasheet.len(), joints.len())));
     }
@@ -349,6 +347,15 @@ pub fn with_datasheet(fit: &GainFit, datasheet: &[(f64, f64)], joints: &[String]
             joints[j]
         )));
     }
+    Ok(())
+}
+
+/// Gains from a datasheet, each `(k, σ)`, checked against the load's: where the load fixes a gain
+/// ([`fixed`]) its own value is kept, and a datasheet value more than 3 combined σ away is a
+/// warning (a wrong datasheet, a wrong current scale, or a load that was not what was declared);
+/// where it does not, the datasheet's value and σ are taken.
+pub fn with_datasheet(fit: &GainFit, datasheet: &[(f64, f64)], joints: &[String]) -> Result<Checked, GainsError> {
+    check_datasheet(datasheet, joints)?;
     let dof = joints.len();
     let (mut gains, mut sigma, mut taken) = (fit.gains.clone(), fit.gain_sigma.clone(), vec![false; dof]);
     let mut covariance = fit.gain_covariance.clone();
@@ -385,9 +392,20 @@ pub struct Checked {
     pub warnings: Vec<Concern>,
 }
 
-/// Gauss–Newton steps of the fit in current units, at most this many; each one is a least-squares
-/// solve of the stacked size.
-const GAUSS_NEWTON_STEPS: usize = 50;
+/// Steps of the fit in current units, at most this many; each one forms the stacked Jacobian
+/// and its Gram matrix.
+const MARQUARDT_STEPS: usize = 50;
+
+/// The damping of the first step, relative to the Gram matrix's diagonal (Marquardt's scaling):
+/// small, so that a well-posed problem takes Gauss–Newton's step from the start.
+const FIRST_DAMPING: f64 = 1e-6;
+
+/// A step that does not lower the cost at this damping lowers it nowhere: the fit is at a
+/// minimum to rounding.
+const MOST_DAMPING: f64 = 1e12;
+
+/// The fit has converged when a step lowers the cost by less than this share of it.
+const COST_TOLERANCE: f64 = 1e-12;
 
 /// The drive-gain problem in current units: the stacked regressor `x` (the torque's `q`
 /// parameters, then one current column per joint) and the known load's torque `y`, row for row.
@@ -406,7 +424,7 @@ impl CurrentUnits<'_> {
     /// `l²/(l² + 2u²)` for a load torque `l` and an unexplained torque `u` (the real KUKA's first joint
     /// came out at 17 % of its gain). In current units the unexplained current is the same whatever the
     /// gain, and only the load's current sets it: the errors-in-variables model of currents measured
-    /// with noise. Solved by Gauss–Newton from the torque-unit fit `start`; returns the Jacobian at the
+    /// with noise. Solved by Levenberg–Marquardt from the torque-unit fit `start`; returns the Jacobian at the
     /// optimum and the target `J θ* − e*`, whose least squares are `θ*` with the optimum's residual,
     /// so that [`fit_stacked`] gives its σ (the sandwich of the linearised problem) and conditioning.
     fn solve_from(&self, start: &[f64]) -> (Mat<f64>, Vec<f64>) {
@@ -414,24 +432,15 @@ impl CurrentUnits<'_> {
         let largest = start[q..].iter().fold(0.0f64, |m, k| m.max(k.abs()));
         let mut theta: Vec<f64> = start[..q].to_vec();
         theta.extend(start[q..].iter().map(|k| 1.0 / k.abs().max(1e-3 * largest)));
-        let cost = |e: &[f64]| e.iter().map(|v| v * v).sum::<f64>();
         let (mut j, mut e) = self.linearised(&theta);
-        for _ in 0..GAUSS_NEWTON_STEPS {
-            let rhs = Mat::<f64>::from_fn(j.nrows(), 1, |r, _| -e[r]);
-            let step = j.qr().solve_lstsq(&rhs);
-            // Halve the step until the cost falls: far from the optimum the linearisation overshoots.
-            let mut scale = 1.0;
-            let next = loop {
-                let trial: Vec<f64> = theta.iter().enumerate().map(|(i, t)| t + scale * step[(i, 0)]).collect();
-                if cost(&self.residual(&trial)) <= cost(&e) || scale < 1e-6 {
-                    break trial;
-                }
-                scale *= 0.5;
-            };
+        let mut damping = FIRST_DAMPING;
+        for _ in 0..MARQUARDT_STEPS {
+            let now = cost(&e);
+            let Some((next, lowered)) = self.damped_step(&j, &e, &theta, &mut damping) else { break };
             let moved = (q..q + dof).map(|i| ((next[i] - theta[i]) / theta[i]).abs()).fold(0.0, f64::max);
             theta = next;
             (j, e) = self.linearised(&theta);
-            if moved < 1e-10 {
+            if moved < 1e-10 || now - lowered <= COST_TOLERANCE * now {
                 break;
             }
         }
@@ -439,27 +448,70 @@ impl CurrentUnits<'_> {
         (j, z)
     }
 
+    /// Levenberg–Marquardt's step from `theta`: `(JᵀJ + λ diag(JᵀJ)) δ = −Jᵀe`, with `λ` raised
+    /// tenfold until the cost falls and lowered tenfold after. The damping is what lets a joint
+    /// whose gain the load does not fix converge: its gain and the parameters only it moves
+    /// trade against each other at no cost, so Gauss–Newton's undamped step along that direction
+    /// is arbitrary, and halving it (the first method) crawled through all its steps at a
+    /// ten-thousandth of a step each. The new point and its cost; `None` when no damping lowers
+    /// the cost.
+    fn damped_step(&self, j: &Mat<f64>, e: &[f64], theta: &[f64], damping: &mut f64) -> Option<(Vec<f64>, f64)> {
+        let now = cost(e);
+        let gram = j.transpose() * j;
+        let descent: Vec<f64> = (0..j.ncols()).map(|c| -dense::dot(j.col_as_slice(c), e)).collect();
+        while *damping <= MOST_DAMPING {
+            let damped = Mat::from_fn(gram.nrows(), gram.ncols(), |a, b| match a == b {
+                true => gram[(a, b)] * (1.0 + *damping),
+                false => gram[(a, b)],
+            });
+            let trial = dense::solve_gram(damped.as_ref(), &descent, dense::Unseen::Pinned)
+                .map(|step| theta.iter().zip(&step).map(|(t, s)| t + s).collect::<Vec<f64>>());
+            if let Some(trial) = trial {
+                let lowered = cost(&self.residual(&trial));
+                if lowered < now {
+                    *damping = (*damping / 10.0).max(f64::EPSILON);
+                    return Some((trial, lowered));
+                }
+            }
+            *damping *= 10.0;
+        }
+        None
+    }
+
     /// Each row's residual in current units at `theta` (the torque's `q` parameters, then `cⱼ =
     /// 1/kⱼ`): `cⱼ (x θ − y) − i`, the current being `−x` in the row's gain column.
     fn residual(&self, theta: &[f64]) -> Vec<f64> {
-        let (x, dof, q) = (self.x, self.dof, self.q);
-        (0..x.nrows()).map(|r| theta[q + r % dof] * self.torque_at(theta, r) + x[(r, q + r % dof)]).collect()
+        self.residual_of(theta, &self.torques(theta))
     }
 
-    /// The model's torque at row `r` beyond the known load's: `x θ − y` over the torque's columns.
-    fn torque_at(&self, theta: &[f64], r: usize) -> f64 {
-        (0..self.q).map(|c| self.x[(r, c)] * theta[c]).sum::<f64>() - self.y[r]
+    /// [`CurrentUnits::residual`] from the rows' torques at `theta`.
+    fn residual_of(&self, theta: &[f64], torques: &[f64]) -> Vec<f64> {
+        let (dof, q) = (self.dof, self.q);
+        let currents: Vec<&[f64]> = (0..dof).map(|j| self.x.col_as_slice(q + j)).collect();
+        torques.iter().enumerate().map(|(r, t)| theta[q + r % dof] * t + currents[r % dof][r]).collect()
+    }
+
+    /// The model's torque on every row beyond the known load's: `x θ − y` over the torque's
+    /// columns. Summed a column at a time, as `x` is stored: the fit's steps and their
+    /// trials evaluate it hundreds of times on a calibration's tens of thousands of rows.
+    fn torques(&self, theta: &[f64]) -> Vec<f64> {
+        let mut torques: Vec<f64> = self.y.iter().map(|v| -v).collect();
+        for (c, t) in theta.iter().enumerate().take(self.q) {
+            torques.iter_mut().zip(self.x.col_as_slice(c)).for_each(|(sum, x)| *sum += x * t);
+        }
+        torques
     }
 
     /// The Jacobian of [`CurrentUnits::residual`] at `theta`, and that residual.
     fn linearised(&self, theta: &[f64]) -> (Mat<f64>, Vec<f64>) {
         let (x, dof, q) = (self.x, self.dof, self.q);
+        let torques = self.torques(theta);
         let j = Mat::<f64>::from_fn(x.nrows(), q + dof, |r, c| match c < q {
             true => theta[q + r % dof] * x[(r, c)],
-            false if c - q == r % dof => self.torque_at(theta, r),
+            false if c - q == r % dof => torques[r],
             false => 0.0,
         });
-        (j, self.residual(theta))
+        (j, self.residual_of(theta, &torques))
     }
 
     /// The fit at the total-least-squares estimate `theta` (torque units: the parameters, then the
@@ -483,10 +535,19 @@ impl CurrentUnits<'_> {
     }
 }
 
+/// The sum of squares of a residual.
+fn cost(e: &[f64]) -> f64 {
+    e.iter().map(|v| v * v).sum()
+}
+
 /// `J θ − e`: the target whose least squares on `J` is `θ` at a stationary point, with the
 /// residual `e`, so that [`fit_stacked`] gives the linearised problem's σ and conditioning.
 fn linear_target(j: &Mat<f64>, theta: &[f64], e: &[f64]) -> Vec<f64> {
-    (0..j.nrows()).map(|r| (0..theta.len()).map(|c| j[(r, c)] * theta[c]).sum::<f64>() - e[r]).collect()
+    let mut target: Vec<f64> = e.iter().map(|v| -v).collect();
+    for (c, t) in theta.iter().enumerate() {
+        target.iter_mut().zip(j.col_as_slice(c)).for_each(|(sum, x)| *sum += x * t);
+    }
+    target
 }
 
 /// Total least squares of `x θ = y` (Golub and Van Loan): the smallest correction of `[x y]` in

@@ -129,6 +129,9 @@ pub fn identify_with_known_load(
 ) -> Result<(ModelFile, drive_gains::GainFit), IdentifyError> {
     let drive_gains::Calibration { load, datasheet, estimator } = calibration;
     let body = load.validate(declared.model)?;
+    if let Some(given) = datasheet {
+        drive_gains::check_datasheet(given, &declared.model.joint_names())?;
+    }
     let first = runs.iter().position(|(_, loaded)| !loaded).ok_or(drive_gains::GainsError::MissingRuns("unloaded"))?;
     if !runs.iter().any(|(_, loaded)| *loaded) {
         return Err(drive_gains::GainsError::MissingRuns("loaded").into());
