@@ -79,12 +79,14 @@ fn lockstep(config: &str) -> String {
     format!("[rt]\npace = \"lockstep\"\n{config}")
 }
 
-/// Start the daemon on `pty` and wait for its socket.
+/// Start the daemon on `pty` and wait until its socket takes connections. The socket's file
+/// appears at `bind`, before the daemon listens: a `ctl` in between is refused (seen in CI on a
+/// loaded host).
 fn daemon(dir: &Scratch, pty: &str, config: &str) -> Proc {
     let err = std::fs::OpenOptions::new().create(true).append(true).open(dir.join("daemon.err")).unwrap();
     let child = daemon_command(dir, pty, config).stderr(err).spawn().unwrap();
     let started = Instant::now();
-    while !dir.join("s.sock").exists() {
+    while std::os::unix::net::UnixStream::connect(dir.join("s.sock")).is_err() {
         assert!(started.elapsed() < Duration::from_secs(10), "no socket; daemon.err:\n{}", stderr(dir));
         std::thread::sleep(Duration::from_millis(20));
     }
