@@ -67,11 +67,14 @@ impl Link {
     }
 
     /// The command that serves the simulated rig on a pseudo-terminal and prints its path.
-    fn simulator(self, exe: &Path, scenario: &Path, seed: u64, rt: &str) -> Command {
+    fn simulator(self, exe: &Path, scenario: &Path, seed: u64, rt: &str, pace: Pace) -> Command {
         match self {
             Link::Serial => {
                 let mut c = Command::new(exe);
                 c.arg("mock-motor").arg("--scenario").arg(scenario).args(["--seed", &seed.to_string(), "--rt", rt]);
+                if pace == Pace::Lockstep {
+                    c.args(["--watchdog-ms", &LOCKSTEP_DRIVE_WATCHDOG_MS.to_string()]);
+                }
                 c
             }
             Link::Canopen => {
@@ -83,6 +86,12 @@ impl Link {
         }
     }
 }
+
+/// The simulated drive's watchdog in lockstep. The mock advances its plant one period per host
+/// command, so a host that stalls freezes the simulated rig with it and nothing moves unwatched;
+/// a wall-clock watchdog of a real drive's 100 ms then only latches the host's stalls (103 ms
+/// seen in CI, behind the logger's disk writes). A host that died still stops the drive.
+const LOCKSTEP_DRIVE_WATCHDOG_MS: u64 = 2000;
 
 pub struct Rig {
     socket: PathBuf,
@@ -107,7 +116,7 @@ impl Rig {
             RtPolicy::Require => "require",
             RtPolicy::Ignore => "ignore",
         };
-        let pace = match pace {
+        let pace_flag = match pace {
             Pace::Deadline => "deadline",
             Pace::Lockstep => "lockstep",
         };
@@ -117,7 +126,7 @@ impl Rig {
             Motors::Port(port) => port.to_string(),
             Motors::Mock { scenario, seed } => {
                 let log = std::fs::File::create(dir.join("mock-motor.log"))?;
-                let mut simulator = link.simulator(&exe, scenario, seed, rt);
+                let mut simulator = link.simulator(&exe, scenario, seed, rt, pace);
                 let mut child = simulator
                     .stdout(Stdio::piped())
                     .stderr(log)
@@ -140,7 +149,7 @@ impl Rig {
         let _ = std::fs::remove_file(&rig.socket);
         let log = std::fs::File::create(dir.join("daemon.log"))?;
         let mut daemon = Command::new(&exe);
-        daemon.args(["daemon", "--rt", rt, "--pace", pace, "--link", link.daemon_flag(), "--port", &rig.port]);
+        daemon.args(["daemon", "--rt", rt, "--pace", pace_flag, "--link", link.daemon_flag(), "--port", &rig.port]);
         daemon.arg("--config").arg(&config);
         if let Some(address) = live {
             daemon.arg("--live").args(address.iter());
