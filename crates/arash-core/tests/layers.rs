@@ -44,14 +44,12 @@ const CORE: &[&str] = &[
 const FOLDERS: &[(&str, &[&str])] = &[
     ("control", &["gains", "safety", "fourier", "trajectory", "estimator", "feedforward", "laws", "logged"]),
     ("force", &["thresholds", "settings", "frame_force", "observer"]),
-    ("signal", &["encoder", "resample"]),
+    ("signal", &["filter", "conditioning", "encoder", "resample"]),
     (
         "identify",
         &[
             "options",
-            "filter",
             "data_choices",
-            "conditioning",
             "friction",
             "repair",
             "resting",

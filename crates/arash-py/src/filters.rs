@@ -1,6 +1,6 @@
 //! The zero-phase Butterworth filter that identification uses, for comparison with scipy.
 
-use arash_core::identify::filter::Butterworth;
+use arash_core::signal::filter::Butterworth;
 use numpy::ndarray::{ArrayD, IxDyn};
 use numpy::{IntoPyArray, PyArrayDyn, PyReadonlyArrayDyn};
 use pyo3::exceptions::PyValueError;

@@ -36,13 +36,13 @@ use crate::identify::data_choices::{
     as_good_as_best, best_predicting, geometric_grid, Equal, Prediction, Prefer, EQUAL_PREDICTION_SIGMAS,
 };
 use crate::identify::estimate::joint_metrics;
-use crate::identify::filter::Butterworth;
 use crate::identify::friction_law::{laws_for_fit, ChosenLaws};
 use crate::identify::preprocess::{
     edge_limited_cutoff_hz, validate_log, PreprocessError, Preprocessed, CUTOFF_PER_BANDWIDTH,
 };
 use crate::identify::Log;
 use crate::model::Model;
+use crate::signal::filter::Butterworth;
 
 /// Fitted and scored samples per candidate cut-off: evenly spread, they rank the candidates as
 /// all of a long log's would, at a bounded cost.
@@ -81,7 +81,7 @@ pub(super) fn choose_band(
 ) -> Result<BandChoice, DiagnoseError> {
     let dof = model.dof();
     let fs = 1.0 / validate_log(train.t, train.q, train.tau, dof).map_err(DiagnoseError::Training)?;
-    if let Some(c) = options.preprocess.cutoff_hz.filter(|c| !crate::identify::filter::below_nyquist(*c, fs)) {
+    if let Some(c) = options.preprocess.cutoff_hz.filter(|c| !crate::signal::filter::below_nyquist(*c, fs)) {
         return Err(DiagnoseError::BandAboveNyquist { cutoff_hz: c, nyquist_hz: 0.5 * fs });
     }
     let positions = Positions::of(train.q, dof, fs);

@@ -8,7 +8,7 @@ use super::prepare::Prepared;
 use super::regression::{least_squares, residual, test_group, Column, NormalEquations, Rows, Untested};
 use super::weighted_fit::{sse, Problem};
 use crate::effects::{EffectKind, EffectTerm};
-use crate::identify::conditioning::central_difference;
+use crate::signal::conditioning::central_difference;
 
 /// Search an integer shift of the torque against the position, and accept it only if it is
 /// significant (a block Wald test of the linearised delay, the derivative of the predicted

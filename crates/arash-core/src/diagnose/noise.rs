@@ -17,8 +17,8 @@
 //! ([`NoiseFloor::above`]).
 
 use super::band::white_noise_gain;
-use crate::identify::conditioning::filter_columns;
-use crate::identify::filter::{Butterworth, FilterError};
+use crate::signal::conditioning::filter_columns;
+use crate::signal::filter::{Butterworth, FilterError};
 
 /// The noise is read above this share of the sample rate: a robot's motion and what the declared
 /// model explains lie far below it, and the torque holds only noise there, besides the friction's

@@ -19,7 +19,6 @@
 //! The candidates run from the lowest cut-off the log allows to [`SEARCH_ABOVE_SPECTRAL`] times
 //! the one the motion's spectrum suggests ([`super::data_choices`]), within a quarter of the sample rate.
 
-use super::conditioning::{filter_columns, mean_of, periods_of};
 use super::data_choices::{
     best_predicting, geometric_grid, most_accurate_prediction, Equal, Prediction, Prefer, EQUAL_PREDICTION_POINTS,
     EQUAL_PREDICTION_SIGMAS,
@@ -28,7 +27,6 @@ use super::estimate::{
     apply, coulomb_positions, filter_each_column, fit_stacked, joint_metrics, leave_out_rests, put_coulomb,
     regressor_rows, Method,
 };
-use super::filter::Butterworth;
 use super::friction::RawVelocity;
 use super::options::PreprocessOptions;
 use super::preprocess::{
@@ -36,6 +34,8 @@ use super::preprocess::{
 };
 use super::{Declared, Log};
 use crate::choices::{Choice, Concern};
+use crate::signal::conditioning::{filter_columns, mean_of, periods_of};
+use crate::signal::filter::Butterworth;
 use std::borrow::Cow;
 
 /// The search goes this far above the cut-off the motion's spectrum suggests: the torque holds

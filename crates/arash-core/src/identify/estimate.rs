@@ -13,8 +13,6 @@
 use faer::prelude::*;
 use faer::{Mat, Scale};
 
-use super::conditioning::filter_columns;
-use super::filter::Butterworth;
 use super::preprocess::Preprocessed;
 use crate::base_parameters::BaseParameters;
 use crate::data::Data;
@@ -22,6 +20,8 @@ use crate::dense::{self, dot};
 use crate::model::Model;
 use crate::model_file::Determination;
 use crate::regressor::{bodies_of_columns, regressor_of_bodies};
+use crate::signal::conditioning::filter_columns;
+use crate::signal::filter::Butterworth;
 
 /// Which least-squares problem to solve.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -11,9 +11,11 @@
 //! loop's do, so the direction column here is that mean (docs/identification.md gives what it
 //! changes).
 
-use super::conditioning::{central_difference, every_nth_row, filter_columns, mean_of, whole_periods, Averaging};
-use super::filter::{Butterworth, FilterError};
 use crate::model::{CoulombLaws, CoulombShape};
+use crate::signal::conditioning::{
+    central_difference, every_nth_row, filter_columns, mean_of, whole_periods, Averaging,
+};
+use crate::signal::filter::{Butterworth, FilterError};
 
 /// The friction velocity of a log: one series per averaged period (a single one for a log that
 /// is not periodic), each `samples × dof`, row-major.

@@ -24,13 +24,13 @@
 //! controllers' friction compensation and the diagnosis against that file use it.
 
 use super::estimate::{coulomb_positions, regressor_rows};
-use super::filter::Butterworth;
 use super::preprocess::{PreprocessError, Preprocessed};
 use crate::base_parameters::BaseParameters;
 use crate::choices::{Choice, JointLaw, UnresolvedLaw};
 use crate::dense::{self, dot, Unseen};
 use crate::effects::FRICTION_VELOCITY_SHARES;
 use crate::model::{CoulombLaws, CoulombShape, Model};
+use crate::signal::filter::Butterworth;
 use faer::Mat;
 use std::collections::HashMap;
 use std::ops::Range;
@@ -84,7 +84,7 @@ pub fn candidate_laws(rms_speed: f64) -> Vec<CoulombShape> {
 /// column refitted, predicts the held-out folds best.
 /// `columns(k, laws)` gives joint `k`'s Coulomb column under each of `laws` at the problem's
 /// samples, unweighted, as the fit filters them (several at a time: a filter runs
-/// [`super::filter::LANES`] columns side by side for the time of one); `start` are the laws the
+/// [`crate::signal::filter::LANES`] columns side by side for the time of one); `start` are the laws the
 /// problem's columns hold. Joints without a Coulomb column keep theirs.
 pub fn choose_laws<E>(
     mut problem: LawProblem,
@@ -178,7 +178,7 @@ pub fn choose_laws<E>(
 
 /// Each joint's candidate columns, weighted, by law: the grid's, and those the refinement tried,
 /// kept across sweeps, whose refinements mostly retrace each other. Filtering a column over a
-/// long log is most of a law's cost, and the filter runs up to [`super::filter::LANES`] side by
+/// long log is most of a law's cost, and the filter runs up to [`crate::signal::filter::LANES`] side by
 /// side for the time of one, so the columns are made several at a time.
 struct ColumnCache<F> {
     columns: F,

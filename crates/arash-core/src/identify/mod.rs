@@ -3,14 +3,12 @@
 //! printed as the paper's tables and used for prediction.
 
 pub mod closed_loop;
-pub mod conditioning;
 pub mod consistent;
 pub mod cutoff;
 pub mod data_choices;
 pub mod drive_gains;
 pub mod estimate;
 pub mod excitation;
-pub mod filter;
 pub mod friction;
 pub mod friction_law;
 pub mod options;

@@ -6,13 +6,13 @@
 //! differentiated circularly (three periods side by side, the middle kept): one period of a
 //! periodic signal has no ends, so it gets no end effects.
 
-use super::conditioning::{averaged, central_difference, every_nth_row, filter_columns, periods_of, Averaging};
 use super::data_choices::{bandwidth, find_period, harmonic_bandwidth, PERIODIC_MISMATCH};
-use super::filter::{Butterworth, FilterError};
 use super::friction::{FrictionVelocity, RawVelocity};
 use super::options::{PreprocessOptions, SettingError};
 use crate::choices::{Choice, Concern};
 use crate::model::CoulombLaws;
+use crate::signal::conditioning::{averaged, central_difference, every_nth_row, filter_columns, periods_of, Averaging};
+use crate::signal::filter::{Butterworth, FilterError};
 
 /// Why a log cannot be preprocessed. Each variant names the offending input.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

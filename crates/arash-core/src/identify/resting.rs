@@ -11,8 +11,8 @@
 //!
 //! A rest is read from the raw encoder: a reading that holds for at least [`REST_HOLD_S`].
 
-use super::conditioning::Averaging;
 use crate::choices::Choice;
+use crate::signal::conditioning::Averaging;
 
 /// A joint rests where its reading holds for at least this long (s). A reading repeated for a
 /// sample or two is slow motion across one encoder step; under closed-loop control a joint held by

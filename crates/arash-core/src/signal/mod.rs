@@ -1,7 +1,10 @@
 //! Signal processing below identification, diagnosis and the flight log: what each of them
-//! reads a log with. For now the resampling onto a uniform grid and an encoder's step; the
-//! filters, derivatives and the choices made from them still live in `identify` (issue 59 moves
-//! them here).
+//! reads a log with. The resampling onto a uniform grid, an encoder's step, the zero-phase
+//! Butterworth filter, and the conditioning built on it (period averaging, central differences,
+//! filtered columns). The choices made from them (the period, the cut-off, the friction law)
+//! still live in `identify` (issue 59 moves them here).
 
+pub mod conditioning;
 pub mod encoder;
+pub mod filter;
 pub mod resample;
