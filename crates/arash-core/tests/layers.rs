@@ -44,7 +44,7 @@ const CORE: &[&str] = &[
 const FOLDERS: &[(&str, &[&str])] = &[
     ("control", &["gains", "safety", "fourier", "trajectory", "estimator", "feedforward", "laws", "logged"]),
     ("force", &["thresholds", "settings", "frame_force", "observer"]),
-    ("signal", &["filter", "conditioning", "encoder", "resample"]),
+    ("signal", &["filter", "conditioning", "encoder", "resample", "statistics"]),
     (
         "identify",
         &[
@@ -79,6 +79,7 @@ const FOLDERS: &[(&str, &[&str])] = &[
             "gain_share",
             "delay",
             "outcome",
+            "guard",
             "search",
             "refit",
             "report",

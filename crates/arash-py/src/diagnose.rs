@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use arash_core::diagnose::{
     consistent_with_effects, diagnose as core_diagnose, DiagnoseOptions as CoreOptions, Diagnosis as CoreDiagnosis,
-    Finding, Runs,
+    Finding, Reversion, Runs,
 };
 use arash_core::effects::EffectKind;
 use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
@@ -315,6 +315,36 @@ impl Diagnosis {
         d.set_item("heldout_gain", h.heldout_gain)?;
         d.set_item("round", h.round)?;
         Ok(Some(d))
+    }
+    /// What was put back so that no joint predicts the held-out data worse than the model the
+    /// diagnosis started from, in order: one dict per step with `joint` (its name), `code`
+    /// (`hold_friction` or `drop_effect`), for a dropped effect its `label`, the joints it
+    /// `helped` (names) and `sigmas` (how far it harmed the joint), and the joint's held-out RMS
+    /// `start_rms` (the starting model's), `rms_before` and `rms_after` (N·m or N).
+    #[getter]
+    fn reverted<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        let names = &self.inner.joint_names;
+        self.inner
+            .reverted
+            .iter()
+            .map(|r| {
+                let d = PyDict::new(py);
+                d.set_item("joint", &names[r.joint])?;
+                match &r.action {
+                    Reversion::HoldFriction => d.set_item("code", "hold_friction")?,
+                    Reversion::DropEffect { label, helped, sigmas } => {
+                        d.set_item("code", "drop_effect")?;
+                        d.set_item("label", label)?;
+                        d.set_item("helped", helped.iter().map(|&j| names[j].as_str()).collect::<Vec<_>>())?;
+                        d.set_item("sigmas", sigmas)?;
+                    }
+                }
+                d.set_item("start_rms", r.start_rms)?;
+                d.set_item("rms_before", r.rms_before)?;
+                d.set_item("rms_after", r.rms_after)?;
+                Ok(d)
+            })
+            .collect()
     }
     /// One dict per candidate not accepted: `name`, `joints`, `label`, `reason` (text), `code`
     /// (the reason's identifier), `p_value` and `heldout_gain` (None where not reached).

@@ -19,7 +19,9 @@ pub struct Args {
     #[command(flatten)]
     runs: super::Runs,
     /// A model file (from `arash identify` or an earlier diagnosis) to diagnose against; its
-    /// inertial parameters are held, friction is refitted. Default: refit the declared model.
+    /// inertial parameters are held, friction is refitted and kept where it predicts the held-out
+    /// data better. No joint ends worse than this model on held-out data. Default: refit the
+    /// declared model.
     #[arg(long)]
     model: Option<PathBuf>,
     /// With --model: refit all its base parameters too.

@@ -32,7 +32,7 @@ fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
     let (model, train, validation, options) = (ctx.model, &ctx.train, ctx.validation.as_ref(), ctx.options);
     let (weights, free, split) = (&ctx.weights[..], &ctx.free[..], &ctx.split);
     let max_shift = ctx.max_shift();
-    let fixed_prediction = |data: &Prepared| ctx.fixed_prediction(data);
+    let fixed_prediction = |data: &Prepared| ctx.fixed_prediction(data, &ctx.free);
     let dof = train.dof;
     let mut term = EffectTerm::new(EffectKind::Delay, None);
     term.columns = vec!["shift".into()];

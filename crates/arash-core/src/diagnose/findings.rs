@@ -168,6 +168,10 @@ pub enum RejectionReason {
     DelayNotSignificant { p_value: f64, alpha: f64 },
     /// A shift that cuts the held-out error by less than `min_gain`.
     DelaySmallGain { shift: isize, gain: f64, min_gain: f64 },
+    /// Accepted in the search, but with it in the final fit `joint` predicts the held-out data
+    /// worse than the model the diagnosis started from, by `sigmas` standard errors
+    /// (`diagnose/guard.rs`).
+    WorseThanStart { joint: String, sigmas: f64 },
 }
 
 impl RejectionReason {
@@ -192,6 +196,7 @@ impl RejectionReason {
             Self::TooShort { .. } => "too_short",
             Self::DelayNotSignificant { .. } => "delay_not_significant",
             Self::DelaySmallGain { .. } => "delay_small_gain",
+            Self::WorseThanStart { .. } => "worse_than_start",
         }
     }
 }
@@ -270,6 +275,10 @@ impl std::fmt::Display for RejectionReason {
                 100.0 * gain,
                 100.0 * min_gain
             ),
+            Self::WorseThanStart { joint, sigmas } => write!(
+                f,
+                "accepted in the search, but with it {joint} predicts the held-out data worse than the model the diagnosis started from ({sigmas:.1} standard errors): dropped"
+            ),
         }
     }
 }
@@ -279,6 +288,27 @@ impl std::fmt::Display for RejectionReason {
 pub struct ErrorSummary {
     pub training: Metrics,
     pub heldout: Metrics,
+}
+
+/// What the guard (`diagnose/guard.rs`) changed on one joint, and the joint's held-out RMS (N·m or N) around it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Reverted {
+    pub joint: usize,
+    pub action: Reversion,
+    /// The starting model's held-out RMS on the joint, and the diagnosis's before and after.
+    pub start_rms: f64,
+    pub rms_before: f64,
+    pub rms_after: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "code", rename_all = "snake_case")]
+pub enum Reversion {
+    /// The joint's refitted friction was put back at the given model's values.
+    HoldFriction,
+    /// The accepted effect `label` was dropped; it helped `helped` (joint indices) and harmed
+    /// the joint by `sigmas` standard errors.
+    DropEffect { label: String, helped: Vec<usize>, sigmas: f64 },
 }
 
 /// Settings the diagnosis ran with.
@@ -347,8 +377,14 @@ pub struct Diagnosis {
     /// Set when the search stopped because the model is heavier than the data.
     #[serde(default)]
     pub too_heavy: Option<TooHeavy>,
+    /// The model the diagnosis started from (the given model as it is, or the declared model
+    /// refitted), and the final one.
     pub before: ErrorSummary,
     pub after: ErrorSummary,
+    /// What the guard put back so that no joint predicts the held-out data worse than `before`
+    /// (`diagnose/guard.rs`), in order.
+    #[serde(default)]
+    pub reverted: Vec<Reverted>,
     /// The held-out error no model of the motion removes, RMS per joint (N·m or N): the torque's
     /// noise in the band, or what the band holds above the narrowest that predicts as well, if
     /// larger. Held-out gains are judged against the error above it, as far as that stands clear
@@ -423,6 +459,7 @@ mod tests {
             RejectionReason::TooShort { batches: 3, columns: 4 },
             RejectionReason::DelayNotSignificant { p_value: 0.5, alpha: 0.01 },
             RejectionReason::DelaySmallGain { shift: 3, gain: 0.01, min_gain: 0.2 },
+            RejectionReason::WorseThanStart { joint: "yaw".into(), sigmas: 3.0 },
         ];
         for r in reasons {
             let json: serde_json::Value = serde_json::to_value(&r).unwrap();

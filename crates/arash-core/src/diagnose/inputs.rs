@@ -165,12 +165,13 @@ impl<'a> Context<'a> {
         (self.options.max_delay_s * self.train.fs).round() as isize
     }
 
-    /// What the given model's held parameters and effects predict on `data` (zero when refitting).
-    pub(super) fn fixed_prediction(&self, data: &Prepared) -> Vec<f64> {
+    /// What the given model's held parameters and effects predict on `data` (zero when refitting),
+    /// with the declared columns `free` fitted and the others held.
+    pub(super) fn fixed_prediction(&self, data: &Prepared, free: &[bool]) -> Vec<f64> {
         let dof = data.dof;
         let mut pred = vec![0.0; data.samples() * dof];
         if let (Some(g), false) = (self.given, self.refit) {
-            for ((c, b), _) in data.declared.iter().zip(&g.fitted.beta).zip(&self.free).filter(|(_, f)| !**f) {
+            for ((c, b), _) in data.declared.iter().zip(&g.fitted.beta).zip(free).filter(|(_, f)| !**f) {
                 regression::axpy(&mut pred, *b, c, dof);
             }
             let (gains, others): (Vec<_>, Vec<_>) = g.effects.iter().partition(|t| t.kind == EffectKind::DriveGain);
@@ -215,7 +216,7 @@ impl<'a> Context<'a> {
     /// The declared model's torque on `data`: the given model's held part and the free
     /// coefficients `x`.
     fn declared_torque(&self, data: &Prepared, x: &[f64]) -> Vec<f64> {
-        let mut torque = self.fixed_prediction(data);
+        let mut torque = self.fixed_prediction(data, &self.free);
         let free = data.declared.iter().zip(&self.free).filter(|(_, f)| **f).map(|(c, _)| c);
         for (column, coefficient) in free.zip(x) {
             regression::axpy(&mut torque, *coefficient, column, data.dof);
@@ -225,15 +226,51 @@ impl<'a> Context<'a> {
 
     /// The weighted problem on `data` with the torque shifted by `delay` samples.
     pub(super) fn problem(&self, data: &Prepared, delay: isize) -> Problem {
-        Problem::new(data, data.tau(delay), self.fixed_prediction(data), &self.weights, &self.free)
+        self.problem_with(data, delay, &self.free)
+    }
+
+    /// [`Self::problem`] with the declared columns `free` fitted and the others held at the given
+    /// model's values.
+    pub(super) fn problem_with(&self, data: &Prepared, delay: isize, free: &[bool]) -> Problem {
+        Problem::new(data, data.tau(delay), self.fixed_prediction(data, free), &self.weights, free)
     }
 
     /// Where held-out errors are measured, with the torque shifted by `delay` samples.
     pub(super) fn heldout(&self, delay: isize) -> HeldOut {
+        self.heldout_with(delay, &self.free)
+    }
+
+    /// [`Self::heldout`] with the declared columns `free` fitted.
+    pub(super) fn heldout_with(&self, delay: isize, free: &[bool]) -> HeldOut {
         match &self.validation {
-            Some(v) => HeldOut::Validation(self.problem(v, delay)),
+            Some(v) => HeldOut::Validation(self.problem_with(v, delay, free)),
             None => HeldOut::Blocks { train: self.split.train.clone(), test: self.split.test.clone() },
         }
+    }
+
+    /// The given model's coefficients of the declared columns `free` (empty when refitting): its
+    /// prediction as it is, on a problem built with `free`.
+    pub(super) fn given_coefficients(&self, free: &[bool]) -> Option<Vec<f64>> {
+        let g = self.given.filter(|_| !self.refit)?;
+        Some(g.fitted.beta.iter().zip(free).filter(|(_, f)| **f).map(|(b, _)| *b).collect())
+    }
+
+    /// Per joint, the factor the given model's drive gains scale its prediction by (1 where it
+    /// has none).
+    pub(super) fn given_gain_factors(&self) -> Vec<f64> {
+        let mut factors = vec![1.0; self.model.dof()];
+        for term in self.given.iter().flat_map(|g| &g.effects).filter(|t| t.kind == EffectKind::DriveGain) {
+            if let (Some(k), Some(gain)) = (term.joint, term.coefficients.first()) {
+                factors[k] *= 1.0 + gain;
+            }
+        }
+        factors
+    }
+
+    /// The declared columns of joint `k`'s friction.
+    pub(super) fn friction_columns_of(&self, k: usize) -> Vec<bool> {
+        let layout = self.model.layout();
+        self.base.independent.iter().map(|&j| j == layout.viscous(k) || j == layout.coulomb(k)).collect()
     }
 
     /// Each template's weighted columns on the training log (and the validation log); templates

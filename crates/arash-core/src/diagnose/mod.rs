@@ -14,7 +14,10 @@
 //! 5. the survivors are ranked by how much they cut the error on held-out data (a validation log,
 //!    or the odd-numbered blocks when fitting on the even ones), and one that does not cut it by
 //!    at least `min_gain` is not worth a term;
-//! 6. the best is added, the model refitted, and the search repeated until nothing passes.
+//! 6. the best is added, the model refitted, and the search repeated until nothing passes;
+//! 7. no joint is left predicting the held-out data worse than the model the search started
+//!    from: a refitted friction goes back to the given model's, an effect that harms a joint
+//!    beyond the comparison's noise is dropped (`diagnose/guard.rs`).
 //!
 //! On torque computed from currents with calibrated drive gains, each coefficient's σ also counts
 //! the gains' own (`diagnose/gain_share.rs`).
@@ -25,6 +28,7 @@ mod candidates;
 mod delay;
 mod findings;
 mod gain_share;
+mod guard;
 mod inputs;
 mod noise;
 mod options;
@@ -40,7 +44,8 @@ pub use crate::effects::{EffectKind, EffectTerm, TermState};
 pub use crate::identify::{Declared, Log};
 pub use delay::ALIGNMENT_SAMPLES;
 pub use findings::{
-    DiagnoseSettings, Diagnosis, ErrorSummary, Finding, Rejection, RejectionReason, ScaleRefinement, Series,
+    DiagnoseSettings, Diagnosis, ErrorSummary, Finding, Rejection, RejectionReason, Reversion, Reverted,
+    ScaleRefinement, Series,
 };
 pub use options::{DiagnoseError, DiagnoseOptions, OptionsError};
 pub use refit::consistent_with_effects;

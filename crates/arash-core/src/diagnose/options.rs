@@ -32,6 +32,14 @@ pub const MAX_VELOCITY_NOISE: f64 = 0.1 * crate::effects::SLOWEST_STRIBECK_FRACT
 /// signed coefficient gets (`search.rs`, `wrong_sign`).
 pub const PAYLOAD_MASS_SIGMAS: f64 = 2.0;
 
+/// An accepted effect is dropped when, with it, a joint predicts the held-out data worse than the
+/// model the diagnosis started from by this many standard errors of the difference (batch means
+/// over the held-out blocks, `diagnose/guard.rs`): worse by the noise of the comparison alone is
+/// not worse, and a payload that helps five joints should not fall to round-off on the sixth. Two,
+/// as for a payload's mass. Against a given model, a refitted friction must win by as much to be
+/// kept: the two have the same columns, and the given model's are the identification's.
+pub const HARM_SIGMAS: f64 = 2.0;
+
 /// Settings of [`super::diagnose`]; `Default` gives the documented defaults.
 #[derive(Clone, Debug)]
 pub struct DiagnoseOptions {

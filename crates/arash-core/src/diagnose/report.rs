@@ -1,6 +1,7 @@
 //! The diagnosis as text and JSON.
 
-use super::findings::{Diagnosis, ErrorSummary};
+use super::findings::{Diagnosis, ErrorSummary, Reversion};
+use super::options::HARM_SIGMAS;
 use crate::model::{CoulombLaws, CoulombShape};
 use crate::model_file::Metrics;
 
@@ -19,6 +20,36 @@ impl Diagnosis {
 
     pub fn to_json(&self) -> String {
         serde_json::to_string_pretty(self).expect("a diagnosis always serialises")
+    }
+
+    /// What the guard put back so that no joint predicts worse than the starting model.
+    fn reverted_lines(&self) -> String {
+        if self.reverted.is_empty() {
+            return String::new();
+        }
+        let mut s = "\nKept no worse than the starting model on held-out data, joint by joint:\n".to_string();
+        for r in &self.reverted {
+            let name = &self.joint_names[r.joint];
+            let what = match &r.action {
+                Reversion::HoldFriction => format!(
+                    "{name}: its friction refitted here did not predict better by {HARM_SIGMAS} standard errors; \
+                     held at the given model's"
+                ),
+                Reversion::DropEffect { label, helped, sigmas } => {
+                    let helped: Vec<&str> = helped.iter().map(|&j| self.joint_names[j].as_str()).collect();
+                    let helped = match helped.is_empty() {
+                        true => "no joint".to_string(),
+                        false => helped.join(", "),
+                    };
+                    format!("{name}: {label} harmed it by {sigmas:.1} standard errors (it helped {helped}); dropped")
+                }
+            };
+            s += &format!(
+                "  - {what} (held-out RMS {:.3e} → {:.3e}; the starting model's {:.3e})\n",
+                r.rms_before, r.rms_after, r.start_rms
+            );
+        }
+        s
     }
 
     /// The report: what was found with its evidence, the errors before and after, and what was
@@ -107,7 +138,12 @@ impl Diagnosis {
                 h.round
             );
         }
-        s += "\nError per joint, before → after:\n";
+        s += &self.reverted_lines();
+        s += &format!(
+            "\nError per joint, before ({}) → after, on the diagnosis's band ({:.2} Hz) and held-out data:\n",
+            if self.settings.refit { "the declared model refitted" } else { "the given model as it is" },
+            self.settings.cutoff_hz
+        );
         s += &self.error_table("training", &self.before, &self.after, |e| &e.training);
         s += &self.error_table("held-out", &self.before, &self.after, |e| &e.heldout);
         if !self.noise_floor.is_empty() {

@@ -7,9 +7,11 @@ use super::band_choice::choose_band;
 use super::candidates::{candidates, not_the_cable};
 use super::delay::search_delay;
 use super::findings::{
-    rejection, DiagnoseSettings, Diagnosis, Finding, Rejection, RejectionReason, ScaleRefinement, Series, TooHeavy,
+    rejection, DiagnoseSettings, Diagnosis, ErrorSummary, Finding, Rejection, RejectionReason, Reversion,
+    ScaleRefinement, Series, TooHeavy,
 };
 use super::gain_share::GainErrors;
+use super::guard;
 use super::inputs::Context;
 use super::options::{DiagnoseError, DiagnoseOptions, PAYLOAD_MASS_SIGMAS};
 use super::outcome::{declared_model, series};
@@ -487,11 +489,20 @@ impl Search<'_> {
         urdf: &str,
         samples_in: usize,
     ) -> Result<Diagnosis, DiagnoseError> {
-        let (ctx, problem, pool) = (self.ctx, self.problem, &self.pool);
-        let (model, dof) = (ctx.model, problem.dof);
+        let (ctx, pool) = (self.ctx, &self.pool);
+        let (model, dof) = (ctx.model, self.problem.dof);
+        let kept = guard::keep_no_worse(ctx, delay, (self.problem, self.heldout), pool, &state.chosen);
+        drop_reverted(&mut state, &kept, &mut rejected, model);
+        let rebuilt = (kept.free != ctx.free)
+            .then(|| (ctx.problem_with(&ctx.train, delay, &kept.free), ctx.heldout_with(delay, &kept.free)));
+        let (problem, heldout) = rebuilt.as_ref().map_or((self.problem, self.heldout), |(p, h)| (p, h));
         let declared_only = model_columns(problem, pool, &[]);
         let final_cols = model_columns(problem, pool, &state.chosen);
-        let x_before = least_squares(&declared_only, &problem.y, dof, Rows::All).ok_or(DiagnoseError::Singular)?;
+        let given = ctx.given_coefficients(&kept.free);
+        let x_before = match &given {
+            Some(x) => x.clone(),
+            None => least_squares(&declared_only, &problem.y, dof, Rows::All).ok_or(DiagnoseError::Singular)?,
+        };
         let x_after = least_squares(&final_cols, &problem.y, dof, Rows::All).ok_or(DiagnoseError::Singular)?;
         // Coefficients of the effects from the joint fit (they moved as later effects came in).
         let from_gains = self.gain_errors.as_ref().and_then(|g| g.sigma(&final_cols, dof));
@@ -505,18 +516,19 @@ impl Search<'_> {
             f.weigh();
             offset += width;
         }
-        // Before: the declared model on the data as logged, without any shift found.
-        let before = if delay == 0 {
-            error_summary(problem, self.heldout, pool, &[])
-        } else {
-            error_summary(&ctx.problem(&ctx.train, 0), &ctx.heldout(0), pool, &[])
+        // Before: the model the diagnosis started from, on the data as logged (no shift): the
+        // given model as it is, or the declared model refitted.
+        let before = match ctx.given_coefficients(&ctx.free) {
+            Some(x) => as_given_summary(ctx, &x),
+            None if delay == 0 => error_summary(self.problem, self.heldout, pool, &[]),
+            None => error_summary(&ctx.problem(&ctx.train, 0), &ctx.heldout(0), pool, &[]),
         };
-        let after = error_summary(problem, self.heldout, pool, &state.chosen);
+        let after = error_summary(problem, heldout, pool, &state.chosen);
         let declared_fit = Fitted { columns: &declared_only, coefficients: &x_before };
         let final_fit = Fitted { columns: &final_cols, coefficients: &x_after };
         let series = series(&ctx.train, problem, declared_fit, final_fit, pool, &state.chosen);
-        let mut updated = self.updated_model(&state, &x_after, &series, urdf, samples_in)?;
-        let heldout = match ctx.validation.is_some() {
+        let mut updated = self.updated_model(&state, (&kept.free, &x_after), &series, urdf, samples_in)?;
+        let source = match ctx.validation.is_some() {
             true => "the validation log".to_string(),
             false => format!(
                 "the odd-numbered of {} blocks of {:.3} s, fitting on the even ones",
@@ -525,9 +537,9 @@ impl Search<'_> {
         };
         updated.held_out = Some(crate::model_file::HeldOut {
             rms: after.heldout.rms.clone(),
-            samples: self.heldout.samples(dof),
+            samples: heldout.samples(dof),
             cutoff_hz: ctx.train.pre.cutoff_hz,
-            source: heldout.clone(),
+            source: source.clone(),
             observer: None,
         });
         for (i, c) in pool.iter().enumerate().filter(|(i, _)| !state.chosen.contains(i)) {
@@ -548,6 +560,7 @@ impl Search<'_> {
             too_heavy: state.too_heavy,
             before,
             after,
+            reverted: kept.reverted.into_iter().map(|(r, _)| r).collect(),
             noise_floor: ctx.floor.rms.clone(),
             sensor_noise: ctx.floor.noise_rms.clone(),
             settings: DiagnoseSettings {
@@ -566,7 +579,7 @@ impl Search<'_> {
                 max_vif: options.max_vif,
                 max_delay_s: options.max_delay_s,
                 refit: ctx.refit,
-                heldout,
+                heldout: source,
                 candidates: pool.len() + 1,
             },
             model: updated,
@@ -579,7 +592,7 @@ impl Search<'_> {
     fn updated_model(
         &self,
         state: &State,
-        x_after: &[f64],
+        (free, x_after): (&[bool], &[f64]),
         series: &Series,
         urdf: &str,
         samples_in: usize,
@@ -596,7 +609,7 @@ impl Search<'_> {
             // Against a given model its freed (friction) coefficients take the joint fit's values,
             // which come first in `x_after`, in the order of the base parameters.
             let mut fitted = x_after.iter();
-            let freed = updated.fitted.beta.iter_mut().zip(&ctx.base.independent).zip(&ctx.free).filter(|(_, f)| **f);
+            let freed = updated.fitted.beta.iter_mut().zip(&ctx.base.independent).zip(free).filter(|(_, f)| **f);
             for ((b, j), _) in freed {
                 *b = *fitted.next().expect("one coefficient per free column");
                 // A refitted friction coefficient is a standard parameter of its own.
@@ -608,6 +621,57 @@ impl Search<'_> {
         updated.effects.extend(state.accepted.iter().map(|f| f.term.clone()));
         Ok(updated)
     }
+}
+
+/// The accepted effects the guard dropped leave the findings for the rejections, with the joint
+/// they made worse; the search's choice becomes the guard's.
+fn drop_reverted(state: &mut State, kept: &guard::Kept, rejected: &mut Vec<Rejection>, model: &Model) {
+    let names = model.joint_names();
+    for (step, i) in kept.reverted.iter().filter_map(|(r, i)| i.map(|i| (r, i))) {
+        let Some(at) = state.chosen.iter().position(|&c| c == i) else { continue };
+        let finding = nth_effect(&state.accepted, at);
+        let found = state.accepted.remove(finding);
+        let sigmas = match &step.action {
+            Reversion::DropEffect { sigmas, .. } => *sigmas,
+            Reversion::HoldFriction => unreachable!("only a dropped effect has a pool index"),
+        };
+        let reason = RejectionReason::WorseThanStart { joint: names[step.joint].clone(), sigmas };
+        rejected.push(Rejection {
+            name: found.name,
+            joints: found.joints,
+            label: found.label,
+            reason,
+            p_value: Some(found.p_value),
+            heldout_gain: Some(found.heldout_gain),
+        });
+        state.chosen.remove(at);
+    }
+    debug_assert_eq!(state.chosen, kept.chosen);
+}
+
+/// The index in `accepted` of the `at`-th effect that is not the delay (the delay has no columns
+/// and no place in `chosen`).
+fn nth_effect(accepted: &[Finding], at: usize) -> usize {
+    accepted
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| f.term.kind != EffectKind::Delay)
+        .nth(at)
+        .map(|(i, _)| i)
+        .expect("one finding per chosen effect")
+}
+
+/// The given model's errors as it is, on the data as logged: on every training sample, and on
+/// the held-out samples.
+fn as_given_summary(ctx: &Context, x: &[f64]) -> ErrorSummary {
+    let (problem, heldout) = (ctx.problem(&ctx.train, 0), ctx.heldout(0));
+    let e = guard::as_given_residual(ctx, &problem, x);
+    let training = problem.metrics_of(&e, Rows::All);
+    let heldout = match &heldout {
+        HeldOut::Blocks { test, .. } => problem.metrics_of(&e, Rows::Where(test)),
+        HeldOut::Validation(v) => v.metrics_of(&guard::as_given_residual(ctx, v, x), Rows::All),
+    };
+    ErrorSummary { training, heldout }
 }
 
 /// Two terms whose whole-robot held-out gains are within this ratio explain the data comparably.

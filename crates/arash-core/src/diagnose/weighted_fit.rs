@@ -101,7 +101,11 @@ impl Problem {
 
     /// Unweighted per-joint metrics of the fit `coefficients` on `columns` over `rows`.
     pub(super) fn metrics(&self, columns: &[&Column], coefficients: &[f64], rows: Rows) -> Metrics {
-        let e = residual(columns, coefficients, &self.y, self.dof);
+        self.metrics_of(&residual(columns, coefficients, &self.y, self.dof), rows)
+    }
+
+    /// Unweighted per-joint metrics of a weighted residual `e` on every row, over `rows`.
+    pub(super) fn metrics_of(&self, e: &[f64], rows: Rows) -> Metrics {
         let (mut tau, mut pred) = (Vec::new(), Vec::new());
         for s in 0..self.tau.len() / self.dof {
             if let Rows::Where(m) = rows {

@@ -11,6 +11,7 @@ use realfft::num_complex::Complex;
 use realfft::RealFftPlanner;
 
 use crate::choices::Choice;
+use crate::signal::statistics::mean_and_block_error;
 
 /// Consecutive periods of a periodic log differ by at most this share of the motion's variance
 /// (10 % in RMS): far above encoder noise, far below two unrelated stretches of motion (~100 %).
@@ -437,20 +438,6 @@ pub fn best_predicting(candidates: &[Prediction], equal: Equal, prefer: Prefer) 
         Prefer::BestInBandFit => equal.max_by(|&a, &b| candidates[a].training_fp.total_cmp(&candidates[b].training_fp)),
         Prefer::Widest => equal.max_by(|&a, &b| candidates[a].cutoff_hz.total_cmp(&candidates[b].cutoff_hz)),
     }
-}
-
-/// The mean of `x` and its standard error from the scatter of the means of consecutive blocks
-/// of `block` values (the values are correlated within a block, not between blocks).
-pub fn mean_and_block_error(x: &[f64], block: usize) -> (f64, f64) {
-    let n = x.len().max(1);
-    let mean = x.iter().sum::<f64>() / n as f64;
-    let blocks: Vec<f64> = x.chunks(block.max(1)).map(|b| b.iter().sum::<f64>() / b.len() as f64).collect();
-    if blocks.len() < 2 {
-        return (mean, f64::INFINITY);
-    }
-    let m = blocks.len() as f64;
-    let scatter = blocks.iter().map(|b| (b - mean).powi(2)).sum::<f64>() / (m - 1.0);
-    (mean, (scatter / m).sqrt())
 }
 
 #[cfg(test)]

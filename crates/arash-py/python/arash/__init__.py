@@ -351,7 +351,9 @@ def diagnose(
 
     robot: a ``Robot``. t (N,), q and tau (N, dof), SI units, uniformly sampled.
     model: an ``Identification`` to diagnose against (its inertial parameters held, friction
-        refitted); default: refit the declared model.
+        refitted and kept where it predicts the held-out data better); no joint ends predicting
+        the held-out data worse than it (``Diagnosis.reverted`` lists what was put back, and
+        ``error_before`` is this model as it is); default: refit the declared model.
     validation: a tuple ``(t, q, tau)`` held out for ranking and the held-out errors, or a list of
         such runs recorded one after another (each run is filtered on its own: nothing across the
         jump from one to the next); default: the odd-numbered blocks of the training log.

@@ -417,6 +417,11 @@ class Diagnosis:
     @property
     def rejected(self) -> list[dict[str, Any]]: ...
     @property
+    def reverted(self) -> list[dict[str, Any]]:
+        """What was put back so that no joint predicts held-out data worse than the starting model:
+        ``joint``, ``code`` (``hold_friction`` or ``drop_effect``), for a dropped effect ``label``,
+        ``helped`` and ``sigmas``; and ``start_rms``, ``rms_before``, ``rms_after``."""
+    @property
     def too_heavy(self) -> Optional[dict[str, Any]]:
         """Set when the search stopped because the model is heavier than the data: ``body``,
         ``mass_kg`` (the mass the data lack), ``mass_sigma_kg``, ``mass_sigma_from_gains_kg``,
