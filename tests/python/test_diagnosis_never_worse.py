@@ -46,7 +46,7 @@ def test_with_run_2_held_out_the_kuka_diagnosis_predicts_it_better_and_no_joint_
     d = arash.diagnose(robot, *kuka_run(1), model=identified, validation=kuka_run(2))
     before, after = assert_no_joint_worse(identified, d.model, kuka_run(2), "KUKA run 2 held out")
     assert d.accepted and np.any(after < 0.9 * before), d.report()
-    assert "before (the given model as it is)" in d.report()
+    assert "before: the given model as it is" in d.report()
 
 
 pytest.importorskip("pinocchio")

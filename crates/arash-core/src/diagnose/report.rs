@@ -1,6 +1,6 @@
 //! The diagnosis as text and JSON.
 
-use super::findings::{Diagnosis, ErrorSummary, Reversion};
+use super::findings::{Diagnosis, ErrorSummary, Finding, Reversion};
 use super::options::HARM_SIGMAS;
 use crate::model::{CoulombLaws, CoulombShape};
 use crate::model_file::Metrics;
@@ -20,6 +20,21 @@ impl Diagnosis {
 
     pub fn to_json(&self) -> String {
         serde_json::to_string_pretty(self).expect("a diagnosis always serialises")
+    }
+
+    /// For an effect that, when added, helped some joints and harmed others on held-out data, the
+    /// gain on each (the guard drops one that harms a joint beyond the comparison's noise).
+    fn mixed_gains(&self, f: &Finding) -> String {
+        let gains = &f.heldout_gain_per_joint;
+        if !(gains.iter().any(|g| *g > 0.0) && gains.iter().any(|g| *g < 0.0)) {
+            return String::new();
+        }
+        let each: Vec<String> = f
+            .joints
+            .iter()
+            .filter_map(|&j| gains.get(j).map(|g| format!("{} {:+.1} %", self.joint_names[j], 100.0 * g)))
+            .collect();
+        format!("       held-out gain by joint when added (it helps some and harms others): {}\n", each.join(", "))
     }
 
     /// What the guard put back so that no joint predicts worse than the starting model.
@@ -120,6 +135,7 @@ impl Diagnosis {
                 if !f.aliases.is_empty() {
                     s += &format!("       indistinguishable here from: {}\n", f.aliases.join(", "));
                 }
+                s += &self.mixed_gains(f);
             }
         }
         if let Some(h) = &self.too_heavy {
@@ -140,7 +156,7 @@ impl Diagnosis {
         }
         s += &self.reverted_lines();
         s += &format!(
-            "\nError per joint, before ({}) → after, on the diagnosis's band ({:.2} Hz) and held-out data:\n",
+            "\nError per joint, before → after (before: {}; on the diagnosis's band, {:.2} Hz):\n",
             if self.settings.refit { "the declared model refitted" } else { "the given model as it is" },
             self.settings.cutoff_hz
         );
