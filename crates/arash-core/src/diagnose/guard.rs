@@ -25,16 +25,18 @@
 use super::findings::{Reversion, Reverted};
 use super::inputs::Context;
 use super::options::HARM_SIGMAS;
-use super::regression::{least_squares, residual, Rows};
-use super::weighted_fit::{model_columns, validation_columns, Candidate, HeldOut, Problem};
+use super::regression::residual;
+use super::weighted_fit::{heldout_residual, on_rows, Candidate, HeldOut, Problem};
 use crate::signal::statistics::mean_and_block_error;
 
 /// The model the guard keeps: which declared columns are fitted, which effects (pool indices,
-/// in acceptance order), and what it changed, with the pool index of each effect it dropped.
+/// in acceptance order), and what it changed, with the pool index of each effect it dropped;
+/// and, where it held a friction, the training problem and held-out data built with `free`.
 pub(super) struct Kept {
     pub(super) free: Vec<bool>,
     pub(super) chosen: Vec<usize>,
     pub(super) reverted: Vec<(Reverted, Option<usize>)>,
+    pub(super) rebuilt: Option<(Problem, HeldOut)>,
 }
 
 /// The held-out comparison the guard makes: the starting model's held-out residual (weighted),
@@ -81,33 +83,30 @@ pub(super) fn keep_no_worse(
         batch: ((ctx.split.block_s * ctx.train.kept_rate()).round() as usize).max(1),
         weights: problem.weights.clone(),
     };
-    let mut kept = Kept { free: ctx.free.clone(), chosen: chosen.to_vec(), reverted: vec![] };
-    let mut rebuilt: Option<(Problem, HeldOut)> = None;
-    loop {
-        let (p, h) = rebuilt.as_ref().map_or((problem, heldout), |(p, h)| (p, h));
-        let now = fitted_heldout(p, h, pool, &kept.chosen);
-        let excess = yardstick.excess(&now);
-        let Some((k, action)) = next_reversion(ctx, &kept, &excess, pool, dof) else {
-            break;
-        };
+    let mut kept = Kept { free: ctx.free.clone(), chosen: chosen.to_vec(), reverted: vec![], rebuilt: None };
+    let mut now = heldout_residual(problem, heldout, pool, &kept.chosen);
+    while let Some((k, action)) = next_reversion(ctx, &kept, &yardstick.excess(&now), pool, dof) {
         let rms_before = yardstick.rms(&now, k);
         let start_rms = yardstick.rms(&yardstick.start, k);
         let (action, dropped) = match action {
             Next::HoldFriction => {
                 let friction = ctx.friction_columns_of(k);
                 kept.free.iter_mut().zip(friction).filter(|(_, f)| *f).for_each(|(free, _)| *free = false);
-                rebuilt = Some((ctx.problem_with(&ctx.train, delay, &kept.free), ctx.heldout_with(delay, &kept.free)));
+                kept.rebuilt =
+                    Some((ctx.problem_with(&ctx.train, delay, &kept.free), ctx.heldout_with(delay, &kept.free)));
                 (Reversion::HoldFriction, None)
             }
             Next::Drop(sigmas) => {
+                let (p, h) = kept.rebuilt.as_ref().map_or((problem, heldout), |(p, h)| (p, h));
                 let (at, helped) = least_harmful_removal(p, h, pool, &kept.chosen, k, &yardstick);
                 let i = kept.chosen.remove(at);
                 let label = pool[i].term.describe(&ctx.model.joint_names());
                 (Reversion::DropEffect { label, helped, sigmas }, Some(i))
             }
         };
-        let (p, h) = rebuilt.as_ref().map_or((problem, heldout), |(p, h)| (p, h));
-        let rms_after = yardstick.rms(&fitted_heldout(p, h, pool, &kept.chosen), k);
+        let (p, h) = kept.rebuilt.as_ref().map_or((problem, heldout), |(p, h)| (p, h));
+        now = heldout_residual(p, h, pool, &kept.chosen);
+        let rms_after = yardstick.rms(&now, k);
         kept.reverted.push((Reverted { joint: k, action, start_rms, rms_before, rms_after }, dropped));
     }
     kept
@@ -129,7 +128,7 @@ fn next_reversion(
     pool: &[Candidate],
     dof: usize,
 ) -> Option<(usize, Next)> {
-    let given = ctx.given_coefficients(&ctx.free).is_some();
+    let given = ctx.given.is_some() && !ctx.refit;
     let friction_free = |k: usize| ctx.friction_columns_of(k).iter().zip(&kept.free).any(|(c, f)| *c && *f);
     let acted_on = |k: usize| kept.chosen.iter().any(|&i| pool[i].term.joints(dof).contains(&k));
     let candidates = excess.iter().enumerate().filter_map(|(k, &(mean, se))| {
@@ -157,11 +156,11 @@ fn least_harmful_removal(
     yardstick: &Yardstick,
 ) -> (usize, Vec<usize>) {
     let dof = problem.dof;
-    let with = fitted_heldout(problem, heldout, pool, chosen);
+    let with = heldout_residual(problem, heldout, pool, chosen);
     let without = |at: usize| {
         let mut rest = chosen.to_vec();
         rest.remove(at);
-        fitted_heldout(problem, heldout, pool, &rest)
+        heldout_residual(problem, heldout, pool, &rest)
     };
     let acting: Vec<usize> = (0..chosen.len()).filter(|&at| pool[chosen[at]].term.joints(dof).contains(&k)).collect();
     let trials = crate::parallel::map(acting, |at| (at, without(at)));
@@ -173,29 +172,12 @@ fn least_harmful_removal(
     (at, helped)
 }
 
-/// The held-out residual (weighted, held-out samples only) of the model with the free declared
-/// columns and the effects `chosen`, fitted on the training rows.
-fn fitted_heldout(problem: &Problem, heldout: &HeldOut, pool: &[Candidate], chosen: &[usize]) -> Vec<f64> {
-    let dof = problem.dof;
-    let cols = model_columns(problem, pool, chosen);
-    match heldout {
-        HeldOut::Blocks { train, test } => {
-            let x = least_squares(&cols, &problem.y, dof, Rows::Where(train)).unwrap_or_else(|| vec![0.0; cols.len()]);
-            on_rows(&residual(&cols, &x, &problem.y, dof), test, dof)
-        }
-        HeldOut::Validation(v) => {
-            let x = least_squares(&cols, &problem.y, dof, Rows::All).unwrap_or_else(|| vec![0.0; cols.len()]);
-            residual(&validation_columns(v, pool, chosen), &x, &v.y, dof)
-        }
-    }
-}
-
 /// The starting model's held-out residual on the data as logged (no shift): the given model as
 /// it is, or the declared model refitted on the training rows.
 fn start_residual(ctx: &Context, pool: &[Candidate]) -> Vec<f64> {
     let (problem, heldout) = (ctx.problem(&ctx.train, 0), ctx.heldout(0));
     let Some(x) = ctx.given_coefficients(&ctx.free) else {
-        return fitted_heldout(&problem, &heldout, pool, &[]);
+        return heldout_residual(&problem, &heldout, pool, &[]);
     };
     let (target, rows) = match &heldout {
         HeldOut::Blocks { test, .. } => (&problem, Some(test)),
@@ -217,9 +199,4 @@ pub(super) fn as_given_residual(ctx: &Context, problem: &Problem, x: &[f64]) -> 
         *e -= (factors[i % dof] - 1.0) * (y - *e);
     }
     e
-}
-
-/// The rows of the samples marked in `mask`, sample by sample.
-fn on_rows(e: &[f64], mask: &[bool], dof: usize) -> Vec<f64> {
-    e.chunks(dof).zip(mask).filter(|(_, m)| **m).flat_map(|(row, _)| row.iter().copied()).collect()
 }

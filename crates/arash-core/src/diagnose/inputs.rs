@@ -174,19 +174,15 @@ impl<'a> Context<'a> {
             for ((c, b), _) in data.declared.iter().zip(&g.fitted.beta).zip(free).filter(|(_, f)| !**f) {
                 regression::axpy(&mut pred, *b, c, dof);
             }
-            let (gains, others): (Vec<_>, Vec<_>) = g.effects.iter().partition(|t| t.kind == EffectKind::DriveGain);
-            for term in others {
+            for term in g.effects.iter().filter(|t| t.kind != EffectKind::DriveGain) {
                 for (c, x) in term_columns(self.model, term, data).iter().zip(&term.coefficients) {
                     regression::axpy(&mut pred, *x, c, dof);
                 }
             }
             // A drive's gain scales what the rest of the given model predicts (its held part: the
             // refitted friction is fitted to the measured torque, gain and all).
-            for term in gains {
-                if let (Some(k), Some(gain)) = (term.joint, term.coefficients.first()) {
-                    pred.iter_mut().skip(k).step_by(dof).for_each(|p| *p *= 1.0 + gain);
-                }
-            }
+            let factors = self.given_gain_factors();
+            pred.iter_mut().enumerate().for_each(|(i, p)| *p *= factors[i % dof]);
         }
         pred
     }

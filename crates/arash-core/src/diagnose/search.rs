@@ -493,9 +493,7 @@ impl Search<'_> {
         let (model, dof) = (ctx.model, self.problem.dof);
         let kept = guard::keep_no_worse(ctx, delay, (self.problem, self.heldout), pool, &state.chosen);
         drop_reverted(&mut state, &kept, &mut rejected, model);
-        let rebuilt = (kept.free != ctx.free)
-            .then(|| (ctx.problem_with(&ctx.train, delay, &kept.free), ctx.heldout_with(delay, &kept.free)));
-        let (problem, heldout) = rebuilt.as_ref().map_or((self.problem, self.heldout), |(p, h)| (p, h));
+        let (problem, heldout) = kept.rebuilt.as_ref().map_or((self.problem, self.heldout), |(p, h)| (p, h));
         let declared_only = model_columns(problem, pool, &[]);
         let final_cols = model_columns(problem, pool, &state.chosen);
         let given = ctx.given_coefficients(&kept.free);
@@ -560,7 +558,7 @@ impl Search<'_> {
             too_heavy: state.too_heavy,
             before,
             after,
-            reverted: kept.reverted.into_iter().map(|(r, _)| r).collect(),
+            reverted: kept.reverted.iter().map(|(r, _)| r.clone()).collect(),
             noise_floor: ctx.floor.rms.clone(),
             sensor_noise: ctx.floor.noise_rms.clone(),
             settings: DiagnoseSettings {

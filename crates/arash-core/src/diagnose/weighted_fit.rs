@@ -182,21 +182,36 @@ pub(super) fn sse(columns: &[&Column], x: &[f64], y: &[f64], dof: usize, rows: R
     out
 }
 
-/// Held-out squared error per joint of the model `chosen` (+ `extra`), fitted on the training
-/// rows.
-pub(super) fn heldout_sse(problem: &Problem, heldout: &HeldOut, pool: &[Candidate], chosen: &[usize]) -> Vec<f64> {
+/// Held-out residual (weighted, held-out samples only, sample by sample) of the model with the
+/// free declared columns and the effects `chosen`, fitted on the training rows.
+pub(super) fn heldout_residual(problem: &Problem, heldout: &HeldOut, pool: &[Candidate], chosen: &[usize]) -> Vec<f64> {
     let dof = problem.dof;
     let cols = model_columns(problem, pool, chosen);
     match heldout {
         HeldOut::Blocks { train, test } => {
             let x = least_squares(&cols, &problem.y, dof, Rows::Where(train)).unwrap_or_else(|| vec![0.0; cols.len()]);
-            sse(&cols, &x, &problem.y, dof, Rows::Where(test))
+            on_rows(&residual(&cols, &x, &problem.y, dof), test, dof)
         }
         HeldOut::Validation(v) => {
             let x = least_squares(&cols, &problem.y, dof, Rows::All).unwrap_or_else(|| vec![0.0; cols.len()]);
-            sse(&validation_columns(v, pool, chosen), &x, &v.y, dof, Rows::All)
+            residual(&validation_columns(v, pool, chosen), &x, &v.y, dof)
         }
     }
+}
+
+/// The rows of the samples marked in `mask`, sample by sample.
+pub(super) fn on_rows(e: &[f64], mask: &[bool], dof: usize) -> Vec<f64> {
+    e.chunks(dof).zip(mask).filter(|(_, m)| **m).flat_map(|(row, _)| row.iter().copied()).collect()
+}
+
+/// Held-out squared error per joint of the model `chosen`, fitted on the training rows.
+pub(super) fn heldout_sse(problem: &Problem, heldout: &HeldOut, pool: &[Candidate], chosen: &[usize]) -> Vec<f64> {
+    let dof = problem.dof;
+    let mut out = vec![0.0; dof];
+    for (i, e) in heldout_residual(problem, heldout, pool, chosen).iter().enumerate() {
+        out[i % dof] += e * e;
+    }
+    out
 }
 
 /// The current model's fit on the rows it is trained on for held-out scoring, computed once per
