@@ -108,6 +108,13 @@ class Rig:
     def stderr(self):
         return (self.d / "daemon.err").read_text()
 
+    def state(self):
+        """The drives' states and the link's latched fault, for a failure's message."""
+        drives = {d.spec.node: hex(d.state) for d in self.sim.drives} if self.sim else {}
+        out = self.ctl("status", check=False)
+        link = json.loads(out.stdout).get("link") if out.returncode == 0 and out.stdout.startswith("{") else out.stderr
+        return f"drives {drives}; link {link}; aborts {self.sim.aborts if self.sim else None}"
+
     def ctl(self, *args, check=True):
         out = subprocess.run([ARASH, "ctl", "--socket", self.sock, *args], capture_output=True, text=True)
         if check:
@@ -118,7 +125,7 @@ class Rig:
     def wait(self, what, condition, timeout=5.0, poll=0.005):
         deadline = time.monotonic() + timeout
         while not condition():
-            assert time.monotonic() < deadline, f"timed out waiting for {what}\n{self.stderr()}"
+            assert time.monotonic() < deadline, f"timed out waiting for {what}\n{self.state()}\n{self.stderr()}"
             time.sleep(poll)
         return time.monotonic()
 

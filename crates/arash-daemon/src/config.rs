@@ -62,6 +62,12 @@ pub struct LinkConfig {
     pub hold_ms: f64,
     /// The first valid telemetry must arrive within this time of start-up (ms).
     pub startup_timeout_ms: f64,
+    /// A drive the host enables must report its power stage on within this time (ms), or
+    /// `DRIVE_STOPPED` latches. Not the link timeout: a CiA 402 drive walks three states to
+    /// get there, one process-data round trip each, and a drive that releases a brake or
+    /// charges its DC link first takes tens to hundreds of milliseconds; until it confirms, it
+    /// applies no torque, so the wait costs nothing in safety.
+    pub enable_timeout_ms: f64,
 }
 
 impl Default for LinkConfig {
@@ -75,6 +81,7 @@ impl Default for LinkConfig {
             ramp_ms: 10.0,
             hold_ms: 3.0,
             startup_timeout_ms: 2000.0,
+            enable_timeout_ms: 1000.0,
         }
     }
 }
@@ -203,6 +210,7 @@ impl DaemonConfig {
             return Err(ConfigError::Hold { hold: self.link.hold_ms, timeout: self.link.timeout_ms });
         }
         positive("link.startup_timeout_ms", self.link.startup_timeout_ms)?;
+        positive("link.enable_timeout_ms", self.link.enable_timeout_ms)?;
         positive("control.rate_hz", self.control.rate_hz)?;
         positive("control.velocity_cutoff_hz", self.control.velocity_cutoff_hz)?;
         positive("control.approach_fraction", self.control.approach_fraction)?;
@@ -241,9 +249,17 @@ impl DaemonConfig {
 
     /// Cycles of the link timeout, of the ramp and of the hold.
     pub fn link_cycles(&self) -> (u32, u32, u32) {
-        let cycles = |ms: f64| (ms * self.control.rate_hz / 1000.0).round() as u32;
         // A hold may be nil; a timeout or a ramp lasts at least a cycle.
-        (cycles(self.link.timeout_ms).max(1), cycles(self.link.ramp_ms).max(1), cycles(self.link.hold_ms))
+        (
+            self.cycles(self.link.timeout_ms).max(1),
+            self.cycles(self.link.ramp_ms).max(1),
+            self.cycles(self.link.hold_ms),
+        )
+    }
+
+    /// A time in ms as whole control cycles.
+    fn cycles(&self, ms: f64) -> u32 {
+        (ms * self.control.rate_hz / 1000.0).round() as u32
     }
 
     pub fn safety_limits(&self, model: &Model) -> Result<SafetyLimits, ConfigError> {
@@ -273,6 +289,7 @@ impl DaemonConfig {
             drive: self.drive.clone(),
             limits: self.safety_limits(model)?,
             link_timeout,
+            enable_timeout: self.cycles(self.link.enable_timeout_ms).max(1),
             ramp,
             hold,
             following_error: self.following_error(model)?,
@@ -406,5 +423,6 @@ mod tests {
         let c = DaemonConfig::default();
         c.validate(&model).unwrap();
         assert_eq!(c.link_cycles(), (20, 10, 3));
+        assert_eq!(c.cycle_config(&model).unwrap().enable_timeout, 1000);
     }
 }

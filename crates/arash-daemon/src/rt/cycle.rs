@@ -20,7 +20,7 @@
 //!   `DRIVE_STATE`;
 //! - **drive stopped by itself:** while the host has the drive enabled, telemetry that reports
 //!   its power stage off latches `DRIVE_STOPPED` once the drive has confirmed the enable, and
-//!   so does a drive that has not confirmed it within `link_timeout` telemetry frames. Nothing
+//!   so does a drive that has not confirmed it within `enable_timeout` telemetry frames. Nothing
 //!   walks a drive stopped by its e-stop or safe torque off back to enabled; only the
 //!   operator's reset and enable do;
 //! - **drive faults:** any fault bit the link reports latches `MOTOR`, with or without new
@@ -62,6 +62,8 @@ pub struct CycleConfig {
     /// Consecutive cycles without telemetry that latch a link timeout; also the cycles a drive
     /// has to obey DISABLE or to confirm CLEAR_FAULT.
     pub link_timeout: u32,
+    /// Telemetry frames a drive has to confirm the host's enable (`link.enable_timeout_ms`).
+    pub enable_timeout: u32,
     /// Cycles over which the torque ramps to zero after a link timeout.
     pub ramp: u32,
     /// Cycles without telemetry that repeat the last command; later ones command the law at the
@@ -554,7 +556,7 @@ impl ControlCycle {
             self.gate.latch(Faults::DRIVE_STOPPED);
         } else {
             self.unconfirmed += 1;
-            if self.unconfirmed >= self.cfg.link_timeout.max(1) {
+            if self.unconfirmed >= self.cfg.enable_timeout.max(1) {
                 self.gate.latch(Faults::DRIVE_STOPPED);
             }
         }

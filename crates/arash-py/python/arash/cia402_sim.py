@@ -362,10 +362,12 @@ class Drive:
 
     def on_rpdo(self, data):
         """RPDO1 by the mapping the master wrote (the adapter's thread, see Simulator._fast)."""
-        if self.node.nmt.state != "OPERATIONAL" or self.stored(0x1400, 1) & (1 << 31):
-            return
+        with self.lock:  # see tpdo: not half a mapping across a reboot
+            if self.node.nmt.state != "OPERATIONAL" or self.stored(0x1400, 1) & (1 << 31):
+                return
+            entries = self.mapping(0x1600)
         offset = 0
-        for entry in self.mapping(0x1600):
+        for entry in entries:
             index, bits = entry >> 16, entry & 0xFF
             chunk = bytes(data[offset // 8:(offset + bits) // 8])
             value = int.from_bytes(chunk, "little", signed=index == 0x6071)
@@ -398,12 +400,16 @@ class Drive:
 
     def tpdo(self):
         """TPDO1 by the mapping the master wrote, or None when it is not to be sent."""
-        if (self.node.nmt.state != "OPERATIONAL" or self.stored(0x1800, 1) & (1 << 31)
-                or self.injected.drop_tpdos):
-            return None
-        values = {0x6041: (self.state, "<H"), 0x6064: (self.position, "<i"), 0x6077: (self.torque, "<h")}
-        payload = b"".join(struct.pack(values[e >> 16][1], values[e >> 16][0]) for e in self.mapping(0x1A00))
-        return self.stored(0x1800, 1) & 0x7FF, payload
+        # Under the lock: a reboot (the test's thread) clears the object dictionary, and a
+        # mapping read half before and half after it names object 0.
+        with self.lock:
+            cob_id = self.stored(0x1800, 1)
+            if self.node.nmt.state != "OPERATIONAL" or cob_id & (1 << 31) or self.injected.drop_tpdos:
+                return None
+            values = {0x6041: (self.state, "<H"), 0x6064: (self.position, "<i"), 0x6077: (self.torque, "<h")}
+            entries = self.mapping(0x1A00)
+            payload = b"".join(struct.pack(values[e >> 16][1], values[e >> 16][0]) for e in entries)
+        return cob_id & 0x7FF, payload
 
 
 # The drives answer each SYNC within a cycle on real hardware. Here the threads that carry the
