@@ -517,6 +517,24 @@ def test_a_drive_held_off_by_its_quick_stop_input_is_not_enabled_and_latches(rig
     r.enable()
 
 
+def test_a_drive_that_releases_its_brake_before_enabling_is_waited_for(rig):
+    # 300 ms in switched on before operation enabled: fifteen link timeouts, inside
+    # link.enable_timeout_ms (1000 ms, deploy/daemon.toml). The daemon waits for it, and the
+    # torque goes to the drive only once it reports operation enabled.
+    slow = specs({3: dict(brake_release_s=0.3)})
+    r = rig(drive_specs=slow).start()
+    r.wait("telemetry", lambda: r.ctl("status")["telemetry"], poll=0.02)
+    asked = time.monotonic()
+    r.ctl("enable")
+    enabled = r.wait("the drives enabled", lambda: all(d.state == OPERATION_ENABLED for d in r.sim.drives),
+                     timeout=3)
+    assert enabled - asked >= 0.3, "the brake's release was waited for, not skipped"
+    r.mode("enabled")
+    time.sleep(0.2)
+    status = r.ctl("status")
+    assert status["mode"] == "enabled" and not status["faults"], status
+
+
 LEAVES = {
     "reboot": lambda sim: sim.drive(3).reboot(),
     # Another master's NMT "enter pre-operational" to node 3: its next heartbeat says so.

@@ -101,6 +101,9 @@ class DriveSpec:
     # The quick-stop option code (0x605A): 2, quick stop then switch on disabled; 6, stay in
     # quick stop active.
     quick_stop_option: int = 2
+    # Seconds from "enable operation" in switched on to operation enabled: a drive that releases
+    # its motor's brake first (typically 50–300 ms) reports switched on meanwhile.
+    brake_release_s: float = 0.0
 
 
 @dataclass
@@ -202,6 +205,8 @@ class Drive:
         self.consumer_written = None
         # A quick stop from the drive's own input ends in switch on disabled at this time.
         self.quick_stop_ends = None
+        # Operation is enabled at this time, once the brake has released (spec.brake_release_s).
+        self.brake_released_at = None
 
     # --- the object dictionary -------------------------------------------------------------
     def stored(self, index, sub=0):
@@ -284,7 +289,12 @@ class Drive:
                 if s == READY_TO_SWITCH_ON:
                     self.state = SWITCHED_ON
                 elif s == SWITCHED_ON and self.mode_display == CST:
-                    self.state = OPERATION_ENABLED
+                    if not self.spec.brake_release_s:
+                        self.state = OPERATION_ENABLED
+                    elif self.brake_released_at is None:
+                        self.brake_released_at = time.monotonic() + self.spec.brake_release_s
+            if self.state != SWITCHED_ON or word & 0x8F != 0x0F:
+                self.brake_released_at = None  # the enable was withdrawn, or has happened
 
     NMT_STATES = {"INITIALISING": 0x00, "STOPPED": 0x04, "OPERATIONAL": 0x05, "PRE-OPERATIONAL": 0x7F}
 
@@ -328,8 +338,12 @@ class Drive:
                 self.torque = 0
 
     def advance(self, now):
-        """The drive's own timed transitions: a quick stop's end."""
+        """The drive's own timed transitions: a quick stop's end, a brake's release."""
         with self.lock:
+            if self.brake_released_at is not None and now >= self.brake_released_at:
+                self.brake_released_at = None
+                if self.state == SWITCHED_ON:
+                    self.state = OPERATION_ENABLED
             if self.quick_stop_ends is not None and now >= self.quick_stop_ends:
                 self.quick_stop_ends = None
                 if self.state == QUICK_STOP_ACTIVE:
@@ -346,6 +360,7 @@ class Drive:
             self.heartbeat_ms = 0
             self.consumer_written = None
             self.quick_stop_ends = None
+            self.brake_released_at = None
         self.node.nmt.state = "PRE-OPERATIONAL"
         self.node.network.send_message(0x700 + self.spec.node, bytes([0x00]))
 
