@@ -475,6 +475,33 @@ fn a_drive_that_never_confirms_the_enable_latches_drive_stopped_after_the_enable
     assert!(events.contains(&Event::FaultLatched(Faults::DRIVE_STOPPED)), "{events:?}");
 }
 
+/// A drive that confirms the enable late (a brake's release) measures no current meanwhile:
+/// that is no current mismatch, however long it takes within `link.enable_timeout_ms`; once it
+/// has confirmed, a measurement that departs from the command latches as before.
+#[test]
+fn a_drive_that_confirms_late_is_no_current_mismatch_until_it_has_confirmed() {
+    let torque = [0.1, -0.1, 0.2];
+    let mut rig = Rig::new(torque, |c| c.safety.mismatch_fraction = Some(0.01));
+    rig.link.obeys_enable = false;
+    rig.link.echo = false; // a drive that is not enabled measures no current
+    rig.step();
+    rig.enable();
+    for n in 1..300 {
+        rig.step();
+        assert_eq!(rig.cycle.faults(), Faults::NONE, "frame {n}: unconfirmed, within link.enable_timeout_ms");
+    }
+    rig.link.telemetry.status = status::ENABLED;
+    rig.link.echo = true;
+    rig.steps(100);
+    assert_eq!((rig.cycle.mode(), rig.cycle.faults()), (Mode::Enabled, Faults::NONE));
+    assert!(rig.sent_torque().iter().zip(torque).all(|(s, t)| (s - t).abs() < 1e-6), "{:?}", rig.sent_torque());
+    // Confirmed: a drive that stops delivering the current it is sent is a mismatch again.
+    rig.link.echo = false;
+    rig.link.telemetry.amps.fill(0.0);
+    rig.steps(60);
+    assert!(rig.cycle.faults().contains(Faults::CURRENT_MISMATCH), "{:?}", rig.cycle.faults());
+}
+
 /// A link that supervises its drives itself reports a fault while no telemetry comes (a
 /// CANopen drive that rebooted sends no process data): the cycle latches it, enabled or not.
 #[test]

@@ -20,7 +20,8 @@
 //!   `DRIVE_STATE`;
 //! - **drive stopped by itself:** while the host has the drive enabled, telemetry that reports
 //!   its power stage off latches `DRIVE_STOPPED` once the drive has confirmed the enable, and
-//!   so does a drive that has not confirmed it within `enable_timeout` telemetry frames. Nothing
+//!   so does a drive that has not confirmed it within `enable_timeout` telemetry frames. Until
+//!   it confirms, the current it measures is not compared with the command (below). Nothing
 //!   walks a drive stopped by its e-stop or safe torque off back to enabled; only the
 //!   operator's reset and enable do;
 //! - **drive faults:** any fault bit the link reports latches `MOTOR`, with or without new
@@ -31,7 +32,10 @@
 //!   `MOTOR` again;
 //! - **following error:** |q − q_d| beyond the limit latches `FOLLOWING_ERROR` (a stuck encoder);
 //! - **current mismatch:** measured torque differing from the command by more than a fraction of
-//!   the torque limit for `mismatch_cycles` cycles in a row latches `CURRENT_MISMATCH`;
+//!   the torque limit for `mismatch_cycles` cycles in a row latches `CURRENT_MISMATCH`, from the
+//!   drive's confirmation of the enable on: before it, a drive still walking to enabled (or
+//!   releasing its brake) measures no current, and the link passes torque on to each of its
+//!   drives only once that one is enabled, so the others hold the arm meanwhile;
 //! - **start-up:** the drive cannot be enabled before valid telemetry arrives;
 //! - faults latch until [`Request::ResetFault`], which leaves the drive disabled; enabling waits
 //!   until the drive has confirmed the reset;
@@ -430,7 +434,7 @@ impl ControlCycle {
             if !self.floating {
                 self.check_following();
             }
-            if fresh {
+            if fresh && self.enable_confirmed {
                 self.check_current();
             }
         }
