@@ -519,8 +519,8 @@ def test_a_drive_held_off_by_its_quick_stop_input_is_not_enabled_and_latches(rig
 
 def test_a_drive_that_releases_its_brake_before_enabling_is_waited_for(rig):
     # 300 ms in switched on before operation enabled: fifteen link timeouts, inside
-    # link.enable_timeout_ms (1000 ms, deploy/daemon.toml). The daemon waits for it, and the
-    # torque goes to the drive only once it reports operation enabled.
+    # link.enable_timeout_ms (1000 ms, deploy/daemon.toml). The daemon waits for it and latches
+    # nothing (with enable_timeout_ms = 20 in the daemon's config it latches "drive stopped").
     slow = specs({3: dict(brake_release_s=0.3)})
     r = rig(drive_specs=slow).start()
     r.wait("telemetry", lambda: r.ctl("status")["telemetry"], poll=0.02)
