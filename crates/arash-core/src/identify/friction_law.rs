@@ -552,6 +552,17 @@ impl Gram {
         }
         self.b[c] = dot(changed, &problem.y[rows]);
     }
+
+    /// The sums over the union of the disjoint stretches `parts` summed over.
+    fn sum<'a>(mut parts: impl Iterator<Item = &'a Gram>) -> Self {
+        let mut total = parts.next().expect("a fold has stretches").clone();
+        for part in parts {
+            total.g += &part.g;
+            total.b.iter_mut().zip(&part.b).for_each(|(t, b)| *t += b);
+            total.yy += part.yy;
+        }
+        total
+    }
 }
 
 /// A candidate column's products with the problem over a stretch of samples: with every column
@@ -571,12 +582,42 @@ struct JointColumn<'a> {
 
 impl Products {
     fn over(problem: &LawProblem, candidate: JointColumn, samples: &Range<usize>) -> Self {
-        let (dof, k, values) = (problem.dof, candidate.joint, candidate.values);
-        let on_joint = |x: &[f64]| samples.clone().map(|s| values[s] * x[s * dof + k]).sum::<f64>();
+        let (dof, k) = (problem.dof, candidate.joint);
+        let values = &candidate.values[samples.clone()];
+        let on_joint = |x: &[f64]| strided_dot(values, &x[samples.start * dof..], dof, k);
         let xv = problem.columns.iter().map(|c| on_joint(c)).collect();
-        let vv = samples.clone().map(|s| values[s] * values[s]).sum();
-        Self { xv, vv, vy: on_joint(&problem.y) }
+        Self { xv, vv: dot(values, values), vy: on_joint(&problem.y) }
     }
+
+    /// The products over the union of the disjoint stretches `parts` were taken over.
+    fn sum<'a>(parts: impl IntoIterator<Item = &'a Products>) -> Self {
+        let mut total = Self { xv: Vec::new(), vv: 0.0, vy: 0.0 };
+        for part in parts {
+            if total.xv.is_empty() {
+                total.xv = vec![0.0; part.xv.len()];
+            }
+            total.xv.iter_mut().zip(&part.xv).for_each(|(t, x)| *t += x);
+            total.vv += part.vv;
+            total.vy += part.vy;
+        }
+        total
+    }
+}
+
+/// `Σ_s v_s x_{s·dof + k}`: a joint's column against one joint's rows of a row-major `N × dof`
+/// column, in four interleaved partial sums as [`dot`] (a single running sum waits on each add).
+fn strided_dot(values: &[f64], x: &[f64], dof: usize, k: usize) -> f64 {
+    let mut sums = [0.0; 4];
+    let chunks = values.chunks_exact(4);
+    let done = values.len() - chunks.remainder().len();
+    for (i, v) in chunks.enumerate() {
+        let at = 4 * i * dof + k;
+        for l in 0..4 {
+            sums[l] += v[l] * x[at + l * dof];
+        }
+    }
+    let tail: f64 = (done..values.len()).map(|s| values[s] * x[s * dof + k]).sum();
+    (sums[0] + sums[1]) + (sums[2] + sums[3]) + tail
 }
 
 /// A fold spans at least this many guards, so that half of it is scored clear of the samples its
@@ -603,12 +644,16 @@ fn fold_count(samples: usize, guard: usize) -> usize {
 }
 
 /// The cross-validation's folds: [`LAW_FOLDS`] contiguous stretches of the samples, each with its
-/// scored interior (the guard left off both ends), and the Gram matrices of the whole, of every
-/// fold and of every interior, kept up to date as columns change.
+/// scored interior (the guard left off both ends). The sums are taken once over each fold's three
+/// disjoint stretches (the guard before its interior, the interior, the guard after) and added up
+/// for the fold and the whole: a third of the passes over the log that summing the whole, each
+/// fold and each interior apart would take.
 struct Folds {
-    whole: (Range<usize>, Gram),
-    folds: Vec<(Range<usize>, Gram)>,
-    interiors: Vec<(Range<usize>, Gram)>,
+    /// Each fold's guard before, interior and guard after, with their Gram matrices.
+    parts: Vec<[(Range<usize>, Gram); 3]>,
+    /// The Gram matrices of each fold and of the whole, the sums of `parts`'.
+    folds: Vec<Gram>,
+    whole: Gram,
 }
 
 impl Folds {
@@ -617,48 +662,56 @@ impl Folds {
         let samples = problem.y.len() / problem.dof.max(1);
         let count = count.max(1);
         let bounds: Vec<usize> = (0..=count).map(|f| f * samples / count).collect();
-        let folds: Vec<Range<usize>> = bounds.windows(2).map(|w| w[0]..w[1]).collect();
-        let interiors = folds.iter().map(|f| {
-            let guard = problem.guard.min(f.len() / GUARDS_PER_FOLD);
-            f.start + guard..f.end - guard
-        });
-        let with_gram = |r: Range<usize>| {
-            let gram = Gram::over(problem, &r);
-            (r, gram)
-        };
-        Self {
-            whole: with_gram(0..samples),
-            folds: folds.iter().cloned().map(with_gram).collect(),
-            interiors: interiors.map(with_gram).collect(),
-        }
+        let parts: Vec<[(Range<usize>, Gram); 3]> = bounds
+            .windows(2)
+            .map(|w| {
+                let guard = problem.guard.min((w[1] - w[0]) / GUARDS_PER_FOLD);
+                let (inner_start, inner_end) = (w[0] + guard, w[1] - guard);
+                [w[0]..inner_start, inner_start..inner_end, inner_end..w[1]].map(|r| {
+                    let gram = Gram::over(problem, &r);
+                    (r, gram)
+                })
+            })
+            .collect();
+        let (folds, whole) = Self::totals(&parts);
+        Self { parts, folds, whole }
+    }
+
+    fn totals(parts: &[[(Range<usize>, Gram); 3]]) -> (Vec<Gram>, Gram) {
+        let folds: Vec<Gram> = parts.iter().map(|p| Gram::sum(p.iter().map(|(_, g)| g))).collect();
+        let whole = Gram::sum(folds.iter());
+        (folds, whole)
     }
 
     fn replace(&mut self, problem: &LawProblem, c: usize) {
-        let every = std::iter::once(&mut self.whole).chain(&mut self.folds).chain(&mut self.interiors);
-        every.for_each(|(r, gram)| gram.replace(problem, r, c));
+        self.parts.iter_mut().flatten().for_each(|(r, gram)| gram.replace(problem, r, c));
+        (self.folds, self.whole) = Self::totals(&self.parts);
     }
 
     /// Each fold's weighted squared error on its interior, predicted by the fit on the other folds
     /// of every column but `c` and joint `k`'s candidate column `values`; `None` where a fit's
     /// columns are dependent.
     fn heldout_errors(&self, problem: &LawProblem, c: usize, candidate: JointColumn) -> Option<Vec<f64>> {
-        let whole = &self.whole.1;
+        let whole = &self.whole;
         let kept: Vec<usize> = (0..whole.g.nrows()).filter(|&i| i != c && whole.g[(i, i)] > 0.0).collect();
-        let all = Products::over(problem, candidate, &self.whole.0);
-        self.folds
+        let parts: Vec<[Products; 3]> =
+            self.parts.iter().map(|p| p.each_ref().map(|(r, _)| Products::over(problem, candidate, r))).collect();
+        let folds: Vec<Products> = parts.iter().map(Products::sum).collect();
+        let all = Products::sum(&folds);
+        self.parts
             .iter()
-            .zip(&self.interiors)
-            .map(|((fold, fold_gram), (interior, interior_gram))| {
-                let left_out = Products::over(problem, candidate, fold);
-                let scored = Products::over(problem, candidate, interior);
+            .zip(&self.folds)
+            .zip(parts.iter().zip(&folds))
+            .map(|((fold_parts, fold_gram), (products, left_out))| {
+                let (interior_gram, scored) = (&fold_parts[1].1, &products[1]);
                 // The fit on the other folds: the whole less this one.
                 let (matrix, rhs) = system(
                     &kept,
                     Sums { gram: whole, products: &all },
-                    Some(Sums { gram: fold_gram, products: &left_out }),
+                    Some(Sums { gram: fold_gram, products: left_out }),
                 );
                 let theta = dense::solve_gram(matrix.as_ref(), &rhs, Unseen::Refused)?;
-                let (h, r) = system(&kept, Sums { gram: interior_gram, products: &scored }, None);
+                let (h, r) = system(&kept, Sums { gram: interior_gram, products: scored }, None);
                 let fitted = dense::times(h.as_ref(), &theta);
                 Some((interior_gram.yy - 2.0 * dot(&theta, &r) + dot(&theta, &fitted)).max(0.0))
             })
