@@ -567,6 +567,7 @@ impl Gram {
 
 /// A candidate column's products with the problem over a stretch of samples: with every column
 /// (`xv`), with itself and with the target.
+#[derive(Clone)]
 struct Products {
     xv: Vec<f64>,
     vv: f64,
@@ -591,11 +592,9 @@ impl Products {
 
     /// The products over the union of the disjoint stretches `parts` were taken over.
     fn sum<'a>(parts: impl IntoIterator<Item = &'a Products>) -> Self {
-        let mut total = Self { xv: Vec::new(), vv: 0.0, vy: 0.0 };
+        let mut parts = parts.into_iter();
+        let mut total = parts.next().expect("a fold has stretches").clone();
         for part in parts {
-            if total.xv.is_empty() {
-                total.xv = vec![0.0; part.xv.len()];
-            }
             total.xv.iter_mut().zip(&part.xv).for_each(|(t, x)| *t += x);
             total.vv += part.vv;
             total.vy += part.vy;
