@@ -31,7 +31,7 @@ use prost::Message;
 use crate::live::server::{LiveServer, Topic};
 use crate::live::window::ErrorWindow;
 use crate::rt::cycle::Event;
-use crate::rt::runner::{CycleSample, LogItem, Shared};
+use crate::rt::runner::{CycleSample, DriveReport, LogItem, Shared};
 
 /// Logger settings (the `[log]` table).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -237,19 +237,23 @@ impl Logger {
 
     fn handle(&mut self, item: LogItem) -> anyhow::Result<()> {
         match item {
-            LogItem::Event { cycle, t, event } => self.event(cycle, t, event),
+            LogItem::Event { cycle, t, event, drive } => self.event(cycle, t, event, drive),
             LogItem::Cycle(s) => self.cycle(&s),
         }
     }
 
-    fn event(&mut self, cycle: u64, t: f64, event: Event) -> anyhow::Result<()> {
+    fn event(&mut self, cycle: u64, t: f64, event: Event, drive: DriveReport) -> anyhow::Result<()> {
         let description = match event {
             Event::Enabled => "motors enabled".to_string(),
             Event::Disabled => "motors disabled".to_string(),
             Event::EnableRefused => "enable refused (no telemetry yet, a latched fault, or already enabled)".into(),
             Event::FaultLatched(f) => {
                 self.blackbox_pending = Some(f);
-                format!("fault latched: {}", f.names().join(", "))
+                let names = f.names().join(", ");
+                match f.contains(Faults::MOTOR) {
+                    true => format!("fault latched: {names} (the drive: {})", drive.describe()),
+                    false => format!("fault latched: {names}"),
+                }
             }
             Event::FaultsCleared => "faults cleared by the operator".into(),
             Event::RunStarted(id) => format!("run {id} started"),

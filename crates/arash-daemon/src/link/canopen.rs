@@ -195,21 +195,24 @@ pub enum ErrorClass {
 
 impl ErrorClass {
     pub fn of(code: u16) -> Self {
+        // The class is the code's first digit (CiA 301, 7.2.7.1); the second refines it
+        // (CiA 402's 0x5113 is a supply of the device hardware, 0x7305 an encoder), and only the
+        // sensors and the two kinds of communication fault have their own class here.
         match code >> 8 {
             0x00 => Self::NoError,
-            0x10 => Self::Generic,
-            0x20..=0x23 => Self::Current,
-            0x30..=0x33 => Self::Voltage,
-            0x40..=0x42 => Self::Temperature,
-            0x50 => Self::DeviceHardware,
-            0x60..=0x63 => Self::DeviceSoftware,
-            0x70 => Self::AdditionalModules,
+            0x10..=0x1F => Self::Generic,
+            0x20..=0x2F => Self::Current,
+            0x30..=0x3F => Self::Voltage,
+            0x40..=0x4F => Self::Temperature,
+            0x50..=0x5F => Self::DeviceHardware,
+            0x60..=0x6F => Self::DeviceSoftware,
             0x73 => Self::Sensor,
-            0x80 => Self::Monitoring,
+            0x70..=0x7F => Self::AdditionalModules,
             0x81 => Self::Communication,
             0x82 => Self::Protocol,
-            0x90 => Self::External,
-            0xF0 => Self::AdditionalFunctions,
+            0x80..=0x8F => Self::Monitoring,
+            0x90..=0x9F => Self::External,
+            0xF0..=0xFE => Self::AdditionalFunctions,
             0xFF => Self::DeviceSpecific,
             _ => Self::Unknown,
         }
@@ -444,6 +447,26 @@ mod tests {
         assert_eq!(Emergency::parse(&sync()), None);
         let reset = CanFrame { data: [0; 8], ..emcy };
         assert!(!Emergency::parse(&reset).unwrap().is_error());
+    }
+
+    /// Codes from CiA 402's table (part 2, annex), each in the class of its first digit: a
+    /// drive's own codes refine the class and must not fall out of it.
+    #[test]
+    fn a_drives_refined_codes_keep_their_class() {
+        for (code, class) in [
+            (0x2214, ErrorClass::Current),           // over-current in the output stage
+            (0x3211, ErrorClass::Voltage),           // DC link over-voltage
+            (0x4310, ErrorClass::Temperature),       // drive temperature
+            (0x5113, ErrorClass::DeviceHardware),    // +5 V supply low
+            (0x6320, ErrorClass::DeviceSoftware),    // parameter error
+            (0x7121, ErrorClass::AdditionalModules), // motor blocked
+            (0x7305, ErrorClass::Sensor),            // incremental sensor 1 fault
+            (0x8130, ErrorClass::Communication),     // heartbeat or life guard error
+            (0x8611, ErrorClass::Monitoring),        // following error
+            (0xA000, ErrorClass::Unknown),
+        ] {
+            assert_eq!(ErrorClass::of(code), class, "{code:#06x}");
+        }
     }
 
     /// The command bytes of CiA 301's expedited transfers: download of 4 bytes `0x23`, of 2

@@ -29,8 +29,28 @@ pub struct CycleSample {
 #[derive(Clone, Copy, Debug)]
 #[allow(clippy::large_enum_variant)]
 pub enum LogItem {
-    Event { cycle: u64, t: f64, event: Event },
+    Event { cycle: u64, t: f64, event: Event, drive: DriveReport },
     Cycle(CycleSample),
+}
+
+/// What the drives reported in the cycle of an event: their fault bits, and why a CANopen master
+/// latched them off. A `motor` fault is named by it: the bit alone does not say which drive or
+/// why.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct DriveReport {
+    pub faults: u8,
+    pub master: Option<crate::link::master::MasterFault>,
+}
+
+impl DriveReport {
+    /// The reason in words: the master's where it has one, else the drive's fault bits.
+    pub fn describe(&self) -> String {
+        match self.master {
+            Some(fault) => fault.to_string(),
+            None if self.faults == 0 => "no drive fault reported".into(),
+            None => crate::link::frame::drive_fault::names(self.faults).join(", "),
+        }
+    }
 }
 
 /// State the control thread publishes for the operator interface and the watchdog.
@@ -203,11 +223,12 @@ pub fn run(
         let sample = sample(&cycle, &link, n, wake - previous_wake, exec, missed);
         previous_wake = wake;
         let t = sample.record.t;
+        let drive = DriveReport { faults: cycle.drive_state().1, master: sample.link.latched };
         cycle.drain_events(|event| {
             if let Event::RunEnded(id) = event {
                 shared.last_run_ended.store(id, Ordering::Release);
             }
-            push(&mut queues.log, LogItem::Event { cycle: n, t, event }, shared)
+            push(&mut queues.log, LogItem::Event { cycle: n, t, event, drive }, shared)
         });
         publish(shared, &cycle, &sample.link);
         shared.requests_handled.fetch_add(handled, Ordering::Release);
