@@ -143,17 +143,15 @@ pub fn preprocess_for_fit(
     // The period, the rate and the spectral rule, found once; every candidate keeps the period.
     let reference = preprocess(log.t, log.q, log.tau, dof, &PreprocessOptions { decimate: 1, ..options.clone() })?;
     let fixed = PreprocessOptions { period_s: reference.period_s, periods: Some(1), decimate: 1, ..options.clone() };
-    let search = Search::new(declared, log, &reference, &fixed, against);
+    let mut search = Search::new(declared, log, &reference, &fixed, against);
     let cutoffs = match options.cutoff_hz {
         Some(cutoff) => vec![cutoff],
         None => search.grid.iter().copied().take_while(|c| *c <= search.top * (1.0 + 1e-9)).collect(),
     };
-    let mut trials = Vec::with_capacity(cutoffs.len());
-    for &cutoff in &cutoffs {
-        if let Some(trial) = search.trial(cutoff, options.friction_cutoff_hz)? {
-            trials.push(trial);
-        }
-    }
+    search.filter_velocities(&cutoffs, options.friction_cutoff_hz)?;
+    // The trials are independent; in order, so that ties are broken as before.
+    let tried = crate::parallel::map(cutoffs, |cutoff| search.trial(cutoff, options.friction_cutoff_hz));
+    let trials: Vec<Trial> = tried.into_iter().collect::<Result<Vec<_>, _>>()?.into_iter().flatten().collect();
     let Some(best) = chosen(&trials, search.block_rows()).cloned() else {
         // No candidate could be fitted: preprocess as asked, and let the fit say why.
         return preprocess(log.t, log.q, log.tau, dof, options);
@@ -170,7 +168,7 @@ pub fn preprocess_for_fit(
 }
 
 /// What every trial shares: the model, the log, the grid of cut-offs, and the friction
-/// velocities' Coulomb directions, computed once per cut-off of the grid.
+/// velocities' Coulomb directions, computed once per cut-off of the grid that a trial tries.
 struct Search<'a> {
     declared: Declared<'a>,
     log: Log<'a>,
@@ -185,9 +183,9 @@ struct Search<'a> {
     /// The samples every candidate is scored on: clear of the filter's start-up at the lowest
     /// cut-off, so that all are scored alike.
     scored: Vec<usize>,
-    /// The unfiltered Coulomb directions of the friction velocity at each cut-off of the grid,
-    /// computed when first asked for.
-    directions: Vec<std::cell::OnceCell<Vec<f64>>>,
+    /// The unfiltered Coulomb directions of the friction velocity at each cut-off of the grid
+    /// that some trial tries ([`Self::filter_velocities`]).
+    directions: Vec<Option<Vec<f64>>>,
     /// The positions' central difference, which every friction velocity is filtered from.
     raw_velocity: RawVelocity,
     /// A periodic log's periods in two halves (an averaged log holds at least two periods).
@@ -238,19 +236,34 @@ impl<'a> Search<'a> {
             false => (super::preprocess::EDGE_CUTOFF_PERIODS * fs / floor).ceil() as usize,
         };
         let scored = spread(edge.min(n / 2)..n.saturating_sub(edge).max(n / 2), 1, MOST_SCORED);
-        let directions = vec![std::cell::OnceCell::new(); grid.len()];
+        let directions = vec![None; grid.len()];
         let raw_velocity = reference.raw_velocity(log.q);
         let folds = Folds::of(&log, reference, declared.model.dof());
         Self { declared, log, fixed, reference, grid, top, length_limited, scored, directions, raw_velocity, folds }
     }
 
-    /// The unfiltered Coulomb directions of the friction velocity at grid point `i` (full rate).
-    fn directions(&self, i: usize) -> Result<&[f64], PreprocessError> {
-        if let Some(d) = self.directions[i].get() {
-            return Ok(d);
+    /// Filter the friction velocity at every grid point the trials at `cutoffs` try, on every
+    /// core: on a long log this filtering is most of the search (each grid point's velocity is
+    /// the whole log, filtered), and each is needed by the trials a quarter of the grid apart.
+    fn filter_velocities(&mut self, cutoffs: &[f64], user: Option<f64>) -> Result<(), PreprocessError> {
+        let mut needed: Vec<usize> =
+            cutoffs.iter().flat_map(|&c| self.frictions(c, user)).filter_map(|(_, at)| at).collect();
+        needed.sort_unstable();
+        needed.dedup();
+        let (raw, order, laws) = (&self.raw_velocity, self.reference.order, &self.declared.model.coulomb_laws);
+        let grid = &self.grid;
+        let filtered = crate::parallel::map(needed.clone(), |i| {
+            raw.filtered(order, grid[i], 1).map(|velocity| velocity.directions(laws))
+        });
+        for (i, directions) in needed.into_iter().zip(filtered) {
+            self.directions[i] = Some(directions?);
         }
-        let velocity = self.raw_velocity.filtered(self.reference.order, self.grid[i], 1)?;
-        Ok(self.directions[i].get_or_init(|| velocity.directions(&self.declared.model.coulomb_laws)))
+        Ok(())
+    }
+
+    /// The unfiltered Coulomb directions of the friction velocity at grid point `i` (full rate).
+    fn directions(&self, i: usize) -> &[f64] {
+        self.directions[i].as_deref().expect("the trials' friction velocities are filtered before they run")
     }
 
     /// The friction velocities tried at `cutoff`: the user's, or grid points an octave apart
@@ -298,7 +311,7 @@ impl<'a> Search<'a> {
         let mut best: Option<Best> = None;
         for (friction_hz, at) in self.frictions(cutoff, user_friction) {
             let directions: Cow<[f64]> = match at {
-                Some(i) => self.directions(i)?.into(),
+                Some(i) => self.directions(i).into(),
                 None => self.raw_velocity.filtered(pre.order, friction_hz, 1)?.directions(&model.coulomb_laws).into(),
             };
             let filtered = filter_columns(&filter, &directions, dof, pre.periodic)?;

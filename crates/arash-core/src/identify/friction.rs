@@ -23,23 +23,35 @@ use crate::signal::filter::{Butterworth, FilterError};
 pub struct FrictionVelocity {
     /// The cut-off it was filtered at (Hz).
     pub cutoff_hz: f64,
-    periods: Vec<Vec<f64>>,
+    /// The periods end to end, each `per` values long: kept as filtered, not split into vectors
+    /// of their own, since a long log's copy costs as much as its directions.
+    values: Vec<f64>,
+    per: usize,
 }
 
 impl FrictionVelocity {
     /// The velocity averaged over the periods (`samples × dof`): what the averaged positions'
     /// own difference would give, without the friction law.
     pub fn mean(&self) -> Vec<f64> {
-        mean_of(&self.periods, |v| v)
+        mean_of(&self.periods().collect::<Vec<_>>(), |v| v)
+    }
+
+    /// Each period's velocity (`samples × dof`, row-major).
+    fn periods(&self) -> std::slice::Chunks<'_, f64> {
+        self.values.chunks(self.per.max(1))
+    }
+
+    fn period_count(&self) -> usize {
+        self.values.len().div_ceil(self.per.max(1)).max(1)
     }
 
     /// The Coulomb direction of every joint and sample (`samples × dof`), unfiltered: the mean
     /// over the periods of each joint's law of `q̇ₚ`.
     pub fn directions(&self, laws: &CoulombLaws) -> Vec<f64> {
         let dof = laws.shapes().len();
-        let mut mean = vec![0.0; self.periods.first().map_or(0, Vec::len)];
-        let share = 1.0 / self.periods.len() as f64;
-        for period in &self.periods {
+        let mut mean = vec![0.0; self.per];
+        let share = 1.0 / self.period_count() as f64;
+        for period in self.periods() {
             for (i, (m, v)) in mean.iter_mut().zip(period).enumerate() {
                 *m += laws.eval(i % dof, *v) * share;
             }
@@ -50,9 +62,9 @@ impl FrictionVelocity {
     /// Joint `k`'s Coulomb direction under `shape` at every sample, unfiltered, as
     /// [`Self::directions`] gives it: what one joint's friction-law candidates are built from.
     pub fn joint_directions(&self, k: usize, dof: usize, shape: CoulombShape) -> Vec<f64> {
-        let mut mean = vec![0.0; self.periods.first().map_or(0, |p| p.len() / dof)];
-        let share = 1.0 / self.periods.len() as f64;
-        for period in &self.periods {
+        let mut mean = vec![0.0; self.per / dof];
+        let share = 1.0 / self.period_count() as f64;
+        for period in self.periods() {
             for (m, v) in mean.iter_mut().zip(period.iter().skip(k).step_by(dof)) {
                 *m += shape.eval(*v) * share;
             }
@@ -92,17 +104,38 @@ impl RawVelocity {
         let filter = Butterworth::lowpass(order, cutoff_hz, 1.0 / self.dt)?;
         let dof = self.dof;
         let v = filter_columns(&filter, &self.difference, dof, self.per.is_some())?;
-        let periods = match self.per {
-            None => vec![every_nth_row(&v, dof, decimate)],
-            Some(per) => v.chunks(per * dof).map(|p| every_nth_row(p, dof, decimate)).collect(),
+        let per = self.per.map_or(v.len(), |per| per * dof);
+        let values = match decimate {
+            1 => v,
+            _ => v.chunks(per).flat_map(|p| every_nth_row(p, dof, decimate)).collect(),
         };
-        Ok(FrictionVelocity { cutoff_hz, periods })
+        let per = per.div_ceil(dof * decimate) * dof;
+        Ok(FrictionVelocity { cutoff_hz, values, per })
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Thinning keeps every `decimate`-th sample of each period, from its first, whatever the
+    /// period's length: three periods of 101 samples of two joints thinned by 2 are the full
+    /// velocity's samples 0, 2, …, 100 of each.
+    #[test]
+    fn a_thinned_friction_velocity_is_every_nth_sample_of_each_period() {
+        let (dt, per, dof) = (1e-3, 101, 2);
+        let q: Vec<f64> = (0..3 * per * dof)
+            .map(|i| ((i / dof) as f64 * dt * std::f64::consts::TAU * 20.0 / per as f64 * (1 + i % dof) as f64).sin())
+            .collect();
+        let raw = RawVelocity::of_log(&q, dof, Some(Averaging { count: 3, samples: per as f64 }), dt);
+        let (full, thinned) = (raw.filtered(5, 50.0, 1).unwrap(), raw.filtered(5, 50.0, 2).unwrap());
+        assert_eq!(thinned.mean().len(), 51 * dof);
+        assert_eq!(thinned.mean(), every_nth_row(&full.mean(), dof, 2));
+        let laws = CoulombLaws::undeclared(dof);
+        assert_eq!(thinned.directions(&laws), every_nth_row(&full.directions(&laws), dof, 2));
+        let shape = CoulombShape::Sign;
+        assert_eq!(thinned.joint_directions(1, dof, shape), every_nth_row(&full.joint_directions(1, dof, shape), 1, 2));
+    }
 
     /// Two periods of a sine velocity, one with a dither around its zero crossings: the mean of
     /// the signs differs from the sign of the mean where the periods disagree.
