@@ -6,7 +6,7 @@ mod common;
 use arash_blas_lapack as _;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::choices::{Choice, Concern};
-use arash_core::identify::estimate::{fit, fit_stacked, EstimateError, Method};
+use arash_core::identify::estimate::{fit, fit_stacked, ols_beta_and_metrics, EstimateError, Method};
 use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
 use arash_core::identify::preprocess::{preprocess, Preprocessed};
 use arash_core::*;
@@ -165,6 +165,35 @@ fn three_sigma_counts(model: &Model, base: &BaseParameters, seed: u64) -> [usize
         assert!(fit.metrics.fp_percent.iter().all(|fp| *fp > 50.0), "{:?}", fit.metrics.fp_percent);
         (0..p).filter(|&i| (fit.beta[i] - beta_true[i]).abs() <= 3.0 * fit.sigma_beta[i]).count()
     })
+}
+
+/// The cut-off search reads only β and each joint's FP% of its many candidate fits, and takes
+/// them without the covariance: they must be the full fit's to the bit (so that the search
+/// chooses as it did), and a stack the fit refuses must be refused too (a candidate that cannot
+/// be fitted is not one).
+#[test]
+fn the_searchs_ols_is_the_full_fits_beta_and_metrics_and_refuses_what_it_refuses() {
+    let model = arash_core::arash_asist();
+    let base = BaseParameters::compute(&model, &Default::default()).unwrap();
+    let (w, tau, _) = exact_states_log(&model, &base, 5);
+    let dof = model.dof();
+    let noisy: Vec<f64> = tau.iter().enumerate().map(|(i, t)| t + 1e-3 * ((i * 7919) % 101) as f64 / 101.0).collect();
+    let full = fit_stacked(&w, &noisy, dof, &base, Method::Ols, 7).unwrap();
+    let (beta, metrics) = ols_beta_and_metrics(&w, &noisy, dof, &base).unwrap();
+    assert_eq!(beta, full.beta);
+    assert_eq!(metrics.fp_percent, full.metrics.fp_percent);
+    assert_eq!(metrics.rms, full.metrics.rms);
+    // A column the data never excite, and too few rows: both refused alike.
+    let mut dead = w.clone();
+    (0..dead.nrows()).for_each(|r| dead[(r, 0)] = 0.0);
+    let both = |w: &Mat<f64>, tau: &[f64]| {
+        let searched = ols_beta_and_metrics(w, tau, dof, &base).map(|_| ()).unwrap_err().to_string();
+        let fitted = fit_stacked(w, tau, dof, &base, Method::Ols, 7).map(|_| ()).unwrap_err().to_string();
+        assert_eq!(searched, fitted);
+    };
+    both(&dead, &noisy);
+    let few = w.subrows(0, 3 * dof).to_owned();
+    both(&few, &noisy[..3 * dof]);
 }
 
 /// What the table says sets each σ% is checked against regressing each column on the others

@@ -24,8 +24,8 @@ use super::data_choices::{
     EQUAL_PREDICTION_SIGMAS,
 };
 use super::estimate::{
-    apply, coulomb_positions, filter_each_column, fit_stacked, joint_metrics, leave_out_rests, put_coulomb,
-    regressor_rows, Method,
+    apply, coulomb_positions, filter_each_column, joint_metrics, leave_out_rests, ols_beta_and_metrics, put_coulomb,
+    regressor_rows,
 };
 use super::friction::RawVelocity;
 use super::options::PreprocessOptions;
@@ -302,9 +302,6 @@ impl<'a> Search<'a> {
         let mut tau = rows_of(&pre.tau, dof, &rows);
         let positions = coulomb_positions(model, columns);
         let filter = Butterworth::lowpass(pre.order, cutoff, fs)?;
-        // σ_β's blocks span two periods of the cut-off, as in `fit` (they are not used here).
-        let rows_per_sample = rows.len() as f64 / pre.settled.len().max(1) as f64;
-        let block = ((2.0 * fs / cutoff * rows_per_sample).ceil() as usize).max(1);
         let mut frictions = Vec::new();
         // The best so far: its velocity's cut-off, training FP%, β and Coulomb directions.
         type Best<'d> = (f64, f64, Vec<f64>, Cow<'d, [f64]>);
@@ -318,11 +315,11 @@ impl<'a> Search<'a> {
             put_coulomb(&mut w, dof, &positions, &filtered, &rows);
             leave_out_rests(&pre, &mut w, &mut tau, rows.iter().copied());
             // A velocity with which the parameters cannot be fitted is simply not a candidate.
-            let Ok(fit) = fit_stacked(&w, &tau, dof, base, Method::Ols, block) else { continue };
-            let training = fit.metrics.fp_percent.iter().sum::<f64>() / dof as f64;
+            let Ok((beta, metrics)) = ols_beta_and_metrics(&w, &tau, dof, base) else { continue };
+            let training = metrics.fp_percent.iter().sum::<f64>() / dof as f64;
             frictions.push((friction_hz, training));
             if best.as_ref().is_none_or(|b| training > b.1) {
-                best = Some((friction_hz, training, fit.beta, directions));
+                best = Some((friction_hz, training, beta, directions));
             }
         }
         let Some((friction_hz, training_fp, beta, directions)) = best else { return Ok(None) };

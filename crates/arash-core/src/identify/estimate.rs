@@ -285,17 +285,14 @@ pub fn fit_stacked(
 /// The residual of the unfiltered torque given β, row for row with the stacked `W`.
 type UnfilteredResidual<'a> = dyn Fn(&[f64]) -> Vec<f64> + 'a;
 
-/// [`fit_stacked`], the sandwich's middle taken from `unfiltered(β̂)` (the residual of the
-/// unfiltered torque, row for row with `w`) when given: see [`fit`].
-fn fit_stacked_with(
+/// The OLS solution of a stacked `W β = τ` (β, R, κ), refused where [`fit_stacked`] refuses it:
+/// too few rows, a column the data do not excite, κ over [`CONDITION_LIMIT`].
+fn checked_ols(
     w: &Mat<f64>,
     tau: &[f64],
     dof: usize,
     base: &BaseParameters,
-    method: Method,
-    block_samples: usize,
-    unfiltered: Option<&UnfilteredResidual>,
-) -> Result<Fit, EstimateError> {
+) -> Result<(Vec<f64>, Mat<f64>, f64), EstimateError> {
     let (m, p) = (equations(w, tau), w.ncols());
     if m <= p {
         return Err(EstimateError::TooFewRows { rows: m, params: p });
@@ -310,6 +307,43 @@ fn fit_stacked_with(
             direction: weakest_direction(&ols.1, base),
         });
     }
+    Ok(ols)
+}
+
+/// [`fit_stacked`]'s OLS β and per-joint metrics alone, the same to the bit, without its
+/// covariance: what a search that compares many candidate fits reads of each (the block
+/// sandwich is a second pass over `W` per block, most of a fit's cost on a long stack).
+pub fn ols_beta_and_metrics(
+    w: &Mat<f64>,
+    tau: &[f64],
+    dof: usize,
+    base: &BaseParameters,
+) -> Result<(Vec<f64>, JointMetrics), EstimateError> {
+    let (beta, r_factor, _) = checked_ols(w, tau, dof, base)?;
+    if dense::inverse(r_factor.as_ref()).is_none() {
+        return Err(EstimateError::IllConditioned {
+            condition: f64::INFINITY,
+            limit: CONDITION_LIMIT,
+            direction: "a combination the QR factor found exactly singular".into(),
+        });
+    }
+    let metrics = joint_metrics(tau, &apply(w, &beta), dof);
+    Ok((beta, metrics))
+}
+
+/// [`fit_stacked`], the sandwich's middle taken from `unfiltered(β̂)` (the residual of the
+/// unfiltered torque, row for row with `w`) when given: see [`fit`].
+fn fit_stacked_with(
+    w: &Mat<f64>,
+    tau: &[f64],
+    dof: usize,
+    base: &BaseParameters,
+    method: Method,
+    block_samples: usize,
+    unfiltered: Option<&UnfilteredResidual>,
+) -> Result<Fit, EstimateError> {
+    let (m, p) = (equations(w, tau), w.ncols());
+    let ols = checked_ols(w, tau, dof, base)?;
     let weights = match method {
         Method::Ols => vec![1.0; dof],
         Method::Wls => {
