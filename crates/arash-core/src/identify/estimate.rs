@@ -310,6 +310,15 @@ fn checked_ols(
     Ok(ols)
 }
 
+/// `R⁻¹`, refused where R is exactly singular (a κ too large to have been measured).
+fn r_inverse(r_factor: &Mat<f64>) -> Result<Mat<f64>, EstimateError> {
+    dense::inverse(r_factor.as_ref()).ok_or_else(|| EstimateError::IllConditioned {
+        condition: f64::INFINITY,
+        limit: CONDITION_LIMIT,
+        direction: "a combination the QR factor found exactly singular".into(),
+    })
+}
+
 /// [`fit_stacked`]'s OLS β and per-joint metrics alone, the same to the bit, without its
 /// covariance: what a search that compares many candidate fits reads of each (the block
 /// sandwich is a second pass over `W` per block, most of a fit's cost on a long stack).
@@ -320,13 +329,7 @@ pub fn ols_beta_and_metrics(
     base: &BaseParameters,
 ) -> Result<(Vec<f64>, JointMetrics), EstimateError> {
     let (beta, r_factor, _) = checked_ols(w, tau, dof, base)?;
-    if dense::inverse(r_factor.as_ref()).is_none() {
-        return Err(EstimateError::IllConditioned {
-            condition: f64::INFINITY,
-            limit: CONDITION_LIMIT,
-            direction: "a combination the QR factor found exactly singular".into(),
-        });
-    }
+    r_inverse(&r_factor)?;
     let metrics = joint_metrics(tau, &apply(w, &beta), dof);
     Ok((beta, metrics))
 }
@@ -359,11 +362,7 @@ fn fit_stacked_with(
     let weighted_residual: Vec<f64> =
         tau.iter().zip(&predicted).enumerate().map(|(i, (t, p))| (t - p) * weights[i % dof]).collect();
     let sigma_p2 = weighted_residual.iter().map(|e| e * e).sum::<f64>() / (m - p) as f64;
-    let r_inv = dense::inverse(r_factor.as_ref()).ok_or_else(|| EstimateError::IllConditioned {
-        condition: f64::INFINITY,
-        limit: CONDITION_LIMIT,
-        direction: "a combination the QR factor found exactly singular".into(),
-    })?;
+    let r_inv = r_inverse(&r_factor)?;
     let meat_residual = match unfiltered {
         Some(unfiltered) => {
             unfiltered(&beta).iter().enumerate().map(|(i, e)| e * weights[i % dof]).collect::<Vec<f64>>()
