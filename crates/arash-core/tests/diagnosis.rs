@@ -322,6 +322,36 @@ fn a_model_heavier_than_the_rig_is_not_a_negative_payload() {
     assert!(light.too_heavy.is_none(), "{}", light.report());
 }
 
+/// With `refit`, the model written is the one refitted on the log, not the given one: against a
+/// given model 50 g heavier than the rig, the written model's gravity is the rig's again (until
+/// 2026-12-06 the given β was written beside effects fitted with the refitted one).
+#[test]
+fn a_given_model_refitted_is_written_refitted() {
+    let model = rig_model();
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
+    let run = simulate(&model, "", 1, 60.0);
+    let truth = true_model(&model, &base, 1);
+    let carriage = model.bodies.iter().position(|b| b.name == "insertion_carriage").unwrap();
+    let mut given = truth.clone();
+    let params = given.fitted.params.as_mut().unwrap();
+    arash_core::sim::truth::add_payload(params, carriage, 0.05, &[0.0, 0.0, 0.01]);
+    let params = params.clone();
+    base.project(&params, &mut given.fitted.beta);
+    let options = DiagnoseOptions { refit: true, effects: vec![], ..DiagnoseOptions::default() };
+    let log = Log { t: &run.t, q: &run.q, tau: &run.tau };
+    let d = diagnose(Declared { model: &model, base: &base, urdf: ARASH_ASIST_URDF }, log, None, Some(&given), &options)
+        .unwrap();
+    // Gravity alone, at every 10th logged pose: it is what the 50 g changes.
+    let q: Vec<f64> = run.q.chunks(3).step_by(10).flatten().copied().collect();
+    let zero = vec![0.0; q.len()];
+    let rms_from_truth = |m: &ModelFile| {
+        let (p, r) = (m.predict(&model, &q, &zero, &zero), truth.predict(&model, &q, &zero, &zero));
+        (p.iter().zip(&r).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / p.len() as f64).sqrt()
+    };
+    let (written, held) = (rms_from_truth(&d.model), rms_from_truth(&given));
+    assert!(written < 0.1 * held, "gravity off the rig's by {written:e} written, {held:e} given");
+}
+
 #[test]
 fn payload_is_found_and_weighed_against_a_calibrated_model() {
     let d = diagnose_scenario("[effects.payload]\nmass = 0.05\n", 1, Against::Truth, false);

@@ -597,12 +597,13 @@ impl Search<'_> {
     ) -> Result<ModelFile, DiagnoseError> {
         let ctx = self.ctx;
         let mut updated = match ctx.given {
-            Some(g) => g.clone(),
-            None => declared_model(ctx.model, ctx.base, urdf, &ctx.train, series, ctx.split.block_s, samples_in)?,
+            Some(g) if !ctx.refit => g.clone(),
+            _ => declared_model(ctx.model, ctx.base, urdf, &ctx.train, series, ctx.split.block_s, samples_in)?,
         };
         if ctx.refit {
-            // A refitted model keeps the OLS of `declared_model`, made with the effects taken out.
-            updated.fitted.params = None;
+            // A refitted model is the OLS of `declared_model`, made with the effects taken out; a
+            // given model's drive gains still turn its currents into torque.
+            updated.drive_gains = ctx.given.and_then(|g| g.drive_gains.clone());
         } else {
             // Against a given model its freed (friction) coefficients take the joint fit's values,
             // which come first in `x_after`, in the order of the base parameters.
