@@ -352,6 +352,27 @@ fn diagnose_names_the_effect_and_writes_report_model_and_figures() {
         assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{}", png.display());
         assert!(bytes.len() > 10_000, "{} looks blank", png.display());
     }
+    // From the identification: the same effect named against `arash identify`'s model of the log,
+    // and the consistent refit made in that model's base parameters.
+    let from_identified = dir.join("from_identified");
+    let out = arash(&[
+        "diagnose",
+        log.to_str().unwrap(),
+        "--coulomb-epsilon",
+        "0.001",
+        "--from-identified",
+        "--consistent",
+        "-o",
+        from_identified.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("1. configuration_disturbance"), "{text}");
+    assert!(text.contains("before: the model identified on this log, as it is"), "{text}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(from_identified.join("diagnosis.json")).unwrap()).unwrap();
+    assert_eq!(json["settings"]["started_from"], "identified");
+    assert!(from_identified.join("model_consistent.json").exists());
     let out = arash(&["diagnose", log.to_str().unwrap(), "--effects", "gremlins", "-o", never.to_str().unwrap()]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("gremlins"), "{err}");

@@ -148,8 +148,35 @@ pub enum Choice {
     },
     /// The simulated rig's own parameters, written as a model file to compare with: not estimated.
     SimulatedRigsOwn,
+    /// A diagnosis without a given model started from the model identified on the same log:
+    /// `periods` averaged (1: none), its cut-off, each joint's friction velocity (`None`:
+    /// sign(q̇)). `refitted`: the declared parameters were refitted with the effects; otherwise
+    /// held at the identified values, because refitted they predicted the joints `worse` worse.
+    DiagnosisFromIdentified {
+        periods: usize,
+        cutoff_hz: f64,
+        velocities: Vec<Option<f64>>,
+        refitted: bool,
+        worse: Vec<Worse>,
+    },
+    /// Identification refused the log (`why`): the diagnosis started from the declared model
+    /// refitted.
+    DiagnosisFromDeclared { why: String },
     /// A line from a file written before reasons were data.
     Recorded { text: String },
+}
+
+/// A joint the final model still predicts worse than the model the diagnosis started from, beyond
+/// the comparison's noise, after the guard (`diagnose/guard.rs`): with the declared parameters
+/// refitted, the refit itself can lose where no effect acts.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Worse {
+    pub joint: usize,
+    /// The starting model's held-out RMS on the joint and the final model's (N·m or N).
+    pub start_rms: f64,
+    pub rms: f64,
+    /// The excess of the mean squared error in standard errors of the difference.
+    pub sigmas: f64,
 }
 
 /// A choice the data support only weakly, with its figures.
@@ -778,6 +805,51 @@ impl Display for Choice {
                     last + 1 - first
                 )
             }
+            Self::DiagnosisFromIdentified { periods, cutoff_hz, velocities, refitted, worse } => {
+                let averaged = match periods {
+                    1 => "not averaged over periods".to_string(),
+                    n => format!("{n} periods averaged"),
+                };
+                let laws: Vec<String> = velocities
+                    .iter()
+                    .enumerate()
+                    .map(|(k, v)| match v {
+                        Some(v) => format!("joint {k} tanh(q̇/{v:.3})"),
+                        None => format!("joint {k} sign(q̇)"),
+                    })
+                    .collect();
+                write!(
+                    f,
+                    "the diagnosis starts from the model identified on this log (OLS, {averaged}, cut-off \
+                     {cutoff_hz:.2} Hz; {}): its held-out error is the \"before\"; ",
+                    laws.join(", ")
+                )?;
+                if *refitted {
+                    return f.write_str(
+                        "the declared parameters are refitted with the effects, and no joint predicts the held-out \
+                         data worse than the identified model",
+                    );
+                }
+                let lost: Vec<String> = worse
+                    .iter()
+                    .map(|w| {
+                        format!(
+                            "joint {} {:.4e} against {:.4e} ({:.1} standard errors)",
+                            w.joint, w.rms, w.start_rms, w.sigmas
+                        )
+                    })
+                    .collect();
+                write!(
+                    f,
+                    "the identified parameters are held and friction refitted where it predicts better, because \
+                     refitted with the effects they predicted the held-out data worse on {}",
+                    lost.join(", ")
+                )
+            }
+            Self::DiagnosisFromDeclared { why } => write!(
+                f,
+                "the diagnosis starts from the declared model refitted on this log: identification refused it ({why})"
+            ),
             Self::SimulatedRigsOwn => f.write_str(
                 "the simulated rig's own parameters of the declared model (its scenario and seed): not estimated",
             ),

@@ -339,8 +339,9 @@ fn a_given_model_refitted_is_written_refitted() {
     base.project(&params, &mut given.fitted.beta);
     let options = DiagnoseOptions { refit: true, effects: vec![], ..DiagnoseOptions::default() };
     let log = Log { t: &run.t, q: &run.q, tau: &run.tau };
-    let d = diagnose(Declared { model: &model, base: &base, urdf: ARASH_ASIST_URDF }, log, None, Some(&given), &options)
-        .unwrap();
+    let d =
+        diagnose(Declared { model: &model, base: &base, urdf: ARASH_ASIST_URDF }, log, None, Some(&given), &options)
+            .unwrap();
     // Gravity alone, at every 10th logged pose: it is what the 50 g changes.
     let q: Vec<f64> = run.q.chunks(3).step_by(10).flatten().copied().collect();
     let zero = vec![0.0; q.len()];

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use arash_core::diagnose::{
     consistent_with_effects, diagnose as core_diagnose, DiagnoseOptions as CoreOptions, Diagnosis as CoreDiagnosis,
-    Finding, Reversion, Runs,
+    Finding, Reversion, Runs, Start, StartedFrom,
 };
 use arash_core::effects::EffectKind;
 use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
@@ -109,6 +109,14 @@ impl DiagnoseOptions {
     fn hold_friction(&self) -> bool {
         self.inner.hold_friction
     }
+    /// Without a model, what the diagnosis starts from: `"identified"` or `"declared"`.
+    #[getter]
+    fn start(&self) -> &'static str {
+        match self.inner.start {
+            Start::Identified => "identified",
+            Start::Declared => "declared",
+        }
+    }
     #[getter]
     fn consistent(&self) -> bool {
         self.consistent
@@ -157,6 +165,14 @@ impl DiagnoseOptions {
             "torque_from_currents" => o.torque_from_currents = value.extract()?,
             "refit" => o.refit = value.extract()?,
             "hold_friction" => o.hold_friction = value.extract()?,
+            "start" => {
+                let start: String = value.extract()?;
+                o.start = match start.as_str() {
+                    "identified" => Start::Identified,
+                    "declared" => Start::Declared,
+                    other => return Err(value_error(format!("start: `identified` or `declared`, not `{other}`"))),
+                };
+            }
             "consistent" => self.consistent = value.extract()?,
             "consistent_cutoff_hz" => self.consistent_cutoff_hz = value.extract()?,
             other => return Err(PyTypeError::new_err(format!("DiagnoseOptions has no option `{other}`"))),
@@ -346,6 +362,24 @@ impl Diagnosis {
             })
             .collect()
     }
+    /// Joints the final model still predicts worse than the starting model beyond the
+    /// comparison's noise: one dict each with `joint` (its name), `start_rms`, `rms` (N·m or N)
+    /// and `sigmas`. Empty unless the declared parameters were refitted against a given model.
+    #[getter]
+    fn still_worse<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        self.inner
+            .still_worse
+            .iter()
+            .map(|w| {
+                let d = PyDict::new(py);
+                d.set_item("joint", &self.inner.joint_names[w.joint])?;
+                d.set_item("start_rms", w.start_rms)?;
+                d.set_item("rms", w.rms)?;
+                d.set_item("sigmas", w.sigmas)?;
+                Ok(d)
+            })
+            .collect()
+    }
     /// One dict per candidate not accepted: `name`, `joints`, `label`, `reason` (text), `code`
     /// (the reason's identifier), `p_value` and `heldout_gain` (None where not reached).
     #[getter]
@@ -385,6 +419,12 @@ impl Diagnosis {
         d.set_item("max_vif", s.max_vif)?;
         d.set_item("max_delay_s", s.max_delay_s)?;
         d.set_item("refit", s.refit)?;
+        let started_from = match s.started_from {
+            StartedFrom::Declared => "declared",
+            StartedFrom::Given => "given",
+            StartedFrom::Identified => "identified",
+        };
+        d.set_item("started_from", started_from)?;
         d.set_item("heldout", &s.heldout)?;
         d.set_item("candidates", s.candidates)?;
         Ok(d)
@@ -512,9 +552,11 @@ fn _diagnose<'py>(
         .transpose()
         .map_err(|e| PyValueError::new_err(format!("validation log: {}", e.value(py))))?;
     options.inner.validate(dof).map_err(value_error)?;
-    let base = match model {
-        Some(m) => robot.base_of(&m.inner().base_independent)?,
-        None => robot.diagnosed_base()?,
+    // A diagnosis from the identification works in the identification's base parameters.
+    let base = match (model, options.inner.start) {
+        (Some(m), _) => robot.base_of(&m.inner().base_independent)?,
+        (None, Start::Identified) => robot.identified_base()?,
+        (None, Start::Declared) => robot.diagnosed_base()?,
     };
     let robot_model = Arc::clone(&robot.model);
     let given = model.map(|m| m.inner().clone());

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
-use arash_core::diagnose::{consistent_with_effects, diagnose, DiagnoseOptions, Diagnosis, EffectKind};
+use arash_core::diagnose::{consistent_with_effects, diagnose, DiagnoseOptions, Diagnosis, EffectKind, Start};
 use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
 use arash_core::identify::{Declared, Log};
 use arash_core::model_file::ModelFile;
@@ -24,6 +24,11 @@ pub struct Args {
     /// declared model.
     #[arg(long)]
     model: Option<PathBuf>,
+    /// Without --model: start from the model `arash identify` makes of the training log, its
+    /// parameters refitted with the effects, or held where that predicts a joint of a held-out
+    /// run worse (docs/diagnosis.md, "Where it starts").
+    #[arg(long, conflicts_with = "model")]
+    from_identified: bool,
     /// With --model: refit all its base parameters too.
     #[arg(long, conflicts_with = "hold_friction")]
     refit: bool,
@@ -144,6 +149,12 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     )
     .context("diagnosis failed")?;
     let mut diagnosis = diagnosis;
+    // A diagnosis from the identification works in the identification's base parameters.
+    let base = match diagnosis.model.base_independent == base.independent {
+        true => base,
+        false => BaseParameters::with_independent(&model, &diagnosis.model.base_independent)?
+            .context("the diagnosed model's base parameters are neither the exact nor the regrouped ones")?,
+    };
     let repairs = train.repairs.iter().chain(validation.iter().flat_map(|v| &v.repairs));
     diagnosis.settings.reasons.splice(0..0, repairs.cloned());
     eprintln!("diagnosed in {:.1} s", started.elapsed().as_secs_f64());
@@ -195,6 +206,9 @@ fn options(args: &Args, model: &arash_core::Model) -> anyhow::Result<DiagnoseOpt
     options.motors = args.runs.transmission(model.dof())?;
     options.refit = args.refit;
     options.hold_friction = args.hold_friction;
+    if args.from_identified {
+        options.start = Start::Identified;
+    }
     options.validate(model.dof())?;
     if let Some(v) = args.consistent_cutoff {
         anyhow::ensure!(v.is_finite() && v > 0.0, "--consistent-cutoff must be positive, not {v}");

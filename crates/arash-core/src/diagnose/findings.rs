@@ -301,6 +301,21 @@ pub struct Reverted {
     pub rms_after: f64,
 }
 
+pub use crate::choices::Worse;
+
+/// The model a diagnosis started from: its "before".
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StartedFrom {
+    /// The declared model refitted on the log.
+    #[default]
+    Declared,
+    /// The model the user gave.
+    Given,
+    /// The model identification made of the same log.
+    Identified,
+}
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "code", rename_all = "snake_case")]
 pub enum Reversion {
@@ -344,6 +359,9 @@ pub struct DiagnoseSettings {
     pub max_delay_s: f64,
     /// Whether the declared base parameters were refitted (no model given, or `refit`).
     pub refit: bool,
+    /// The model the diagnosis started from.
+    #[serde(default)]
+    pub started_from: StartedFrom,
     /// What the held-out errors are measured on.
     pub heldout: String,
     pub candidates: usize,
@@ -377,14 +395,18 @@ pub struct Diagnosis {
     /// Set when the search stopped because the model is heavier than the data.
     #[serde(default)]
     pub too_heavy: Option<TooHeavy>,
-    /// The model the diagnosis started from (the given model as it is, or the declared model
-    /// refitted), and the final one.
+    /// The model the diagnosis started from (the given or identified model as it is, or the
+    /// declared model refitted), and the final one.
     pub before: ErrorSummary,
     pub after: ErrorSummary,
     /// What the guard put back so that no joint predicts the held-out data worse than `before`
     /// (`diagnose/guard.rs`), in order.
     #[serde(default)]
     pub reverted: Vec<Reverted>,
+    /// Joints the final model predicts worse than `before` beyond the comparison's noise, after
+    /// the guard (empty when the guard could keep every joint).
+    #[serde(default)]
+    pub still_worse: Vec<Worse>,
     /// The held-out error no model of the motion removes, RMS per joint (N·m or N): the torque's
     /// noise in the band, or what the band holds above the narrowest that predicts as well, if
     /// larger. Held-out gains are judged against the error above it, as far as that stands clear

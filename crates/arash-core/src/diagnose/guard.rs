@@ -1,5 +1,5 @@
 //! The diagnosis never leaves a joint predicting its held-out data worse than the model it started
-//! from: the given model as it is, or, without one, the declared model refitted.
+//! from: the given (or identified) model as it is, or the declared model refitted.
 //!
 //! Forward selection judges each effect by what it adds in its round; the final joint fit can
 //! still lose on a joint. Against a given model the friction is refitted on this log, at the
@@ -18,11 +18,15 @@
 //!    the accepted effect on it whose removal leaves it best, and the report names the joints
 //!    that effect helped.
 //!
+//! With the declared parameters refitted against a given model, a joint can lose to the refit
+//! itself, where no effect acts: such joints are reported ([`Worse`]), and a diagnosis that
+//! starts from the identification then holds the identified parameters (`diagnose/start.rs`).
+//!
 //! The standard error is that of the mean of `e_final² − e_start²` over the held-out samples of
 //! the joint, from batch means over blocks as long as the held-out split's (the residuals are
 //! correlated within a block).
 
-use super::findings::{Reversion, Reverted};
+use super::findings::{Reversion, Reverted, Worse};
 use super::inputs::Context;
 use super::options::HARM_SIGMAS;
 use super::regression::residual;
@@ -37,25 +41,44 @@ pub(super) struct Kept {
     pub(super) chosen: Vec<usize>,
     pub(super) reverted: Vec<(Reverted, Option<usize>)>,
     pub(super) rebuilt: Option<(Problem, HeldOut)>,
+    /// Joints still worse than the start beyond [`HARM_SIGMAS`] once nothing more can be put back.
+    pub(super) worse: Vec<Worse>,
 }
 
 /// The held-out comparison the guard makes: the starting model's held-out residual (weighted),
-/// and how samples batch.
+/// how samples batch, and the held-out runs (ranges of its samples): each run is held to the
+/// start on its own, so that a joint better on one run cannot hide a loss on another.
 struct Yardstick {
     start: Vec<f64>,
     dof: usize,
     batch: usize,
     weights: Vec<f64>,
+    runs: Vec<std::ops::Range<usize>>,
 }
 
 impl Yardstick {
-    /// Per joint, the mean of `e² − e_start²` over the held-out samples and its standard error.
+    /// Per joint, the mean of `e² − e_start²` over the held-out samples of the run where it is
+    /// largest in its standard errors, and that standard error.
     fn excess(&self, now: &[f64]) -> Vec<(f64, f64)> {
-        (0..self.dof)
+        let dof = self.dof;
+        let on_run = |k: usize, run: &std::ops::Range<usize>| {
+            let rows = run.start * dof..run.end * dof;
+            let pairs = now[rows.clone()].iter().zip(&self.start[rows]);
+            let (d, start): (Vec<f64>, Vec<f64>) =
+                pairs.skip(k).step_by(dof).map(|(e, s)| (e * e - s * s, s * s)).unzip();
+            let (mean, se) = mean_and_block_error(&d, self.batch);
+            // A joint the change does not touch differs by round-off, whose t-statistic is noise.
+            let scale = start.iter().sum::<f64>() / start.len().max(1) as f64;
+            if mean.abs() <= ROUND_OFF * scale {
+                (0.0, 0.0)
+            } else {
+                (mean, se)
+            }
+        };
+        (0..dof)
             .map(|k| {
-                let d: Vec<f64> =
-                    now.iter().zip(&self.start).skip(k).step_by(self.dof).map(|(e, s)| e * e - s * s).collect();
-                mean_and_block_error(&d, self.batch)
+                let each = self.runs.iter().map(|run| on_run(k, run));
+                each.max_by(|a, b| in_errors(*a).total_cmp(&in_errors(*b))).unwrap_or((0.0, 0.0))
             })
             .collect()
     }
@@ -82,8 +105,10 @@ pub(super) fn keep_no_worse(
         dof,
         batch: ((ctx.split.block_s * ctx.train.kept_rate()).round() as usize).max(1),
         weights: problem.weights.clone(),
+        runs: heldout_runs(ctx, heldout),
     };
-    let mut kept = Kept { free: ctx.free.clone(), chosen: chosen.to_vec(), reverted: vec![], rebuilt: None };
+    let mut kept =
+        Kept { free: ctx.free.clone(), chosen: chosen.to_vec(), reverted: vec![], rebuilt: None, worse: vec![] };
     let mut now = heldout_residual(problem, heldout, pool, &kept.chosen);
     while let Some((k, action)) = next_reversion(ctx, &kept, &yardstick.excess(&now), pool, dof) {
         let rms_before = yardstick.rms(&now, k);
@@ -109,7 +134,31 @@ pub(super) fn keep_no_worse(
         let rms_after = yardstick.rms(&now, k);
         kept.reverted.push((Reverted { joint: k, action, start_rms, rms_before, rms_after }, dropped));
     }
+    let excess = yardstick.excess(&now).into_iter().enumerate();
+    kept.worse = excess
+        .filter(|(_, (mean, se))| *mean > HARM_SIGMAS * se)
+        .map(|(k, (mean, se))| Worse {
+            joint: k,
+            start_rms: yardstick.rms(&yardstick.start, k),
+            rms: yardstick.rms(&now, k),
+            sigmas: mean / se,
+        })
+        .collect();
     kept
+}
+
+/// Relative change of a mean squared error that is round-off, not a change.
+const ROUND_OFF: f64 = 1e-9;
+
+/// A mean in its standard errors (±∞ for a nonzero mean without noise).
+fn in_errors((mean, se): (f64, f64)) -> f64 {
+    if se > 0.0 {
+        mean / se
+    } else if mean == 0.0 {
+        0.0
+    } else {
+        mean.signum() * f64::INFINITY
+    }
 }
 
 enum Next {
@@ -170,6 +219,15 @@ fn least_harmful_removal(
         .expect("an effect acts on the joint");
     let helped = (0..dof).filter(|&j| yardstick.rms(&with, j) < yardstick.rms(&e, j)).collect();
     (at, helped)
+}
+
+/// The held-out samples of each run, as ranges of the held-out residual's samples: the validation
+/// log's runs, or the held-out blocks as one.
+fn heldout_runs(ctx: &Context, heldout: &HeldOut) -> Vec<std::ops::Range<usize>> {
+    match (heldout, &ctx.validation) {
+        (HeldOut::Validation(_), Some(v)) => v.runs(),
+        _ => std::iter::once(0..heldout.samples(ctx.model.dof())).collect(),
+    }
 }
 
 /// The starting model's held-out residual on the data as logged (no shift): the given model as

@@ -244,10 +244,11 @@ impl<'a> Context<'a> {
         }
     }
 
-    /// The given model's coefficients of the declared columns `free` (empty when refitting): its
-    /// prediction as it is, on a problem built with `free`.
+    /// The given model's coefficients of the declared columns `free`: its prediction as it is, on
+    /// a problem built with `free` (refitting, every declared column is free, and the given
+    /// model's effects other than drive gains are not part of it).
     pub(super) fn given_coefficients(&self, free: &[bool]) -> Option<Vec<f64>> {
-        let g = self.given.filter(|_| !self.refit)?;
+        let g = self.given?;
         Some(g.fitted.beta.iter().zip(free).filter(|(_, f)| **f).map(|(b, _)| *b).collect())
     }
 

@@ -38,6 +38,7 @@ mod refit;
 pub mod regression;
 mod report;
 mod search;
+mod start;
 mod weighted_fit;
 
 pub use crate::effects::{EffectKind, EffectTerm, TermState};
@@ -45,11 +46,11 @@ pub use crate::identify::{Declared, Log};
 pub use delay::ALIGNMENT_SAMPLES;
 pub use findings::{
     DiagnoseSettings, Diagnosis, ErrorSummary, Finding, Rejection, RejectionReason, Reversion, Reverted,
-    ScaleRefinement, Series,
+    ScaleRefinement, Series, StartedFrom, Worse,
 };
-pub use options::{DiagnoseError, DiagnoseOptions, OptionsError};
+pub use options::{DiagnoseError, DiagnoseOptions, OptionsError, Start};
 pub use refit::consistent_with_effects;
-pub use search::diagnose;
+pub use start::diagnose;
 
 /// Held-out data: one log, or several runs recorded one after another and concatenated, with
 /// `starts` the sample at which each run after the first begins. The log is filtered whole, and

@@ -88,6 +88,22 @@ pub struct DiagnoseOptions {
     /// With a given model: refit its base parameters together with the effects (default: keep
     /// them, so that a payload or other change against that model shows).
     pub refit: bool,
+    /// Without a given model, what the diagnosis starts from (`diagnose/start.rs`).
+    pub start: Start,
+}
+
+/// What a diagnosis without a given model starts from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Start {
+    /// The model identification makes of the same log, with its choices: the diagnosis builds on
+    /// it and ends no worse than it on any joint of any held-out run.
+    Identified,
+    /// The declared model refitted on the log at the diagnosis's band (default). Not yet the
+    /// identified model: on logs of the declared model, identification's Coulomb law, chosen at
+    /// its own cut-off, let a Stribeck term in where the diagnosis's law at its band does not
+    /// (docs/diagnosis.md, "Where it starts").
+    #[default]
+    Declared,
 }
 
 impl Default for DiagnoseOptions {
@@ -109,6 +125,7 @@ impl Default for DiagnoseOptions {
             torque_from_currents: false,
             hold_friction: false,
             refit: false,
+            start: Start::default(),
         }
     }
 }

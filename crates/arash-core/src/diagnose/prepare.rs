@@ -22,6 +22,8 @@ pub(super) struct Prepared {
     pub(super) q_raw: Vec<f64>,
     /// Full-rate sample indices used, every `stride`-th inside the trimmed ends.
     pub(super) kept: Vec<usize>,
+    /// The full-rate sample at which each run after the first begins (held-out runs joined).
+    pub(super) starts: Vec<usize>,
     /// Base-parameter columns, unweighted.
     pub(super) declared: Vec<Column>,
     /// Mass and first-moment columns of each body with mass: (body, columns).
@@ -57,6 +59,14 @@ impl Prepared {
         out
     }
 
+    /// The kept samples of each run, as ranges of kept indices, in order.
+    pub(super) fn runs(&self) -> Vec<std::ops::Range<usize>> {
+        let mut bounds: Vec<usize> = self.starts.iter().map(|&s| self.kept.partition_point(|&i| i < s)).collect();
+        bounds.insert(0, 0);
+        bounds.push(self.kept.len());
+        bounds.windows(2).filter(|w| w[1] > w[0]).map(|w| w[0]..w[1]).collect()
+    }
+
     pub(super) fn at_kept(&self, x: &[f64]) -> Vec<f64> {
         let dof = self.dof;
         self.kept.iter().flat_map(|&i| x[i * dof..(i + 1) * dof].iter().copied()).collect()
@@ -75,7 +85,8 @@ impl Prepared {
     ) -> Self {
         let fs = pre.sample_rate_hz;
         let (declared, bodies) = declared_columns(model, base, &pre, &kept);
-        Prepared { dof: model.dof(), fs, pre, q_raw: q_raw.to_vec(), kept, declared, bodies, predicted: vec![] }
+        let (dof, q_raw) = (model.dof(), q_raw.to_vec());
+        Prepared { dof, fs, pre, q_raw, kept, starts: vec![], declared, bodies, predicted: vec![] }
     }
 }
 
@@ -132,7 +143,9 @@ pub(super) fn prepare(
     let pre = filtered(log, dof, options, band)?;
     let stride = stride(options, pre.sample_rate_hz, pre.cutoff_hz);
     let kept = kept_samples(&pre, margin_s, starts, stride)?;
-    Ok(Prepared::new(model, base, pre, log.q, kept))
+    let mut prepared = Prepared::new(model, base, pre, log.q, kept);
+    prepared.starts = starts.to_vec();
+    Ok(prepared)
 }
 
 /// The fewest samples a diagnosis keeps.

@@ -1,6 +1,6 @@
 //! The diagnosis as text and JSON.
 
-use super::findings::{Diagnosis, ErrorSummary, Finding, Reversion};
+use super::findings::{Diagnosis, ErrorSummary, Finding, Reversion, StartedFrom};
 use super::options::HARM_SIGMAS;
 use crate::model::{CoulombLaws, CoulombShape};
 use crate::model_file::Metrics;
@@ -39,7 +39,7 @@ impl Diagnosis {
 
     /// What the guard put back so that no joint predicts worse than the starting model.
     fn reverted_lines(&self) -> String {
-        if self.reverted.is_empty() {
+        if self.reverted.is_empty() && self.still_worse.is_empty() {
             return String::new();
         }
         let mut s = "\nKept no worse than the starting model on held-out data, joint by joint:\n".to_string();
@@ -48,7 +48,7 @@ impl Diagnosis {
             let what = match &r.action {
                 Reversion::HoldFriction => format!(
                     "{name}: its friction refitted here did not predict better by {HARM_SIGMAS} standard errors; \
-                     held at the given model's"
+                     held at the starting model's"
                 ),
                 Reversion::DropEffect { label, helped, sigmas } => {
                     let helped: Vec<&str> = helped.iter().map(|&j| self.joint_names[j].as_str()).collect();
@@ -62,6 +62,13 @@ impl Diagnosis {
             s += &format!(
                 "  - {what} (held-out RMS {:.3e} → {:.3e}; the starting model's {:.3e})\n",
                 r.rms_before, r.rms_after, r.start_rms
+            );
+        }
+        for w in &self.still_worse {
+            s += &format!(
+                "  - {}: still worse than the starting model by {:.1} standard errors (held-out RMS {:.3e} against \
+                 {:.3e}): no effect acts on it to drop\n",
+                self.joint_names[w.joint], w.sigmas, w.rms, w.start_rms
             );
         }
         s
@@ -157,7 +164,11 @@ impl Diagnosis {
         s += &self.reverted_lines();
         s += &format!(
             "\nError per joint, before → after (before: {}; on the diagnosis's band, {:.2} Hz):\n",
-            if self.settings.refit { "the declared model refitted" } else { "the given model as it is" },
+            match self.settings.started_from {
+                StartedFrom::Declared => "the declared model refitted",
+                StartedFrom::Given => "the given model as it is",
+                StartedFrom::Identified => "the model identified on this log, as it is",
+            },
             self.settings.cutoff_hz
         );
         s += &self.error_table("training", &self.before, &self.after, |e| &e.training);

@@ -8,7 +8,7 @@ use super::candidates::{candidates, not_the_cable};
 use super::delay::search_delay;
 use super::findings::{
     rejection, DiagnoseSettings, Diagnosis, ErrorSummary, Finding, Rejection, RejectionReason, Reversion,
-    ScaleRefinement, Series, TooHeavy,
+    ScaleRefinement, Series, StartedFrom, TooHeavy,
 };
 use super::gain_share::GainErrors;
 use super::guard;
@@ -26,8 +26,8 @@ use crate::model::{JointKind, Model};
 use crate::model_file::ModelFile;
 
 /// Diagnose `train` against the declared dynamics (refitted, or `given`), holding out
-/// `validation` when it is given (a [`Log`] converts into one run).
-pub fn diagnose(
+/// `validation` when it is given.
+pub(super) fn diagnose_against(
     declared: Declared,
     train: Log,
     validation: Option<Runs>,
@@ -559,6 +559,7 @@ impl Search<'_> {
             before,
             after,
             reverted: kept.reverted.iter().map(|(r, _)| r.clone()).collect(),
+            still_worse: kept.worse.clone(),
             noise_floor: ctx.floor.rms.clone(),
             sensor_noise: ctx.floor.noise_rms.clone(),
             settings: DiagnoseSettings {
@@ -577,6 +578,7 @@ impl Search<'_> {
                 max_vif: options.max_vif,
                 max_delay_s: options.max_delay_s,
                 refit: ctx.refit,
+                started_from: if ctx.given.is_some() { StartedFrom::Given } else { StartedFrom::Declared },
                 heldout: source,
                 candidates: pool.len() + 1,
             },

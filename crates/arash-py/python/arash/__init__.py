@@ -346,6 +346,7 @@ def diagnose(
     motor_side: Optional[Transmission] = None,
     repair: bool = False,
     currents: bool = False,
+    start: Optional[str] = None,
 ) -> Diagnosis:
     """Find what the declared model lacks in a log, and the error before and after.
 
@@ -353,7 +354,11 @@ def diagnose(
     model: an ``Identification`` to diagnose against (its inertial parameters held, friction
         refitted and kept where it predicts the held-out data better); no joint ends predicting
         the held-out data worse than it (``Diagnosis.reverted`` lists what was put back, and
-        ``error_before`` is this model as it is); default: refit the declared model.
+        ``error_before`` is this model as it is); default: as ``start`` says.
+    start: without a model, ``"declared"`` (default: the declared model refitted at the
+        diagnosis's band) or ``"identified"`` (start from ``identify``'s model of this log, its
+        declared parameters refitted with the effects, or held where the refit predicts a joint of
+        a held-out run worse; ``settings["started_from"]``).
     validation: a tuple ``(t, q, tau)`` held out for ranking and the held-out errors, or a list of
         such runs recorded one after another (each run is filtered on its own: nothing across the
         jump from one to the next); default: the odd-numbered blocks of the training log.
@@ -411,7 +416,7 @@ def diagnose(
         friction_cutoff_hz=friction_cutoff_hz, order=order, block_s=block_s, batch_s=batch_s, alpha=alpha, min_gain=min_gain,
         effects=None if effects is None else list(effects), torque_from_currents=torque_from_currents,
         refit=refit, hold_friction=hold_friction, consistent=consistent,
-        consistent_cutoff_hz=consistent_cutoff_hz, motor_side=motor_side))
+        consistent_cutoff_hz=consistent_cutoff_hz, motor_side=motor_side, start=start))
     return _diagnose(robot, (t, q, tau), options, model, validation, starts, report)
 
 

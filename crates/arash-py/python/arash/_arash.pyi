@@ -354,6 +354,9 @@ class DiagnoseOptions:
     @property
     def hold_friction(self) -> bool: ...
     @property
+    def start(self) -> str:
+        """Without a model, what the diagnosis starts from: ``"identified"`` or ``"declared"``."""
+    @property
     def consistent(self) -> bool: ...
     @property
     def consistent_cutoff_hz(self) -> Optional[float]: ...
@@ -421,6 +424,10 @@ class Diagnosis:
         """What was put back so that no joint predicts held-out data worse than the starting model:
         ``joint``, ``code`` (``hold_friction`` or ``drop_effect``), for a dropped effect ``label``,
         ``helped`` and ``sigmas``; and ``start_rms``, ``rms_before``, ``rms_after``."""
+    @property
+    def still_worse(self) -> list[dict[str, Any]]:
+        """Joints still worse than the starting model beyond the comparison's noise: ``joint``,
+        ``start_rms``, ``rms``, ``sigmas``."""
     @property
     def too_heavy(self) -> Optional[dict[str, Any]]:
         """Set when the search stopped because the model is heavier than the data: ``body``,
