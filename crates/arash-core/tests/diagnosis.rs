@@ -294,13 +294,8 @@ fn a_model_heavier_than_the_rig_is_not_a_negative_payload() {
     let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
     let run = simulate(&model, "", 1, 60.0);
     let truth = true_model(&model, &base, 1);
-    let carriage = model.bodies.iter().position(|b| b.name == "insertion_carriage").unwrap();
     let against = |extra_kg: f64| {
-        let mut given = truth.clone();
-        let params = given.fitted.params.as_mut().unwrap();
-        arash_core::sim::truth::add_payload(params, carriage, extra_kg, &[0.0, 0.0, 0.01]);
-        let params = params.clone();
-        base.project(&params, &mut given.fitted.beta);
+        let given = on_the_carriage(&truth, &model, &base, extra_kg);
         let options = DiagnoseOptions { transmission: Some(transmission()), ..DiagnoseOptions::default() };
         let log = Log { t: &run.t, q: &run.q, tau: &run.tau };
         diagnose(Declared { model: &model, base: &base, urdf: ARASH_ASIST_URDF }, log, None, Some(&given), &options)
@@ -322,6 +317,17 @@ fn a_model_heavier_than_the_rig_is_not_a_negative_payload() {
     assert!(light.too_heavy.is_none(), "{}", light.report());
 }
 
+/// `truth` with `extra_kg` more (or less) on the insertion carriage, 1 cm along it.
+fn on_the_carriage(truth: &ModelFile, model: &Model, base: &BaseParameters, extra_kg: f64) -> ModelFile {
+    let carriage = model.bodies.iter().position(|b| b.name == "insertion_carriage").unwrap();
+    let mut given = truth.clone();
+    let params = given.fitted.params.as_mut().unwrap();
+    arash_core::sim::truth::add_payload(params, carriage, extra_kg, &[0.0, 0.0, 0.01]);
+    let params = params.clone();
+    base.project(&params, &mut given.fitted.beta);
+    given
+}
+
 /// With `refit`, the model written is the one refitted on the log, not the given one: against a
 /// given model 50 g heavier than the rig, the written model's gravity is the rig's again (until
 /// 2026-12-06 the given β was written beside effects fitted with the refitted one).
@@ -331,12 +337,7 @@ fn a_given_model_refitted_is_written_refitted() {
     let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
     let run = simulate(&model, "", 1, 60.0);
     let truth = true_model(&model, &base, 1);
-    let carriage = model.bodies.iter().position(|b| b.name == "insertion_carriage").unwrap();
-    let mut given = truth.clone();
-    let params = given.fitted.params.as_mut().unwrap();
-    arash_core::sim::truth::add_payload(params, carriage, 0.05, &[0.0, 0.0, 0.01]);
-    let params = params.clone();
-    base.project(&params, &mut given.fitted.beta);
+    let given = on_the_carriage(&truth, &model, &base, 0.05);
     let options = DiagnoseOptions { refit: true, effects: vec![], ..DiagnoseOptions::default() };
     let log = Log { t: &run.t, q: &run.q, tau: &run.tau };
     let d =
