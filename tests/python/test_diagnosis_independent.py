@@ -9,6 +9,7 @@ sign(q̇) log.
 """
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -38,6 +39,21 @@ def logs(condition):
     if condition.coulomb == "tanh":
         robot = arash.Robot.from_urdf(urdf_path(condition.robot), coulomb_epsilon=TANH_EPSILON)
     return robot, train, held
+
+
+@pytest.mark.parametrize("condition", NULL, ids=lambda c: c.label)
+def test_nothing_is_accepted_from_the_identification_on_a_log_of_the_declared_model(condition):
+    """``start="identified"``: the refit against the identification chooses each law at the
+    diagnosis's band, as a diagnosis without a model does. Fitted with the identification's laws
+    (chosen at its cut-off), a Stribeck term took up a tanh law chosen where the truth was sign(q̇)
+    (the 20-bit aperiodic condition). Where the refit loses a joint and the identified parameters
+    are held, the identification's laws return with them (docs/diagnosis.md, "Where it starts")."""
+    robot, train, held = logs(condition)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the identification's concerns, in its settings
+        d = arash.diagnose(robot, *train, validation=held, start="identified")
+    assert d.settings["started_from"] == "identified"
+    assert d.accepted == [], d.report()
 
 
 @pytest.mark.parametrize("condition", NULL, ids=lambda c: c.label)

@@ -826,8 +826,8 @@ impl Display for Choice {
                 )?;
                 if *refitted {
                     return f.write_str(
-                        "the declared parameters are refitted with the effects, and no joint predicts the held-out \
-                         data worse than the identified model",
+                        "the declared parameters are refitted with the effects, each Coulomb law chosen at the \
+                         diagnosis's band, and no joint predicts the held-out data worse than the identified model",
                     );
                 }
                 let lost: Vec<String> = worse

@@ -29,7 +29,8 @@
 use super::findings::{Reversion, Reverted, Worse};
 use super::inputs::Context;
 use super::options::HARM_SIGMAS;
-use super::regression::residual;
+use super::prepare::Prepared;
+use super::regression::{residual, Column};
 use super::weighted_fit::{heldout_residual, on_rows, Candidate, HeldOut, Problem};
 use crate::signal::statistics::mean_and_block_error;
 
@@ -237,19 +238,26 @@ fn start_residual(ctx: &Context, pool: &[Candidate]) -> Vec<f64> {
     let Some(x) = ctx.given_coefficients(&ctx.free) else {
         return heldout_residual(&problem, &heldout, pool, &[]);
     };
-    let (target, rows) = match &heldout {
-        HeldOut::Blocks { test, .. } => (&problem, Some(test)),
-        HeldOut::Validation(v) => (v, None),
+    let (target, rows) = match (&heldout, &ctx.validation) {
+        (HeldOut::Validation(v), Some(data)) => ((data, v), None),
+        (HeldOut::Blocks { test, .. }, _) => ((&ctx.train, &problem), Some(test)),
+        (HeldOut::Validation(_), None) => unreachable!("a validation problem comes from a validation log"),
     };
     let e = as_given_residual(ctx, target, &x);
     rows.map_or(e.clone(), |test| on_rows(&e, test, problem.dof))
 }
 
-/// The given model's residual on every row of `problem` (weighted): its free columns at its own
-/// coefficients `x`, its drive gains scaling the whole prediction as they scale the held part.
-pub(super) fn as_given_residual(ctx: &Context, problem: &Problem, x: &[f64]) -> Vec<f64> {
+/// The given model's residual on every row of `problem` (weighted), built on `data`: its free
+/// columns at its own coefficients `x` (its Coulomb columns with its own laws, where the
+/// diagnosis chose others), its drive gains scaling the whole prediction as they scale the held
+/// part.
+pub(super) fn as_given_residual(ctx: &Context, (data, problem): (&Prepared, &Problem), x: &[f64]) -> Vec<f64> {
     let dof = problem.dof;
-    let cols: Vec<_> = problem.free_columns().collect();
+    let own = ctx.start_columns(data).map(|c| problem.weighted(c));
+    let cols: Vec<&Column> = match &own {
+        Some(own) => own.iter().zip(&problem.free).filter(|(_, f)| **f).map(|(c, _)| c).collect(),
+        None => problem.free_columns().collect(),
+    };
     let mut e = residual(&cols, x, &problem.y, dof);
     let factors = ctx.given_gain_factors();
     for (i, (e, y)) in e.iter_mut().zip(&problem.y).enumerate() {

@@ -252,6 +252,18 @@ impl<'a> Context<'a> {
         Some(g.fitted.beta.iter().zip(free).filter(|(_, f)| **f).map(|(b, _)| *b).collect())
     }
 
+    /// The given model's declared columns on `data` with its own Coulomb laws, where the
+    /// diagnosis chose others (`None` where they are the same): what its prediction as it is
+    /// needs.
+    pub(super) fn start_columns(&self, data: &Prepared) -> Option<Vec<Column>> {
+        let laws = self.given?.coulomb_laws();
+        if laws == self.model.coulomb_laws {
+            return None;
+        }
+        let model = Model { coulomb_laws: laws, ..self.model.clone() };
+        Some(super::prepare::declared_columns(&model, self.base, &data.pre, &data.kept).0)
+    }
+
     /// Per joint, the factor the given model's drive gains scale its prediction by (1 where it
     /// has none).
     pub(super) fn given_gain_factors(&self) -> Vec<f64> {

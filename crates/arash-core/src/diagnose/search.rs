@@ -25,13 +25,23 @@ use crate::identify::{Declared, Log};
 use crate::model::{JointKind, Model};
 use crate::model_file::ModelFile;
 
+/// Whose Coulomb laws the diagnosis fits with, against a given model.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(super) enum Laws {
+    /// The given model's: its Coulomb coefficients belong to them.
+    OfGiven,
+    /// Its own, as without a model (refitting only): the given model is the start to compare
+    /// with, predicting with its own.
+    Own,
+}
+
 /// Diagnose `train` against the declared dynamics (refitted, or `given`), holding out
 /// `validation` when it is given.
 pub(super) fn diagnose_against(
     declared: Declared,
-    train: Log,
-    validation: Option<Runs>,
+    (train, validation): (Log, Option<Runs>),
     given: Option<&ModelFile>,
+    laws: Laws,
     options: &DiagnoseOptions,
 ) -> Result<Diagnosis, DiagnoseError> {
     options.validate(declared.model.dof())?;
@@ -39,7 +49,10 @@ pub(super) fn diagnose_against(
     // A given model's Coulomb coefficients belong to the laws it was fitted with; without one
     // the robot's declared laws are used, or, where it declares none, each joint's is chosen
     // from the data with the band (docs/diagnosis.md, "The Coulomb law").
-    let mut model = given.map_or(Cow::Borrowed(declared.model), |file| file.with_its_law(declared.model));
+    let mut model = match (given, laws) {
+        (Some(file), Laws::OfGiven) => file.with_its_law(declared.model),
+        _ => Cow::Borrowed(declared.model),
+    };
     let refit = given.is_none() || options.refit;
     let choose_laws = refit && !model.coulomb_laws.is_declared();
     let choice = choose_band(&model, declared.base, train, validation.as_ref(), options, choose_laws)?;
@@ -524,7 +537,12 @@ impl Search<'_> {
         let after = error_summary(problem, heldout, pool, &state.chosen);
         let declared_fit = Fitted { columns: &declared_only, coefficients: &x_before };
         let final_fit = Fitted { columns: &final_cols, coefficients: &x_after };
-        let series = series(&ctx.train, problem, declared_fit, final_fit, pool, &state.chosen);
+        let mut series = series(&ctx.train, problem, declared_fit, final_fit, pool, &state.chosen);
+        // A start with laws of its own predicts with them (`Laws::Own`).
+        if let (Some(x), true) = (&given, ctx.start_columns(&ctx.train).is_some()) {
+            let e = guard::as_given_residual(ctx, (&ctx.train, problem), x);
+            series.residual_before = e.iter().enumerate().map(|(i, e)| e / problem.weights[i % dof]).collect();
+        }
         let mut updated = self.updated_model(&state, (&kept.free, &x_after), &series, urdf, samples_in)?;
         let source = match ctx.validation.is_some() {
             true => "the validation log".to_string(),
@@ -666,11 +684,14 @@ fn nth_effect(accepted: &[Finding], at: usize) -> usize {
 /// the held-out samples.
 fn as_given_summary(ctx: &Context, x: &[f64]) -> ErrorSummary {
     let (problem, heldout) = (ctx.problem(&ctx.train, 0), ctx.heldout(0));
-    let e = guard::as_given_residual(ctx, &problem, x);
+    let e = guard::as_given_residual(ctx, (&ctx.train, &problem), x);
     let training = problem.metrics_of(&e, Rows::All);
     let heldout = match &heldout {
         HeldOut::Blocks { test, .. } => problem.metrics_of(&e, Rows::Where(test)),
-        HeldOut::Validation(v) => v.metrics_of(&guard::as_given_residual(ctx, v, x), Rows::All),
+        HeldOut::Validation(v) => {
+            let data = ctx.validation.as_ref().expect("a validation problem comes from a validation log");
+            v.metrics_of(&guard::as_given_residual(ctx, (data, v), x), Rows::All)
+        }
     };
     ErrorSummary { training, heldout }
 }

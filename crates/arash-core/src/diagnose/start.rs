@@ -7,7 +7,10 @@
 //!
 //! The declared parameters are refitted together with the effects first: an effect the
 //! identification lacks (an offset, a wiring disturbance) biases the parameters it fitted, and
-//! the refit lets them move back (the KUKA's wrist joints, docs/diagnosis.md). The guard holds
+//! the refit lets them move back (the KUKA's wrist joints, docs/diagnosis.md). The refit chooses
+//! each Coulomb law at the diagnosis's band, as without a model ([`Laws::Own`]): fitted with the
+//! identification's, chosen at its cut-off, a Stribeck term made up for a law chosen wrong on a
+//! log of the declared model. The start still predicts with its own laws. The guard holds
 //! every joint to the identified model's held-out error; where the refit itself loses on a joint
 //! (no effect there to drop), the diagnosis runs again with the identified parameters held and
 //! friction refitted, where its guard can put the friction back. Where identification refuses
@@ -15,7 +18,7 @@
 
 use super::findings::{Diagnosis, StartedFrom};
 use super::options::{DiagnoseError, DiagnoseOptions, Start};
-use super::search::diagnose_against;
+use super::search::{diagnose_against, Laws};
 use super::Runs;
 use crate::base_parameters::{BaseParameterOptions, BaseParameters};
 use crate::choices::Choice;
@@ -32,7 +35,9 @@ pub fn diagnose(
     options: &DiagnoseOptions,
 ) -> Result<Diagnosis, DiagnoseError> {
     match (given, options.start) {
-        (Some(_), _) | (None, Start::Declared) => diagnose_against(declared, train, validation, given, options),
+        (Some(_), _) | (None, Start::Declared) => {
+            diagnose_against(declared, (train, validation), given, Laws::OfGiven, options)
+        }
         (None, Start::Identified) => from_identified(declared, train, validation, options),
     }
 }
@@ -52,18 +57,18 @@ fn from_identified(
     let identified = match identify(declared, train, IdentifyMethod::Ols, &IdentifyOptions::default()) {
         Ok(file) => file,
         Err(e) => {
-            let mut d = diagnose_against(declared, train, validation, None, options)?;
+            let mut d = diagnose_against(declared, (train, validation), None, Laws::OfGiven, options)?;
             d.settings.reasons.insert(0, Choice::DiagnosisFromDeclared { why: e.to_string() });
             return Ok(d);
         }
     };
     let refit = DiagnoseOptions { refit: true, hold_friction: false, ..options.clone() };
-    let refitted = diagnose_against(declared, train, validation, Some(&identified), &refit)?;
+    let refitted = diagnose_against(declared, (train, validation), Some(&identified), Laws::Own, &refit)?;
     if refitted.still_worse.is_empty() {
         return Ok(started_from(refitted, &identified, true, vec![]));
     }
     let held = DiagnoseOptions { refit: false, ..options.clone() };
-    let d = diagnose_against(declared, train, validation, Some(&identified), &held)?;
+    let d = diagnose_against(declared, (train, validation), Some(&identified), Laws::OfGiven, &held)?;
     Ok(started_from(d, &identified, false, refitted.still_worse))
 }
 
