@@ -81,6 +81,7 @@ const FOLDERS: &[(&str, &[&str])] = &[
             "outcome",
             "guard",
             "search",
+            "start",
             "refit",
             "report",
         ],
