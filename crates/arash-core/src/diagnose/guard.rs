@@ -253,7 +253,7 @@ fn start_residual(ctx: &Context, pool: &[Candidate]) -> Vec<f64> {
 /// part.
 pub(super) fn as_given_residual(ctx: &Context, (data, problem): (&Prepared, &Problem), x: &[f64]) -> Vec<f64> {
     let dof = problem.dof;
-    let own = ctx.start_columns(data).map(|c| problem.weighted(c));
+    let own = data.start_declared.clone().map(|c| problem.weighted(c));
     let cols: Vec<&Column> = match &own {
         Some(own) => own.iter().zip(&problem.free).filter(|(_, f)| **f).map(|(c, _)| c).collect(),
         None => problem.free_columns().collect(),

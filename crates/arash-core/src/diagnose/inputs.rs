@@ -5,7 +5,7 @@ use super::band::Band;
 use super::band_choice::BandChoice;
 use super::noise::{HeldOutTorque, NoiseFloor};
 use super::options::{DiagnoseError, DiagnoseOptions};
-use super::prepare::{prepare, term_columns, Prepared};
+use super::prepare::{declared_columns, prepare, term_columns, Prepared};
 use super::regression::{self, least_squares, residual, Batching, Column, Rows};
 use super::weighted_fit::{heldout_split, heldout_sse, Candidate, HeldOut, Problem, Split};
 use super::Runs;
@@ -58,7 +58,7 @@ impl<'a> Context<'a> {
         choices.reasons.extend(choice.reasons.iter().cloned());
         choices.warnings.extend(choice.warnings.iter().cloned());
         // The held-out log is filtered in the band chosen on the training log.
-        let validation = validation
+        let mut validation = validation
             .map(|v| prepare(model, base, v, options, band, margin))
             .transpose()
             .map_err(DiagnoseError::Validation)?;
@@ -66,6 +66,14 @@ impl<'a> Context<'a> {
             g.controller_parameters(model).map_err(IdentifyError::from)?;
             if g.base_independent != base.independent {
                 return Err(DiagnoseError::BaseMismatch);
+            }
+            // A start with laws of its own predicts with them, on every log, once.
+            let laws = g.coulomb_laws();
+            if laws != model.coulomb_laws {
+                let with_its_laws = Model { coulomb_laws: laws, ..model.clone() };
+                for data in std::iter::once(&mut train).chain(validation.as_mut()) {
+                    data.start_declared = Some(declared_columns(&with_its_laws, base, &data.pre, &data.kept).0);
+                }
             }
         }
         let refit = given.is_none() || options.refit;
@@ -250,18 +258,6 @@ impl<'a> Context<'a> {
     pub(super) fn given_coefficients(&self, free: &[bool]) -> Option<Vec<f64>> {
         let g = self.given?;
         Some(g.fitted.beta.iter().zip(free).filter(|(_, f)| **f).map(|(b, _)| *b).collect())
-    }
-
-    /// The given model's declared columns on `data` with its own Coulomb laws, where the
-    /// diagnosis chose others (`None` where they are the same): what its prediction as it is
-    /// needs.
-    pub(super) fn start_columns(&self, data: &Prepared) -> Option<Vec<Column>> {
-        let laws = self.given?.coulomb_laws();
-        if laws == self.model.coulomb_laws {
-            return None;
-        }
-        let model = Model { coulomb_laws: laws, ..self.model.clone() };
-        Some(super::prepare::declared_columns(&model, self.base, &data.pre, &data.kept).0)
     }
 
     /// Per joint, the factor the given model's drive gains scale its prediction by (1 where it

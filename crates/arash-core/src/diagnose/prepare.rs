@@ -24,6 +24,9 @@ pub(super) struct Prepared {
     pub(super) kept: Vec<usize>,
     /// The full-rate sample at which each run after the first begins (held-out runs joined).
     pub(super) starts: Vec<usize>,
+    /// The given model's declared columns with its own Coulomb laws, where the diagnosis fits
+    /// with others (`Laws::Own`): what its prediction as it is needs.
+    pub(super) start_declared: Option<Vec<Column>>,
     /// Base-parameter columns, unweighted.
     pub(super) declared: Vec<Column>,
     /// Mass and first-moment columns of each body with mass: (body, columns).
@@ -86,7 +89,18 @@ impl Prepared {
         let fs = pre.sample_rate_hz;
         let (declared, bodies) = declared_columns(model, base, &pre, &kept);
         let (dof, q_raw) = (model.dof(), q_raw.to_vec());
-        Prepared { dof, fs, pre, q_raw, kept, starts: vec![], declared, bodies, predicted: vec![] }
+        Prepared {
+            dof,
+            fs,
+            pre,
+            q_raw,
+            kept,
+            starts: vec![],
+            start_declared: None,
+            declared,
+            bodies,
+            predicted: vec![],
+        }
     }
 }
 

@@ -539,7 +539,7 @@ impl Search<'_> {
         let final_fit = Fitted { columns: &final_cols, coefficients: &x_after };
         let mut series = series(&ctx.train, problem, declared_fit, final_fit, pool, &state.chosen);
         // A start with laws of its own predicts with them (`Laws::Own`).
-        if let (Some(x), true) = (&given, ctx.start_columns(&ctx.train).is_some()) {
+        if let (Some(x), true) = (&given, ctx.train.start_declared.is_some()) {
             let e = guard::as_given_residual(ctx, (&ctx.train, problem), x);
             series.residual_before = e.iter().enumerate().map(|(i, e)| e / problem.weights[i % dof]).collect();
         }
