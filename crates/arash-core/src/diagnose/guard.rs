@@ -58,10 +58,11 @@ struct Yardstick {
 }
 
 impl Yardstick {
-    /// Per joint, the mean of `e² − e_start²` over the held-out samples of the run where it is
-    /// largest in its standard errors, and that standard error.
-    fn excess(&self, now: &[f64]) -> Vec<(f64, f64)> {
+    /// Per joint, the mean of `e² − e_start²` and its standard error over all held-out samples,
+    /// and over the run where it is largest in its standard errors.
+    fn excess(&self, now: &[f64]) -> Vec<Excess> {
         let dof = self.dof;
+        let all = 0..now.len() / dof;
         let on_run = |k: usize, run: &std::ops::Range<usize>| {
             let rows = run.start * dof..run.end * dof;
             let pairs = now[rows.clone()].iter().zip(&self.start[rows]);
@@ -79,7 +80,8 @@ impl Yardstick {
         (0..dof)
             .map(|k| {
                 let each = self.runs.iter().map(|run| on_run(k, run));
-                each.max_by(|a, b| in_errors(*a).total_cmp(&in_errors(*b))).unwrap_or((0.0, 0.0))
+                let worst_run = each.max_by(|a, b| in_errors(*a).total_cmp(&in_errors(*b))).unwrap_or((0.0, 0.0));
+                Excess { pooled: on_run(k, &all), worst_run }
             })
             .collect()
     }
@@ -137,6 +139,7 @@ pub(super) fn keep_no_worse(
     }
     let excess = yardstick.excess(&now).into_iter().enumerate();
     kept.worse = excess
+        .map(|(k, e)| (k, e.worst_run))
         .filter(|(_, (mean, se))| *mean > HARM_SIGMAS * se)
         .map(|(k, (mean, se))| Worse {
             joint: k,
@@ -146,6 +149,14 @@ pub(super) fn keep_no_worse(
         })
         .collect();
     kept
+}
+
+/// A joint's excess over the start, `(mean, standard error)`: pooled over the held-out runs, and
+/// on its worst run. A loss is judged on the worst run (no run may lose); a refitted friction
+/// is kept where it wins pooled and loses on no run.
+struct Excess {
+    pooled: (f64, f64),
+    worst_run: (f64, f64),
 }
 
 /// Relative change of a mean squared error that is round-off, not a change.
@@ -169,24 +180,27 @@ enum Next {
 }
 
 /// The joint to revert next and how: the worst joint by its excess, among those that qualify
-/// (against a given model, a refitted friction that does not win by [`HARM_SIGMAS`]; a loss
-/// beyond [`HARM_SIGMAS`] with an accepted effect acting on it).
+/// (against a given model, a refitted friction that does not win by [`HARM_SIGMAS`] pooled, or
+/// loses by as much on a run; a loss beyond [`HARM_SIGMAS`] on a run with an accepted effect
+/// acting on it).
 fn next_reversion(
     ctx: &Context,
     kept: &Kept,
-    excess: &[(f64, f64)],
+    excess: &[Excess],
     pool: &[Candidate],
     dof: usize,
 ) -> Option<(usize, Next)> {
     let given = ctx.given.is_some() && !ctx.refit;
     let friction_free = |k: usize| ctx.friction_columns_of(k).iter().zip(&kept.free).any(|(c, f)| *c && *f);
     let acted_on = |k: usize| kept.chosen.iter().any(|&i| pool[i].term.joints(dof).contains(&k));
-    let candidates = excess.iter().enumerate().filter_map(|(k, &(mean, se))| {
-        if given && friction_free(k) && mean > -HARM_SIGMAS * se {
+    let candidates = excess.iter().enumerate().filter_map(|(k, e)| {
+        let ((pooled, pooled_se), (mean, se)) = (e.pooled, e.worst_run);
+        let loses = mean > HARM_SIGMAS * se;
+        if given && friction_free(k) && (pooled > -HARM_SIGMAS * pooled_se || loses) {
             Some((k, mean, Next::HoldFriction))
         } else if mean <= 0.0 {
             None
-        } else if acted_on(k) && mean > HARM_SIGMAS * se {
+        } else if acted_on(k) && loses {
             Some((k, mean, Next::Drop(mean / se)))
         } else {
             None
