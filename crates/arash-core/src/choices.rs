@@ -162,6 +162,11 @@ pub enum Choice {
     /// Identification refused the log (`why`): the diagnosis started from the declared model
     /// refitted.
     DiagnosisFromDeclared { why: String },
+    /// Against a given model, whether each test counts that model's own calibration error
+    /// (`diagnose/calibration_error.rs`): its held parameters' covariance (`parameters`), its
+    /// drive gains' (`gains`), as `directions` directions on the training log; none where the
+    /// log is the one the model was fitted on (`same_log`).
+    CalibrationError { parameters: bool, gains: bool, directions: usize, same_log: bool },
     /// A line from a file written before reasons were data.
     Recorded { text: String },
 }
@@ -850,6 +855,26 @@ impl Display for Choice {
                 f,
                 "the diagnosis starts from the declared model refitted on this log: identification refused it ({why})"
             ),
+            Self::CalibrationError { same_log: true, .. } => f.write_str(
+                "the given model's own calibration error is not counted in the tests: it was fitted on this very \
+                 log (the same fingerprint), whose residual its fit already leaves orthogonal to its parameters' columns",
+            ),
+            Self::CalibrationError { parameters, gains, directions, .. } => {
+                let parts = [parameters.then_some("its held parameters' covariance"), gains.then_some("its drive gains'")];
+                let counted: Vec<&str> = parts.into_iter().flatten().collect();
+                match counted.is_empty() {
+                    true => f.write_str(
+                        "the given model's own calibration error is not counted in the tests: its file records no \
+                         covariance of its parameters (written before it was kept)",
+                    ),
+                    false => write!(
+                        f,
+                        "every test counts the given model's own calibration error ({}; {directions} directions on \
+                         this log): an effect must stand out of the noise and of what the calibration leaves uncertain",
+                        counted.join(" and ")
+                    ),
+                }
+            }
             Self::SimulatedRigsOwn => f.write_str(
                 "the simulated rig's own parameters of the declared model (its scenario and seed): not estimated",
             ),

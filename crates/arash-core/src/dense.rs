@@ -132,6 +132,25 @@ pub fn weakest_direction(m: MatRef<'_, f64>) -> Option<Vec<f64>> {
     Some((0..v.nrows()).map(|i| v[(i, smallest)]).collect())
 }
 
+/// The columns of an `L` with `L Lᵀ = covariance`, for a symmetric positive semi-definite
+/// covariance, singular or not: its eigenvectors scaled by the square roots of its positive
+/// eigenvalues (empty where the decomposition fails).
+pub fn psd_factor(covariance: &Mat<f64>) -> Vec<Vec<f64>> {
+    let Ok(eigen) = covariance.self_adjoint_eigen(faer::Side::Lower) else {
+        return vec![];
+    };
+    let (s, u) = (eigen.S().column_vector(), eigen.U());
+    (0..s.nrows()).filter(|&e| s[e] > 0.0).map(|e| (0..u.nrows()).map(|i| s[e].sqrt() * u[(i, e)]).collect()).collect()
+}
+
+/// `m` row-major, if it is `n × n` (empty otherwise): how a model file keeps a covariance.
+pub fn square_row_major(m: MatRef<'_, f64>, n: usize) -> Vec<f64> {
+    match (m.nrows(), m.ncols()) == (n, n) {
+        true => (0..n * n).map(|i| m[(i / n, i % n)]).collect(),
+        false => vec![],
+    }
+}
+
 /// The square roots of a covariance's diagonal (a round-off negative reads as zero).
 pub fn standard_deviations(covariance: MatRef<'_, f64>) -> Vec<f64> {
     (0..covariance.nrows()).map(|i| covariance[(i, i)].max(0.0).sqrt()).collect()
@@ -212,5 +231,18 @@ mod tests {
         let mut z = y.clone();
         axpy(&mut z, 2.0, &x);
         assert!(z.iter().zip(x.iter().zip(&y)).all(|(z, (x, y))| *z == y + 2.0 * x));
+    }
+
+    /// `L Lᵀ` is the covariance factored, singular or not.
+    #[test]
+    fn a_factor_of_a_singular_covariance_rebuilds_it() {
+        let c = Mat::from_fn(3, 3, |i, j| [[4.0, 2.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, 9.0]][i][j]);
+        let l = psd_factor(&c);
+        for i in 0..3 {
+            for j in 0..3 {
+                let back: f64 = l.iter().map(|v| v[i] * v[j]).sum();
+                assert!((back - c[(i, j)]).abs() < 1e-12, "({i}, {j}): {back}");
+            }
+        }
     }
 }

@@ -179,6 +179,10 @@ pub struct DataSummary {
     pub samples_used: usize,
     pub sample_rate_hz: f64,
     pub periods_averaged: usize,
+    /// The fitted log's fingerprint (`identify::Log::fingerprint`; none in files written before
+    /// it was kept).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fingerprint: Option<String>,
 }
 
 /// A saved model: base parameters with their uncertainty, and, when consistent, the full
@@ -503,6 +507,11 @@ pub struct Fitted {
     pub beta: Vec<f64>,
     /// Relative standard deviation of each β̂ from the least-squares fit (%).
     pub sigma_percent: Vec<f64>,
+    /// The covariance of β̂ from the least-squares fit (the block sandwich whose diagonal gives
+    /// `sigma_percent`), row-major: a diagnosis against this model counts its parameters' own
+    /// error (`diagnose/calibration_error.rs`). Empty in files written before it was kept.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub beta_covariance: Vec<f64>,
     /// The full standard parameters (only for `consistent`).
     pub params: Option<Vec<f64>>,
     /// Fit quality on the training data of the returned model.

@@ -13,10 +13,6 @@ use crate::spatial::BODY_PARAMS;
 /// Inertial parameters per body.
 pub const PER_BODY: usize = BODY_PARAMS;
 
-/// The mass and first-moment entries of a body's ten (`m, mcx, mcy, mcz`): what a point payload
-/// changes.
-pub const MASS_AND_MOMENTS: usize = 4;
-
 /// Body `b`'s ten inertial parameters in π (the same for every robot: bodies come first).
 pub const fn body(b: usize) -> Range<usize> {
     PER_BODY * b..PER_BODY * (b + 1)
@@ -48,11 +44,6 @@ impl ParamLayout {
     /// Body `b`'s ten inertial parameters.
     pub const fn body(&self, b: usize) -> Range<usize> {
         body(b)
-    }
-
-    /// Body `b`'s mass and first moments (the first four of its ten).
-    pub const fn mass_and_moments(&self, b: usize) -> Range<usize> {
-        PER_BODY * b..PER_BODY * b + MASS_AND_MOMENTS
     }
 
     /// The body that parameter `i` belongs to, if it is inertial.
@@ -110,7 +101,7 @@ mod tests {
         }
         for (b, body) in model.bodies.iter().enumerate() {
             assert_eq!(names[layout.body(b).start], format!("{}.m", body.name));
-            assert_eq!(names[layout.mass_and_moments(b).end - 1], format!("{}.mz", body.name));
+            assert_eq!(names[layout.body(b).start + 3], format!("{}.mz", body.name));
             assert_eq!(names[layout.body(b).end - 1], format!("{}.Iyz", body.name));
             assert_eq!(layout.body_of(layout.body(b).start), Some(b));
         }

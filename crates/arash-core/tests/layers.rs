@@ -77,6 +77,7 @@ const FOLDERS: &[(&str, &[&str])] = &[
             "candidates",
             "inputs",
             "gain_share",
+            "calibration_error",
             "delay",
             "outcome",
             "guard",

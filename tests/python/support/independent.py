@@ -83,11 +83,13 @@ class Expanded:
             self.model.inertias[jid] = pin.Inertia.FromDynamicParameters(pi_pin[10 * (jid - 1) : 10 * jid])
 
     def add_point_mass(self, payload):
-        """A point mass fixed to a link, added to the inertia of the Pinocchio joint it rides on."""
+        """A load fixed to a link (a ``Payload``), added to the inertia of the Pinocchio joint it
+        rides on."""
         if not self.model.existFrame(payload.link):
             raise ValueError(f"no link {payload.link!r} to put a payload on")
         frame = self.model.frames[self.model.getFrameId(payload.link)]
-        mass = pin.Inertia(payload.mass, np.asarray(payload.at, dtype=float), np.zeros((3, 3)))
+        inertia = np.diag(np.asarray(payload.inertia, dtype=float))
+        mass = pin.Inertia(payload.mass, np.asarray(payload.at, dtype=float), inertia)
         self.model.inertias[frame.parentJoint] = self.model.inertias[frame.parentJoint] + frame.placement.act(mass)
 
     def configuration(self, q):
@@ -304,11 +306,14 @@ class Injected:
 
 @dataclass(frozen=True)
 class Payload:
-    """A known mass added to a link: ``mass`` (kg) at ``at`` (m, in the link's frame)."""
+    """A known load added to a link: ``mass`` (kg) at ``at`` (m, in the link's frame), with the
+    principal moments ``inertia`` (kg·m², about its centre, along the link's axes); a point mass
+    by default."""
 
     link: str
     mass: float
     at: tuple = (0.0, 0.0, 0.0)
+    inertia: tuple = (0.0, 0.0, 0.0)
 
 
 def injected_shape(effect, robot, q, qd, qdd, tau):

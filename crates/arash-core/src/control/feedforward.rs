@@ -31,7 +31,7 @@ impl EffectFeedforward {
         for term in effects.iter().filter(|t| t.kind.at_run_time()) {
             if term.kind == EffectKind::Payload {
                 if let Some(b) = model.bodies.iter().position(|b| Some(&b.name) == term.body.as_ref()) {
-                    for (p, c) in params[model.layout().mass_and_moments(b)].iter_mut().zip(&term.coefficients) {
+                    for (p, c) in params[model.layout().body(b)].iter_mut().zip(&term.coefficients) {
                         *p += c;
                     }
                 }
@@ -143,14 +143,14 @@ mod tests {
         wiring.coefficients = vec![0.02, -0.01, 0.005, 0.001];
         let mut payload = EffectTerm::new(EffectKind::Payload, None);
         payload.body = Some(model.bodies[2].name.clone());
-        payload.coefficients = vec![0.05, 0.001, 0.0, -0.002];
+        payload.coefficients = vec![0.05, 0.001, 0.0, -0.002, 1e-4, 0.0, 0.0, 0.0, 0.0, 0.0];
         let mut delay = EffectTerm::new(EffectKind::Delay, None);
         delay.scale = Some(3.0);
         let cad = model.cad_parameters();
         let mut params = cad.clone();
         let mut ff = EffectFeedforward::new(&model, &[wiring, payload, delay], &[0.01, 0.01, 0.001], &mut params);
         let changed: Vec<usize> = (0..params.len()).filter(|&i| params[i] != cad[i]).collect();
-        assert_eq!(changed, vec![20, 21, 23], "the payload's m, m·cx and m·cz on body 2");
+        assert_eq!(changed, vec![20, 21, 23, 24], "the payload's m, m·cx, m·cz and Ixx on body 2");
         assert!((params[20] - cad[20] - 0.05).abs() < 1e-15);
 
         let q = [0.1, 0.4, 0.01];

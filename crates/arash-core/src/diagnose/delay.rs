@@ -70,7 +70,9 @@ fn delay_finding(ctx: &Context) -> Result<Finding, (isize, Rejection)> {
     let predicted: Vec<f64> = zero.y.iter().zip(&e0).map(|(y, e)| y - e).collect();
     let h = train.stride() as f64 / train.fs;
     let column = Column::dense(central_difference(&predicted, dof, h, false), dof);
-    let test = match test_group(&declared, &e0, &[&column], ctx.batching) {
+    // A given model's calibration error is formed on the problem this search shifts; a delay is
+    // judged against the declared fit on this log alone.
+    let test = match test_group(&declared, &e0, &[&column], ctx.batching, &[]) {
         Ok(test) => test,
         Err(Untested::Dependent { .. }) => return Err((0, reject(&term, RejectionReason::Untestable, None, None))),
         Err(Untested::TooFewBatches { batches, columns }) => {

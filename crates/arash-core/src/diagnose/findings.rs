@@ -66,11 +66,9 @@ pub struct ScaleRefinement {
 }
 
 impl Finding {
-    /// Add the gains' part `from_gains` (per coefficient) to the σ of the fit's.
-    pub(super) fn count_gains(&mut self, from_gains: &[f64]) {
-        for (s, g) in self.term.sigma.iter_mut().zip(from_gains) {
-            *s = s.hypot(*g);
-        }
+    /// Record the gains' part `from_gains` (per coefficient) of σ, which the test's σ already
+    /// counts (`diagnose/calibration_error.rs`).
+    pub(super) fn share_of_gains(&mut self, from_gains: &[f64]) {
         self.sigma_from_gains = from_gains.to_vec();
     }
 

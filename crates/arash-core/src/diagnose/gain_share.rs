@@ -61,6 +61,18 @@ impl GainErrors {
         Some(Self { targets, covariance })
     }
 
+    /// The gains' errors as directions of the target, `Σⱼ Lⱼₑ targetⱼ` for each column `e` of
+    /// `L Lᵀ = Σ_ε` (`diagnose/calibration_error.rs`).
+    pub(super) fn directions(&self) -> Vec<Vec<f64>> {
+        let rows = self.targets.first().map_or(0, Vec::len);
+        let combine = |l: Vec<f64>| {
+            let mut v = vec![0.0; rows];
+            self.targets.iter().zip(&l).for_each(|(t, w)| dense::axpy(&mut v, *w, t));
+            v
+        };
+        dense::psd_factor(&self.covariance).into_iter().map(combine).collect()
+    }
+
     /// The σ the gains' errors give each coefficient of the least squares on `columns`.
     pub(super) fn sigma(&self, columns: &[&Column], dof: usize) -> Option<Vec<f64>> {
         if columns.is_empty() {

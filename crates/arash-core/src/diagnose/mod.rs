@@ -19,11 +19,13 @@
 //!    from: a refitted friction goes back to the given model's, an effect that harms a joint
 //!    beyond the comparison's noise is dropped (`diagnose/guard.rs`).
 //!
-//! On torque computed from currents with calibrated drive gains, each coefficient's σ also counts
-//! the gains' own (`diagnose/gain_share.rs`).
+//! Against a given model every test also counts that model's own calibration error: its held
+//! parameters' covariance and, on torque computed from currents, its drive gains'
+//! (`diagnose/calibration_error.rs`, `diagnose/gain_share.rs`).
 
 mod band;
 mod band_choice;
+mod calibration_error;
 mod candidates;
 mod delay;
 mod findings;

@@ -6,9 +6,21 @@ use super::prepare::Prepared;
 use super::regression::{self, Fitted};
 use super::weighted_fit::{Candidate, Problem};
 use crate::base_parameters::BaseParameters;
-use crate::identify::IdentifyError;
+use crate::identify::{IdentifyError, Log};
 use crate::model::Model;
 use crate::model_file::{IdentifyMethod, ModelFile};
+
+/// What a written model records of the log it was fitted on.
+pub(super) struct Source {
+    pub(super) samples_in: usize,
+    pub(super) fingerprint: String,
+}
+
+impl Source {
+    pub(super) fn of(log: &Log) -> Self {
+        Self { samples_in: log.t.len(), fingerprint: log.fingerprint() }
+    }
+}
 
 /// The model file for a refitted declared model: OLS on the samples the diagnosis used, with the
 /// effects found taken out of the torque first (their coefficients are set after). σ%, the fit
@@ -21,7 +33,7 @@ pub(super) fn declared_model(
     data: &Prepared,
     series: &Series,
     block_s: f64,
-    samples_in: usize,
+    source: &Source,
 ) -> Result<ModelFile, DiagnoseError> {
     use crate::identify::estimate::{fit_stacked, Method};
     use crate::model_file::{DataSummary, Fitted, Settings};
@@ -41,6 +53,7 @@ pub(super) fn declared_model(
     let fitted = Fitted {
         beta: fit.beta.clone(),
         sigma_percent: fit.sigma_percent.clone(),
+        beta_covariance: crate::dense::square_row_major(fit.covariance.as_ref(), base.rank),
         params: None,
         training: fit.metrics.clone().into(),
         training_ols: fit.metrics.clone().into(),
@@ -70,10 +83,11 @@ pub(super) fn declared_model(
         },
         DataSummary {
             sources: vec![],
-            samples_in,
+            samples_in: source.samples_in,
             samples_used: data.samples(),
             sample_rate_hz: data.fs,
             periods_averaged: 1,
+            fingerprint: Some(source.fingerprint.clone()),
         },
     ))
 }

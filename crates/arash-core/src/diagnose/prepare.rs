@@ -181,8 +181,8 @@ pub(super) fn stride(options: &DiagnoseOptions, fs: f64, cutoff_hz: f64) -> usiz
     options.decimate.unwrap_or(((fs / (KEPT_PER_PERIOD * cutoff_hz)).floor() as usize).max(1)).max(1)
 }
 
-/// Column `c` of a body's mass and first-moment columns, or exact zeros where it is round-off
-/// beside the others (a first moment along an axis the body turns about): the regression pins
+/// Column `c` of a body's inertial columns, or exact zeros where it is round-off beside the
+/// others (a first moment along an axis the body turns about): the regression pins
 /// such a column's coefficient to zero instead of fitting noise with it.
 pub(super) fn visible(columns: &[Vec<f64>], c: usize) -> Vec<f64> {
     let size = |v: &[f64]| v.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
@@ -195,7 +195,7 @@ pub(super) fn visible(columns: &[Vec<f64>], c: usize) -> Vec<f64> {
 }
 
 /// The base-parameter columns at the kept samples, Coulomb columns filtered like the torque (as
-/// identification does), and each body's mass and first-moment columns (payload candidates).
+/// identification does), and each body's ten inertial columns (payload candidates).
 pub(super) fn declared_columns(
     model: &Model,
     base: &BaseParameters,
@@ -208,8 +208,8 @@ pub(super) fn declared_columns(
     let bodies = (0..model.bodies.len())
         .filter(|&b| columns[layout.body(b).start].iter().any(|v| *v != 0.0))
         .map(|b| {
-            let mass_and_moments = &columns[layout.mass_and_moments(b)];
-            (b, (0..mass_and_moments.len()).map(|c| Column::dense(visible(mass_and_moments, c), dof)).collect())
+            let inertial = &columns[layout.body(b)];
+            (b, (0..inertial.len()).map(|c| Column::dense(visible(inertial, c), dof)).collect())
         })
         .collect();
     let declared = base.independent.iter().map(|&j| Column::dense(std::mem::take(&mut columns[j]), dof)).collect();
@@ -247,7 +247,10 @@ pub(super) fn term_columns(model: &Model, term: &EffectTerm, data: &Prepared) ->
     let dof = data.dof;
     if term.kind == EffectKind::Payload {
         let body = model.bodies.iter().position(|b| Some(&b.name) == term.body.as_ref());
-        return data.bodies.iter().find(|(b, _)| Some(*b) == body).map(|(_, c)| c.clone()).unwrap_or_default();
+        // Its mass and first moments, and its inertia where the term carries it.
+        let width = term.columns.len().clamp(term.width(), crate::params::PER_BODY);
+        let of_body = data.bodies.iter().find(|(b, _)| Some(*b) == body);
+        return of_body.map(|(_, c)| c[..width].to_vec()).unwrap_or_default();
     }
     let Some(k) = term.joint else {
         if term.kind == EffectKind::Armature {

@@ -292,11 +292,16 @@ pub enum Untested {
 /// scores' own correlation asks ([`Batching::FromScores`], by blocking: `plateau`): a fixed
 /// length of seconds left a 9 s log four batches and no power, while a log whose residual is
 /// correlated over seconds gets batches of seconds.
+///
+/// `known` are directions of an error in the target whose size is known rather than seen in
+/// the batches (`Σ uᵢ uᵢᵀ`, a given model's calibration error: `diagnose/calibration_error.rs`);
+/// their covariance `H⁻¹ C̃ᵀU UᵀC̃ H⁻¹` is added to the sandwich.
 pub fn test_group(
     base: &NormalEquations,
     e0: &[f64],
     group: &[&Column],
     batching: Batching,
+    known: &[Vec<f64>],
 ) -> Result<GroupTest, Untested> {
     let (k, dof) = (group.len(), base.dof);
     let dependent = Untested::Dependent { unexplained: 0.0 };
@@ -356,11 +361,21 @@ pub fn test_group(
         }
     }
     .min(samples.max(1));
-    let (batches, cov) = covariance(length);
+    let (batches, mut cov) = covariance(length);
+    if !known.is_empty() {
+        let m = Mat::from_fn(k, known.len(), |i, e| dense::dot(&partialled[i], &known[e]));
+        cov += &h_inv * &m * m.transpose() * &h_inv;
+    }
     if batches <= k + 1 {
         return Err(Untested::TooFewBatches { batches, columns: k });
     }
     let sigma: Vec<f64> = (0..k).map(|i| cov[(i, i)].max(0.0).sqrt()).collect();
+    // A fitted coefficient the batches put no variance on (its scores vanish where its column
+    // lives: a counterweight's mass beside its first moment on a 10 s ARASH:ASiST log gave
+    // F = ∞ and "241.6 ± 0.0 g") is a direction the data do not see, not an infinite statistic.
+    if gamma.iter().zip(&sigma).any(|(g, s)| *g != 0.0 && *s == 0.0) {
+        return Err(Untested::Dependent { unexplained });
+    }
     let wald = wald(&cov);
     let (df1, df2) = (k as f64, (batches - k) as f64);
     let f = wald * df2 / (df1 * (batches - 1) as f64);
@@ -614,7 +629,7 @@ mod tests {
         let mean = e.iter().sum::<f64>() / samples as f64;
         let e0: Vec<f64> = e.iter().map(|v| v - mean).collect();
         let base = NormalEquations::over(vec![&offset], &e0, 1, Rows::All);
-        test_group(&base, &e0, &[&Column::dense(c, 1)], batching)
+        test_group(&base, &e0, &[&Column::dense(c, 1)], batching, &[])
     }
 
     fn rejection_rate(rho: f64, batching: Batching, alpha: f64) -> f64 {
@@ -644,6 +659,60 @@ mod tests {
         }
         let short = rejection_rate(0.98, Batching::Fixed(5), 0.05);
         assert!(short > 0.15, "fixed short batches on slow noise: {short}");
+    }
+
+    /// A residual that carries a given model's calibration error `z·s·d` (a fixed direction `d`
+    /// that correlates with the candidate, `z` standard normal, drawn once per log as a
+    /// calibration is) rejects a candidate with no effect far above α; told the error's size
+    /// (`known = [s·d]`), the test holds its level.
+    #[test]
+    fn a_known_calibration_error_keeps_the_level_it_would_break() {
+        let mut rng = ChaCha8Rng::seed_from_u64(17);
+        let (trials, samples, alpha, s) = (400, 2000, 0.05, 0.3);
+        let (mut blind, mut told) = (0, 0);
+        for _ in 0..trials {
+            let c = ar(&mut rng, samples, 0.9);
+            let d: Vec<f64> = ar(&mut rng, samples, 0.9).iter().zip(&c).map(|(x, c)| x + c).collect();
+            let (u1, u2): (f64, f64) = (rng.random_range(f64::EPSILON..1.0), rng.random_range(0.0..1.0));
+            let z = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+            let e: Vec<f64> = ar(&mut rng, samples, 0.5).iter().zip(&d).map(|(n, d)| n + z * s * d).collect();
+            let offset = Column::dense(vec![1.0; samples], 1);
+            let mean = e.iter().sum::<f64>() / samples as f64;
+            let e0: Vec<f64> = e.iter().map(|v| v - mean).collect();
+            let base = NormalEquations::over(vec![&offset], &e0, 1, Rows::All);
+            let group = [&Column::dense(c, 1)];
+            let known = vec![d.iter().map(|d| s * d).collect::<Vec<f64>>()];
+            let rejects = |known: &[Vec<f64>]| {
+                test_group(&base, &e0, &group, Batching::FromScores, known).is_ok_and(|t| t.p_value < alpha) as usize
+            };
+            blind += rejects(&[]);
+            told += rejects(&known);
+        }
+        let (blind, told) = (blind as f64 / trials as f64, told as f64 / trials as f64);
+        assert!(blind > 0.5, "without the calibration's error: rejection rate {blind}");
+        assert!(told <= 0.09, "with it: rejection rate {told} at α = {alpha}");
+    }
+
+    /// The known error's variance is added exactly: along the candidate itself, `s` per unit
+    /// coefficient adds `s²` to its variance; orthogonal to it, nothing.
+    #[test]
+    fn a_known_error_along_the_candidate_adds_its_variance() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let samples = 1000;
+        let c = ar(&mut rng, samples, 0.9);
+        let mean = c.iter().sum::<f64>() / samples as f64;
+        let centred: Vec<f64> = c.iter().map(|v| v - mean).collect();
+        let e0 = ar(&mut rng, samples, 0.3);
+        let e0: Vec<f64> = e0.iter().map(|v| v - e0.iter().sum::<f64>() / samples as f64).collect();
+        let offset = Column::dense(vec![1.0; samples], 1);
+        let base = NormalEquations::over(vec![&offset], &e0, 1, Rows::All);
+        let group = [&Column::dense(c, 1)];
+        let sigma = |known: &[Vec<f64>]| test_group(&base, &e0, &group, Batching::Fixed(20), known).unwrap().sigma[0];
+        let s = 0.7;
+        let along = vec![centred.iter().map(|v| s * v).collect::<Vec<f64>>()];
+        let (alone, with) = (sigma(&[]), sigma(&along));
+        assert!((with * with - alone * alone - s * s).abs() < 1e-9 * s * s, "{alone} → {with}");
+        assert_eq!(sigma(&[vec![1.0; samples]]), alone, "an offset is the model's, not the candidate's");
     }
 
     /// On a short log (900 samples, as 9 s decimated to 100 Hz) a fixed 2 s batch leaves four
@@ -684,7 +753,7 @@ mod tests {
                     let mean = e.iter().sum::<f64>() / samples as f64;
                     let e0: Vec<f64> = e.iter().map(|v| v - mean).collect();
                     let base = NormalEquations::over(vec![&offset], &e0, 1, Rows::All);
-                    test_group(&base, &e0, &[&Column::dense(c, 1)], batching).is_ok_and(|t| t.p_value < 0.05)
+                    test_group(&base, &e0, &[&Column::dense(c, 1)], batching, &[]).is_ok_and(|t| t.p_value < 0.05)
                 })
                 .count();
             below as f64 / trials as f64

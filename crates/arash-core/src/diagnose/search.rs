@@ -4,6 +4,7 @@
 use std::borrow::Cow;
 
 use super::band_choice::choose_band;
+use super::calibration_error;
 use super::candidates::{candidates, not_the_cable};
 use super::delay::search_delay;
 use super::findings::{
@@ -14,7 +15,7 @@ use super::gain_share::GainErrors;
 use super::guard;
 use super::inputs::Context;
 use super::options::{DiagnoseError, DiagnoseOptions, PAYLOAD_MASS_SIGMAS};
-use super::outcome::{declared_model, series};
+use super::outcome::{declared_model, series, Source};
 use super::regression::{
     self, least_squares, residual, test_group, Column, Fitted, GroupTest, NormalEquations, Rows, Untested,
 };
@@ -59,7 +60,7 @@ pub(super) fn diagnose_against(
     if let Some(chosen) = &choice.laws {
         model.to_mut().coulomb_laws = chosen.laws.clone();
     }
-    let ctx = Context::new(&model, declared.base, train, validation, given, options, &choice)?;
+    let mut ctx = Context::new(&model, declared.base, train, validation, given, options, &choice)?;
     // 1. Delay.
     let (delay, delay_outcome) = if options.effects.contains(&EffectKind::Delay) && ctx.max_shift() > 0 {
         let (delay, outcome) = search_delay(&ctx);
@@ -81,10 +82,12 @@ pub(super) fn diagnose_against(
     skipped.extend(not_searched);
     let pool = ctx.pool(templates, &problem, &heldout);
     let gain_errors = GainErrors::of(&ctx, &problem);
-    let mut search = Search { ctx: &ctx, problem: &problem, heldout: &heldout, pool, gain_errors };
+    let (calibration, reason) = calibration_error::directions(&ctx, &problem, gain_errors.as_ref(), &train);
+    ctx.train.pre.choices.reasons.extend(reason);
+    let mut search = Search { ctx: &ctx, problem: &problem, heldout: &heldout, pool, gain_errors, calibration };
     search.select(&mut state)?;
     // 3. Final joint fit, errors before and after, and the updated model.
-    search.finish(state, delay, skipped, declared.urdf, train.t.len())
+    search.finish(state, delay, skipped, declared.urdf, &Source::of(&train))
 }
 
 /// Where the search stands: what it accepted, in order, and why each other candidate is out for
@@ -114,6 +117,15 @@ struct Passed {
 struct Refined {
     candidate: Candidate,
     refinement: ScaleRefinement,
+    test: GroupTest,
+    gain: f64,
+    gains: Vec<f64>,
+}
+
+/// A payload with its inertia (`Search::with_inertia`): its columns, its test against the round's
+/// model and its held-out gains.
+struct Upgraded {
+    candidate: Candidate,
     test: GroupTest,
     gain: f64,
     gains: Vec<f64>,
@@ -153,6 +165,8 @@ struct Search<'a> {
     pool: Vec<Candidate>,
     /// The calibrated drive gains' errors, when the torque came from currents through them.
     gain_errors: Option<GainErrors>,
+    /// The given model's calibration error on the problem's rows, which every test counts.
+    calibration: Vec<Vec<f64>>,
 }
 
 impl Search<'_> {
@@ -212,7 +226,12 @@ impl Search<'_> {
         let (winner, mut test) = tested[best.test].clone();
         let aliases = self.aliases(winner, &tested, &e0, state);
         let (mut gain, mut gains) = (best.gain, best.gains);
-        let refined = match self.refine_scale(winner, (&base, &e0), state, best.total, scoring.as_ref()) {
+        let refined = self.refine_scale(winner, (&base, &e0), state, best.total, scoring.as_ref());
+        let upgraded = match refined {
+            None => self.with_inertia(winner, (&base, &e0), state, best.total, scoring.as_ref()),
+            Some(_) => None, // a payload has no scale to refine
+        };
+        let refined = match refined {
             Some(r) => {
                 self.pool[winner] = r.candidate;
                 (test, gain, gains) = (r.test, r.gain, r.gains);
@@ -220,6 +239,10 @@ impl Search<'_> {
             }
             None => None,
         };
+        if let Some(upgrade) = upgraded {
+            self.pool[winner] = upgrade.candidate;
+            (test, gain, gains) = (upgrade.test, upgrade.gain, upgrade.gains);
+        }
         state.chosen.push(winner);
         let mut term = self.pool[winner].term.clone();
         term.coefficients = test.coefficients.clone();
@@ -259,7 +282,7 @@ impl Search<'_> {
             .collect();
         let tests = crate::parallel::map(open, |i| {
             let group: Vec<&Column> = self.pool[i].columns.iter().collect();
-            (i, test_group(base, e0, &group, ctx.batching))
+            (i, test_group(base, e0, &group, ctx.batching, &self.calibration))
         });
         let mut tested = Vec::new();
         let max_vif = ctx.options.max_vif;
@@ -330,11 +353,11 @@ impl Search<'_> {
                 if let Some(coefficient) = flipped {
                     // A payload of negative mass: the model is heavier than the data.
                     let from_gains = self.mass_sigma_from_gains(base_cols, *i);
-                    let measured = t.sigma.first().copied().unwrap_or(f64::NAN);
                     let heavy = TooHeavy {
                         body: term.body.clone().unwrap_or_default(),
                         mass_kg: -coefficient,
-                        mass_sigma_kg: measured.hypot(from_gains.unwrap_or(0.0)),
+                        // The test's σ counts the gains' errors (`diagnose/calibration_error.rs`).
+                        mass_sigma_kg: t.sigma.first().copied().unwrap_or(f64::NAN),
                         mass_sigma_from_gains_kg: from_gains,
                         p_value,
                         heldout_gain: gain,
@@ -410,7 +433,7 @@ impl Search<'_> {
             return None;
         }
         let group: Vec<&Column> = candidate.columns.iter().collect();
-        let test = test_group(base, e0, &group, self.ctx.batching).ok()?;
+        let test = test_group(base, e0, &group, self.ctx.batching, &self.calibration).ok()?;
         if wrong_sign(&candidate.term, &test).is_some() {
             return None;
         }
@@ -436,6 +459,55 @@ impl Search<'_> {
             residual_drop: (explains - at_grid) / residual_ss.max(f64::MIN_POSITIVE),
         };
         Some(Refined { candidate, refinement, test, gain, gains })
+    }
+
+    /// A payload accepted with its mass and first moments, with its inertia where the data show
+    /// it (`effects/payload.rs`): the inertia's six columns tested beside the payload, at the
+    /// search's α and counting the calibration's error, and kept where the payload with them
+    /// keeps its mass positive and predicts the held-out runs at least as well (`total`, the
+    /// whole robot's held-out gain without them).
+    fn with_inertia(
+        &self,
+        winner: usize,
+        (base, e0): (&NormalEquations, &[f64]),
+        state: &State,
+        total: f64,
+        scoring: Option<&HeldOutBase>,
+    ) -> Option<Upgraded> {
+        let (ctx, dof) = (self.ctx, self.problem.dof);
+        let term = &self.pool[winner].term;
+        if term.kind != EffectKind::Payload || crate::effects::payload_has_inertia(term) {
+            return None;
+        }
+        let candidate = ctx.candidate(crate::effects::payload_with_inertia(term), self.problem, self.heldout);
+        let with_mass: Vec<usize> = state.chosen.iter().copied().chain([winner]).collect();
+        let beside =
+            NormalEquations::over(model_columns(self.problem, &self.pool, &with_mass), &self.problem.y, dof, Rows::All);
+        let e1 = residual(&beside.columns, &beside.solve()?, &self.problem.y, dof);
+        let inertia: Vec<&Column> = candidate.columns[self.pool[winner].columns.len()..].iter().collect();
+        let added = test_group(&beside, &e1, &inertia, ctx.batching, &self.calibration).ok()?;
+        if added.p_value > ctx.options.alpha || added.unexplained * ctx.options.max_vif < 1.0 {
+            return None;
+        }
+        let group: Vec<&Column> = candidate.columns.iter().collect();
+        let test = test_group(base, e0, &group, ctx.batching, &self.calibration).ok()?;
+        if wrong_sign(&candidate.term, &test).is_some() || test.coefficients.first().is_none_or(|m| *m <= 0.0) {
+            return None;
+        }
+        let built;
+        let scoring = match scoring {
+            Some(s) => s,
+            None => {
+                built = HeldOutBase::new(self.problem, self.heldout, &self.pool, &state.chosen);
+                &built
+            }
+        };
+        let (gains, with_inertia) = scoring.gain_of(&ctx.floor, &candidate);
+        if with_inertia < total {
+            return None;
+        }
+        let gain = gains.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        Some(Upgraded { candidate, test, gain, gains })
     }
 
     /// The σ the calibrated gains give the mass of payload candidate `i` fitted on `base_cols`.
@@ -482,7 +554,8 @@ impl Search<'_> {
                 continue;
             }
             let group: Vec<&Column> = self.pool[*j].columns.iter().collect();
-            let after = test_group(&next, e0, &group, ctx.batching);
+            // Only what the winner leaves unexplained is read here, not the covariance.
+            let after = test_group(&next, e0, &group, ctx.batching, &[]);
             if after.ok().map_or(0.0, |a| a.unexplained / t.unexplained) < ALIAS_LEFT {
                 aliases.push(self.pool[*j].term.describe(&names));
                 let reason = RejectionReason::AliasOf { label: self.pool[winner].term.describe(&names) };
@@ -500,7 +573,7 @@ impl Search<'_> {
         delay: isize,
         mut rejected: Vec<Rejection>,
         urdf: &str,
-        samples_in: usize,
+        source: &Source,
     ) -> Result<Diagnosis, DiagnoseError> {
         let (ctx, pool) = (self.ctx, &self.pool);
         let (model, dof) = (ctx.model, self.problem.dof);
@@ -522,7 +595,7 @@ impl Search<'_> {
             let width = pool[i].columns.len();
             f.term.coefficients = x_after[offset..offset + width].to_vec();
             if let Some(s) = &from_gains {
-                f.count_gains(&s[offset..offset + width]);
+                f.share_of_gains(&s[offset..offset + width]);
             }
             f.weigh();
             offset += width;
@@ -543,7 +616,7 @@ impl Search<'_> {
             let e = guard::as_given_residual(ctx, (&ctx.train, problem), x);
             series.residual_before = e.iter().enumerate().map(|(i, e)| e / problem.weights[i % dof]).collect();
         }
-        let mut updated = self.updated_model(&state, (&kept.free, &x_after), &series, urdf, samples_in)?;
+        let mut updated = self.updated_model(&state, (&kept.free, &x_after), &series, urdf, source)?;
         let source = match ctx.validation.is_some() {
             true => "the validation log".to_string(),
             false => format!(
@@ -613,12 +686,12 @@ impl Search<'_> {
         (free, x_after): (&[bool], &[f64]),
         series: &Series,
         urdf: &str,
-        samples_in: usize,
+        source: &Source,
     ) -> Result<ModelFile, DiagnoseError> {
         let ctx = self.ctx;
         let mut updated = match ctx.given {
             Some(g) if !ctx.refit => g.clone(),
-            _ => declared_model(ctx.model, ctx.base, urdf, &ctx.train, series, ctx.split.block_s, samples_in)?,
+            _ => declared_model(ctx.model, ctx.base, urdf, &ctx.train, series, ctx.split.block_s, source)?,
         };
         if ctx.refit {
             // A refitted model is the OLS of `declared_model`, made with the effects taken out; a
@@ -704,7 +777,7 @@ const COMPARABLE_GAIN: f64 = 0.9;
 const SAME_GAIN: f64 = 1e-9;
 
 /// Of the candidates that passed, the one to add: the largest whole-robot gain, except that a
-/// candidate with fewer columns within 10 % of it is preferred. A payload's four columns can
+/// candidate with fewer columns within 10 % of it is preferred. A payload's ten columns can
 /// mimic an offset on one joint; the simpler explanation should win when the data cannot tell
 /// them apart. Terms the data cannot tell apart at all go by the catalogue's order, which lists
 /// the plainer explanation first, so that round-off does not choose between them.

@@ -35,6 +35,7 @@ pub use armature::every_joint as armature_on_every_joint;
 pub use configuration::CONFIGURATION_HARMONICS;
 pub use friction_velocity::FRICTION_VELOCITY_SHARES;
 pub use payload::on_body as payload_on;
+pub use payload::{has_inertia as payload_has_inertia, with_inertia as payload_with_inertia};
 pub use stribeck::SLOWEST_STRIBECK_FRACTION;
 
 /// The stable identifiers of the effects.

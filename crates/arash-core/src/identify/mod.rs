@@ -88,6 +88,19 @@ pub struct Log<'a> {
     pub tau: &'a [f64],
 }
 
+impl Log<'_> {
+    /// The log's fingerprint: FNV-1a (64 bits) of its times, positions and torques, bit for bit,
+    /// in hexadecimal. A model file keeps its fit's, so that a diagnosis can tell the log the
+    /// model was fitted on from an independent one (`diagnose/calibration_error.rs`).
+    pub fn fingerprint(&self) -> String {
+        const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+        const PRIME: u64 = 0x0100_0000_01b3;
+        let bytes = [self.t, self.q, self.tau].into_iter().flatten().flat_map(|v| v.to_le_bytes());
+        let hash = bytes.fold(OFFSET, |h, b| (h ^ u64::from(b)).wrapping_mul(PRIME));
+        format!("{hash:016x}")
+    }
+}
+
 /// Identify the declared robot's parameters from `log`. The closed-loop methods (IDIM-IV,
 /// DIDIM) need [`identify_in_closed_loop`].
 pub fn identify(
@@ -326,6 +339,7 @@ fn identify_with(
     let fitted = Fitted {
         beta,
         sigma_percent: ls.sigma_percent.clone(),
+        beta_covariance: crate::dense::square_row_major(ls.covariance.as_ref(), base.rank),
         params,
         training,
         training_ols: ols_metrics,
@@ -362,6 +376,7 @@ fn identify_with(
             samples_used: pre.settled.len(),
             sample_rate_hz: pre.sample_rate_hz,
             periods_averaged: pre.periods_averaged,
+            fingerprint: Some(log.fingerprint()),
         },
     ))
 }
