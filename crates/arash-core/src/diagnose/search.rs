@@ -437,16 +437,7 @@ impl Search<'_> {
         if wrong_sign(&candidate.term, &test).is_some() {
             return None;
         }
-        // The round's scoring, where the judging made it.
-        let built;
-        let scoring = match scoring {
-            Some(s) => s,
-            None => {
-                built = HeldOutBase::new(self.problem, self.heldout, &self.pool, &state.chosen);
-                &built
-            }
-        };
-        let (gains, total) = scoring.gain_of(&self.ctx.floor, &candidate);
+        let (gains, total) = self.gains_in_round(&candidate, state, scoring);
         if total < grid_total {
             return None;
         }
@@ -494,20 +485,22 @@ impl Search<'_> {
         if wrong_sign(&candidate.term, &test).is_some() || test.coefficients.first().is_none_or(|m| *m <= 0.0) {
             return None;
         }
-        let built;
-        let scoring = match scoring {
-            Some(s) => s,
-            None => {
-                built = HeldOutBase::new(self.problem, self.heldout, &self.pool, &state.chosen);
-                &built
-            }
-        };
-        let (gains, with_inertia) = scoring.gain_of(&ctx.floor, &candidate);
+        let (gains, with_inertia) = self.gains_in_round(&candidate, state, scoring);
         if with_inertia < total {
             return None;
         }
         let gain = gains.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         Some(Upgraded { candidate, test, gain, gains })
+    }
+
+    /// The held-out gains of `candidate` in place of the round's winner, per joint and over the
+    /// whole robot: on the round's scoring where the judging made one, else on one made for it.
+    fn gains_in_round(&self, candidate: &Candidate, state: &State, scoring: Option<&HeldOutBase>) -> (Vec<f64>, f64) {
+        match scoring {
+            Some(s) => s.gain_of(&self.ctx.floor, candidate),
+            None => HeldOutBase::new(self.problem, self.heldout, &self.pool, &state.chosen)
+                .gain_of(&self.ctx.floor, candidate),
+        }
     }
 
     /// The σ the calibrated gains give the mass of payload candidate `i` fitted on `base_cols`.
