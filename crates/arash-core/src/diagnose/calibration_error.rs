@@ -19,11 +19,11 @@ use faer::{Mat, Side};
 
 use super::gain_share::GainErrors;
 use super::inputs::Context;
+use super::outcome::Source;
 use super::regression::{axpy, Column};
 use super::weighted_fit::Problem;
 use crate::choices::Choice;
 use crate::dense;
-use crate::identify::Log;
 
 /// Share of the calibration error's total variance the kept directions carry: the rest is spread
 /// over directions each too small to move a test.
@@ -31,19 +31,19 @@ const KEPT_VARIANCE: f64 = 1.0 - 1e-6;
 
 /// The directions of the calibration error on the problem's rows (weighted like its target),
 /// whose covariance there is `Σ uᵢ uᵢᵀ`, and the reason that says what is counted; nothing
-/// without a given model, or on the log it was fitted on (`train`, by its fingerprint): there
+/// without a given model, or on the log it was fitted on (`train`'s fingerprint): there
 /// its fit already left the residual orthogonal to its columns, and its error is not independent
 /// of the log's noise.
 pub(super) fn directions(
     ctx: &Context,
     problem: &Problem,
     gains: Option<&GainErrors>,
-    train: &Log,
+    train: &Source,
 ) -> (Vec<Vec<f64>>, Option<Choice>) {
     let Some(given) = ctx.given else {
         return (vec![], None);
     };
-    if given.data.fingerprint.as_deref() == Some(train.fingerprint().as_str()) {
+    if given.data.fingerprint.as_ref() == Some(&train.fingerprint) {
         let reason = Choice::CalibrationError { parameters: false, gains: false, directions: 0, same_log: true };
         return (vec![], Some(reason));
     }

@@ -29,7 +29,7 @@ pub(super) struct Prepared {
     pub(super) start_declared: Option<Vec<Column>>,
     /// Base-parameter columns, unweighted.
     pub(super) declared: Vec<Column>,
-    /// Mass and first-moment columns of each body with mass: (body, columns).
+    /// The ten inertial columns of each body with mass (payload candidates): (body, columns).
     pub(super) bodies: Vec<(usize, Vec<Column>)>,
     /// The declared model's torque at the kept samples (`kept × dof`), once it is fitted: what a
     /// drive's gain scales.

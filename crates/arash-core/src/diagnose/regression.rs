@@ -702,8 +702,9 @@ mod tests {
         let c = ar(&mut rng, samples, 0.9);
         let mean = c.iter().sum::<f64>() / samples as f64;
         let centred: Vec<f64> = c.iter().map(|v| v - mean).collect();
-        let e0 = ar(&mut rng, samples, 0.3);
-        let e0: Vec<f64> = e0.iter().map(|v| v - e0.iter().sum::<f64>() / samples as f64).collect();
+        let noise = ar(&mut rng, samples, 0.3);
+        let noise_mean = noise.iter().sum::<f64>() / samples as f64;
+        let e0: Vec<f64> = noise.iter().map(|v| v - noise_mean).collect();
         let offset = Column::dense(vec![1.0; samples], 1);
         let base = NormalEquations::over(vec![&offset], &e0, 1, Rows::All);
         let group = [&Column::dense(c, 1)];

@@ -82,12 +82,13 @@ pub(super) fn diagnose_against(
     skipped.extend(not_searched);
     let pool = ctx.pool(templates, &problem, &heldout);
     let gain_errors = GainErrors::of(&ctx, &problem);
-    let (calibration, reason) = calibration_error::directions(&ctx, &problem, gain_errors.as_ref(), &train);
+    let source = Source::of(&train);
+    let (calibration, reason) = calibration_error::directions(&ctx, &problem, gain_errors.as_ref(), &source);
     ctx.train.pre.choices.reasons.extend(reason);
     let mut search = Search { ctx: &ctx, problem: &problem, heldout: &heldout, pool, gain_errors, calibration };
     search.select(&mut state)?;
     // 3. Final joint fit, errors before and after, and the updated model.
-    search.finish(state, delay, skipped, declared.urdf, &Source::of(&train))
+    search.finish(state, delay, skipped, declared.urdf, &source)
 }
 
 /// Where the search stands: what it accepted, in order, and why each other candidate is out for
@@ -226,11 +227,9 @@ impl Search<'_> {
         let (winner, mut test) = tested[best.test].clone();
         let aliases = self.aliases(winner, &tested, &e0, state);
         let (mut gain, mut gains) = (best.gain, best.gains);
+        // At most one applies: a payload has no scale to refine, and only a payload an inertia.
         let refined = self.refine_scale(winner, (&base, &e0), state, best.total, scoring.as_ref());
-        let upgraded = match refined {
-            None => self.with_inertia(winner, (&base, &e0), state, best.total, scoring.as_ref()),
-            Some(_) => None, // a payload has no scale to refine
-        };
+        let upgraded = self.with_inertia(winner, (&base, &e0), state, best.total, scoring.as_ref());
         let refined = match refined {
             Some(r) => {
                 self.pool[winner] = r.candidate;
@@ -770,7 +769,7 @@ const COMPARABLE_GAIN: f64 = 0.9;
 const SAME_GAIN: f64 = 1e-9;
 
 /// Of the candidates that passed, the one to add: the largest whole-robot gain, except that a
-/// candidate with fewer columns within 10 % of it is preferred. A payload's ten columns can
+/// candidate with fewer columns within 10 % of it is preferred. A payload's four columns can
 /// mimic an offset on one joint; the simpler explanation should win when the data cannot tell
 /// them apart. Terms the data cannot tell apart at all go by the catalogue's order, which lists
 /// the plainer explanation first, so that round-off does not choose between them.
