@@ -184,6 +184,13 @@ fn bad_input_is_refused_by_name() {
     let mut observer = MomentumObserver::new(&model, &params, &[], &[10.0; 3], &[1e-3; 3], TorqueTiming::Held).unwrap();
     let e = observer.step(DT, &[0.0, f64::NAN, 0.0], &[0.0; 3], &[0.0; 3]).unwrap_err();
     assert!(e.to_string().contains("position on joint 1 is not a number"), "{e}");
+    // A drive that would reverse its torque: the logged torque cannot be divided by 1 + g ≤ 0.
+    let mut reversed = EffectTerm::new(EffectKind::DriveGain, Some(2));
+    reversed.coefficients = vec![-1.0];
+    let e = MomentumObserver::new(&model, &params, &[reversed], &[10.0; 3], &[1e-3; 3], TorqueTiming::Held)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("drive_gain on insertion") && e.contains("1 + g must be positive"), "{e}");
     let e = FrameForce::new(&model, "tool", "remote_centre", 1e-3).unwrap_err().to_string();
     assert!(e.contains("no frame `tool`") && e.contains("instrument_tip"), "{e}");
 }

@@ -224,6 +224,15 @@ mod tests {
         assert!(build(&armature).is_ok(), "one joint's rotor inertia nil within 2σ");
         armature.coefficients[1] = -3e-6;
         assert!(build(&armature).is_err(), "clearly negative rotor inertia");
+        // A drive's factor 1 + g at or below zero reverses the command, whatever the gain's σ.
+        let mut gain = EffectTerm::new(EffectKind::DriveGain, Some(1));
+        (gain.coefficients, gain.sigma) = (vec![-0.6], vec![0.01]);
+        assert!(build(&gain).is_ok(), "a drive giving 40 % of its torque");
+        for factor_below in [-1.0, -1.04] {
+            (gain.coefficients, gain.sigma) = (vec![factor_below], vec![0.5]);
+            let Err(error) = build(&gain) else { panic!("a drive gain of {factor_below} was accepted") };
+            assert!(error.to_string().contains("1 + g must be positive"), "{error}");
+        }
     }
 
     /// A drive's gain g scales the whole command on its joint, the other effects' torque too:

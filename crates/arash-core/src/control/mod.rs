@@ -125,8 +125,7 @@ pub fn controller_with_effects(
 fn check_effects(model: &crate::Model, effects: &[crate::effects::EffectTerm]) -> Result<(), ControllerError> {
     let names = model.joint_names();
     for term in effects.iter().filter(|t| t.kind.at_run_time()) {
-        if let Some((index, value)) = term.unphysical_coefficient() {
-            let why = if value.is_finite() { "has the sign this effect cannot have" } else { "is not a number" };
+        if let Some((index, value, why)) = term.unphysical_coefficient() {
             return Err(ControllerError::UnphysicalEffect { label: term.describe(&names), index, value, why });
         }
     }

@@ -133,6 +133,9 @@ pub enum RejectionReason {
     NotSignificant { p_value: f64, threshold: f64, round: usize },
     /// Significant, but its coefficient has the sign the physical effect cannot have.
     WrongSign { p_value: f64, coefficient: f64 },
+    /// Significant, but its coefficient does not exceed the bound its effect must (`floor`, and
+    /// `why`): a drive gain of −1 or less.
+    BelowFloor { p_value: f64, coefficient: f64, floor: f64, why: String },
     /// Significant, but fitted with the accepted effects it gives `label` (an accepted effect or
     /// itself) the sign that effect cannot have (`coefficient`).
     FlipsSign { p_value: f64, label: String, coefficient: f64 },
@@ -180,6 +183,7 @@ impl RejectionReason {
             Self::NotIdentifiable { .. } => "not_identifiable",
             Self::NotSignificant { .. } => "not_significant",
             Self::WrongSign { .. } => "wrong_sign",
+            Self::BelowFloor { .. } => "below_floor",
             Self::FlipsSign { .. } => "flips_sign",
             Self::NotAMass { .. } => "not_a_mass",
             Self::NoFrictionForACable { .. } => "no_friction_for_a_cable",
@@ -217,6 +221,10 @@ impl std::fmt::Display for RejectionReason {
             Self::WrongSign { p_value, coefficient } => write!(
                 f,
                 "significant (p = {p_value:.2e}) but with the wrong sign for this effect (coefficient {coefficient:.3e}): some other error correlates with it"
+            ),
+            Self::BelowFloor { p_value, coefficient, floor, why } => write!(
+                f,
+                "significant (p = {p_value:.2e}) but its coefficient {coefficient:.3e} is not above {floor}: {why}; some other error correlates with it"
             ),
             Self::FlipsSign { p_value, label, coefficient } => write!(
                 f,
@@ -453,6 +461,7 @@ mod tests {
             RejectionReason::NotIdentifiable { vif: 3e2, max_vif: 1e3 },
             RejectionReason::NotSignificant { p_value: 0.2, threshold: 0.01, round: 1 },
             RejectionReason::WrongSign { p_value: 1e-5, coefficient: -1.0 },
+            RejectionReason::BelowFloor { p_value: 1e-5, coefficient: -1.04, floor: -1.0, why: "a reason".into() },
             RejectionReason::NotAMass {
                 p_value: 1e-5,
                 mass_kg: 1e-5,

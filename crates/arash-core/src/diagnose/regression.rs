@@ -716,6 +716,33 @@ mod tests {
         assert_eq!(sigma(&[vec![1.0; samples]]), alone, "an offset is the model's, not the candidate's");
     }
 
+    /// A candidate that explains the residual exactly where its column lives leaves its scores
+    /// nil in every batch: its σ from the batches is zero, which would be F = ∞ (a counterweight
+    /// "241.6 ± 0.0 g" was accepted so). It is a direction the data do not test, not a finding;
+    /// the same column over a residual with noise where it lives is tested.
+    #[test]
+    fn a_coefficient_with_no_batch_variance_is_untestable() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let (samples, half) = (400, 200);
+        let lives = |first: bool| (0..samples).map(move |s| f64::from((s < half) == first));
+        let candidate: Vec<f64> = lives(true).enumerate().map(|(s, on)| on * (1.0 + (s as f64 * 0.1).sin())).collect();
+        let noise = ar(&mut rng, samples - half, 0.3);
+        let noise_mean = noise.iter().sum::<f64>() / noise.len() as f64;
+        let mut e0: Vec<f64> = candidate.iter().map(|c| 2.0 * c).collect();
+        e0[half..].iter_mut().zip(&noise).for_each(|(e, n)| *e = n - noise_mean);
+        let elsewhere = Column::dense(lives(false).collect(), 1);
+        let group = [&Column::dense(candidate.clone(), 1)];
+        let test = |e0: &[f64]| {
+            let base = NormalEquations::over(vec![&elsewhere], e0, 1, Rows::All);
+            test_group(&base, e0, &group, Batching::Fixed(20), &[])
+        };
+        assert!(matches!(test(&e0), Err(Untested::Dependent { .. })), "{:?}", test(&e0));
+        let more = ar(&mut rng, half, 0.3);
+        e0[..half].iter_mut().zip(&more).for_each(|(e, n)| *e += 0.1 * n);
+        let tested = test(&e0).expect("noise where the column lives");
+        assert!((tested.coefficients[0] - 2.0).abs() < 0.1 && tested.sigma[0] > 0.0, "{tested:?}");
+    }
+
     /// On a short log (900 samples, as 9 s decimated to 100 Hz) a fixed 2 s batch leaves four
     /// batches and almost no power at the threshold a search over many candidates sets; batches
     /// from the scores find the same effect (about 60 % of the noise's RMS) nearly every time.

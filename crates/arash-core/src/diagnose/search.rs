@@ -334,6 +334,10 @@ impl Search<'_> {
                 if let Some(reason) = not_a_mass(term, t, ctx.model) {
                     return Err((reason, None));
                 }
+                if let Some((floor, why)) = t.coefficients.first().and_then(|&c| term.below_floor_at(0, c)) {
+                    let (coefficient, why) = (t.coefficients[0], why.to_string());
+                    return Err((RejectionReason::BelowFloor { p_value, coefficient, floor, why }, None));
+                }
                 // A payload of negative mass is judged on (below): it may say the model is too heavy.
                 let flipped = wrong_sign(term, t);
                 if let Some(coefficient) = flipped.filter(|_| term.kind != EffectKind::Payload) {
@@ -790,7 +794,7 @@ fn most_useful(passing: &[Passed], width: impl Fn(usize) -> usize) -> Option<usi
 
 /// The first of `terms` (each with its number of columns, in the order of the fit `x`, whose
 /// first `offset` coefficients are the model's) whose first coefficient has the sign its effect
-/// cannot have, with that coefficient. Terms whose every coefficient is signed are left to their
+/// cannot have, or does not exceed its floor (a drive gain of −1), with that coefficient. Terms whose every coefficient is signed are left to their
 /// own test ([`wrong_sign`]).
 fn first_flipped<'t>(
     terms: impl IntoIterator<Item = (&'t EffectTerm, usize)>,
@@ -798,7 +802,8 @@ fn first_flipped<'t>(
     mut offset: usize,
 ) -> Option<(&'t EffectTerm, f64)> {
     for (term, width) in terms {
-        if !term.signs_every_coefficient() && term.wrong_sign_at(0, x[offset], 0.0) {
+        let flipped = !term.signs_every_coefficient() && term.wrong_sign_at(0, x[offset], 0.0);
+        if flipped || term.below_floor_at(0, x[offset]).is_some() {
             return Some((term, x[offset]));
         }
         offset += width;
@@ -921,5 +926,12 @@ mod tests {
         assert_eq!((flipped.kind, c), (EffectKind::Stribeck, -0.3));
         x[3] = -0.2;
         assert_eq!(first_flipped(terms, &x, 2).unwrap().0.kind, EffectKind::Payload);
+        // A drive gain has no sign, but its factor 1 + g must stay positive.
+        let gain = EffectTerm::new(EffectKind::DriveGain, Some(1));
+        assert!(first_flipped([(&gain, 1)], &[0.0, -0.9], 1).is_none());
+        assert_eq!(
+            first_flipped([(&gain, 1)], &[0.0, -1.04], 1).map(|(t, c)| (t.kind, c)),
+            Some((EffectKind::DriveGain, -1.04))
+        );
     }
 }

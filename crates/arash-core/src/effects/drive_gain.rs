@@ -24,6 +24,9 @@ impl Effect for DriveGain {
     fn plotted_against(&self) -> &'static str {
         "tau"
     }
+    fn floor(&self) -> Option<(f64, &'static str)> {
+        Some((-1.0, "a drive's gain factor 1 + g must be positive"))
+    }
     fn features(&self, _: &EffectTerm, x: Sample, _: &mut TermState, out: &mut [f64]) {
         out[0] = x.tau;
     }

@@ -284,6 +284,14 @@ pub trait Effect: Sync {
         None
     }
 
+    /// The value the first coefficient must exceed, whatever its σ, to be the physical effect,
+    /// and why (`None`: no such bound). A drive's gain factor `1 + g` must be positive: at or
+    /// below zero the drive would cancel or reverse every torque through it, and a controller
+    /// would feed back with the wrong sign.
+    fn floor(&self) -> Option<(f64, &'static str)> {
+        None
+    }
+
     /// See [`EffectKind::scale_is_continuous`].
     fn scale_is_continuous(&self) -> bool {
         false
@@ -483,14 +491,28 @@ impl EffectTerm {
         self.coefficient_sign(i).is_some_and(|sign| c * sign < -slack)
     }
 
+    /// The bound `c`, as coefficient `i` of this term, fails to exceed, and why, if it does
+    /// (a drive gain at or below −1). No slack: the bound is what the effect is, not a fit's
+    /// noise about it.
+    pub fn below_floor_at(&self, i: usize, c: f64) -> Option<(f64, &'static str)> {
+        self.kind.law().floor().filter(|&(floor, _)| i == 0 && c <= floor)
+    }
+
     /// The first coefficient (index, value) a controller must not use: one that is not finite,
     /// or has the sign its effect cannot have by more than two of its σ, or by more than
     /// [`SIGN_ROUND_OFF`] where it has no σ (a consistent refit's, whose solver may leave a
-    /// bound's zero at −10⁻¹⁵).
-    pub fn unphysical_coefficient(&self) -> Option<(usize, f64)> {
+    /// bound's zero at −10⁻¹⁵), or does not exceed its effect's floor ([`Self::below_floor_at`]).
+    /// With the index and value, what is wrong with it, as a clause: "is not a number".
+    pub fn unphysical_coefficient(&self) -> Option<(usize, f64, &'static str)> {
         self.coefficients.iter().enumerate().find_map(|(i, &c)| {
             let slack = self.sigma.get(i).filter(|s| **s > 0.0).map_or(SIGN_ROUND_OFF, |s| 2.0 * s);
-            (!c.is_finite() || self.wrong_sign_at(i, c, slack)).then_some((i, c))
+            let why = match self.below_floor_at(i, c) {
+                _ if !c.is_finite() => "is not a number",
+                Some((_, why)) => why,
+                None if self.wrong_sign_at(i, c, slack) => "has the sign this effect cannot have",
+                None => return None,
+            };
+            Some((i, c, why))
         })
     }
 

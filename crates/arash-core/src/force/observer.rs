@@ -34,6 +34,11 @@ pub enum ObserverError {
     Step(f64),
     #[error("{what} on joint {joint} is not a number ({value})")]
     NotFinite { what: &'static str, joint: usize, value: f64 },
+    #[error(
+        "the model's effect {label} has coefficient {index} = {value:e}, which {why}: the observer would \
+         read the torque through it wrongly. Refit it or remove it from the model file"
+    )]
+    UnphysicalEffect { label: String, index: usize, value: f64, why: &'static str },
 }
 
 /// How a logged torque acted between its sample and the next.
@@ -112,6 +117,14 @@ impl MomentumObserver {
         }
         if let Some((joint, &value)) = epsilon.iter().enumerate().find(|(_, e)| !(e.is_finite() && **e > 0.0)) {
             return Err(ObserverError::Epsilon { joint, value });
+        }
+        // The same rule as the controllers': a drive's factor 1 + g at or below zero would
+        // divide the logged torque by nothing.
+        for term in effects.iter().filter(|t| t.kind.at_run_time()) {
+            if let Some((index, value, why)) = term.unphysical_coefficient() {
+                let label = term.describe(&model.joint_names());
+                return Err(ObserverError::UnphysicalEffect { label, index, value, why });
+            }
         }
         let mut params = params.to_vec();
         let effects = EffectFeedforward::new(model, effects, epsilon, &mut params);
