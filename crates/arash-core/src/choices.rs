@@ -182,6 +182,18 @@ pub struct Worse {
     pub rms: f64,
     /// The excess of the mean squared error in standard errors of the difference.
     pub sigmas: f64,
+    /// The band the loss was judged in, where it is the starting model's own cut-off (Hz), both
+    /// RMS filtered there; `None`: the diagnosis's band.
+    #[serde(default)]
+    pub band_hz: Option<f64>,
+}
+
+impl Worse {
+    /// Where the RMS were measured, after them: `" in the starting model's band, 4.00 Hz"`, or
+    /// nothing at the diagnosis's band.
+    pub fn in_band(&self) -> String {
+        self.band_hz.map(|hz| format!(" in the starting model's band, {hz:.2} Hz")).unwrap_or_default()
+    }
 }
 
 /// A choice the data support only weakly, with its figures.
@@ -839,8 +851,12 @@ impl Display for Choice {
                     .iter()
                     .map(|w| {
                         format!(
-                            "joint {} {:.4e} against {:.4e} ({:.1} standard errors)",
-                            w.joint, w.rms, w.start_rms, w.sigmas
+                            "joint {} {:.4e} against {:.4e}{} ({:.1} standard errors)",
+                            w.joint,
+                            w.rms,
+                            w.start_rms,
+                            w.in_band(),
+                            w.sigmas
                         )
                     })
                     .collect();

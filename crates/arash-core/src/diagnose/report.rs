@@ -67,8 +67,12 @@ impl Diagnosis {
         for w in &self.still_worse {
             s += &format!(
                 "  - {}: still worse than the starting model by {:.1} standard errors (held-out RMS {:.3e} against \
-                 {:.3e}): no accepted effect causes it\n",
-                self.joint_names[w.joint], w.sigmas, w.rms, w.start_rms
+                 {:.3e}{}): no accepted effect causes it\n",
+                self.joint_names[w.joint],
+                w.sigmas,
+                w.rms,
+                w.start_rms,
+                w.in_band()
             );
         }
         s
