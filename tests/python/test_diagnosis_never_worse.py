@@ -144,5 +144,10 @@ def test_started_from_the_identification_a_third_run_is_no_worse_in_the_slow_tor
         identified = arash.identify(robot, *train)
         d = arash.diagnose(robot, *train, validation=held, start="identified")
     assert d.settings["started_from"] == "identified" and d.accepted == [], d.report()
+    # The refit was not kept, for a loss found in the identification's own band, and said so.
+    first = d.settings["choices"][0]
+    assert not first["refitted"] and first["worse"], first
+    assert all(w["band_hz"] == pytest.approx(identified.cutoff_hz) for w in first["worse"]), first
+    assert "in the starting model's band" in first["text"], first["text"]
     for label, run in (("held out", held), ("third run", third)):
         assert_no_joint_worse(identified, d.model, run, f"{condition.label}, {label}")

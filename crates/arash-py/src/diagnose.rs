@@ -363,8 +363,10 @@ impl Diagnosis {
             .collect()
     }
     /// Joints the final model still predicts worse than the starting model beyond the
-    /// comparison's noise: one dict each with `joint` (its name), `start_rms`, `rms` (N·m or N)
-    /// and `sigmas`. Empty unless the declared parameters were refitted against a given model.
+    /// comparison's noise, where no accepted effect causes it: one dict each with `joint` (its
+    /// name), `start_rms`, `rms` (N·m or N), `sigmas`, and `band_hz`, the starting model's own
+    /// cut-off where the loss was found there (both RMS filtered in it), else None (the
+    /// diagnosis's band).
     #[getter]
     fn still_worse<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
         self.inner
@@ -376,6 +378,7 @@ impl Diagnosis {
                 d.set_item("start_rms", w.start_rms)?;
                 d.set_item("rms", w.rms)?;
                 d.set_item("sigmas", w.sigmas)?;
+                d.set_item("band_hz", w.band_hz)?;
                 Ok(d)
             })
             .collect()
