@@ -20,7 +20,6 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
 import arash  # noqa: E402
-from support.independent import Condition, make_log  # noqa: E402
 from support.yardstick import SIGMAS, excess_in_sigmas, relative, yardstick  # noqa: E402
 from test_diagnosis_independent import NULL, logs  # noqa: E402
 
@@ -28,10 +27,7 @@ from test_diagnosis_independent import NULL, logs  # noqa: E402
 def main():
     worse = 0
     for c in NULL:
-        robot, train, held = logs(c)
-        shape = (c.robot, c.fs, c.bits, c.noise, c.coulomb, c.periods, c.duration)
-        truth = make_log(c)[2]
-        third = make_log(Condition(*shape, seed=c.seed + 2000), truth=truth)[1]
+        robot, train, held, third = logs(c, more=1)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             identified = arash.identify(robot, *train)

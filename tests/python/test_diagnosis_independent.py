@@ -10,6 +10,7 @@ sign(q̇) log.
 
 import json
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -30,15 +31,14 @@ NULL = [
 ]
 
 
-def logs(condition):
-    """The robot declared with the log's Coulomb law, the training log and a validation log."""
+def logs(condition, more=0):
+    """The robot declared with the log's Coulomb law, the training log and a validation log, then
+    ``more`` further runs of the same robot on other trajectories (seeds 1000 apart)."""
     robot, train, truth = make_log(condition)
-    shape = (condition.robot, condition.fs, condition.bits, condition.noise, condition.coulomb,
-             condition.periods, condition.duration)
-    _, held, _ = make_log(Condition(*shape, seed=condition.seed + 1000), truth=truth)
+    runs = [make_log(replace(condition, seed=condition.seed + 1000 * k), truth=truth)[1] for k in range(1, more + 2)]
     if condition.coulomb == "tanh":
         robot = arash.Robot.from_urdf(urdf_path(condition.robot), coulomb_epsilon=TANH_EPSILON)
-    return robot, train, held
+    return (robot, train, *runs)
 
 
 @pytest.mark.parametrize("condition", NULL, ids=lambda c: c.label)
@@ -427,11 +427,7 @@ def test_heldout_runs_given_as_a_list_are_each_scored_as_if_alone():
     alone, pooled, and still nothing is accepted; joined by hand and filtered across the jump,
     the same data give a held-out error many times larger (the demo's four validation runs once
     showed yaw at 32 % FP% that way, each run alone 77 %)."""
-    condition = NULL[1]
-    robot, train, truth = make_log(condition)
-    shape = (condition.robot, condition.fs, condition.bits, condition.noise, condition.coulomb,
-             condition.periods, condition.duration)
-    runs = [make_log(Condition(*shape, seed=condition.seed + s), truth=truth)[1] for s in (1000, 2000)]
+    robot, train, *runs = logs(NULL[1], more=1)
     jump = np.abs(runs[1][1][0] - runs[0][1][-1])
     assert jump.max() > 1e-2, jump
     # The band is chosen on the held-out data too; here one band serves all three, so that only

@@ -134,11 +134,7 @@ def test_started_from_the_identification_a_third_run_is_no_worse_in_the_slow_tor
     from test_diagnosis_independent import logs
 
     condition = Condition("tx40", 1000, 14, 0.01, "tanh", None, 30.0, seed=16)
-    robot, train, held = logs(condition)
-    shape = (condition.robot, condition.fs, condition.bits, condition.noise, condition.coulomb,
-             condition.periods, condition.duration)
-    truth = make_log(condition)[2]
-    third = make_log(Condition(*shape, seed=condition.seed + 2000), truth=truth)[1]
+    robot, train, held, third = logs(condition, more=1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         identified = arash.identify(robot, *train)

@@ -120,14 +120,12 @@ pub fn controller_with_effects(
     })
 }
 
-/// Refuse the first effect a controller must not compensate
-/// ([`crate::effects::EffectTerm::unphysical_coefficient`]).
+/// Refuse the first effect a controller must not compensate ([`crate::effects::first_unphysical`]).
 fn check_effects(model: &crate::Model, effects: &[crate::effects::EffectTerm]) -> Result<(), ControllerError> {
-    let names = model.joint_names();
-    for term in effects.iter().filter(|t| t.kind.at_run_time()) {
-        if let Some((index, value, why)) = term.unphysical_coefficient() {
-            return Err(ControllerError::UnphysicalEffect { label: term.describe(&names), index, value, why });
+    match crate::effects::first_unphysical(effects, &model.joint_names()) {
+        Some(crate::effects::Unphysical { label, index, value, why }) => {
+            Err(ControllerError::UnphysicalEffect { label, index, value, why })
         }
+        None => Ok(()),
     }
-    Ok(())
 }

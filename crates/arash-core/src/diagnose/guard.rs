@@ -40,6 +40,8 @@ use super::options::HARM_SIGMAS;
 use super::prepare::Prepared;
 use super::regression::{residual, Column};
 use super::weighted_fit::{heldout_residual, on_rows, Candidate, HeldOut, Problem};
+use std::borrow::Cow;
+
 use crate::signal::filter::Butterworth;
 use crate::signal::statistics::mean_and_block_error;
 
@@ -72,10 +74,12 @@ struct Yardstick {
 /// and a refit at the diagnosis's band that predicts it worse is diluted at the band by noise:
 /// on a TX40 log of the declared model (Pinocchio, 14-bit, 30 s) the refit kept predicted joint
 /// 1 of a third run 2.7 times worse than the identification on an 8 Hz yardstick, while at the
-/// band (173 Hz) no joint was worse.
+/// band (20 Hz; the identification's cut-off 4 Hz) no joint was worse.
 struct StartBand {
     cutoff_hz: f64,
     filter: Butterworth,
+    /// The starting model's held-out residual filtered in the band, once.
+    start: Vec<f64>,
     /// The stretches of contiguous held-out samples (a run, a held-out block), filtered apart.
     segments: Vec<std::ops::Range<usize>>,
     /// Samples per batch: the band's, or two filter memories if longer.
@@ -101,7 +105,7 @@ impl Yardstick {
     /// Per joint, the mean of `e² − e_start²` and its standard error over all held-out samples,
     /// and over the run where it is largest in its standard errors.
     fn excess(&self, now: &[f64]) -> Vec<Excess> {
-        self.excess_over(&self.start, now)
+        self.compare(&self.start, self.slow.as_ref().map(|s| Cow::Borrowed(&s.start[..])), now)
     }
 
     /// [`Self::excess`] over another `reference` residual on the same samples. A loss on a run
@@ -109,12 +113,18 @@ impl Yardstick {
     /// has one; the pooled excess (what a refitted friction must win by) is the band's, where
     /// the friction was fitted.
     fn excess_over(&self, reference: &[f64], now: &[f64]) -> Vec<Excess> {
+        let filtered = self.slow.as_ref().map(|s| Cow::Owned(s.filtered(reference, self.dof)));
+        self.compare(reference, filtered, now)
+    }
+
+    /// [`Self::excess_over`] with `reference` already filtered in the start's band where there
+    /// is one.
+    fn compare(&self, reference: &[f64], filtered: Option<Cow<[f64]>>, now: &[f64]) -> Vec<Excess> {
         let at_band = self.excess_in(reference, now, self.batch);
-        let Some(slow) = &self.slow else {
+        let (Some(slow), Some(filtered)) = (&self.slow, filtered) else {
             return at_band;
         };
-        let in_start_band =
-            self.excess_in(&slow.filtered(reference, self.dof), &slow.filtered(now, self.dof), slow.batch);
+        let in_start_band = self.excess_in(&filtered, &slow.filtered(now, self.dof), slow.batch);
         let both = at_band.into_iter().zip(in_start_band);
         both.map(|(a, b)| {
             let in_start_band = in_errors(b.worst_run) > in_errors(a.worst_run);
@@ -165,11 +175,11 @@ impl Yardstick {
         let (mean, se) = e.worst_run;
         let slow = self.slow.as_ref().filter(|_| e.in_start_band);
         let (start, now) = match slow {
-            Some(slow) => (slow.filtered(&self.start, self.dof), slow.filtered(now, self.dof)),
-            None => (self.start.clone(), now.to_vec()),
+            Some(slow) => (&slow.start[..], Cow::Owned(slow.filtered(now, self.dof))),
+            None => (&self.start[..], Cow::Borrowed(now)),
         };
         let band_hz = slow.map(|s| s.cutoff_hz);
-        Worse { joint: k, start_rms: self.rms(&start, k), rms: self.rms(&now, k), sigmas: mean / se, band_hz }
+        Worse { joint: k, start_rms: self.rms(start, k), rms: self.rms(&now, k), sigmas: mean / se, band_hz }
     }
 }
 
@@ -184,13 +194,14 @@ pub(super) fn keep_no_worse(
 ) -> Kept {
     let dof = problem.dof;
     let batch = ((ctx.split.block_s * ctx.train.kept_rate()).round() as usize).max(1);
+    let start = start_residual(ctx, pool);
     let yardstick = Yardstick {
-        start: start_residual(ctx, pool),
+        slow: start_band(ctx, heldout, batch, &start),
+        start,
         dof,
         batch,
         weights: problem.weights.clone(),
         runs: heldout_runs(ctx, heldout),
-        slow: start_band(ctx, heldout, batch),
     };
     let mut kept =
         Kept { free: ctx.free.clone(), chosen: chosen.to_vec(), reverted: vec![], rebuilt: None, worse: vec![] };
@@ -335,8 +346,9 @@ fn heldout_runs(ctx: &Context, heldout: &HeldOut) -> Vec<std::ops::Range<usize>>
     }
 }
 
-/// The given model's band, if narrower than the diagnosis's, on the held-out samples.
-fn start_band(ctx: &Context, heldout: &HeldOut, batch: usize) -> Option<StartBand> {
+/// The given model's band, if narrower than the diagnosis's, on the held-out samples, with the
+/// starting model's held-out residual `start` filtered there.
+fn start_band(ctx: &Context, heldout: &HeldOut, batch: usize, start: &[f64]) -> Option<StartBand> {
     let cutoff_hz = ctx.given?.settings.cutoff_hz;
     let (rate, segments) = match (heldout, &ctx.validation) {
         (HeldOut::Validation(_), Some(v)) => (v.kept_rate(), v.runs()),
@@ -348,7 +360,9 @@ fn start_band(ctx: &Context, heldout: &HeldOut, batch: usize) -> Option<StartBan
     }
     let filter = Butterworth::lowpass(ctx.options.preprocess.order, cutoff_hz, rate).ok()?;
     let memories = (2.0 * filter.memory_s(rate) * rate).ceil() as usize;
-    Some(StartBand { cutoff_hz, filter, segments, batch: batch.max(memories) })
+    let mut band = StartBand { cutoff_hz, filter, start: vec![], segments, batch: batch.max(memories) };
+    band.start = band.filtered(start, ctx.model.dof());
+    Some(band)
 }
 
 /// The contiguous stretches of the marked samples, as ranges of the marked samples alone.

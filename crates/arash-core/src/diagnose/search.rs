@@ -334,9 +334,8 @@ impl Search<'_> {
                 if let Some(reason) = not_a_mass(term, t, ctx.model) {
                     return Err((reason, None));
                 }
-                if let Some((floor, why)) = t.coefficients.first().and_then(|&c| term.below_floor_at(0, c)) {
-                    let (coefficient, why) = (t.coefficients[0], why.to_string());
-                    return Err((RejectionReason::BelowFloor { p_value, coefficient, floor, why }, None));
+                if let Some(reason) = below_floor(term, t) {
+                    return Err((reason, None));
                 }
                 // A payload of negative mass is judged on (below): it may say the model is too heavy.
                 let flipped = wrong_sign(term, t);
@@ -794,8 +793,8 @@ fn most_useful(passing: &[Passed], width: impl Fn(usize) -> usize) -> Option<usi
 
 /// The first of `terms` (each with its number of columns, in the order of the fit `x`, whose
 /// first `offset` coefficients are the model's) whose first coefficient has the sign its effect
-/// cannot have, or does not exceed its floor (a drive gain of −1), with that coefficient. Terms whose every coefficient is signed are left to their
-/// own test ([`wrong_sign`]).
+/// cannot have, or does not exceed its floor (a drive gain of −1), with that coefficient. Terms
+/// whose every coefficient is signed are left to their own test ([`wrong_sign`]).
 fn first_flipped<'t>(
     terms: impl IntoIterator<Item = (&'t EffectTerm, usize)>,
     x: &[f64],
@@ -834,6 +833,14 @@ fn not_a_mass(term: &EffectTerm, t: &GroupTest, model: &Model) -> Option<Rejecti
     let moments = t.coefficients[1..].iter().map(|c| c * c).sum::<f64>().sqrt();
     let distance = moments / mass.abs();
     (distance > reach_m).then(|| rejected(Some(distance)))
+}
+
+/// Why `term`'s fit is not its effect, if its first coefficient does not exceed the effect's floor
+/// (a drive gain at or below −1).
+fn below_floor(term: &EffectTerm, t: &GroupTest) -> Option<RejectionReason> {
+    let &coefficient = t.coefficients.first()?;
+    let (floor, why) = term.below_floor_at(0, coefficient)?;
+    Some(RejectionReason::BelowFloor { p_value: t.p_value, coefficient, floor, why: why.to_string() })
 }
 
 /// The coefficient that gives `term` a sign its effect cannot have, if any: the first (a mass, a

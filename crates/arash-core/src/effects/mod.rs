@@ -368,6 +368,25 @@ pub struct EffectTerm {
 /// inertia, 10⁻⁹ N·m of Stribeck excess), far above a solver's round-off.
 pub const SIGN_ROUND_OFF: f64 = 1e-9;
 
+/// A run-time effect a model file carries that nothing may compensate or read torque through
+/// ([`EffectTerm::unphysical_coefficient`]): its label, the coefficient and what is wrong with it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Unphysical {
+    pub label: String,
+    pub index: usize,
+    pub value: f64,
+    pub why: &'static str,
+}
+
+/// The first of `effects` acting at run time that has an unphysical coefficient: the one rule
+/// the controllers and the force observer refuse a model file by.
+pub fn first_unphysical(effects: &[EffectTerm], joint_names: &[String]) -> Option<Unphysical> {
+    effects.iter().filter(|t| t.kind.at_run_time()).find_map(|term| {
+        let (index, value, why) = term.unphysical_coefficient()?;
+        Some(Unphysical { label: term.describe(joint_names), index, value, why })
+    })
+}
+
 /// The motion of a joint over the data a term was fitted on. A fit says nothing about motion
 /// it never saw: `q̇·|q̇|` fitted below 3 mm/s and evaluated at 9 mm/s is a guess nine times the
 /// size of anything the data checked. So a controller clamps the joint's sample into this range

@@ -16,7 +16,7 @@
 use crate::control::EffectFeedforward;
 use crate::data::Data;
 use crate::dynamics::{momentum_terms, MomentumTerms};
-use crate::effects::EffectTerm;
+use crate::effects::{first_unphysical, EffectTerm, Unphysical};
 use crate::model::Model;
 
 /// Why an observer could not be built, or a sample not taken.
@@ -118,13 +118,10 @@ impl MomentumObserver {
         if let Some((joint, &value)) = epsilon.iter().enumerate().find(|(_, e)| !(e.is_finite() && **e > 0.0)) {
             return Err(ObserverError::Epsilon { joint, value });
         }
-        // The same rule as the controllers': a drive's factor 1 + g at or below zero would
-        // divide the logged torque by nothing.
-        for term in effects.iter().filter(|t| t.kind.at_run_time()) {
-            if let Some((index, value, why)) = term.unphysical_coefficient() {
-                let label = term.describe(&model.joint_names());
-                return Err(ObserverError::UnphysicalEffect { label, index, value, why });
-            }
+        // The controllers' rule: a drive's factor 1 + g at or below zero would divide the logged
+        // torque by nothing.
+        if let Some(Unphysical { label, index, value, why }) = first_unphysical(effects, &model.joint_names()) {
+            return Err(ObserverError::UnphysicalEffect { label, index, value, why });
         }
         let mut params = params.to_vec();
         let effects = EffectFeedforward::new(model, effects, epsilon, &mut params);
