@@ -242,3 +242,25 @@ def test_a_closed_loop_that_sticks_validates_with_its_resting_samples_left_out(s
     print(f"{rests[0]['text']}\nlaws {model.robot.friction_velocities}; FP% on the paper's trajectories:\n"
           f"{np.round(validation, 2)}")
     assert np.all(validation >= 95.0), validation
+
+
+@pytest.mark.xfail(strict=True, reason="issue 59 item 3, open: on fresh seeds of a random excitation the sign-law "
+                   "loop's law choice keeps smooth laws of the filtered velocity (docs/identification.md, "
+                   "'Fresh seeds')")
+def test_a_sign_law_closed_loop_on_a_fresh_random_excitation_validates_with_the_chosen_laws():
+    """The sign-law closed loop (PD with CAD gravity, 16-bit encoders differenced, no disturbance)
+    on a random Fourier excitation of seed 3, four 10 s periods, which no choice was tuned on: with
+    each law left to the data, the model should predict the true robot on the paper's four
+    trajectories at FP% ≥ 95 on every joint. Measured: the data choose tanh(q̇/5.9·10⁻³),
+    tanh(q̇/6.8·10⁻³) and tanh(q̇/2.5·10⁻⁴), and the yaw and the insertion validate at 93.0 and
+    91.9 % (bench/closed_loop_seeds.py). Strict: the test says so when the choice is fixed."""
+    robot = arash.Robot.from_urdf(ROBOT_FILES["arash_asist"])
+    truth = true_parameters(robot, np.random.default_rng(3))
+    condition = Condition("arash_asist", 1000, 16, 0.0, "sign", 4, 40.0, seed=3)
+    robot, log, _, _ = pd_gravity_log(condition, truth, actuator_noise=0.0, law="sign", substeps=10, declare=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        model = arash.identify(robot, *log)
+    validation = paper_validation_fp(model.robot, model, truth, "sign")
+    print(f"laws {model.robot.friction_velocities}; FP% on the paper's trajectories:\n{np.round(validation, 2)}")
+    assert np.all(validation >= 95.0), validation

@@ -64,7 +64,7 @@ def closed_loop_log(condition, loop_hz=LOOP_HZ, damping=LOOP_DAMPING):
 
 
 def pd_gravity_log(condition, truth_params, *, loop_hz=LOOP_HZ, damping=LOOP_DAMPING, actuator_noise=0.02,
-                   noise_hz=None, law=None, substeps=SUBSTEPS, declare=True):
+                   noise_hz=None, law=None, substeps=SUBSTEPS, declare=True, velocity_hz=None):
     """PD with gravity compensation from the CAD model, τ = g(q; π_CAD) − K_p e − K_d ė, the law
     IDIM-IV can name, running ``condition``'s trajectory on the robot ``truth_params`` (a full
     parameter vector: bodies, friction, cable stiffness).
@@ -74,7 +74,8 @@ def pd_gravity_log(condition, truth_params, *, loop_hz=LOOP_HZ, damping=LOOP_DAM
     the positions and the torque error are correlated, which is what biases least squares in
     closed loop. ``noise_hz`` gives that noise a first-order band (a drive's disturbance, slow
     enough to pass the identification's filter); None keeps it white. The encoders quantise at
-    ``condition.bits`` and the controller differences them.
+    ``condition.bits`` and the controller differences them; ``velocity_hz`` passes that difference
+    through a first-order low-pass at that frequency (a drive's filtered velocity), None uses it raw.
 
     ``law`` is the plant's Coulomb law: None for tanh of ``TANH_EPSILON``, a width per joint for
     tanh(q̇/v), or "sign". Under sign(q̇) a joint sticks wherever the other torques stay within its
@@ -126,9 +127,13 @@ def pd_gravity_log(condition, truth_params, *, loop_hz=LOOP_HZ, damping=LOOP_DAM
         for i in range(1, len(t)):
             disturbance[i] = a * disturbance[i - 1] + np.sqrt(1 - a * a) * disturbance[i]
     impulse = h * fc
+    smoothing = 1.0 if velocity_hz is None else 1.0 - np.exp(-2 * np.pi * velocity_hz * dt)
+    velocity = qd_d[0].copy()
     for i in range(len(t)):
         measured = np.round(q / step) * step
-        velocity = qd_d[0] if i == 0 else (measured - measured_before) / dt
+        if i > 0:
+            difference = (measured - measured_before) / dt
+            velocity = difference if velocity_hz is None else velocity + smoothing * (difference - velocity)
         measured_before = measured
         tau = cad.torque(measured, np.zeros(n), np.zeros(n)) - kp * (measured - q_d[i]) - kd * (velocity - qd_d[i])
         tau = tau + noise * disturbance[i]
