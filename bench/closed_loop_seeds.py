@@ -2,7 +2,7 @@
 closed loops it was not tuned on, judged by the worst FP% over the paper's four validation
 trajectories against the noise-free truth.
 
-The loop is ``support.closed_loop.pd_gravity_log`` (Pinocchio's plant, PD with CAD gravity, 16-bit
+The loop is ``support.closed_loop.seeded_loop`` (Pinocchio's plant, PD with CAD gravity, 16-bit
 encoders, no disturbance, the plant stepped at 10 kHz), its controller's velocity either the raw
 difference of the encoder or that difference through a first-order low-pass (``--velocity-hz``),
 on arash's designed excitation (four 15 s periods) or a random Fourier series (four 10 s
@@ -23,10 +23,7 @@ import numpy as np
 import arash
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "python"))
-from support.closed_loop import paper_validation_fp, pd_gravity_log  # noqa: E402
-from support.independent import Condition  # noqa: E402
-from support.paths import ROBOT_FILES  # noqa: E402
-from support.simulated import true_parameters  # noqa: E402
+from support.closed_loop import paper_validation_fp, seeded_loop  # noqa: E402
 
 SMOOTH_WIDTH = 2e-3
 
@@ -45,12 +42,9 @@ def main():
     for seed in map(int, args.seeds.split(",")):
         for name in args.laws.split(","):
             law = "sign" if name == "sign" else [SMOOTH_WIDTH] * 3
-            truth = true_parameters(arash.Robot.from_urdf(ROBOT_FILES["arash_asist"]), np.random.default_rng(seed))
-            condition = Condition("arash_asist", 1000, args.bits, 0.0, "sign" if name == "sign" else "tanh", 4,
-                                  60.0 if designed else 40.0, seed=seed, designed=designed)
             start = time.perf_counter()
-            robot, log, _, _ = pd_gravity_log(condition, truth, actuator_noise=0.0, law=law, substeps=10,
-                                              declare=False, velocity_hz=args.velocity_hz)
+            robot, log, truth = seeded_loop(seed, law, designed=designed, bits=args.bits,
+                                            velocity_hz=args.velocity_hz)
             made = time.perf_counter() - start
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", UserWarning)

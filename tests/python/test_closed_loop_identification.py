@@ -12,7 +12,7 @@ import pytest
 pytest.importorskip("pinocchio")
 import arash  # noqa: E402
 
-from support.closed_loop import paper_validation_fp, pd_gravity_log  # noqa: E402
+from support.closed_loop import paper_validation_fp, pd_gravity_log, seeded_loop  # noqa: E402
 from support.paths import ROBOT_FILES, ROOT  # noqa: E402
 from support.independent import Condition  # noqa: E402
 from support.simulated import true_parameters  # noqa: E402
@@ -146,11 +146,8 @@ def smooth_law_closed_loop():
     """Issue 44's closed loop: PD with CAD gravity, no disturbance, the plant stepped at 10 kHz,
     its dry friction tanh(q̇/2·10⁻³) on every joint, arash's designed excitation (four periods),
     16-bit encoders. The robot returned declares no law, as a new user loads it."""
-    robot = arash.Robot.from_urdf(ROBOT_FILES["arash_asist"])
-    truth = true_parameters(robot, np.random.default_rng(0))
-    condition = Condition("arash_asist", 1000, 16, 0.0, "tanh", 4, 60.0, seed=0, designed=True)
     law = [2e-3] * 3
-    robot, log, _, _ = pd_gravity_log(condition, truth, actuator_noise=0.0, law=law, substeps=10, declare=False)
+    robot, log, truth = seeded_loop(0, law)
     return robot, truth, law, log
 
 
@@ -186,10 +183,7 @@ def sign_law_closed_loop():
     """The same closed loop with dry friction sign(q̇): the plant is stepped as the set-valued law
     (``coulomb_step``), so that a stuck joint stays exactly still until the loop's torque breaks
     it away. The insertion rests at about a quarter of the samples."""
-    robot = arash.Robot.from_urdf(ROBOT_FILES["arash_asist"])
-    truth = true_parameters(robot, np.random.default_rng(0))
-    condition = Condition("arash_asist", 1000, 16, 0.0, "sign", 4, 60.0, seed=0, designed=True)
-    robot, log, _, _ = pd_gravity_log(condition, truth, actuator_noise=0.0, law="sign", substeps=10, declare=False)
+    robot, log, truth = seeded_loop(0, "sign")
     return robot, truth, log
 
 
@@ -198,10 +192,7 @@ def noisy_sign_law_closed_loop():
     """The sign-law closed loop with the drive's white noise at 2 % of each joint's RMS torque:
     the insertion rests at about half the samples, and identification filters the velocity that
     switches friction at 0.79 Hz, where the motion's band is 6.3 Hz."""
-    robot = arash.Robot.from_urdf(ROBOT_FILES["arash_asist"])
-    truth = true_parameters(robot, np.random.default_rng(0))
-    condition = Condition("arash_asist", 1000, 16, 0.0, "sign", 4, 60.0, seed=0, designed=True)
-    robot, log, _, _ = pd_gravity_log(condition, truth, actuator_noise=0.02, law="sign", substeps=10, declare=False)
+    robot, log, truth = seeded_loop(0, "sign", actuator_noise=0.02)
     return robot, truth, log
 
 
@@ -254,10 +245,7 @@ def test_a_sign_law_closed_loop_on_a_fresh_random_excitation_validates_with_the_
     trajectories at FP% ≥ 95 on every joint. Measured: the data choose tanh(q̇/5.9·10⁻³),
     tanh(q̇/6.8·10⁻³) and tanh(q̇/2.5·10⁻⁴), and the yaw and the insertion validate at 93.0 and
     91.9 % (bench/closed_loop_seeds.py). Strict: the test says so when the choice is fixed."""
-    robot = arash.Robot.from_urdf(ROBOT_FILES["arash_asist"])
-    truth = true_parameters(robot, np.random.default_rng(3))
-    condition = Condition("arash_asist", 1000, 16, 0.0, "sign", 4, 40.0, seed=3)
-    robot, log, _, _ = pd_gravity_log(condition, truth, actuator_noise=0.0, law="sign", substeps=10, declare=False)
+    robot, log, truth = seeded_loop(3, "sign", designed=False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         model = arash.identify(robot, *log)

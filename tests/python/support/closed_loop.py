@@ -14,8 +14,10 @@ import operator
 import numpy as np
 
 import arash
-from .independent import TANH_EPSILON, Expanded, friction, make_log, quantum, rigid_torques, trajectory, urdf_path
+from .independent import (TANH_EPSILON, Condition, Expanded, friction, make_log, quantum, rigid_torques, trajectory,
+                          urdf_path)
 from .paths import ROBOT_FILES
+from .simulated import true_parameters
 
 # The loop's bandwidth (Hz) and damping ratio, from each joint's inertia at the start.
 LOOP_HZ = 5.0
@@ -127,13 +129,14 @@ def pd_gravity_log(condition, truth_params, *, loop_hz=LOOP_HZ, damping=LOOP_DAM
         for i in range(1, len(t)):
             disturbance[i] = a * disturbance[i - 1] + np.sqrt(1 - a * a) * disturbance[i]
     impulse = h * fc
-    smoothing = 1.0 if velocity_hz is None else 1.0 - np.exp(-2 * np.pi * velocity_hz * dt)
+    # The low-pass's share of each new difference; None: the difference itself.
+    smoothing = None if velocity_hz is None else 1.0 - np.exp(-2 * np.pi * velocity_hz * dt)
     velocity = qd_d[0].copy()
     for i in range(len(t)):
         measured = np.round(q / step) * step
         if i > 0:
             difference = (measured - measured_before) / dt
-            velocity = difference if velocity_hz is None else velocity + smoothing * (difference - velocity)
+            velocity = difference if smoothing is None else velocity + smoothing * (difference - velocity)
         measured_before = measured
         tau = cad.torque(measured, np.zeros(n), np.zeros(n)) - kp * (measured - q_d[i]) - kd * (velocity - qd_d[i])
         tau = tau + noise * disturbance[i]
@@ -146,6 +149,21 @@ def pd_gravity_log(condition, truth_params, *, loop_hz=LOOP_HZ, damping=LOOP_DAM
             q = q + h * qd
     controller = {"law": "pd", "params": cad_params, "kp": kp, "kd": kd}
     return robot, (t, q_log, tau_log), (q_d, qd_d, qdd_d), controller
+
+
+def seeded_loop(seed, law, *, designed=True, bits=16, actuator_noise=0.0, velocity_hz=None):
+    """``pd_gravity_log`` on the true robot of ``seed`` (``true_parameters``), the plant stepped at
+    10 kHz with dry friction ``law`` ("sign", or a tanh width per joint), 1 kHz, ``bits``-bit
+    encoders: four 15 s periods of arash's designed excitation, or (``designed=False``) four 10 s
+    periods of a random Fourier series drawn from the seed. The robot returned declares no law, as
+    a new user loads it. Returns the robot, the log (t, q, τ) and the true parameters."""
+    truth = true_parameters(arash.Robot.from_urdf(ROBOT_FILES["arash_asist"]), np.random.default_rng(seed))
+    coulomb = "sign" if law == "sign" else "tanh"
+    condition = Condition("arash_asist", 1000, bits, 0.0, coulomb, 4, 60.0 if designed else 40.0, seed=seed,
+                          designed=designed)
+    robot, log, _, _ = pd_gravity_log(condition, truth, actuator_noise=actuator_noise, law=law, substeps=10,
+                                      declare=False, velocity_hz=velocity_hz)
+    return robot, log, truth
 
 
 def coulomb_step(inverse, free, impulse):
