@@ -6,6 +6,7 @@ mod common;
 use arash_blas_lapack as _;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::choices::{Choice, Concern};
+use arash_core::identify::consistent::{identify_consistent_signed, ExtraBound};
 use arash_core::identify::estimate::{fit, fit_stacked, ols_beta_and_metrics, EstimateError, Method};
 use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
 use arash_core::identify::preprocess::{preprocess, Preprocessed};
@@ -389,31 +390,74 @@ fn consistent_identification_is_physical_and_fits_like_ols() {
     assert!(err(&beta_c) < 2.0 * err(&ols.beta) + 1e-6, "consistent {} vs OLS {}", err(&beta_c), err(&ols.beta));
 }
 
+/// The consistent problem with one extra column, `q̇·|q̇|` on the insertion rows, last in `w`
+/// (at `index`); `scale` is the coefficient that moves its largest row by 0.5.
+struct WithExtraColumn {
+    model: Model,
+    w: Mat<f64>,
+    tau: Vec<f64>,
+    extra: Vec<f64>,
+    index: usize,
+    scale: f64,
+}
+
+impl WithExtraColumn {
+    fn new() -> Self {
+        let (model, _, _, pre) = two_periods_preprocessed(25);
+        let (w, tau) = arash_core::identify::estimate::stack_full(&model, &pre);
+        let index = w.ncols();
+        let fv = model.layout().viscous(2);
+        let extra: Vec<f64> = (0..w.nrows()).map(|r| w[(r, fv)] * w[(r, fv)].abs()).collect();
+        let scale = 0.5 * extra.iter().map(|e| e.abs()).fold(0.0, f64::max).recip();
+        let w = Mat::<f64>::from_fn(w.nrows(), index + 1, |r, c| if c < index { w[(r, c)] } else { extra[r] });
+        Self { model, w, tau, extra, index, scale }
+    }
+
+    fn torque_with(&self, c: f64) -> Vec<f64> {
+        self.tau.iter().zip(&self.extra).map(|(t, e)| t + c * e).collect()
+    }
+
+    fn fit(&self, tau: &[f64], bound: ExtraBound) -> Vec<f64> {
+        identify_consistent_signed(&self.model, &self.w, tau, &ConsistentOptions::default(), &[bound]).unwrap().params
+    }
+}
+
 /// An extra column with a physical sign (an effect a diagnosis found) keeps it in the consistent
 /// fit even where least squares wants the other sign; a free one follows the data.
 #[test]
 fn a_signed_extra_column_keeps_its_sign_in_the_consistent_fit() {
-    use arash_core::identify::consistent::identify_consistent_signed;
-    use arash_core::identify::estimate::stack_full;
-    let (model, _, _, pre) = two_periods_preprocessed(25);
-    let (w, tau_f) = stack_full(&model, &pre);
-    let p = w.ncols();
-    // A q̇·|q̇| column on the insertion rows, and a torque with −0.5 of it: energy fed in.
-    let fv = model.layout().viscous(2);
-    let extra: Vec<f64> = (0..w.nrows()).map(|r| w[(r, fv)] * w[(r, fv)].abs()).collect();
-    let scale = 0.5 * extra.iter().map(|e| e.abs()).fold(0.0, f64::max).recip();
-    let tau_e: Vec<f64> = tau_f.iter().zip(&extra).map(|(t, e)| t - scale * e).collect();
-    let w_e = Mat::<f64>::from_fn(w.nrows(), p + 1, |r, c| if c < p { w[(r, c)] } else { extra[r] });
-    let options = ConsistentOptions::default();
-    let free = identify_consistent_signed(&model, &w_e, &tau_e, &options, &[None]).unwrap();
-    let signed = identify_consistent_signed(&model, &w_e, &tau_e, &options, &[Some(1.0)]).unwrap();
-    assert!((free.params[p] + scale).abs() < 0.05 * scale, "free: {} against {}", free.params[p], -scale);
-    assert!(signed.params[p] >= -1e-9 * scale, "signed: {}", signed.params[p]);
-    let cost = |x: &[f64]| {
-        let r = arash_core::identify::estimate::apply(&w_e, x);
-        r.iter().zip(&tau_e).map(|(a, b)| (a - b).powi(2)).sum::<f64>()
+    let x = WithExtraColumn::new();
+    // A torque with −0.5 of the column: energy fed in.
+    let tau = x.torque_with(-x.scale);
+    let free = x.fit(&tau, ExtraBound::default());
+    let signed = x.fit(&tau, ExtraBound { sign: Some(1.0), magnitude: None });
+    let (p, scale) = (x.index, x.scale);
+    assert!((free[p] + scale).abs() < 0.05 * scale, "free: {} against {}", free[p], -scale);
+    assert!(signed[p] >= -1e-9 * scale, "signed: {}", signed[p]);
+    let cost = |params: &[f64]| {
+        let r = arash_core::identify::estimate::apply(&x.w, params);
+        r.iter().zip(&tau).map(|(a, b)| (a - b).powi(2)).sum::<f64>()
     };
-    assert!(cost(&signed.params) > cost(&free.params), "the sign must cost fit when the data want the other one");
+    assert!(cost(&signed) > cost(&free), "the sign must cost fit when the data want the other one");
+}
+
+/// A magnitude bound on an extra column holds where the data want more (the coefficient sits on
+/// it, on the side the data pull to), and with a sign it bounds only that side.
+#[test]
+fn an_extra_columns_magnitude_bound_holds_where_the_data_want_more() {
+    let x = WithExtraColumn::new();
+    let (p, scale) = (x.index, x.scale);
+    let cap = 0.4 * scale;
+    for want in [scale, -scale] {
+        let tau = x.torque_with(want);
+        let free = x.fit(&tau, ExtraBound::default())[p];
+        assert!((free - want).abs() < 0.05 * scale, "free: {free} against {want}");
+        let capped = x.fit(&tau, ExtraBound { sign: None, magnitude: Some(cap) })[p];
+        assert!((capped - cap.copysign(want)).abs() < 1e-3 * scale, "capped: {capped}, want {want}, cap {cap}");
+        let positive = x.fit(&tau, ExtraBound { sign: Some(1.0), magnitude: Some(cap) })[p];
+        let expected = if want > 0.0 { cap } else { 0.0 };
+        assert!((positive - expected).abs() < 1e-3 * scale, "signed and capped: {positive}, want {want}");
+    }
 }
 
 #[test]

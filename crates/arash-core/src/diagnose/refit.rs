@@ -4,18 +4,21 @@
 //! that compensates the effects needs a consistent model too (it inverts `M(q)`), and fitting the
 //! two separately lets each absorb the other's error: the inertia soaks up part of a wiring
 //! torque, or a "payload" soaks up the inertia's error. Here the SDP of
-//! [`crate::identify::consistent`] gets the effects' columns as free extra columns, so that both
-//! come from one fit on the same data.
+//! [`crate::identify::consistent`] gets the effects' columns as extra columns, so that both
+//! come from one fit on the same data. Each coefficient keeps its effect's sign and at most the
+//! magnitude the diagnosis measured, within [`REFIT_SIGMAS`] of its σ: the diagnosis estimated
+//! it at its own band, where the term is resolved; at a calibration's narrow cut-off it is
+//! nearly collinear with the declared friction, and unbounded the two traded freely.
 
 use crate::identify::options::ConsistentOptions;
 use faer::Mat;
 
 use super::band::Band;
-use super::options::{DiagnoseError, DiagnoseOptions};
+use super::options::{DiagnoseError, DiagnoseOptions, REFIT_SIGMAS};
 use super::prepare::{full_columns, prepare, term_columns};
 use crate::base_parameters::BaseParameters;
-use crate::effects::EffectKind;
-use crate::identify::consistent::identify_consistent_signed;
+use crate::effects::{EffectKind, EffectTerm};
+use crate::identify::consistent::{identify_consistent_signed, ExtraBound};
 use crate::identify::estimate::joint_metrics;
 use crate::identify::Log;
 use crate::model::Model;
@@ -63,11 +66,11 @@ pub fn consistent_with_effects(
         found.effects.iter().filter(|t| t.kind.at_run_time() && t.kind != EffectKind::Payload).cloned().collect();
     let mut columns = full_columns(model, &data.pre, &data.kept);
     let mut widths = Vec::with_capacity(terms.len());
-    let mut signs = Vec::new();
+    let mut bounds = Vec::new();
     for term in &terms {
         let term_columns = term_columns(model, term, &data);
         widths.push(term_columns.len());
-        signs.extend((0..term_columns.len()).map(|i| term.coefficient_sign(i)));
+        bounds.extend((0..term_columns.len()).map(|i| bound(term, i)));
         for column in term_columns {
             let rows = data.samples() * dof;
             columns.push((0..rows).map(|r| column.at(r / dof, r % dof, dof)).collect());
@@ -75,7 +78,7 @@ pub fn consistent_with_effects(
     }
     let tau = data.tau(delay);
     let w = Mat::<f64>::from_fn(tau.len(), columns.len(), |i, j| columns[j][i]);
-    let fit = identify_consistent_signed(model, &w, &tau, consistent, &signs)
+    let fit = identify_consistent_signed(model, &w, &tau, consistent, &bounds)
         .map_err(crate::identify::IdentifyError::from)?;
     let predicted = crate::identify::estimate::apply(&w, &fit.params);
 
@@ -99,4 +102,12 @@ pub fn consistent_with_effects(
     }
     model_out.effects = terms;
     Ok(model_out)
+}
+
+/// Coefficient `i` of `term` in the refit: its effect's sign, and at most the diagnosis's
+/// estimate's magnitude plus [`REFIT_SIGMAS`] of its σ (none where the term has no σ).
+fn bound(term: &EffectTerm, i: usize) -> ExtraBound {
+    let estimate = term.coefficients.get(i).zip(term.sigma.get(i));
+    let magnitude = estimate.map(|(c, s)| c.abs() + REFIT_SIGMAS * s).filter(|m| m.is_finite());
+    ExtraBound { sign: term.coefficient_sign(i), magnitude }
 }

@@ -64,16 +64,25 @@ pub fn identify_consistent(
     identify_consistent_signed(model, w, tau, options, &[])
 }
 
-/// [`identify_consistent`] with the sign each extra column's coefficient must have
-/// (`extra_signs[j]` for column P + j; `None` or missing: free). A physical effect's sign is a
-/// constraint like a positive mass: a rotor inertia or a dissipative friction fitted negative is
-/// a model a controller cannot use (it feeds energy in).
+/// What an extra column's coefficient is held to in the consistent fit.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ExtraBound {
+    /// The sign it must have (`None`: either). A physical effect's sign is a constraint like a
+    /// positive mass: a rotor inertia or a dissipative friction fitted negative is a model a
+    /// controller cannot use (it feeds energy in).
+    pub sign: Option<f64>,
+    /// The largest magnitude it may take (`None`: any).
+    pub magnitude: Option<f64>,
+}
+
+/// [`identify_consistent`] with a bound on each extra column's coefficient (`extras[j]` for
+/// column P + j; missing: free).
 pub fn identify_consistent_signed(
     model: &Model,
     w: &Mat<f64>,
     tau: &[f64],
     options: &ConsistentOptions,
-    extra_signs: &[Option<f64>],
+    extras: &[ExtraBound],
 ) -> Result<ConsistentFit, ConsistentError> {
     options.validate()?;
     let (standard, p) = (model.num_params(), w.ncols());
@@ -106,7 +115,7 @@ pub fn identify_consistent_signed(
     }
     let p_mat = CscMatrix::new_from_triplets(p, p, p_triplets.0, p_triplets.1, p_triplets.2);
     let q: Vec<f64> = (0..p).map(|i| -2.0 * (wt_tau[(i, 0)] + reg(i) * cad[i]) / m).collect();
-    let (a_mat, b, cones) = constraints(model, p, options.stiffness_bounds, extra_signs);
+    let (a_mat, b, cones) = constraints(model, p, options.stiffness_bounds, extras);
     let settings = DefaultSettingsBuilder::default().verbose(false).max_iter(200).build().expect("valid settings");
     // The semidefinite cones call BLAS and LAPACK under their Fortran names: the binary links
     // them, arash's own (the arash-blas-lapack crate) or a system BLAS.
@@ -131,14 +140,14 @@ pub fn identify_consistent_signed(
     })
 }
 
-/// `A π + s = b`, `s ∈ K`: non-negative friction, stiffness bounds, the signs of the extra
-/// columns that have one, then one 4×4 PSD cone per body. `p` counts the columns, extra ones
+/// `A π + s = b`, `s ∈ K`: non-negative friction, stiffness bounds, the signs and magnitudes of
+/// the extra columns that have them, then one 4×4 PSD cone per body. `p` counts the columns, extra ones
 /// included.
 fn constraints(
     model: &Model,
     p: usize,
     stiffness_bounds: (f64, f64),
-    extra_signs: &[Option<f64>],
+    extras: &[ExtraBound],
 ) -> (CscMatrix<f64>, Vec<f64>, Vec<SupportedConeT<f64>>) {
     let (ke_lo, ke_hi) = stiffness_bounds;
     let (mut rows, mut cols, mut vals, mut b) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -167,10 +176,23 @@ fn constraints(
         }
     }
     let standard = model.num_params();
-    for (j, sign) in extra_signs.iter().enumerate().take(p.saturating_sub(standard)) {
-        if let Some(sign) = sign {
-            push(row, standard + j, -sign, &mut rows, &mut cols);
-            b.push(0.0);
+    for (j, bound) in extras.iter().enumerate().take(p.saturating_sub(standard)) {
+        // s = −sign·π ≥ 0 for the sign; s = c ∓ π ≥ 0 for the magnitude, on the sign's side only
+        // where there is one.
+        let i = standard + j;
+        let mut rows_of = Vec::new();
+        if let Some(sign) = bound.sign {
+            rows_of.push((-sign, 0.0));
+        }
+        if let Some(c) = bound.magnitude {
+            match bound.sign {
+                Some(sign) => rows_of.push((sign, c)),
+                None => rows_of.extend([(1.0, c), (-1.0, c)]),
+            }
+        }
+        for (a, limit) in rows_of {
+            push(row, i, a, &mut rows, &mut cols);
+            b.push(limit);
             row += 1;
         }
     }
