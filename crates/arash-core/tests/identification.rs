@@ -6,7 +6,7 @@ mod common;
 use arash_blas_lapack as _;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::choices::{Choice, Concern};
-use arash_core::identify::consistent::{identify_consistent_signed, ExtraBound};
+use arash_core::identify::consistent::{identify_consistent_bounded, ExtraBound};
 use arash_core::identify::estimate::{fit, fit_stacked, ols_beta_and_metrics, EstimateError, Method};
 use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
 use arash_core::identify::preprocess::{preprocess, Preprocessed};
@@ -418,7 +418,7 @@ impl WithExtraColumn {
     }
 
     fn fit(&self, tau: &[f64], bound: ExtraBound) -> Vec<f64> {
-        identify_consistent_signed(&self.model, &self.w, tau, &ConsistentOptions::default(), &[bound]).unwrap().params
+        identify_consistent_bounded(&self.model, &self.w, tau, &ConsistentOptions::default(), &[bound]).unwrap().params
     }
 }
 

@@ -18,7 +18,7 @@ use super::options::{DiagnoseError, DiagnoseOptions, REFIT_SIGMAS};
 use super::prepare::{full_columns, prepare, term_columns};
 use crate::base_parameters::BaseParameters;
 use crate::effects::{EffectKind, EffectTerm};
-use crate::identify::consistent::{identify_consistent_signed, ExtraBound};
+use crate::identify::consistent::{identify_consistent_bounded, ExtraBound};
 use crate::identify::estimate::joint_metrics;
 use crate::identify::Log;
 use crate::model::Model;
@@ -78,7 +78,7 @@ pub fn consistent_with_effects(
     }
     let tau = data.tau(delay);
     let w = Mat::<f64>::from_fn(tau.len(), columns.len(), |i, j| columns[j][i]);
-    let fit = identify_consistent_signed(model, &w, &tau, consistent, &bounds)
+    let fit = identify_consistent_bounded(model, &w, &tau, consistent, &bounds)
         .map_err(crate::identify::IdentifyError::from)?;
     let predicted = crate::identify::estimate::apply(&w, &fit.params);
 

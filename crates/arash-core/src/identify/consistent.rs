@@ -61,7 +61,7 @@ pub fn identify_consistent(
     tau: &[f64],
     options: &ConsistentOptions,
 ) -> Result<ConsistentFit, ConsistentError> {
-    identify_consistent_signed(model, w, tau, options, &[])
+    identify_consistent_bounded(model, w, tau, options, &[])
 }
 
 /// What an extra column's coefficient is held to in the consistent fit.
@@ -75,9 +75,22 @@ pub struct ExtraBound {
     pub magnitude: Option<f64>,
 }
 
+impl ExtraBound {
+    /// The interval the coefficient lies in (infinite ends: unbounded): up to the magnitude on
+    /// the sign's side, zero on the other.
+    fn interval(&self) -> (f64, f64) {
+        let c = self.magnitude.unwrap_or(f64::INFINITY);
+        match self.sign {
+            Some(sign) if sign > 0.0 => (0.0, c),
+            Some(_) => (-c, 0.0),
+            None => (-c, c),
+        }
+    }
+}
+
 /// [`identify_consistent`] with a bound on each extra column's coefficient (`extras[j]` for
 /// column P + j; missing: free).
-pub fn identify_consistent_signed(
+pub fn identify_consistent_bounded(
     model: &Model,
     w: &Mat<f64>,
     tau: &[f64],
@@ -140,8 +153,8 @@ pub fn identify_consistent_signed(
     })
 }
 
-/// `A π + s = b`, `s ∈ K`: non-negative friction, stiffness bounds, the signs and magnitudes of
-/// the extra columns that have them, then one 4×4 PSD cone per body. `p` counts the columns, extra ones
+/// `A π + s = b`, `s ∈ K`: non-negative friction, stiffness bounds, the intervals of the extra
+/// columns that have one, then one 4×4 PSD cone per body. `p` counts the columns, extra ones
 /// included.
 fn constraints(
     model: &Model,
@@ -149,52 +162,33 @@ fn constraints(
     stiffness_bounds: (f64, f64),
     extras: &[ExtraBound],
 ) -> (CscMatrix<f64>, Vec<f64>, Vec<SupportedConeT<f64>>) {
-    let (ke_lo, ke_hi) = stiffness_bounds;
     let (mut rows, mut cols, mut vals, mut b) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut push = |row: usize, col: usize, val: f64, rows: &mut Vec<usize>, cols: &mut Vec<usize>| {
         rows.push(row);
         cols.push(col);
         vals.push(val);
     };
-    // Non-negative orthant: s = π_i − lo ≥ 0 (A = −e_i, b = −lo) or s = hi − π_i ≥ 0 (A = e_i).
+    // Non-negative orthant: s = π_i − lo ≥ 0 (A = −e_i, b = −lo) and s = hi − π_i ≥ 0 (A = e_i),
+    // each where its bound is finite.
     let mut row = 0;
+    let mut within = |i: usize, (lo, hi): (f64, f64), rows: &mut Vec<usize>, cols: &mut Vec<usize>| {
+        for (a, limit) in [(-1.0, -lo), (1.0, hi)] {
+            if limit.is_finite() {
+                push(row, i, a, rows, cols);
+                b.push(limit);
+                row += 1;
+            }
+        }
+    };
     for i in model.layout().friction() {
-        push(row, i, -1.0, &mut rows, &mut cols);
-        b.push(0.0);
-        row += 1;
+        within(i, (0.0, f64::INFINITY), &mut rows, &mut cols);
     }
     for i in model.layout().stiffnesses() {
-        if ke_lo.is_finite() {
-            push(row, i, -1.0, &mut rows, &mut cols);
-            b.push(-ke_lo);
-            row += 1;
-        }
-        if ke_hi.is_finite() {
-            push(row, i, 1.0, &mut rows, &mut cols);
-            b.push(ke_hi);
-            row += 1;
-        }
+        within(i, stiffness_bounds, &mut rows, &mut cols);
     }
     let standard = model.num_params();
     for (j, bound) in extras.iter().enumerate().take(p.saturating_sub(standard)) {
-        // s = −sign·π ≥ 0 for the sign; s = c ∓ π ≥ 0 for the magnitude, on the sign's side only
-        // where there is one.
-        let i = standard + j;
-        let mut rows_of = Vec::new();
-        if let Some(sign) = bound.sign {
-            rows_of.push((-sign, 0.0));
-        }
-        if let Some(c) = bound.magnitude {
-            match bound.sign {
-                Some(sign) => rows_of.push((sign, c)),
-                None => rows_of.extend([(1.0, c), (-1.0, c)]),
-            }
-        }
-        for (a, limit) in rows_of {
-            push(row, i, a, &mut rows, &mut cols);
-            b.push(limit);
-            row += 1;
-        }
+        within(standard + j, bound.interval(), &mut rows, &mut cols);
     }
     let mut cones = vec![SupportedConeT::NonnegativeConeT(row)];
     // svec of J(π_b), upper triangle column by column, off-diagonals × √2; s = svec(J) = −Aπ.
