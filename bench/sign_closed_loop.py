@@ -4,7 +4,7 @@ with CAD gravity, no disturbance, the plant stepped at 10 kHz with the set-value
 IDIM-IV, with the laws from the data and with sign(q̇) declared, and of an oracle: least squares on
 the plant's exact states at the log's instants (q̈ the mean over each control period), no
 filtering, no quantisation. Identification leaves each joint's resting samples out
-(identify/resting.rs), which the reasons report. About 2½ minutes.
+(signal/resting.rs), which the reasons report. About 2½ minutes.
 
     .venv/bin/python bench/sign_closed_loop.py
 """

@@ -218,7 +218,7 @@ def test_a_noisy_sign_law_closed_loop_keeps_sign_where_a_smooth_law_would_fit_th
 @pytest.mark.parametrize("declared", [True, False], ids=["sign declared", "laws chosen from the data"])
 def test_a_closed_loop_that_sticks_validates_with_its_resting_samples_left_out(sign_law_closed_loop, declared):
     """Where a joint rests, its friction is whatever holds it, no law of its velocity; identification
-    leaves those rows out (``identify/resting.rs``) and says so. The model then predicts the true
+    leaves those rows out (``signal/resting.rs``) and says so. The model then predicts the true
     sign-law robot on the paper's four trajectories at FP% ≥ 95 on every joint. With those rows in,
     least squares validated at 77 / 98 / 81 % (docs/identification.md, "A sign-law closed loop")."""
     robot, truth, log = sign_law_closed_loop

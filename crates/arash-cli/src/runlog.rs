@@ -60,11 +60,9 @@ impl Log {
         jumps
     }
 
-    /// This log repaired ([`arash_core::identify::repair`]): a corrupt block at either end trimmed
+    /// This log repaired ([`arash_core::signal::repair`]): a corrupt block at either end trimmed
     /// and irregular stamps resampled, the reference alike. Returns the log and what was done.
-    pub fn repaired(
-        self,
-    ) -> Result<(Log, Vec<arash_core::choices::Choice>), arash_core::identify::repair::RepairError> {
+    pub fn repaired(self) -> Result<(Log, Vec<arash_core::choices::Choice>), arash_core::signal::repair::RepairError> {
         let dof = self.q.len() / self.t.len().max(1);
         let mut signals = vec![("q", self.q.as_slice(), dof), ("tau", self.tau.as_slice(), dof)];
         if let Some(c) = &self.closed_loop {
@@ -72,7 +70,7 @@ impl Log {
                 ["q_des", "qd_des", "qdd_des"].into_iter().zip(&c.reference).map(|(n, r)| (n, r.as_slice(), dof)),
             );
         }
-        let repaired = arash_core::identify::repair::repair(&self.t, &signals)?;
+        let repaired = arash_core::signal::repair::repair(&self.t, &signals)?;
         let mut columns = repaired.signals.into_iter();
         let (q, tau) = (columns.next().unwrap_or_default(), columns.next().unwrap_or_default());
         let closed_loop = self.closed_loop.map(|c| ClosedLoopChannels {

@@ -4,16 +4,16 @@
 
 // The consistent fit's SDP calls BLAS and LAPACK: arash's own, linked by naming the crate.
 use arash_blas_lapack as _;
-use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
+use arash_core::identify::{ConsistentOptions, PreprocessOptions};
 use std::hint::black_box;
 
 use arash_core::base_parameters::BaseParameterOptions;
+use arash_core::consistent::identify_consistent;
 use arash_core::control::fourier::Excitation;
-use arash_core::identify::consistent::identify_consistent;
-use arash_core::identify::estimate::{fit, stack, Method};
-use arash_core::identify::preprocess::preprocess;
 use arash_core::identify::{identify, Declared, IdentifyOptions, Log};
 use arash_core::model_file::IdentifyMethod;
+use arash_core::signal::estimate::{fit, stack, Method};
+use arash_core::signal::preprocess::preprocess;
 use arash_core::*;
 use criterion::{criterion_group, criterion_main, Criterion};
 
@@ -76,7 +76,7 @@ fn bench(c: &mut Criterion) {
         });
         let whole = IdentifyOptions { preprocess: options.clone(), ..Default::default() };
         // Every choice left to the data: the period found, the cut-off and the friction
-        // velocity searched (identify/cutoff.rs).
+        // velocity searched (signal/cutoff.rs).
         let defaults = IdentifyOptions {
             preprocess: PreprocessOptions { periods: (periods == Some(1)).then_some(1), ..Default::default() },
             ..Default::default()

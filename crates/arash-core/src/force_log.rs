@@ -23,11 +23,11 @@ use crate::control::gains::{compensation_epsilon, model_epsilon, RobustGains};
 use crate::force::{
     episodes, Episode, FrameForce, Level, MomentumObserver, ObserverError, ThresholdError, Thresholds, TorqueTiming,
 };
-use crate::identify::Log;
 use crate::model::{Model, UnknownFrame};
 use crate::model_file::{ModelFile, ObserverHeldOut};
 use crate::signal::conditioning::{central_difference, filter_columns};
 use crate::signal::filter::{Butterworth, FilterError};
+use crate::signal::log::Log;
 
 use crate::force::settings::HAND_BANDWIDTH;
 pub use crate::force::settings::{

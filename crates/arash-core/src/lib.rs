@@ -9,6 +9,8 @@
 
 pub mod base_parameters;
 pub mod choices;
+#[cfg(feature = "identification")]
+pub mod consistent;
 pub mod control;
 pub mod data;
 pub mod dense;

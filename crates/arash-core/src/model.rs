@@ -123,7 +123,7 @@ impl std::fmt::Display for CoulombShape {
 ///
 /// A robot loaded from a URDF says nothing about how its friction rises through zero speed: its
 /// laws are `sign(q̇)` and undeclared, and identification and the diagnosis choose each joint's
-/// friction velocity from the data (`identify/friction_law.rs`). A law the user sets, or one a
+/// friction velocity from the data (`signal/friction_law.rs`). A law the user sets, or one a
 /// model file was fitted with, is declared and used as it is: its Coulomb coefficients belong to
 /// it.
 #[derive(Clone, Debug, PartialEq)]

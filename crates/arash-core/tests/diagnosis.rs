@@ -7,7 +7,7 @@ use arash_blas_lapack as _;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::control::{standard_controller, ControllerKind, RobustGains, Trajectory};
 use arash_core::diagnose::{diagnose, DiagnoseError, DiagnoseOptions, Diagnosis, Runs};
-use arash_core::identify::options::PreprocessOptions;
+use arash_core::identify::PreprocessOptions;
 use arash_core::identify::{identify, Declared, IdentifyOptions, Log};
 use arash_core::model::{CoulombLaws, CoulombShape};
 use arash_core::model_file::{IdentifyMethod, ModelFile};

@@ -6,10 +6,10 @@ mod common;
 use arash_blas_lapack as _;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::choices::{Choice, Concern};
-use arash_core::identify::consistent::{identify_consistent_bounded, ExtraBound};
-use arash_core::identify::estimate::{fit, fit_stacked, ols_beta_and_metrics, EstimateError, Method};
-use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
-use arash_core::identify::preprocess::{preprocess, Preprocessed};
+use arash_core::consistent::{identify_consistent_bounded, ExtraBound};
+use arash_core::identify::{ConsistentOptions, PreprocessOptions};
+use arash_core::signal::estimate::{fit, fit_stacked, ols_beta_and_metrics, EstimateError, Method};
+use arash_core::signal::preprocess::{preprocess, Preprocessed};
 use arash_core::*;
 use common::*;
 use faer::Mat;
@@ -364,9 +364,9 @@ fn two_periods_preprocessed(seed: u64) -> (Model, BaseParameters, Vec<f64>, Prep
 
 #[test]
 fn consistent_identification_is_physical_and_fits_like_ols() {
-    use arash_core::identify::consistent::identify_consistent;
-    use arash_core::identify::estimate::{joint_metrics, stack_full};
+    use arash_core::consistent::identify_consistent;
     use arash_core::physical::min_pseudo_inertia_eigenvalues;
+    use arash_core::signal::estimate::{joint_metrics, stack_full};
     let (model, base, pi, pre) = two_periods_preprocessed(24);
     let ols = fit(&model, &base, &pre, Method::Ols).unwrap();
     let (w, tau_f) = stack_full(&model, &pre);
@@ -377,7 +377,7 @@ fn consistent_identification_is_physical_and_fits_like_ols() {
     }
     assert!(consistent.params[model.layout().friction()].iter().all(|f| *f >= -1e-9));
     // Consistency costs almost nothing here: the truth is consistent.
-    let predicted: Vec<f64> = arash_core::identify::estimate::apply(&w, &consistent.params);
+    let predicted: Vec<f64> = arash_core::signal::estimate::apply(&w, &consistent.params);
     let metrics = joint_metrics(&tau_f, &predicted, 3);
     for k in 0..3 {
         assert!(metrics.fp_percent[k] > ols.metrics.fp_percent[k] - 1.0, "joint {k}: {metrics:?} vs {:?}", ols.metrics);
@@ -404,7 +404,7 @@ struct WithExtraColumn {
 impl WithExtraColumn {
     fn new() -> Self {
         let (model, _, _, pre) = two_periods_preprocessed(25);
-        let (w, tau) = arash_core::identify::estimate::stack_full(&model, &pre);
+        let (w, tau) = arash_core::signal::estimate::stack_full(&model, &pre);
         let index = w.ncols();
         let fv = model.layout().viscous(2);
         let extra: Vec<f64> = (0..w.nrows()).map(|r| w[(r, fv)] * w[(r, fv)].abs()).collect();
@@ -435,7 +435,7 @@ fn a_signed_extra_column_keeps_its_sign_in_the_consistent_fit() {
     assert!((free[p] + scale).abs() < 0.05 * scale, "free: {} against {}", free[p], -scale);
     assert!(signed[p] >= -1e-9 * scale, "signed: {}", signed[p]);
     let cost = |params: &[f64]| {
-        let r = arash_core::identify::estimate::apply(&x.w, params);
+        let r = arash_core::signal::estimate::apply(&x.w, params);
         r.iter().zip(&tau).map(|(a, b)| (a - b).powi(2)).sum::<f64>()
     };
     assert!(cost(&signed) > cost(&free), "the sign must cost fit when the data want the other one");

@@ -14,7 +14,6 @@ use std::path::{Path, PathBuf};
 /// arash-core, leaf first.
 const CORE: &[&str] = &[
     "parallel",
-    "signal",
     "dense",
     "spatial",
     "transmission",
@@ -33,6 +32,8 @@ const CORE: &[&str] = &[
     "record",
     "model_file",
     "force",
+    "signal",
+    "consistent",
     "identify",
     "force_log",
     "diagnose",
@@ -44,11 +45,16 @@ const CORE: &[&str] = &[
 const FOLDERS: &[(&str, &[&str])] = &[
     ("control", &["gains", "safety", "fourier", "trajectory", "estimator", "feedforward", "laws", "logged"]),
     ("force", &["thresholds", "settings", "frame_force", "observer"]),
-    ("signal", &["filter", "conditioning", "encoder", "resample", "statistics"]),
     (
-        "identify",
+        "signal",
         &[
+            "filter",
+            "conditioning",
+            "encoder",
+            "resample",
+            "statistics",
             "options",
+            "log",
             "data_choices",
             "friction",
             "repair",
@@ -57,12 +63,9 @@ const FOLDERS: &[(&str, &[&str])] = &[
             "estimate",
             "friction_law",
             "cutoff",
-            "consistent",
-            "closed_loop",
-            "drive_gains",
-            "excitation",
         ],
     ),
+    ("identify", &["options", "closed_loop", "drive_gains", "excitation"]),
     (
         "diagnose",
         &[
@@ -343,4 +346,42 @@ fn an_upward_reference_is_found() {
     std::fs::remove_dir_all(&dir).unwrap();
     assert_eq!(found.len(), 1, "{found:?}");
     assert_eq!(found[0].1, "high");
+}
+
+/// What the diagnosis may take from identification: the identified model it starts from (the
+/// call, its options, its error). Every other thing both use (filters, derivatives, the period,
+/// the cut-off and friction-law choices, the least squares that judges them, the consistent
+/// fit) lives below both, in `signal` or `consistent` (issue 59).
+const DIAGNOSIS_FROM_IDENTIFY: &[&str] = &["identify", "IdentifyOptions", "IdentifyError"];
+
+/// The names a folder's files take from `crate::identify` that are not in `allowed`.
+fn reaching_into_identify(folder: &Path, allowed: &[&str]) -> Vec<(String, String)> {
+    let mut found = Vec::new();
+    for file in files_of(folder.parent().unwrap(), &folder.file_name().unwrap().to_string_lossy()) {
+        for name in named_after(&code(&file), "crate::identify::") {
+            if !allowed.contains(&name.as_str()) {
+                found.push((file.display().to_string(), name));
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn the_diagnosis_takes_only_the_identified_model_from_identify() {
+    let found = reaching_into_identify(&src("arash-core").join("diagnose"), DIAGNOSIS_FROM_IDENTIFY);
+    assert!(found.is_empty(), "diagnose reaches into identify for: {found:#?}");
+}
+
+/// The check can fail: a preprocessing internal taken from identify in a copy is found.
+#[test]
+fn a_reach_into_identify_is_found() {
+    let dir = std::env::temp_dir().join(format!("arash-reach-{}", std::process::id())).join("diagnose");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("start.rs"), "use crate::identify::{identify, IdentifyOptions};\n").unwrap();
+    std::fs::write(dir.join("band.rs"), "use crate::identify::closed_loop::Estimator;\n").unwrap();
+    let found = reaching_into_identify(&dir, DIAGNOSIS_FROM_IDENTIFY);
+    std::fs::remove_dir_all(dir.parent().unwrap()).unwrap();
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert_eq!(found[0].1, "closed_loop");
 }

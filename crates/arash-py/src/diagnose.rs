@@ -9,7 +9,7 @@ use arash_core::diagnose::{
     Finding, Reversion, Runs, Start, StartedFrom,
 };
 use arash_core::effects::EffectKind;
-use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
+use arash_core::identify::{ConsistentOptions, PreprocessOptions};
 use arash_core::identify::{Declared, Log};
 use arash_core::model_file::{Metrics, ModelFile};
 use numpy::PyReadonlyArrayDyn;

@@ -5,17 +5,17 @@ use std::borrow::Cow;
 use std::sync::Arc;
 
 use arash_core::base_parameters::BaseParameters as CoreBase;
+use arash_core::consistent::identify_consistent;
 use arash_core::control::trajectory::paper_validation_state;
 use arash_core::identify::closed_loop::{ClosedLoop, LoggedController};
-use arash_core::identify::consistent::identify_consistent;
 use arash_core::identify::drive_gains::{Calibration, GainEstimator, KnownLoad};
-use arash_core::identify::options::{ConsistentOptions, ExcitationOptions, PreprocessOptions};
-use arash_core::identify::repair::{repair, Signal};
 use arash_core::identify::{
     cross_validate, held_out_residual, identify as core_identify, identify_in_closed_loop, identify_with_known_load,
     Declared, IdentifyOptions, Log,
 };
+use arash_core::identify::{ConsistentOptions, ExcitationOptions, PreprocessOptions};
 use arash_core::model_file::{IdentifyMethod, ModelFile as CoreIdentification};
+use arash_core::signal::repair::{repair, Signal};
 use arash_core::Model;
 use faer::Mat;
 use numpy::{PyReadonlyArrayDyn, PyUntypedArrayMethods};

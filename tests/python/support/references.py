@@ -17,7 +17,7 @@ PASSES_THE_MOTION = 2.0
 
 
 def cvxpy_consistent(cp, robot, W, tau, pull):
-    """The consistent problem written independently in cvxpy (see identify/consistent.rs)."""
+    """The consistent problem written independently in cvxpy (see consistent.rs)."""
     m = W.shape[0]
     cad = robot.cad_parameters()
     ell = 0.1

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::diagnose::{consistent_with_effects, diagnose, DiagnoseOptions, Diagnosis, EffectKind, Start};
-use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
+use arash_core::identify::{ConsistentOptions, PreprocessOptions};
 use arash_core::identify::{Declared, Log};
 use arash_core::model_file::ModelFile;
 use arash_core::BaseParameters;

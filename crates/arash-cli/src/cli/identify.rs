@@ -7,11 +7,11 @@ use anyhow::Context;
 use arash_core::base_parameters::BaseParameterOptions;
 use arash_core::identify::closed_loop::{ClosedLoop, IvOptions, LoggedController};
 use arash_core::identify::drive_gains::{Calibration, GainEstimator, KnownLoad};
-use arash_core::identify::options::{ConsistentOptions, PreprocessOptions};
 use arash_core::identify::{
     cross_validate, held_out_residual, identify, identify_in_closed_loop, identify_with_known_load, validation_table,
     Declared, IdentifyOptions, Log,
 };
+use arash_core::identify::{ConsistentOptions, PreprocessOptions};
 use arash_core::model_file::IdentifyMethod;
 
 use arash_core::BaseParameters;

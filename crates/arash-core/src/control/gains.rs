@@ -166,7 +166,7 @@ pub fn default_epsilon(kinds: &[JointKind]) -> Vec<f64> {
 
 /// The width of each joint's Coulomb compensation `tanh(q̇/ε)`: the controller's own `epsilon`,
 /// or the model's friction velocity where that is wider (an identified law that rises over a
-/// speed of its own, `identify/friction_law.rs`, is compensated as it was fitted).
+/// speed of its own, `signal/friction_law.rs`, is compensated as it was fitted).
 pub fn compensation_epsilon(model: &Model, epsilon: &[f64]) -> Vec<f64> {
     epsilon.iter().enumerate().map(|(k, e)| e.max(model.coulomb_laws.shape(k).epsilon().unwrap_or(0.0))).collect()
 }

@@ -9,11 +9,11 @@
 
 use super::options::MAX_VELOCITY_NOISE;
 use crate::choices::Choice;
-use crate::identify::data_choices::bandwidth;
-use crate::identify::preprocess::{lowest_cutoff_hz, CUTOFF_PER_BANDWIDTH, EDGE_CUTOFF_PERIODS};
 use crate::signal::conditioning::{central_difference, filter_columns};
+use crate::signal::data_choices::bandwidth;
 use crate::signal::encoder::encoder_step;
 use crate::signal::filter::{Butterworth, FilterError};
+use crate::signal::preprocess::{lowest_cutoff_hz, CUTOFF_PER_BANDWIDTH, EDGE_CUTOFF_PERIODS};
 
 /// The band the training log was filtered in, which a validation log is filtered in too.
 #[derive(Clone, Copy, Debug)]

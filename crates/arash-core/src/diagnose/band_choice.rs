@@ -31,18 +31,18 @@ use super::Runs;
 use crate::base_parameters::BaseParameters;
 use crate::choices::{Choice, Concern};
 use crate::effects::EffectKind;
-use crate::identify::cutoff::{motion_floor_hz, SEARCH_ABOVE_SPECTRAL};
-use crate::identify::data_choices::{
+use crate::model::Model;
+use crate::signal::cutoff::{motion_floor_hz, SEARCH_ABOVE_SPECTRAL};
+use crate::signal::data_choices::{
     as_good_as_best, best_predicting, geometric_grid, Equal, Prediction, Prefer, EQUAL_PREDICTION_SIGMAS,
 };
-use crate::identify::estimate::joint_metrics;
-use crate::identify::friction_law::{laws_for_fit, ChosenLaws};
-use crate::identify::preprocess::{
+use crate::signal::estimate::joint_metrics;
+use crate::signal::filter::Butterworth;
+use crate::signal::friction_law::{laws_for_fit, ChosenLaws};
+use crate::signal::log::Log;
+use crate::signal::preprocess::{
     edge_limited_cutoff_hz, validate_log, PreprocessError, Preprocessed, CUTOFF_PER_BANDWIDTH,
 };
-use crate::identify::Log;
-use crate::model::Model;
-use crate::signal::filter::Butterworth;
 
 /// Fitted and scored samples per candidate cut-off: evenly spread, they rank the candidates as
 /// all of a long log's would, at a bounded cost.

@@ -1,5 +1,5 @@
 //! The drive gains' share of an effect's σ, when the torque was computed from motor currents with
-//! gains calibrated by a known load (`identify::drive_gains`).
+//! gains calibrated by a known load (`arash identify --load`, the drive-gain fit).
 //!
 //! A gain k̂ⱼ that is off by εⱼ = dkⱼ/kⱼ scales joint j's measured torque by 1 + εⱼ. The given
 //! model was fitted on torque computed with the same gains, so its held parameters moved with them

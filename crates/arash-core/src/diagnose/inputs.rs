@@ -11,10 +11,10 @@ use super::weighted_fit::{heldout_split, heldout_sse, Candidate, HeldOut, Proble
 use super::Runs;
 use crate::base_parameters::BaseParameters;
 use crate::effects::{EffectKind, EffectTerm};
-use crate::identify::{IdentifyError, Log};
 use crate::model::Model;
 use crate::model_file::ModelFile;
 use crate::signal::filter::Butterworth;
+use crate::signal::log::Log;
 
 /// The prepared logs and what every step of the search shares: which declared columns are
 /// fitted, the joint weights and the blocks of time.
@@ -63,7 +63,7 @@ impl<'a> Context<'a> {
             .transpose()
             .map_err(DiagnoseError::Validation)?;
         if let Some(g) = given {
-            g.controller_parameters(model).map_err(IdentifyError::from)?;
+            g.controller_parameters(model)?;
             if g.base_independent != base.independent {
                 return Err(DiagnoseError::BaseMismatch);
             }

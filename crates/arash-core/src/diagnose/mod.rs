@@ -44,7 +44,7 @@ mod start;
 mod weighted_fit;
 
 pub use crate::effects::{EffectKind, EffectTerm, TermState};
-pub use crate::identify::{Declared, Log};
+pub use crate::signal::log::{Declared, Log};
 pub use delay::ALIGNMENT_SAMPLES;
 pub use findings::{
     DiagnoseSettings, Diagnosis, ErrorSummary, Finding, Rejection, RejectionReason, Reversion, Reverted,

@@ -1,9 +1,12 @@
 //! The settings of a diagnosis: one home for its defaults, and their validation.
 
+use crate::consistent::ConsistentError;
 use crate::effects::EffectKind;
-use crate::identify::options::{PreprocessOptions, SettingError};
-use crate::identify::preprocess::PreprocessError;
 use crate::identify::IdentifyError;
+use crate::model_file::ModelFileError;
+use crate::signal::estimate::EstimateError;
+use crate::signal::options::{PreprocessOptions, SettingError};
+use crate::signal::preprocess::PreprocessError;
 use crate::transmission::Transmission;
 
 /// The band search reaches at least this cut-off (Hz), the diagnosis's former fixed band, so
@@ -240,6 +243,12 @@ pub enum DiagnoseError {
     RunStarts { starts: Vec<usize>, samples: usize },
     #[error(transparent)]
     Identify(#[from] IdentifyError),
+    #[error(transparent)]
+    Estimate(#[from] EstimateError),
+    #[error(transparent)]
+    Consistent(#[from] ConsistentError),
+    #[error(transparent)]
+    File(#[from] ModelFileError),
     #[error(transparent)]
     Options(#[from] OptionsError),
     #[error("the given model's base parameters were chosen differently from this robot's; identify it again with this version")]

@@ -6,9 +6,9 @@ use super::prepare::Prepared;
 use super::regression::{self, Fitted};
 use super::weighted_fit::{Candidate, Problem};
 use crate::base_parameters::BaseParameters;
-use crate::identify::{IdentifyError, Log};
 use crate::model::Model;
 use crate::model_file::{IdentifyMethod, ModelFile};
+use crate::signal::log::Log;
 
 /// What a written model records of the log it was fitted on.
 pub(super) struct Source {
@@ -35,9 +35,9 @@ pub(super) fn declared_model(
     block_s: f64,
     source: &Source,
 ) -> Result<ModelFile, DiagnoseError> {
-    use crate::identify::estimate::{fit_stacked, Method};
     use crate::model_file::{DataSummary, Fitted, Settings};
     use crate::physical::nearest_standard_parameters;
+    use crate::signal::estimate::{fit_stacked, Method};
     let dof = data.dof;
     let rows = data.samples() * dof;
     let w = faer::Mat::<f64>::from_fn(rows, data.declared.len(), |i, j| data.declared[j].at(i / dof, i % dof, dof));
@@ -47,8 +47,7 @@ pub(super) fn declared_model(
     }
     let stride = data.stride();
     let block = ((block_s * data.fs / stride as f64).round() as usize).max(1);
-    let fit = fit_stacked(&w, &tau, dof, base, Method::Ols, block)
-        .map_err(|e| DiagnoseError::Identify(IdentifyError::Estimate(e)))?;
+    let fit = fit_stacked(&w, &tau, dof, base, Method::Ols, block).map_err(DiagnoseError::Estimate)?;
     let nearest = nearest_standard_parameters(model, base, &fit.beta);
     let fitted = Fitted {
         beta: fit.beta.clone(),

@@ -8,11 +8,11 @@ use super::Runs;
 use crate::base_parameters::BaseParameters;
 use crate::data::Data;
 use crate::effects::{EffectKind, EffectTerm, TermState};
-use crate::identify::options::PreprocessOptions;
-use crate::identify::preprocess::{preprocess, PreprocessError, Preprocessed, EDGE_CUTOFF_PERIODS};
-use crate::identify::Log;
 use crate::model::Model;
 use crate::regressor::regressor;
+use crate::signal::log::Log;
+use crate::signal::options::PreprocessOptions;
+use crate::signal::preprocess::{preprocess, PreprocessError, Preprocessed, EDGE_CUTOFF_PERIODS};
 
 /// A log filtered and sampled for the diagnosis, with the declared model's columns.
 pub(super) struct Prepared {
@@ -153,7 +153,7 @@ pub(super) fn prepare(
     margin_s: f64,
 ) -> Result<Prepared, PreprocessError> {
     let dof = model.dof();
-    crate::identify::preprocess::validate_log(log.t, log.q, log.tau, dof)?;
+    crate::signal::preprocess::validate_log(log.t, log.q, log.tau, dof)?;
     let pre = filtered(log, dof, options, band)?;
     let stride = stride(options, pre.sample_rate_hz, pre.cutoff_hz);
     let kept = kept_samples(&pre, margin_s, starts, stride)?;

@@ -4,25 +4,25 @@
 //! that compensates the effects needs a consistent model too (it inverts `M(q)`), and fitting the
 //! two separately lets each absorb the other's error: the inertia soaks up part of a wiring
 //! torque, or a "payload" soaks up the inertia's error. Here the SDP of
-//! [`crate::identify::consistent`] gets the effects' columns as extra columns, so that both
+//! [`crate::consistent`] gets the effects' columns as extra columns, so that both
 //! come from one fit on the same data. Each coefficient keeps its effect's sign and at most the
 //! magnitude the diagnosis measured, within [`REFIT_SIGMAS`] of its σ: the diagnosis estimated
 //! it at its own band, where the term is resolved; at a calibration's narrow cut-off it is
 //! nearly collinear with the declared friction, and unbounded the two traded freely.
 
-use crate::identify::options::ConsistentOptions;
+use crate::consistent::ConsistentOptions;
 use faer::Mat;
 
 use super::band::Band;
 use super::options::{DiagnoseError, DiagnoseOptions, REFIT_SIGMAS};
 use super::prepare::{full_columns, prepare, term_columns};
 use crate::base_parameters::BaseParameters;
+use crate::consistent::{identify_consistent_bounded, ExtraBound};
 use crate::effects::{EffectKind, EffectTerm};
-use crate::identify::consistent::{identify_consistent_bounded, ExtraBound};
-use crate::identify::estimate::joint_metrics;
-use crate::identify::Log;
 use crate::model::Model;
 use crate::model_file::{IdentifyMethod, ModelFile};
+use crate::signal::estimate::joint_metrics;
+use crate::signal::log::Log;
 
 /// Refit `found` (a diagnosis's updated model) as a physically consistent model with its
 /// effects, on the training log the diagnosis used. The effects that act at run time are kept
@@ -78,9 +78,8 @@ pub fn consistent_with_effects(
     }
     let tau = data.tau(delay);
     let w = Mat::<f64>::from_fn(tau.len(), columns.len(), |i, j| columns[j][i]);
-    let fit = identify_consistent_bounded(model, &w, &tau, consistent, &bounds)
-        .map_err(crate::identify::IdentifyError::from)?;
-    let predicted = crate::identify::estimate::apply(&w, &fit.params);
+    let fit = identify_consistent_bounded(model, &w, &tau, consistent, &bounds)?;
+    let predicted = crate::signal::estimate::apply(&w, &fit.params);
 
     let mut extra = fit.params[standard..].iter().copied();
     for (term, width) in terms.iter_mut().zip(widths) {

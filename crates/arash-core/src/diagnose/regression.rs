@@ -2,7 +2,7 @@
 //! joint's rows or live on one joint's rows only, least squares through column-scaled Gram
 //! matrices, and the block Wald test of a column group added to a fitted model.
 //!
-//! Rows are ordered sample by sample, joint by joint, as in [`crate::identify::estimate`]. A
+//! Rows are ordered sample by sample, joint by joint, as in [`crate::signal::estimate`]. A
 //! candidate effect usually acts on one joint, so storing only that joint's rows saves `dof`-fold
 //! memory and time on every product with it.
 
@@ -120,7 +120,7 @@ pub fn axpy(v: &mut [f64], c: f64, a: &Column, dof: usize) {
 /// Least squares of `y` on `columns` over `rows`: the coefficients, or `None` when the columns are
 /// (numerically) dependent there. Solved on the Gram matrix with unit-diagonal scaling: the
 /// diagnosis tests added columns, it does not need the last digits of the declared parameters
-/// that [`crate::identify::estimate`] fights for.
+/// that [`crate::signal::estimate`] fights for.
 pub fn least_squares(columns: &[&Column], y: &[f64], dof: usize, rows: Rows) -> Option<Vec<f64>> {
     if columns.is_empty() {
         return Some(vec![]);

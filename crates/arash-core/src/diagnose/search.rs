@@ -22,9 +22,9 @@ use super::regression::{
 use super::weighted_fit::{error_summary, model_columns, Candidate, HeldOut, HeldOutBase, Problem};
 use super::Runs;
 use crate::effects::{EffectKind, EffectTerm};
-use crate::identify::{Declared, Log};
 use crate::model::{JointKind, Model};
 use crate::model_file::ModelFile;
+use crate::signal::log::{Declared, Log};
 
 /// Whose Coulomb laws the diagnosis fits with, against a given model.
 #[derive(Clone, Copy, PartialEq, Eq)]

@@ -22,8 +22,9 @@ use super::search::{diagnose_against, Laws};
 use super::Runs;
 use crate::base_parameters::{BaseParameterOptions, BaseParameters};
 use crate::choices::Choice;
-use crate::identify::{identify, Declared, IdentifyOptions, Log};
+use crate::identify::{identify, IdentifyOptions};
 use crate::model_file::{IdentifyMethod, ModelFile};
+use crate::signal::log::{Declared, Log};
 
 /// Diagnose `train`: against `given`, or without it from where `options.start` says, holding
 /// out `validation` when it is given (a [`Log`] converts into one run).

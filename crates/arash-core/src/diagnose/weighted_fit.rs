@@ -6,8 +6,8 @@ use super::noise::NoiseFloor;
 use super::prepare::Prepared;
 use super::regression::{least_squares, residual, Column, NormalEquations, Rows};
 use crate::effects::EffectTerm;
-use crate::identify::estimate::joint_metrics;
 use crate::model_file::Metrics;
+use crate::signal::estimate::joint_metrics;
 
 /// The fewest blocks of the held-out split. A log shorter than this many `block_s` gets this many
 /// shorter blocks, so that the even blocks and the odd ones both cover the motion: fitted on

@@ -24,7 +24,7 @@ pub struct FrictionVelocity;
 /// named two Stribeck terms and a rotor inertia on that joint). A joint that barely moves can need
 /// the top of the range: a closed loop whose insertion's friction rises over 2 mm/s moved it at
 /// 2.4 mm/s RMS (0.8 × its RMS speed; docs/identification.md). Identification chooses a robot's
-/// laws from the same grid (`identify/friction_law.rs`).
+/// laws from the same grid (`signal/friction_law.rs`).
 pub const FRICTION_VELOCITY_SHARES: [f64; 10] = [0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0];
 
 impl Effect for FrictionVelocity {

@@ -24,19 +24,20 @@
 //! settled `Z`, on the instrumented regressor `P_Z W` for IV (two-stage least squares: with as
 //! many instruments as parameters it is the IV estimate) and on `Z` itself for DIDIM.
 
-use super::options::{ConsistentOptions, PreprocessOptions};
+use crate::consistent::ConsistentOptions;
+use crate::signal::options::PreprocessOptions;
 use faer::Mat;
 
-use super::consistent::identify_consistent;
-use super::estimate::{self, stack, stack_full, Fit};
-use super::preprocess::{preprocess, PreprocessError, Preprocessed};
 use crate::base_parameters::BaseParameters;
+use crate::consistent::identify_consistent;
 use crate::control::Desired;
 use crate::data::Data;
 use crate::dense;
 use crate::dynamics::forward_dynamics;
 use crate::model::Model;
 use crate::model_file::IdentifyMethod;
+use crate::signal::estimate::{self, stack, stack_full, Fit};
+use crate::signal::preprocess::{preprocess, PreprocessError, Preprocessed};
 
 pub use crate::control::logged::{LoggedController, LoggedControllerError};
 

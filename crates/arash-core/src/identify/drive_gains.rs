@@ -17,16 +17,16 @@
 //! Its known part `π_k` (the mass, and the first moments and inertia where they are known) moves
 //! to the right-hand side; its unknown part enters through those of `B_b`'s columns that are
 //! independent (`δ`: the load's identifiable combinations, estimated with the gains). The
-//! problem is linear in `(β, δ, k)` and is solved by the least squares of [`super::estimate`], its
+//! problem is linear in `(β, δ, k)` and is solved by the least squares of [`crate::signal::estimate`], its
 //! σ the same block sandwich, its conditioning named by parameter where a gain is not fixed.
 
-use super::estimate::{fit_stacked, sandwich_covariance, stack, EstimateError, Fit, Method};
-use super::preprocess::Preprocessed;
 use crate::base_parameters::BaseParameters;
 use crate::choices::{Choice, Concern, JointGain, LooseGain};
 use crate::dense;
 use crate::model::Model;
 use crate::params::{body as body_params, PER_BODY};
+use crate::signal::estimate::{fit_stacked, sandwich_covariance, stack, EstimateError, Fit, Method};
+use crate::signal::preprocess::Preprocessed;
 use faer::prelude::*;
 use faer::Mat;
 

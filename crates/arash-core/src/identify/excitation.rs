@@ -24,13 +24,14 @@ use faer::Mat;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::options::{ExcitationOptions, SettingError};
+use super::options::ExcitationOptions;
 use crate::base_parameters::{BaseParameterOptions, BaseParameters, LimitsError, ReachableLimits};
 use crate::control::fourier::Excitation;
 use crate::data::Data;
 use crate::dense;
 use crate::model::Model;
 use crate::regressor::regressor;
+use crate::signal::options::SettingError;
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ExcitationError {

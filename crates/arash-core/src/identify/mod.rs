@@ -3,35 +3,29 @@
 //! printed as the paper's tables and used for prediction.
 
 pub mod closed_loop;
-pub mod consistent;
-pub mod cutoff;
-pub mod data_choices;
 pub mod drive_gains;
-pub mod estimate;
 pub mod excitation;
-pub mod friction;
-pub mod friction_law;
 pub mod options;
-pub mod preprocess;
-pub mod repair;
-pub mod resting;
 
 use crate::base_parameters::BaseParameters;
 use crate::choices::{Choice, Concern};
+use crate::consistent::{identify_consistent, ConsistentError};
 use crate::model::Model;
 use crate::model_file::{DataSummary, Fitted, HeldOut, IdentifyMethod, Metrics, ModelFile, ModelFileError, Settings};
 use crate::physical::{min_pseudo_inertia_eigenvalues, nearest_standard_parameters};
+use crate::signal::estimate::{fit, joint_metrics, stack_full, EstimateError, JointMetrics, Method};
+use crate::signal::preprocess::{self, preprocess, PreprocessError};
+use crate::signal::{cutoff, estimate, friction_law};
 use closed_loop::{closed_loop_fit, ClosedLoopError, ClosedLoopSettings, ClosedLoopStart};
-use consistent::{identify_consistent, ConsistentError};
-use estimate::{fit, joint_metrics, stack_full, EstimateError, JointMetrics, Method};
-use preprocess::{preprocess, PreprocessError};
 
 // The surface most callers need; the modules above stay public for the rest.
+pub use crate::consistent::{ConsistentFit, ConsistentOptions};
+pub use crate::signal::log::{Declared, Log};
+pub use crate::signal::options::{PreprocessOptions, SettingError};
+pub use crate::signal::preprocess::Preprocessed;
 pub use closed_loop::{ClosedLoop, Estimator, IvOptions};
-pub use consistent::ConsistentFit;
 pub use excitation::{design_excitation, ExcitationError};
-pub use options::{ConsistentOptions, ExcitationOptions, PreprocessOptions, SettingError};
-pub use preprocess::Preprocessed;
+pub use options::ExcitationOptions;
 
 /// Everything [`identify`] can be told.
 #[derive(Clone, Debug, Default)]
@@ -68,36 +62,6 @@ pub enum IdentifyError {
 impl From<JointMetrics> for Metrics {
     fn from(m: JointMetrics) -> Self {
         Self { fp_percent: m.fp_percent, relative_error: m.relative_error, rms: m.rms }
-    }
-}
-
-/// The robot as declared: its model, its base parameters (computed once by the caller: they
-/// depend only on the model), and the URDF it came from (embedded in the model file).
-#[derive(Clone, Copy)]
-pub struct Declared<'a> {
-    pub model: &'a Model,
-    pub base: &'a BaseParameters,
-    pub urdf: &'a str,
-}
-
-/// One log: `t` (N), `q` and `tau` (N × dof, row-major, SI).
-#[derive(Clone, Copy, Debug)]
-pub struct Log<'a> {
-    pub t: &'a [f64],
-    pub q: &'a [f64],
-    pub tau: &'a [f64],
-}
-
-impl Log<'_> {
-    /// The log's fingerprint: FNV-1a (64 bits) of its times, positions and torques, bit for bit,
-    /// in hexadecimal. A model file keeps its fit's, so that a diagnosis can tell the log the
-    /// model was fitted on from an independent one (`diagnose/calibration_error.rs`).
-    pub fn fingerprint(&self) -> String {
-        const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
-        const PRIME: u64 = 0x0100_0000_01b3;
-        let bytes = [self.t, self.q, self.tau].into_iter().flatten().flat_map(|v| v.to_le_bytes());
-        let hash = bytes.fold(OFFSET, |h, b| (h ^ u64::from(b)).wrapping_mul(PRIME));
-        format!("{hash:016x}")
     }
 }
 

@@ -21,14 +21,14 @@ use arash_core::control::fourier::Excitation;
 use arash_core::control::Trajectory;
 use arash_core::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use arash_core::identify::closed_loop::ClosedLoop;
-use arash_core::identify::estimate::joint_metrics;
 use arash_core::identify::excitation::design_excitation;
-use arash_core::identify::options::{ExcitationOptions, PreprocessOptions};
 use arash_core::identify::{
     cross_validate, identify, identify_in_closed_loop, validation_series, validation_table, Declared, IdentifyOptions,
     Log,
 };
+use arash_core::identify::{ExcitationOptions, PreprocessOptions};
 use arash_core::model_file::{IdentifyMethod, ModelFile};
+use arash_core::signal::estimate::joint_metrics;
 use arash_core::{BaseParameters, Model};
 use arash_daemon::drive_config::DriveConfig;
 use arash_daemon::rt::clock::{Pace, RtPolicy};

@@ -28,11 +28,11 @@ use super::estimate::{
     regressor_rows,
 };
 use super::friction::RawVelocity;
+use super::log::{Declared, Log};
 use super::options::PreprocessOptions;
 use super::preprocess::{
     edge_limited_cutoff_hz, filtered_motion, preprocess, Choices, PreprocessError, Preprocessed, MIN_CUTOFF_HZ,
 };
-use super::{Declared, Log};
 use crate::choices::{Choice, Concern};
 use crate::signal::conditioning::{filter_columns, mean_of, periods_of};
 use crate::signal::filter::Butterworth;

@@ -358,7 +358,7 @@ pub const EQUAL_PREDICTION_SIGMAS: f64 = 2.0;
 pub const EQUAL_PREDICTION_POINTS: f64 = 1.0;
 
 /// A candidate cut-off, judged by how well the model fitted at it predicts torque it was not
-/// filtered toward: identification's cut-off (`identify/cutoff.rs`) and the diagnosis's band
+/// filtered toward: identification's cut-off (`signal/cutoff.rs`) and the diagnosis's band
 /// (`diagnose/band.rs`) are both chosen by [`best_predicting`] over these.
 #[derive(Clone, Copy, Debug)]
 pub struct Prediction<'a> {

@@ -22,9 +22,49 @@ use clarabel::algebra::CscMatrix;
 use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
 use faer::Mat;
 
-use super::options::{ConsistentOptions, SettingError};
 use crate::model::Model;
 use crate::physical::{min_pseudo_inertia_eigenvalues, onto_consistent, parameter_scales};
+use crate::signal::options::{positive, SettingError};
+
+/// Settings for [`identify_consistent`](identify_consistent): the physically
+/// consistent fit's semidefinite problem.
+#[derive(Clone, Debug)]
+pub struct ConsistentOptions {
+    /// Strength of the pull toward CAD, relative to the data (0 disables it).
+    pub pull: f64,
+    /// Bounds on each joint's cable stiffness `ke` (N·m/rad or N/m).
+    pub stiffness_bounds: (f64, f64),
+    /// Length scale ℓ used to scale first moments and inertias (m).
+    pub length_scale: f64,
+}
+
+impl Default for ConsistentOptions {
+    fn default() -> Self {
+        Self {
+            pull: 1e-4,
+            stiffness_bounds: (0.0, f64::INFINITY),
+            length_scale: crate::physical::DEFAULT_LENGTH_SCALE_M,
+        }
+    }
+}
+
+impl ConsistentOptions {
+    /// Check every setting before the problem is built.
+    pub fn validate(&self) -> Result<(), SettingError> {
+        if !(self.pull.is_finite() && self.pull >= 0.0) {
+            return Err(SettingError::new("pull", self.pull, "a non-negative number (0 disables the pull toward CAD)"));
+        }
+        let (lo, hi) = self.stiffness_bounds;
+        if !(lo.is_finite() && lo >= 0.0 && !hi.is_nan() && hi >= lo) {
+            return Err(SettingError::new(
+                "stiffness_bounds",
+                format!("({lo}, {hi})"),
+                "0 ≤ lower ≤ upper, the lower finite (the upper may be infinite)",
+            ));
+        }
+        positive("length_scale", self.length_scale)
+    }
+}
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ConsistentError {
@@ -218,4 +258,33 @@ fn constraints(
         cones.push(SupportedConeT::PSDTriangleConeT(4));
     }
     (CscMatrix::new_from_triplets(row, p, rows, cols, vals), b, cones)
+}
+
+#[cfg(test)]
+mod options_tests {
+    use super::*;
+
+    #[test]
+    fn the_defaults_are_valid() {
+        assert_eq!(ConsistentOptions::default().validate(), Ok(()));
+    }
+
+    #[test]
+    fn each_bad_setting_is_named() {
+        let name = |e: Result<(), SettingError>| e.unwrap_err().name;
+        let con = ConsistentOptions::default;
+        assert_eq!(name(ConsistentOptions { pull: -1e-4, ..con() }.validate()), "pull");
+        assert_eq!(name(ConsistentOptions { pull: f64::INFINITY, ..con() }.validate()), "pull");
+        assert_eq!(name(ConsistentOptions { stiffness_bounds: (2.0, 1.0), ..con() }.validate()), "stiffness_bounds");
+        assert_eq!(name(ConsistentOptions { length_scale: 0.0, ..con() }.validate()), "length_scale");
+    }
+
+    #[test]
+    fn the_message_says_what_is_expected() {
+        let e = ConsistentOptions { pull: -1.0, ..Default::default() }.validate().unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "pull = -1 cannot be used: expected a non-negative number (0 disables the pull toward CAD)"
+        );
+    }
 }
