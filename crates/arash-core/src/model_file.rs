@@ -179,8 +179,9 @@ pub struct DataSummary {
     pub samples_used: usize,
     pub sample_rate_hz: f64,
     pub periods_averaged: usize,
-    /// The fitted log's fingerprint (`identify::Log::fingerprint`; none in files written before
-    /// it was kept).
+    /// The fitted log's fingerprint (`signal::log::Log::fingerprint`: `xxh3:` and 16 hexadecimal
+    /// digits; 16 digits of FNV-1a alone in files written before 2026-12-06, none before it was
+    /// kept).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fingerprint: Option<String>,
 }

@@ -40,10 +40,10 @@ pub(super) fn directions(
     gains: Option<&GainErrors>,
     train: &Source,
 ) -> (Vec<Vec<f64>>, Option<Choice>) {
-    let Some(given) = ctx.given else {
+    if ctx.given.is_none() {
         return (vec![], None);
-    };
-    if given.data.fingerprint.as_ref() == Some(&train.fingerprint) {
+    }
+    if train.fitted_the_given {
         let reason = Choice::CalibrationError { parameters: false, gains: false, directions: 0, same_log: true };
         return (vec![], Some(reason));
     }

@@ -14,11 +14,16 @@ use crate::signal::log::Log;
 pub(super) struct Source {
     pub(super) samples_in: usize,
     pub(super) fingerprint: String,
+    /// Whether the given model was fitted on this log (its file's fingerprint is this log's).
+    pub(super) fitted_the_given: bool,
 }
 
 impl Source {
-    pub(super) fn of(log: &Log) -> Self {
-        Self { samples_in: log.t.len(), fingerprint: log.fingerprint() }
+    /// `given`: the given model file's fingerprint, if it has one.
+    pub(super) fn of(log: &Log, given: Option<&str>) -> Self {
+        let fingerprint = log.fingerprint();
+        let fitted_the_given = given.is_some_and(|stored| stored == fingerprint || log.has_fingerprint(stored));
+        Self { samples_in: log.t.len(), fingerprint, fitted_the_given }
     }
 }
 

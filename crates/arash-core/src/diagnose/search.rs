@@ -82,7 +82,7 @@ pub(super) fn diagnose_against(
     skipped.extend(not_searched);
     let pool = ctx.pool(templates, &problem, &heldout);
     let gain_errors = GainErrors::of(&ctx, &problem);
-    let source = Source::of(&train);
+    let source = Source::of(&train, ctx.given.and_then(|g| g.data.fingerprint.as_deref()));
     let (calibration, reason) = calibration_error::directions(&ctx, &problem, gain_errors.as_ref(), &source);
     ctx.train.pre.choices.reasons.extend(reason);
     let mut search = Search { ctx: &ctx, problem: &problem, heldout: &heldout, pool, gain_errors, calibration };

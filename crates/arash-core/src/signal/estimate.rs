@@ -148,11 +148,18 @@ fn stack_columns(model: &Model, data: &Preprocessed, columns: &[usize]) -> Mat<f
 /// products of the motion's harmonics there (Coriolis terms, gravity's sine), which at a cut-off
 /// a few times the motion's bandwidth bias the fit; filtered alike, model and torque match.
 pub fn filter_each_column(w: &mut Mat<f64>, dof: usize, filter: &Butterworth, periodic: bool) {
-    for c in 0..w.ncols() {
+    // The columns are independent and filtering them is most of stacking: one run of them per
+    // core. Each is filtered exactly as alone, so the result does not depend on the cores.
+    let columns: Vec<&mut [f64]> = w
+        .as_mut()
+        .col_iter_mut()
+        .map(|c| c.try_as_col_major_mut().expect("a Mat's columns are contiguous").as_slice_mut())
+        .collect();
+    crate::parallel::map(columns, |column| {
         // A column's rows, sample by sample and joint by joint, are a `samples × dof` signal.
-        let filtered = filter_columns(filter, w.col_as_slice(c), dof, periodic).expect("long enough: the torque was");
-        w.col_as_slice_mut(c).copy_from_slice(&filtered);
-    }
+        let filtered = filter_columns(filter, column, dof, periodic).expect("long enough: the torque was");
+        column.copy_from_slice(&filtered);
+    });
 }
 
 /// The regressor's `columns` (standard-parameter indices) at the samples `rows` of `data`, one
