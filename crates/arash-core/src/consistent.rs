@@ -26,7 +26,7 @@ use crate::model::Model;
 use crate::physical::{min_pseudo_inertia_eigenvalues, onto_consistent, parameter_scales};
 use crate::signal::options::{positive, SettingError};
 
-/// Settings for [`identify_consistent`](identify_consistent): the physically
+/// Settings for [`identify_consistent`]: the physically
 /// consistent fit's semidefinite problem.
 #[derive(Clone, Debug)]
 pub struct ConsistentOptions {
