@@ -26,8 +26,7 @@ use crate::model::Model;
 use crate::physical::{min_pseudo_inertia_eigenvalues, onto_consistent, parameter_scales};
 use crate::signal::options::{positive, SettingError};
 
-/// Settings for [`identify_consistent`]: the physically
-/// consistent fit's semidefinite problem.
+/// Settings for [`identify_consistent`]: the physically consistent fit's semidefinite problem.
 #[derive(Clone, Debug)]
 pub struct ConsistentOptions {
     /// Strength of the pull toward CAD, relative to the data (0 disables it).

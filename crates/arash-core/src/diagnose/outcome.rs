@@ -22,7 +22,7 @@ impl Source {
     /// `given`: the given model file's fingerprint, if it has one.
     pub(super) fn of(log: &Log, given: Option<&str>) -> Self {
         let fingerprint = log.fingerprint();
-        let fitted_the_given = given.is_some_and(|stored| stored == fingerprint || log.has_fingerprint(stored));
+        let fitted_the_given = given.is_some_and(|stored| log.has_fingerprint(stored, &fingerprint));
         Self { samples_in: log.t.len(), fingerprint, fitted_the_given }
     }
 }

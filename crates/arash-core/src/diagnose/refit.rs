@@ -10,14 +10,13 @@
 //! it at its own band, where the term is resolved; at a calibration's narrow cut-off it is
 //! nearly collinear with the declared friction, and unbounded the two traded freely.
 
-use crate::consistent::ConsistentOptions;
 use faer::Mat;
 
 use super::band::Band;
 use super::options::{DiagnoseError, DiagnoseOptions, REFIT_SIGMAS};
 use super::prepare::{full_columns, prepare, term_columns};
 use crate::base_parameters::BaseParameters;
-use crate::consistent::{identify_consistent_bounded, ExtraBound};
+use crate::consistent::{identify_consistent_bounded, ConsistentOptions, ExtraBound};
 use crate::effects::{EffectKind, EffectTerm};
 use crate::model::Model;
 use crate::model_file::{IdentifyMethod, ModelFile};

@@ -24,12 +24,11 @@
 //! settled `Z`, on the instrumented regressor `P_Z W` for IV (two-stage least squares: with as
 //! many instruments as parameters it is the IV estimate) and on `Z` itself for DIDIM.
 
-use crate::consistent::ConsistentOptions;
 use crate::signal::options::PreprocessOptions;
 use faer::Mat;
 
 use crate::base_parameters::BaseParameters;
-use crate::consistent::identify_consistent;
+use crate::consistent::{identify_consistent, ConsistentOptions};
 use crate::control::Desired;
 use crate::data::Data;
 use crate::dense;

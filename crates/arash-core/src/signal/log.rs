@@ -36,12 +36,13 @@ impl Log<'_> {
         format!("{FINGERPRINT_PREFIX}{:016x}", hasher.digest())
     }
 
-    /// Whether `stored`, a model file's fingerprint, is this log's: today's, or the FNV-1a (64
-    /// bits, byte by byte, no prefix) of files written before 2026-12-06, which is 15 times
-    /// slower and so only computed for such a file.
-    pub fn has_fingerprint(&self, stored: &str) -> bool {
+    /// Whether `stored`, a model file's fingerprint, is this log's, given `own`, what
+    /// [`Self::fingerprint`] gave for it (a caller keeps it for the file it writes): today's
+    /// hash, or the FNV-1a (64 bits, byte by byte, no prefix) of files written before
+    /// 2026-12-06, which is 15 times slower and so only computed for such a file.
+    pub fn has_fingerprint(&self, stored: &str, own: &str) -> bool {
         match stored.starts_with(FINGERPRINT_PREFIX) {
-            true => self.fingerprint() == stored,
+            true => stored == own,
             false => self.fnv1a() == stored,
         }
     }
@@ -80,10 +81,11 @@ mod tests {
         let expected = format!("xxh3:{:016x}", xxhash_rust::xxh3::xxh3_64(&bytes));
         let log = log_of(&t, &q, &tau);
         assert_eq!(log.fingerprint(), expected);
-        assert!(log.has_fingerprint(&expected));
+        assert!(log.has_fingerprint(&expected, &log.fingerprint()));
         let mut other = tau.clone();
         other[1499] = f64::from_bits(other[1499].to_bits() ^ 1);
-        assert!(!log_of(&t, &q, &other).has_fingerprint(&expected), "one bit of one torque changes it");
+        let changed = log_of(&t, &q, &other);
+        assert!(!changed.has_fingerprint(&expected, &changed.fingerprint()), "one bit of one torque changes it");
     }
 
     /// A file written before 2026-12-06 keeps FNV-1a: its log is still recognised, and another
@@ -97,8 +99,9 @@ mod tests {
         let log = log_of(&t, &q, &tau);
         let bytes = [&t[..], &q, &tau].into_iter().flatten().flat_map(|v| v.to_le_bytes());
         let legacy = format!("{:016x}", bytes.fold(OFFSET, |h, b| (h ^ u64::from(b)).wrapping_mul(PRIME)));
-        assert!(log.has_fingerprint(&legacy));
-        assert!(!log_of(&t, &q, &[1.0, -2.5]).has_fingerprint(&legacy));
+        assert!(log.has_fingerprint(&legacy, &log.fingerprint()));
+        let other = log_of(&t, &q, &[1.0, -2.5]);
+        assert!(!other.has_fingerprint(&legacy, &other.fingerprint()));
         assert!(!log.fingerprint().ends_with(&legacy), "today's hash is not FNV-1a");
     }
 }

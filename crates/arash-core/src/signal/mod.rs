@@ -4,11 +4,12 @@
 //! - Always (the daemon's flight log reads with them too): an encoder's step, resampling onto a
 //!   uniform grid, and the batch-means error held-out comparisons are read with (`statistics`).
 //! - With `identification`: the zero-phase Butterworth (`filter`), the conditioning built on it
-//!   (period averaging, central differences, filtered columns), the preprocessing's settings (`options`), the log and the declared
-//!   robot (`log`), the period, bandwidth and cut-off rule (`data_choices`), the friction
-//!   velocity (`friction`), a log's repair and resting samples, the pipeline (`preprocess`), the
-//!   least squares every choice is judged by and its metrics (`estimate`), each joint's Coulomb
-//!   law (`friction_law`) and the cut-off chosen by held-out fit (`cutoff`).
+//!   (period averaging, central differences, filtered columns), the preprocessing's settings
+//!   (`options`), the log and the declared robot (`log`), the period, bandwidth and cut-off rule
+//!   (`data_choices`), the friction velocity (`friction`), a log's repair and resting samples,
+//!   the pipeline (`preprocess`), the least squares every choice is judged by and its metrics
+//!   (`estimate`), each joint's Coulomb law (`friction_law`) and the cut-off chosen by held-out
+//!   fit (`cutoff`).
 
 pub mod encoder;
 pub mod resample;
