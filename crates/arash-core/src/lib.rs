@@ -23,6 +23,7 @@ pub mod flightlog;
 pub mod force;
 #[cfg(feature = "identification")]
 pub mod force_log;
+pub mod haptics;
 #[cfg(feature = "identification")]
 pub mod identify;
 pub mod kinematics;

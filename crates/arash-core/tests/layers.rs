@@ -32,6 +32,7 @@ const CORE: &[&str] = &[
     "record",
     "model_file",
     "force",
+    "haptics",
     "signal",
     "consistent",
     "identify",
@@ -45,6 +46,7 @@ const CORE: &[&str] = &[
 const FOLDERS: &[(&str, &[&str])] = &[
     ("control", &["gains", "safety", "fourier", "trajectory", "estimator", "feedforward", "laws", "logged"]),
     ("force", &["thresholds", "settings", "frame_force", "observer"]),
+    ("haptics", &["fixtures", "geometry", "passivity", "render"]),
     (
         "signal",
         &[
@@ -100,7 +102,7 @@ const DAEMON: &[&str] = &["exit", "link", "drive_config", "ctl", "rt", "live", "
 /// The files of arash-daemon's folder modules, leaf first.
 const DAEMON_FOLDERS: &[(&str, &[&str])] = &[
     ("link", &["frame", "serial", "can", "slcan", "canopen", "cia402", "drive_setup", "master"]),
-    ("rt", &["clock", "memory", "reference", "force", "cycle", "runner"]),
+    ("rt", &["clock", "memory", "reference", "force", "haptic", "cycle", "runner"]),
     ("live", &["window", "scene", "server"]),
     ("daemon", &["startup", "model_helper", "requests", "server"]),
 ];

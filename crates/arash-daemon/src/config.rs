@@ -29,6 +29,7 @@ pub struct DaemonConfig {
     pub socket: SocketConfig,
     pub live: LiveConfig,
     pub force: crate::rt::force::ForceConfig,
+    pub haptic: crate::rt::haptic::HapticConfig,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
@@ -240,6 +241,7 @@ impl DaemonConfig {
         self.safety_limits(model)?.validate(dof)?;
         self.following_error(model)?;
         self.force.validate(model).map_err(ConfigError::Force)?;
+        self.haptic.validate().map_err(ConfigError::Haptic)?;
         Ok(())
     }
 
@@ -360,6 +362,8 @@ pub enum ConfigError {
     Length { key: &'static str, got: usize, dof: usize },
     #[error("{0}")]
     Force(String),
+    #[error("{0}")]
+    Haptic(String),
     #[error("safety.following_error must be {dof} positive numbers, not {got:?}")]
     FollowingError { dof: usize, got: Vec<f64> },
 }

@@ -45,6 +45,16 @@ pub enum CtlRequest {
         #[serde(default)]
         model: Option<String>,
     },
+    /// Let the trainee move the instrument: the model's compensation and, with a file, its
+    /// virtual fixtures (docs/haptics.md). Only from hold with the motors enabled; `hold` and
+    /// `run` leave it.
+    Haptic {
+        /// Fixture file (TOML: depth walls, cones, viscous fields, springs); none: free space.
+        /// The daemon gets its absolute path.
+        #[arg(long)]
+        #[serde(default)]
+        fixtures: Option<String>,
+    },
 }
 
 impl CtlRequest {
@@ -62,6 +72,9 @@ impl CtlRequest {
             },
             CtlRequest::Controller { kind, model } => {
                 CtlRequest::Controller { kind, model: model.map(|m| absolute("model file", &m)).transpose()? }
+            }
+            CtlRequest::Haptic { fixtures } => {
+                CtlRequest::Haptic { fixtures: fixtures.map(|f| absolute("fixture file", &f)).transpose()? }
             }
             other => other,
         })

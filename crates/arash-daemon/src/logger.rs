@@ -262,6 +262,13 @@ impl Logger {
             Event::ContactStarted => "contact: the hand's force estimate crossed the contact threshold".into(),
             Event::ContactEnded => "contact ended".into(),
             Event::RunRefused => "run refused: a collision is latched (reset it first)".into(),
+            Event::HapticStarted => "haptic mode: the hand moves the instrument under the rendered fixtures".into(),
+            Event::HapticEnded => "haptic mode ended".into(),
+            Event::HapticRefused => {
+                "haptic mode refused: enable the motors and hold first, with the force observer on and no collision \
+                 latched"
+                    .into()
+            }
         };
         self.write_event(cycle, t, &description)?;
         match event {

@@ -10,7 +10,7 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Duration;
 
-use arash_core::control::{standard_controller, ControllerKind, RobustGains, Trajectory};
+use arash_core::control::{standard_controller, ControllerKind, Faults, RobustGains, Trajectory};
 use arash_core::sim::Scenario;
 use arash_daemon::config::DaemonConfig;
 use arash_daemon::drive_config::DriveConfig;
@@ -25,7 +25,7 @@ use counting::{allocations, watch_this_thread, Counting};
 static ALLOCATOR: Counting = Counting;
 
 #[test]
-fn ten_thousand_control_cycles_allocate_nothing() {
+fn thirteen_thousand_control_cycles_of_a_run_and_the_haptic_mode_allocate_nothing() {
     let model = arash_core::arash_asist();
     let cfg = DaemonConfig::default().cycle_config(&model).unwrap();
     let controller = standard_controller(
@@ -45,7 +45,9 @@ fn ten_thousand_control_cycles_allocate_nothing() {
     assert_eq!(setup.frame.as_deref(), Some("instrument_tip"));
     let cycle =
         ControlCycle::new(cfg, controller).with_force(setup.build(&model, &model.cad_parameters(), &[]).unwrap());
-    let motor = MockMotor::new(&model, &Scenario::default(), DriveConfig::default(), FaultPlan::default()).unwrap();
+    // The rig is the CAD model, so that the haptic mode's compensation holds the arm with no hand
+    // on it (a perturbed rig drifts into its position limits meanwhile, as it should).
+    let motor = MockMotor::new(&model, &cad_rig(&model), DriveConfig::default(), FaultPlan::default()).unwrap();
     let mut link = InProcessLink::new(motor);
 
     let (mut requests, request_rx) = rtrb::RingBuffer::new(8);
@@ -54,6 +56,29 @@ fn ten_thousand_control_cycles_allocate_nothing() {
     let shared = Arc::new(Shared::default());
     let run_request =
         Box::new(RunRequest { id: 1, trajectory: Trajectory::PaperValidation { omega: 0.9 }, duration_s: 5.0 });
+    // Then the haptic mode, every fixture engaged wherever the run leaves the arm (a wall behind
+    // the remote centre, a cone narrower than any pose, a field and a spring), each with the
+    // least stiffness, since with no hand on it a fixture moves a transparent arm to its limits.
+    let fixtures = arash_core::haptics::Fixtures {
+        wall: vec![arash_core::haptics::DepthWall { depth_m: -0.02, stiffness: 1e-6, damping: 0.0 }],
+        cone: vec![arash_core::haptics::Cone {
+            axis: [1.0, 0.0, 0.0],
+            half_angle_deg: 1.0,
+            stiffness: 1e-9,
+            damping: 0.0,
+        }],
+        viscous: vec![arash_core::haptics::ViscousField { damping: 1e-6 }],
+        spring: vec![arash_core::haptics::Spring { point: [0.0, 0.0, 0.0], stiffness: 1e-6, damping: 0.0 }],
+        ..Default::default()
+    };
+    let haptic = arash_daemon::rt::haptic::HapticMode::build(
+        &model,
+        &model.cad_parameters(),
+        &Default::default(),
+        &fixtures,
+        1e-3,
+    )
+    .unwrap();
     let thread_shared = shared.clone();
     let control = std::thread::spawn(move || {
         let queues = Queues { requests: request_rx, garbage: garbage_tx, log: log_tx };
@@ -73,12 +98,31 @@ fn ten_thousand_control_cycles_allocate_nothing() {
     wait_for(200, &mut log_rx);
     requests.push(Request::Run(run_request)).ok().unwrap();
     wait_for(10_200, &mut log_rx);
+    // Held to rest first: a transparent arm let go while it moves coasts into its limits.
+    requests.push(Request::Hold).ok().unwrap();
+    wait_for(11_200, &mut log_rx);
+    requests.push(Request::Haptic(Box::new(haptic))).ok().unwrap();
+    wait_for(13_200, &mut log_rx);
+    let haptic_phase = shared.phase.load(Ordering::Relaxed);
+    let faults = Faults(shared.faults.load(Ordering::Relaxed));
     let during = allocations() - before;
-    let faults = shared.faults.load(Ordering::Relaxed);
     shared.stop.store(true, Ordering::Release);
     control.join().unwrap();
+    assert!(faults.is_empty(), "the run and the haptic mode went without faults: {:?}", faults.names());
     assert_eq!(shared.mode.load(Ordering::Relaxed), 0, "disabled after stopping");
     assert!(shared.run_id.load(Ordering::Relaxed) == 1 || shared.last_run_ended.load(Ordering::Relaxed) == 1);
-    assert_eq!(faults, 0, "the run went without faults");
-    assert_eq!(during, 0, "{during} allocations in 10^4 control cycles");
+    assert_eq!(haptic_phase, 3, "the haptic mode was on");
+    assert_eq!(during, 0, "{during} allocations in 1.3·10^4 control cycles");
+}
+
+/// A simulated rig whose truth is the CAD model: its parameters, friction and cable stiffness.
+fn cad_rig(model: &arash_core::Model) -> Scenario {
+    let (params, layout) = (model.cad_parameters(), model.layout());
+    let mut scenario = Scenario::default();
+    let truth = &mut scenario.truth;
+    truth.perturbation = 0.0;
+    truth.viscous = (0..3).map(|k| params[layout.viscous(k)]).collect();
+    truth.coulomb = (0..3).map(|k| params[layout.coulomb(k)]).collect();
+    truth.stiffness = (0..3).map(|k| params[layout.stiffness(k)]).collect();
+    scenario
 }

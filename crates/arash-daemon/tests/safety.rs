@@ -843,3 +843,79 @@ fn a_model_switched_at_run_time_moves_the_force_observer_to_it() {
     bare.steps(10);
     assert!(bare.cycle.record().tau_ext.is_empty(), "no observer fields in a cycle that runs none");
 }
+
+/// The haptic mode: refused unless enabled and holding; once on, the command is the model's
+/// compensation (the viscous friction's share left out) plus the fixtures' torque, reached through
+/// the gate's rate limit; hold leaves it with no step larger than that limit, and a fault ends
+/// it. A fixture file with a NaN or a stiffness over the passivity bound is refused before
+/// anything is queued.
+#[test]
+fn the_haptic_mode_renders_its_wall_over_the_compensation_and_leaves_it_within_the_rate_limit() {
+    use arash_core::haptics::{DepthWall, FixtureRenderer, Fixtures};
+    use arash_daemon::rt::cycle::Garbage;
+    use arash_daemon::rt::force::{ForceConfig, ForceSetup};
+    use arash_daemon::rt::haptic::{parse_fixtures, HapticConfig, HapticMode};
+    let (model, params, gravity) = held_by_cad_gravity();
+    let cfg = config(|_| {});
+    let step_limit: Vec<f64> = cfg.limits.torque_rate.iter().map(|r| r * cfg.dt).collect();
+    let setup = ForceSetup::resolve(&model, &ForceConfig::default(), None, 1000.0).unwrap();
+    let mut rig = Rig::new(gravity, |_| {});
+    rig.cycle = ControlCycle::new(cfg, Box::new(Constant(gravity.to_vec())))
+        .with_force(setup.build(&model, &params, &[]).unwrap());
+    // A wall 5 mm short of where the tip rests at q = 0, at a tenth of its bound.
+    let wall =
+        Fixtures { wall: vec![DepthWall { depth_m: -0.005, stiffness: 100.0, damping: 0.0 }], ..Default::default() };
+    let haptic = || Box::new(HapticMode::build(&model, &params, &HapticConfig::default(), &wall, 1e-3).unwrap());
+    rig.step();
+    assert!(matches!(rig.cycle.request(Request::Haptic(haptic())), Some(Garbage::Haptic(_))));
+    assert_eq!(rig.step(), vec![Event::HapticRefused], "refused while disabled");
+    rig.enable();
+    rig.steps(50);
+    assert!(rig.cycle.request(Request::Haptic(haptic())).is_none());
+    assert_eq!(rig.step(), vec![Event::HapticStarted]);
+    let mut expected = gravity;
+    FixtureRenderer::new(&model, &wall).unwrap().add_torque(&[0.0; 3], &[0.0; 3], &mut expected).unwrap();
+    assert!((expected[2] - gravity[2]).abs() > 0.4, "the wall pushes 0.5 N: {expected:?} against {gravity:?}");
+    let mut last = gravity;
+    for _ in 0..200 {
+        rig.step();
+        let sent = rig.sent_torque();
+        for k in 0..3 {
+            assert!((sent[k] - last[k]).abs() <= step_limit[k] * (1.0 + 1e-6), "joint {k}: {last:?} → {sent:?}");
+        }
+        last = sent;
+    }
+    assert!((0..3).all(|k| (last[k] - expected[k]).abs() < 1e-5), "{last:?} against {expected:?}");
+    // Hold leaves the mode; the command walks back to the law's within the rate limit.
+    assert!(matches!(rig.cycle.request(Request::Hold), Some(Garbage::Haptic(_))));
+    assert_eq!(rig.step(), vec![Event::HapticEnded]);
+    for _ in 0..200 {
+        rig.step();
+        let sent = rig.sent_torque();
+        for k in 0..3 {
+            assert!((sent[k] - last[k]).abs() <= step_limit[k] * (1.0 + 1e-6), "joint {k}: {last:?} → {sent:?}");
+        }
+        last = sent;
+    }
+    assert!((0..3).all(|k| (last[k] - gravity[k]).abs() < 1e-5), "{last:?} against {gravity:?}");
+    // A fault ends the mode, and the mode goes off the real-time thread.
+    assert!(rig.cycle.request(Request::Haptic(haptic())).is_none());
+    rig.step();
+    rig.link.deliver = false;
+    let mut events = Vec::new();
+    for _ in 0..100 {
+        events.extend(rig.step());
+    }
+    assert!(events.contains(&Event::HapticEnded), "{events:?}");
+    assert_eq!(rig.cycle.mode(), Mode::Faulted);
+    assert!(matches!(rig.cycle.take_garbage(), Some(Garbage::Haptic(_))));
+    // Files refused by name: a NaN, an unknown field, a stiffness over the bound (2 N·s/m over
+    // T/2 plus one period's latency: 1333 N/m).
+    let nan = parse_fixtures("[[wall]]\ndepth_m = 0.01\nstiffness = nan\ndamping = 0.0\n").unwrap_err();
+    assert!(nan.contains("wall[0].stiffness = NaN"), "{nan}");
+    let typo = parse_fixtures("[[wall]]\ndepth_m = 0.01\nstifness = 10.0\ndamping = 0.0\n").unwrap_err();
+    assert!(typo.contains("stifness"), "{typo}");
+    let stiff = parse_fixtures("[[wall]]\ndepth_m = 0.01\nstiffness = 1400.0\ndamping = 0.0\n").unwrap();
+    let over = HapticMode::build(&model, &params, &HapticConfig::default(), &stiff, 1e-3).err().unwrap();
+    assert!(over.contains("wall[0].stiffness = 1400 N/m is above the passivity bound 1333.3333 N/m"), "{over}");
+}

@@ -22,6 +22,7 @@ use super::model_helper;
 use super::startup::{build_controller, read_file, ResolvedModel, MAX_INPUT_FILE_BYTES};
 use crate::rt::cycle::Request;
 use crate::rt::force::{ForceMonitor, ForceSetup};
+use crate::rt::haptic::{parse_fixtures, HapticConfig, HapticMode};
 use crate::rt::reference::RunRequest;
 use crate::rt::runner::Shared;
 
@@ -53,6 +54,10 @@ pub(super) struct Operator {
     /// switch to a model file (None: `force.enabled = false`).
     pub(super) force_config: crate::rt::force::ForceConfig,
     pub(super) force: Mutex<Option<crate::rt::force::ForceSetup>>,
+    /// `[haptic]`, and the parameters of the model the cycle compensates with (the start's, or
+    /// the last switch's): the haptic mode's damping left comes from them.
+    pub(super) haptic_config: HapticConfig,
+    pub(super) params: Mutex<Vec<f64>>,
 }
 
 /// Queue `request` for the control thread; the ticket it returns is what [`applied`] waits for.
@@ -170,9 +175,44 @@ pub(super) async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::
             if let Some(setup) = setup {
                 *operator.force.lock().expect("force lock") = Some(setup);
             }
+            if let Some(r) = &resolved {
+                r.params.clone_into(&mut operator.params.lock().expect("params lock"));
+            }
             Ok(status(operator))
         }
+        CtlRequest::Haptic { fixtures } => haptic(operator, fixtures.as_deref()).await,
     }
+}
+
+/// Enter the haptic mode with the fixtures of file `path` (none: free space), checked against the
+/// passivity bound of the loop on the model in use before anything is queued.
+async fn haptic(operator: &Operator, path: Option<&str>) -> anyhow::Result<serde_json::Value> {
+    let mode = Mode::from_code(operator.shared.mode.load(Ordering::Relaxed));
+    anyhow::ensure!(mode == Some(Mode::Enabled), "enable the motors before the haptic mode");
+    anyhow::ensure!(
+        operator.force.lock().expect("force lock").is_some(),
+        "the haptic mode compensates the model through the hand's force observer, and [force] is off"
+    );
+    let fixtures = match path {
+        Some(p) => {
+            let text = read_file(std::path::Path::new(p), MAX_INPUT_FILE_BYTES).context("reading the fixture file")?;
+            parse_fixtures(&text).map_err(|e| anyhow::anyhow!("{p}: {e}"))?
+        }
+        None => Default::default(),
+    };
+    let params = operator.params.lock().expect("params lock").clone();
+    let built = HapticMode::build(&operator.model, &params, &operator.haptic_config, &fixtures, operator.dt)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.unwrap_or("the haptic mode")))?;
+    let passivity = serde_json::to_value(&built.passivity)?;
+    applied(operator, send(operator, Request::Haptic(Box::new(built)))?).await?;
+    let phase = operator.shared.phase.load(Ordering::Relaxed);
+    anyhow::ensure!(
+        phase == 3,
+        "the haptic mode was refused: it starts from hold (`arash ctl hold` ends a run), with no collision latched"
+    );
+    let mut answer = status(operator);
+    answer["haptic"] = serde_json::json!({ "fixtures": path, "passivity": passivity });
+    Ok(answer)
 }
 
 /// The hand's force observer on a model switched to at run time, set up as at start-up from the
@@ -221,7 +261,7 @@ pub(super) fn status(operator: &Operator) -> serde_json::Value {
     let faults = Faults(s.faults.load(Ordering::Relaxed));
     let q: Vec<f64> = s.q[..operator.model.dof()].iter().map(|a| f64::from_bits(a.load(Ordering::Relaxed))).collect();
     let runs = operator.runs.lock().expect("registry lock").clone();
-    let phase = ["hold", "approach", "run"][s.phase.load(Ordering::Relaxed).min(2) as usize];
+    let phase = ["hold", "approach", "run", "haptic"][s.phase.load(Ordering::Relaxed).min(3) as usize];
     let level = ["free", "contact", "collision"][s.force_level.load(Ordering::Relaxed).min(2) as usize];
     serde_json::json!({
         "cycle": load(&s.cycle),

@@ -44,12 +44,18 @@
 //!   is abandoned and the joints float under the model's gravity and friction compensation,
 //!   the drive still enabled, so that whatever the instrument hit is not pushed further and a
 //!   hand can move the arm away. New runs and enabling are refused until
-//!   [`Request::ResetFault`], which holds the arm where it is. Contacts are events.
+//!   [`Request::ResetFault`], which holds the arm where it is. Contacts are events;
+//! - **haptic mode** ([`Request::Haptic`]): only from hold, enabled, with the force observer (its
+//!   compensation is the mode's) and no collision latched. The reference follows the arm, so
+//!   there is no following error, and every other rule holds: the gate's limits and rate limit,
+//!   the faults. A fixture that renders a non-number latches `NON_FINITE_COMMAND`. Hold, a run,
+//!   disabling and any fault leave the mode; the gate's rate limit bounds the step in torque.
 
 use arash_core::control::{Controller, Desired, Faults, SafetyGate, SafetyLimits, VelocityEstimator};
 use arash_core::record::{CycleRecord, Mode};
 
 use super::force::ForceMonitor;
+use super::haptic::HapticMode;
 use super::reference::{Phase, PhaseChange, Reference, RunRequest};
 use crate::drive_config::DriveConfig;
 use crate::link::frame::status;
@@ -95,12 +101,15 @@ pub enum Request {
     /// off the real-time thread with the daemon's `[force]` settings; ignored, and handed back,
     /// when the daemon runs no observer).
     Controller(Box<dyn Controller>, Option<Box<ForceMonitor>>),
+    /// Enter the haptic mode with these fixtures (built and checked off the real-time thread).
+    Haptic(Box<HapticMode>),
 }
 
 /// Something that came back from the cycle and must be dropped off the real-time thread.
 pub enum Garbage {
     Run(Box<RunRequest>),
     Controller(Box<dyn Controller>, Option<Box<ForceMonitor>>),
+    Haptic(Box<HapticMode>),
 }
 
 /// A notable change in one cycle, for the event log.
@@ -121,6 +130,11 @@ pub enum Event {
     ContactEnded,
     /// A run was refused: a collision is latched.
     RunRefused,
+    HapticStarted,
+    HapticEnded,
+    /// The haptic mode was refused: not enabled, not holding, no force observer, or a collision
+    /// latched.
+    HapticRefused,
 }
 
 pub struct ControlCycle {
@@ -170,6 +184,9 @@ pub struct ControlCycle {
     telemetry_dt: f64,
     /// A run a collision stopped, for dropping off the real-time thread.
     stopped: Option<Box<RunRequest>>,
+    /// The haptic mode, while it is on, and one a fault ended, for dropping.
+    haptic: Option<Box<HapticMode>>,
+    left_haptic: Option<Box<HapticMode>>,
 }
 
 impl ControlCycle {
@@ -215,6 +232,8 @@ impl ControlCycle {
             floating: false,
             telemetry_dt: 0.0,
             stopped: None,
+            haptic: None,
+            left_haptic: None,
         }
     }
 
@@ -230,9 +249,25 @@ impl ControlCycle {
         self.level
     }
 
-    /// A run the cycle stopped by itself (a collision), to drop off the real-time thread.
+    /// A run or a haptic mode the cycle stopped by itself (a collision, a fault), to drop off
+    /// the real-time thread.
     pub fn take_garbage(&mut self) -> Option<Garbage> {
-        self.stopped.take().map(Garbage::Run)
+        match self.stopped.take() {
+            Some(run) => Some(Garbage::Run(run)),
+            None => self.left_haptic.take().map(Garbage::Haptic),
+        }
+    }
+
+    /// Whether the haptic mode is on.
+    pub fn haptic(&self) -> bool {
+        self.haptic.is_some()
+    }
+
+    /// Leave the haptic mode, if it is on; it comes back for dropping.
+    fn leave_haptic(&mut self) -> Option<Garbage> {
+        let left = self.haptic.take()?;
+        self.event(Event::HapticEnded);
+        Some(Garbage::Haptic(left))
     }
 
     pub fn mode(&self) -> Mode {
@@ -334,7 +369,7 @@ impl ControlCycle {
                     self.mode = Mode::Disabled;
                     self.event(Event::Disabled);
                 }
-                None
+                self.leave_haptic()
             }
             Request::ResetFault => {
                 if self.collision {
@@ -361,7 +396,8 @@ impl ControlCycle {
             Request::Hold => {
                 self.floating = false;
                 let q = fixed(&self.record.q_des);
-                self.reference.hold_at(&q[..self.dof]).map(Garbage::Run)
+                let run = self.reference.hold_at(&q[..self.dof]).map(Garbage::Run);
+                run.or_else(|| self.leave_haptic())
             }
             Request::Run(run) if self.collision => {
                 self.event(Event::RunRefused);
@@ -370,7 +406,19 @@ impl ControlCycle {
             Request::Run(run) => {
                 let q = fixed(&self.record.q_des);
                 let t = self.time();
-                self.reference.start(t, &q[..self.dof], run).map(Garbage::Run)
+                let old = self.reference.start(t, &q[..self.dof], run).map(Garbage::Run);
+                old.or_else(|| self.leave_haptic())
+            }
+            Request::Haptic(mode) => {
+                let holding = self.reference.phase() == Phase::Hold && !self.floating;
+                if self.mode != Mode::Enabled || !holding || self.collision || self.force.is_none() {
+                    self.event(Event::HapticRefused);
+                    return Some(Garbage::Haptic(mode));
+                }
+                if self.haptic.is_none() {
+                    self.event(Event::HapticStarted);
+                }
+                self.haptic.replace(mode).map(Garbage::Haptic)
             }
             Request::Controller(mut c, monitor) => {
                 c.reset();
@@ -426,12 +474,16 @@ impl ControlCycle {
             r.tau_cmd[..self.dof].copy_from_slice(&self.last_sent[..self.dof]);
         } else if let (true, Some(force)) = (self.floating, &self.force) {
             force.compensation(&mut r.tau_cmd);
+        } else if let (Some(haptic), Some(force)) = (self.haptic.as_mut(), &self.force) {
+            if haptic.command(force, &r.q, &r.qd, &mut r.tau_cmd).is_err() {
+                self.gate.latch(Faults::NON_FINITE_COMMAND);
+            }
         } else {
             self.controller.step(self.cfg.dt, q, qd, &desired, &mut r.tau_cmd);
         }
         if self.mode == Mode::Enabled {
             self.check_link();
-            if !self.floating {
+            if !self.floating && self.haptic.is_none() {
                 self.check_following();
             }
             if fresh && self.enable_confirmed {
@@ -470,9 +522,10 @@ impl ControlCycle {
                 self.event(Event::RunEnded(id));
             }
         }
-        if self.floating {
-            // The reference follows the floating arm: no following error, and a reset holds it
-            // where it is. The run a collision stopped goes off the real-time thread.
+        if self.floating || self.haptic.is_some() {
+            // The reference follows the floating or hand-moved arm: no following error, and hold
+            // or a reset holds it where it is. The run a collision stopped goes off the
+            // real-time thread.
             let q = fixed(&self.record.q);
             if let Some(run) = self.reference.hold_at(&q[..self.dof]) {
                 self.stopped = Some(run);
@@ -620,6 +673,9 @@ impl ControlCycle {
         let was_enabled = self.mode == Mode::Enabled;
         self.mode = Mode::Faulted;
         self.event(Event::FaultLatched(faults));
+        if let Some(Garbage::Haptic(left)) = self.leave_haptic() {
+            self.left_haptic = Some(left);
+        }
         if was_enabled && faults.contains(Faults::LINK_TIMEOUT) {
             // The drive may still hear us: bring the torque down gently rather than at once.
             self.ramp_from = self.last_sent;

@@ -241,6 +241,12 @@ impl ForceMonitor {
     pub fn compensation(&self, out: &mut [f64]) {
         self.observer.compensation(out);
     }
+
+    /// The same with only the share `viscous` of the viscous friction compensated (the haptic
+    /// mode's).
+    pub fn compensation_leaving(&self, viscous: f64, out: &mut [f64]) {
+        self.observer.compensation_leaving(viscous, out);
+    }
 }
 
 #[cfg(test)]

@@ -289,6 +289,7 @@ fn publish(shared: &Shared, cycle: &ControlCycle, stats: &LinkStats) {
     shared.controller.store(r.controller as u32, Ordering::Relaxed);
     shared.phase.store(
         match cycle.phase() {
+            Phase::Hold if cycle.haptic() => 3,
             Phase::Hold => 0,
             Phase::Approach => 1,
             Phase::Run => 2,

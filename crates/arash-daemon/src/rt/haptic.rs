@@ -1,0 +1,96 @@
+//! The haptic mode in the cycle (docs/haptics.md): the trainee moves the instrument, and the
+//! cycle commands the model's compensation (gravity, friction with a smooth law at rest, the
+//! cables, the effects found) with a share of the viscous friction left to damp the rendered
+//! fixtures, plus the fixtures' torque. Built off the real-time thread; a step never allocates.
+
+use arash_core::haptics::{check_passivity, FixtureRenderer, Fixtures, Passivity, RenderError, RenderLoop, Rendered};
+use arash_core::Model;
+
+use super::force::ForceMonitor;
+
+/// `[haptic]` in the daemon's configuration.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct HapticConfig {
+    /// The share of each joint's identified viscous friction the mode compensates, in [0, 1).
+    /// What it leaves is the physical damping that lets a wall be rendered passively: at 0 the
+    /// hand feels the viscous friction (on ARASH:ASiST's CAD model 2 N·s/m along the insertion,
+    /// 0.02 N at a surgeon's 10 mm/s) and the stiffest walls are allowed.
+    pub viscous_compensation: f64,
+    /// How long after its measurement a command acts, beyond the hold's half period (ms).
+    /// Default: one period, since the drive's telemetry answers the previous command.
+    pub latency_ms: Option<f64>,
+}
+
+impl Default for HapticConfig {
+    fn default() -> Self {
+        Self { viscous_compensation: 0.0, latency_ms: None }
+    }
+}
+
+impl HapticConfig {
+    pub fn validate(&self) -> Result<(), String> {
+        if !(0.0..1.0).contains(&self.viscous_compensation) {
+            return Err(format!(
+                "haptic.viscous_compensation must be in [0, 1), not {}: what is left damps the fixtures",
+                self.viscous_compensation
+            ));
+        }
+        if let Some(l) = self.latency_ms.filter(|l| !(l.is_finite() && *l >= 0.0)) {
+            return Err(format!("haptic.latency_ms must be finite and at least 0, not {l}"));
+        }
+        Ok(())
+    }
+
+    /// The loop that renders the fixtures at `period_s` on a model with parameters `params`.
+    pub fn render_loop(&self, model: &Model, params: &[f64], period_s: f64) -> Result<RenderLoop, String> {
+        let latency_s = self.latency_ms.map_or(period_s, |l| 1e-3 * l);
+        RenderLoop::of_model(model, params, self.viscous_compensation, period_s, latency_s).map_err(|e| e.to_string())
+    }
+}
+
+/// A fixture file as read: TOML, its fields checked by name.
+pub fn parse_fixtures(text: &str) -> Result<Fixtures, String> {
+    let fixtures: Fixtures = toml::from_str(text).map_err(|e| e.to_string())?;
+    fixtures.validate().map_err(|e| e.to_string())?;
+    Ok(fixtures)
+}
+
+/// The mode as the cycle runs it.
+pub struct HapticMode {
+    renderer: FixtureRenderer,
+    viscous: f64,
+    /// What the passivity check found, for `ctl status`.
+    pub passivity: Passivity,
+}
+
+impl HapticMode {
+    /// The mode rendering `fixtures` on `model` with parameters `params` at `period_s`: refused
+    /// where the loop cannot render them passively, with the bound in the message.
+    pub fn build(
+        model: &Model,
+        params: &[f64],
+        config: &HapticConfig,
+        fixtures: &Fixtures,
+        period_s: f64,
+    ) -> Result<Self, String> {
+        config.validate()?;
+        let looped = config.render_loop(model, params, period_s)?;
+        let passivity = check_passivity(model, fixtures, &looped).map_err(|e| e.to_string())?;
+        let renderer = FixtureRenderer::new(model, fixtures).map_err(|e| e.to_string())?;
+        Ok(Self { renderer, viscous: config.viscous_compensation, passivity })
+    }
+
+    /// This cycle's command at state `q`, `qd`: `force`'s compensation at its last sample, the
+    /// viscous share left out, and the fixtures' torque.
+    pub fn command(
+        &mut self,
+        force: &ForceMonitor,
+        q: &[f64],
+        qd: &[f64],
+        tau: &mut [f64],
+    ) -> Result<Rendered, RenderError> {
+        force.compensation_leaving(self.viscous, tau);
+        self.renderer.add_torque(q, qd, tau)
+    }
+}
