@@ -43,9 +43,15 @@ fn bench(c: &mut Criterion) {
     // The hand's force in the cycle: one observer step and the tip map, with a rotor inertia.
     let mut rotor = effects::EffectTerm::new(effects::EffectKind::Armature, None);
     rotor.coefficients = vec![1e-4, 1e-4, 0.02];
-    let mut observer =
-        force::MomentumObserver::new(&model, &pi, &[rotor], &[10.0; 3], &[1e-3; 3], force::TorqueTiming::Sampled)
-            .unwrap();
+    let mut observer = force::MomentumObserver::new(
+        &model,
+        &pi,
+        &[rotor.clone()],
+        &[10.0; 3],
+        &[1e-3; 3],
+        force::TorqueTiming::Sampled,
+    )
+    .unwrap();
     let mut tip = force::FrameForce::new(&model, "instrument_tip", "remote_centre", 1e-3).unwrap();
     let mut t = 0.0_f64;
     c.bench_function("momentum observer step + instrument tip force (arash_asist)", |b| {
@@ -54,6 +60,22 @@ fn bench(c: &mut Criterion) {
             let q = [0.3 * t.sin(), 0.4, 0.01];
             let external = observer.step(1e-3, black_box(&q), &qd, &[0.1, 0.2, 0.3]).unwrap();
             black_box(tip.map(&q, external, &[0.01, 0.01, 0.1]))
+        })
+    });
+    // The haptic mode's cycle: the compensation and every kind of fixture, all engaged.
+    let fixtures = haptics::Fixtures {
+        wall: vec![haptics::DepthWall { depth_m: -0.05, stiffness: 500.0, damping: 1.0 }],
+        cone: vec![haptics::Cone { axis: [1.0, 0.0, 0.0], half_angle_deg: 1.0, stiffness: 0.5, damping: 0.0 }],
+        viscous: vec![haptics::ViscousField { damping: 1.0 }],
+        spring: vec![haptics::Spring { point: [0.0; 3], stiffness: 50.0, damping: 0.0 }],
+        ..Default::default()
+    };
+    let mut law = haptics::HapticLaw::new(&model, &pi, &[rotor], &[0.01, 0.01, 1e-3], 0.0, &fixtures).unwrap();
+    c.bench_function("haptic law: compensation + wall, cone, field and spring (arash_asist)", |b| {
+        b.iter(|| {
+            t += 1e-3;
+            let q = [0.3 * t.sin(), 0.4, 0.01];
+            black_box(law.command(black_box(&q), &qd, &mut tau).unwrap())
         })
     });
 }

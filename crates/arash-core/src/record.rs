@@ -31,7 +31,7 @@ impl Code for ControllerKind {
         self as u32
     }
     fn from_code(code: u32) -> Option<Self> {
-        [ControllerKind::None, ControllerKind::Pd, ControllerKind::Idc, ControllerKind::Robust]
+        [ControllerKind::None, ControllerKind::Pd, ControllerKind::Idc, ControllerKind::Robust, ControllerKind::Haptic]
             .into_iter()
             .find(|k| *k as u32 == code)
     }

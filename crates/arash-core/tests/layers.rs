@@ -46,7 +46,7 @@ const CORE: &[&str] = &[
 const FOLDERS: &[(&str, &[&str])] = &[
     ("control", &["gains", "safety", "fourier", "trajectory", "estimator", "feedforward", "laws", "logged"]),
     ("force", &["thresholds", "settings", "frame_force", "observer"]),
-    ("haptics", &["fixtures", "geometry", "passivity", "render"]),
+    ("haptics", &["fixtures", "geometry", "passivity", "render", "law"]),
     (
         "signal",
         &[

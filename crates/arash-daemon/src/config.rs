@@ -299,6 +299,7 @@ impl DaemonConfig {
             mismatch_cycles: self.safety.mismatch_cycles.unwrap_or(50),
             velocity_cutoff_hz: self.control.velocity_cutoff_hz,
             approach_speed: model.joints.iter().map(|j| self.control.approach_fraction * j.velocity).collect(),
+            handover: self.cycles(self.haptic.handover_ms).max(1),
         })
     }
 

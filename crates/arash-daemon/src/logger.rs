@@ -265,9 +265,7 @@ impl Logger {
             Event::HapticStarted => "haptic mode: the hand moves the instrument under the rendered fixtures".into(),
             Event::HapticEnded => "haptic mode ended".into(),
             Event::HapticRefused => {
-                "haptic mode refused: enable the motors and hold first, with the force observer on and no collision \
-                 latched"
-                    .into()
+                "haptic mode refused: enable the motors and hold first, with no collision latched".into()
             }
         };
         self.write_event(cycle, t, &description)?;

@@ -73,7 +73,7 @@ fn thirteen_thousand_control_cycles_of_a_run_and_the_haptic_mode_allocate_nothin
     };
     let haptic = arash_daemon::rt::haptic::HapticMode::build(
         &model,
-        &model.cad_parameters(),
+        (&model.cad_parameters(), &[]),
         &Default::default(),
         &fixtures,
         1e-3,

@@ -845,19 +845,19 @@ fn a_model_switched_at_run_time_moves_the_force_observer_to_it() {
 }
 
 /// The haptic mode: refused unless enabled and holding; once on, the command is the model's
-/// compensation (the viscous friction's share left out) plus the fixtures' torque, reached through
-/// the gate's rate limit; hold leaves it with no step larger than that limit, and a fault ends
-/// it. A fixture file with a NaN or a stiffness over the passivity bound is refused before
+/// compensation (the viscous friction's share left out) plus the fixtures' torque, handed over
+/// from the controller's over 100 ms; hold hands it back the same way, with no step larger than
+/// the difference over 100 cycles, and a fault ends it. A fixture file with a NaN or a stiffness over the passivity bound is refused before
 /// anything is queued.
 #[test]
-fn the_haptic_mode_renders_its_wall_over_the_compensation_and_leaves_it_within_the_rate_limit() {
+fn the_haptic_mode_renders_its_wall_over_the_compensation_and_hands_over_without_a_step() {
     use arash_core::haptics::{DepthWall, FixtureRenderer, Fixtures};
     use arash_daemon::rt::cycle::Garbage;
     use arash_daemon::rt::force::{ForceConfig, ForceSetup};
     use arash_daemon::rt::haptic::{parse_fixtures, HapticConfig, HapticMode};
     let (model, params, gravity) = held_by_cad_gravity();
     let cfg = config(|_| {});
-    let step_limit: Vec<f64> = cfg.limits.torque_rate.iter().map(|r| r * cfg.dt).collect();
+    assert_eq!(cfg.handover, 100, "the default handover");
     let setup = ForceSetup::resolve(&model, &ForceConfig::default(), None, 1000.0).unwrap();
     let mut rig = Rig::new(gravity, |_| {});
     rig.cycle = ControlCycle::new(cfg, Box::new(Constant(gravity.to_vec())))
@@ -865,7 +865,7 @@ fn the_haptic_mode_renders_its_wall_over_the_compensation_and_leaves_it_within_t
     // A wall 5 mm short of where the tip rests at q = 0, at a tenth of its bound.
     let wall =
         Fixtures { wall: vec![DepthWall { depth_m: -0.005, stiffness: 100.0, damping: 0.0 }], ..Default::default() };
-    let haptic = || Box::new(HapticMode::build(&model, &params, &HapticConfig::default(), &wall, 1e-3).unwrap());
+    let haptic = || Box::new(HapticMode::build(&model, (&params, &[]), &HapticConfig::default(), &wall, 1e-3).unwrap());
     rig.step();
     assert!(matches!(rig.cycle.request(Request::Haptic(haptic())), Some(Garbage::Haptic(_))));
     assert_eq!(rig.step(), vec![Event::HapticRefused], "refused while disabled");
@@ -876,24 +876,31 @@ fn the_haptic_mode_renders_its_wall_over_the_compensation_and_leaves_it_within_t
     let mut expected = gravity;
     FixtureRenderer::new(&model, &wall).unwrap().add_torque(&[0.0; 3], &[0.0; 3], &mut expected).unwrap();
     assert!((expected[2] - gravity[2]).abs() > 0.4, "the wall pushes 0.5 N: {expected:?} against {gravity:?}");
+    // Entering and leaving, the command hands over from one source to the other over
+    // `haptic.handover_ms` (100 cycles): no step larger than the wall's push over that many, and
+    // none at the switch itself (to the current's single precision on the wire).
+    let fade = (expected[2] - gravity[2]).abs() / 100.0;
     let mut last = gravity;
     for _ in 0..200 {
         rig.step();
         let sent = rig.sent_torque();
         for k in 0..3 {
-            assert!((sent[k] - last[k]).abs() <= step_limit[k] * (1.0 + 1e-6), "joint {k}: {last:?} → {sent:?}");
+            assert!((sent[k] - last[k]).abs() <= fade + 1e-6, "joint {k}: {last:?} → {sent:?}");
         }
         last = sent;
     }
     assert!((0..3).all(|k| (last[k] - expected[k]).abs() < 1e-5), "{last:?} against {expected:?}");
-    // Hold leaves the mode; the command walks back to the law's within the rate limit.
+    // Hold leaves the mode; the command walks back to the law's.
     assert!(matches!(rig.cycle.request(Request::Hold), Some(Garbage::Haptic(_))));
     assert_eq!(rig.step(), vec![Event::HapticEnded]);
+    let sent = rig.sent_torque();
+    assert!((0..3).all(|k| (sent[k] - last[k]).abs() <= fade + 1e-6), "{last:?} → {sent:?}");
+    last = sent;
     for _ in 0..200 {
         rig.step();
         let sent = rig.sent_torque();
         for k in 0..3 {
-            assert!((sent[k] - last[k]).abs() <= step_limit[k] * (1.0 + 1e-6), "joint {k}: {last:?} → {sent:?}");
+            assert!((sent[k] - last[k]).abs() <= fade + 1e-6, "joint {k}: {last:?} → {sent:?}");
         }
         last = sent;
     }
@@ -916,6 +923,6 @@ fn the_haptic_mode_renders_its_wall_over_the_compensation_and_leaves_it_within_t
     let typo = parse_fixtures("[[wall]]\ndepth_m = 0.01\nstifness = 10.0\ndamping = 0.0\n").unwrap_err();
     assert!(typo.contains("stifness"), "{typo}");
     let stiff = parse_fixtures("[[wall]]\ndepth_m = 0.01\nstiffness = 1400.0\ndamping = 0.0\n").unwrap();
-    let over = HapticMode::build(&model, &params, &HapticConfig::default(), &stiff, 1e-3).err().unwrap();
+    let over = HapticMode::build(&model, (&params, &[]), &HapticConfig::default(), &stiff, 1e-3).err().unwrap();
     assert!(over.contains("wall[0].stiffness = 1400 N/m is above the passivity bound 1333.3333 N/m"), "{over}");
 }

@@ -8,6 +8,7 @@
 //! - `filters`: `butter` and `filtfilt`;
 //! - `motors`: `SimulatedMotors`, the simulated rig a cycle at a time;
 //! - `force`: `external_force`, the momentum observer and the force at a frame over a log;
+//! - `haptics`: `fixture_bounds` and `render_fixtures`, the haptic mode's virtual fixtures;
 //! - `identify`, `diagnose`, `simulate`, `transmission`: the rest of the API.
 
 // The BLAS and LAPACK that identification's SDP calls under their Fortran names: named here so
@@ -21,6 +22,7 @@ mod convert;
 mod diagnose;
 mod filters;
 mod force;
+mod haptics;
 mod identify;
 mod motors;
 mod robot;
@@ -36,6 +38,8 @@ fn _arash(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(filters::butter, module)?)?;
     module.add_function(wrap_pyfunction!(filters::filtfilt, module)?)?;
     module.add_function(wrap_pyfunction!(force::external_force, module)?)?;
+    module.add_function(wrap_pyfunction!(haptics::fixture_bounds, module)?)?;
+    module.add_function(wrap_pyfunction!(haptics::render_fixtures, module)?)?;
     module.add_class::<robot::Robot>()?;
     module.add_class::<robot::BaseParameters>()?;
     module.add_class::<motors::SimulatedMotors>()?;

@@ -22,7 +22,7 @@ pub(crate) struct Robot {
 }
 
 impl Robot {
-    fn params_or_cad(&self, params: Option<PyReadonlyArrayDyn<'_, f64>>) -> PyResult<Vec<f64>> {
+    pub(crate) fn params_or_cad(&self, params: Option<PyReadonlyArrayDyn<'_, f64>>) -> PyResult<Vec<f64>> {
         match params {
             None => Ok(self.model.cad_parameters()),
             Some(p) => {

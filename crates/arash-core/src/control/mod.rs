@@ -42,6 +42,9 @@ pub enum ControllerKind {
     Idc = 2,
     /// The paper's robust model-based controller, eq. 22.
     Robust = 3,
+    /// The haptic mode: the model's compensation and the virtual fixtures; the hand moves the
+    /// arm (`haptics::HapticLaw`).
+    Haptic = 4,
 }
 
 /// One control law: `step` turns the estimated state and the reference into a torque command.
@@ -59,6 +62,8 @@ pub trait Controller: Send {
 pub enum ControllerError {
     #[error("controller kind `none` commands no torque; choose pd, idc or robust")]
     NoController,
+    #[error("the haptic mode is entered with `arash ctl haptic`, not as a controller; choose pd, idc or robust")]
+    Haptic,
     #[error(
         "the {kind:?} controller needs the robust gains K_d and Λ, and there are none for robot `{robot}` \
          ({dof} joints; the paper's are for ARASH:ASiST's three). PD with gravity compensation sizes its \
@@ -107,6 +112,7 @@ pub fn controller_with_effects(
     }
     Ok(match kind {
         ControllerKind::None => return Err(ControllerError::NoController),
+        ControllerKind::Haptic => return Err(ControllerError::Haptic),
         ControllerKind::Pd => {
             Box::new(PdGravity::new(model, params, PdGains::critically_damped(model, params, &q_home, 5.0)))
         }

@@ -84,8 +84,6 @@ pub struct MomentumObserver {
     gravity: Vec<f64>,
     forces: Vec<f64>,
     friction: Vec<f64>,
-    /// The viscous part of `friction`, `fv·q̇`.
-    viscous: Vec<f64>,
     now_momentum: Vec<f64>,
     now_applied: Vec<f64>,
     now_explained: Vec<f64>,
@@ -148,7 +146,6 @@ impl MomentumObserver {
             gravity: zeros.clone(),
             forces: zeros.clone(),
             friction: zeros.clone(),
-            viscous: zeros.clone(),
             now_momentum: zeros.clone(),
             now_applied: zeros.clone(),
             now_explained: zeros,
@@ -166,15 +163,8 @@ impl MomentumObserver {
     /// the drive gain (as the drives are commanded). What the joints float under when a
     /// collision stops a run: a hand moves them against nothing but the model's error.
     pub fn compensation(&self, out: &mut [f64]) {
-        self.compensation_leaving(1.0, out);
-    }
-
-    /// [`Self::compensation`] with only the share `viscous` of the viscous friction compensated:
-    /// the haptic mode leaves the rest to damp its fixtures (`haptics::passivity`).
-    pub fn compensation_leaving(&self, viscous: f64, out: &mut [f64]) {
         for (k, o) in out.iter_mut().enumerate().take(self.model.dof()) {
-            let friction = self.friction[k] - (1.0 - viscous) * self.viscous[k];
-            *o = (self.gravity[k] + friction + self.forces[k]) * self.effects.drive_gain(k);
+            *o = (self.gravity[k] + self.friction[k] + self.forces[k]) * self.effects.drive_gain(k);
         }
     }
 
@@ -235,8 +225,7 @@ impl MomentumObserver {
         for k in 0..n {
             let row = &self.effect_inertia[k * n..(k + 1) * n];
             self.now_momentum[k] += row.iter().zip(qd).map(|(m, v)| m * v).sum::<f64>();
-            self.viscous[k] = self.params[layout.viscous(k)] * qd[k];
-            self.friction[k] = self.viscous[k]
+            self.friction[k] = self.params[layout.viscous(k)] * qd[k]
                 + self.params[layout.coulomb(k)] * (qd[k] / self.epsilon[k]).tanh()
                 + self.params[layout.stiffness(k)] * q[k];
             self.now_applied[k] = tau[k] / self.effects.drive_gain(k);

@@ -1,13 +1,16 @@
 //! The operator's hand of a scenario ([`Hand`]): a force at a frame of the robot, as a function of
-//! time, and the joint torque `J_vᵀ F` it exerts. The plant feels it; only the truth records it.
+//! time, and the joint torque `J_vᵀ F` it exerts; with a grasp, also a spring and a damper to a
+//! moving set-point, a force that depends on how the arm answers. The plant feels it; only the
+//! truth records it.
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::scenario::{Hand, RandomForce};
+use super::scenario::{Grasp, Hand, RandomForce};
 use crate::data::Data;
-use crate::kinematics::{forward_kinematics, frame_jacobian};
+use crate::kinematics::{forward_kinematics, frame_jacobian, frame_placement};
 use crate::model::{Frame, Model, UnknownFrame};
+use crate::spatial::{Mat3, Vec3};
 
 /// Sinusoids per axis of the random force: enough that its amplitude distribution is close to
 /// Gaussian, few enough to cost nothing per step.
@@ -22,6 +25,48 @@ pub struct HandForce {
     angular: Vec<f64>,
     /// Per axis and tone: (angular frequency rad/s, phase rad).
     tones: [[(f64, f64); TONES]; 3],
+    grasp: Option<GraspPath>,
+}
+
+/// A grasp and where its path is: the frame's placement when the hand took hold, and the
+/// set-point's position and velocity at the present cycle (base frame).
+struct GraspPath {
+    grasp: Grasp,
+    origin: Option<(Vec3, Mat3)>,
+    set_point: Vec3,
+    set_velocity: Vec3,
+    /// The grasp's force summed over the evaluations since the cycle began, and how many.
+    sum: Vec3,
+    count: u32,
+}
+
+impl GraspPath {
+    /// The set-point's offset from the origin and its rate at `t`, in the origin's axes.
+    fn path(&self, t: f64) -> (Vec3, Vec3) {
+        let g = &self.grasp;
+        let s = t - g.at_s;
+        let (mut offset, mut rate) = (Vec3::zeros(), Vec3::zeros());
+        for axis in 0..3 {
+            let w = std::f64::consts::TAU / g.period_s[axis];
+            // The amplitude rises as 1 − cos over one period: the path starts at rest.
+            let (ramp, ramp_rate) = match s < g.period_s[axis] {
+                true => (0.5 * (1.0 - (0.5 * w * s).cos()), 0.25 * w * (0.5 * w * s).sin()),
+                false => (1.0, 0.0),
+            };
+            let a = g.amplitude_m[axis];
+            offset[axis] = a * ramp * (w * s).sin();
+            rate[axis] = a * (ramp_rate * (w * s).sin() + ramp * w * (w * s).cos());
+        }
+        for p in &g.press {
+            let u = (t - p.at_s) / p.duration_s;
+            if (0.0..1.0).contains(&u) {
+                let phase = std::f64::consts::PI * u;
+                offset[2] += p.depth_m * phase.sin().powi(2);
+                rate[2] += p.depth_m * (2.0 * phase).sin() * std::f64::consts::PI / p.duration_s;
+            }
+        }
+        (offset, rate)
+    }
 }
 
 impl HandForce {
@@ -44,7 +89,44 @@ impl HandForce {
             linear: vec![0.0; 3 * n],
             angular: vec![0.0; 3 * n],
             tones,
+            grasp: hand.grasp.as_ref().map(|g| GraspPath {
+                grasp: g.clone(),
+                origin: None,
+                set_point: Vec3::zeros(),
+                set_velocity: Vec3::zeros(),
+                sum: Vec3::zeros(),
+                count: 0,
+            }),
         })
+    }
+
+    /// Start a cycle at time `t` with the robot at `q`: the grasp takes hold at the frame's
+    /// placement once its time comes, and its set-point moves to where the path is at `t`
+    /// (held over the cycle, which moves it by micrometres at a hand's speed).
+    pub fn start_cycle(&mut self, model: &Model, t: f64, q: &[f64]) {
+        let Some(g) = &mut self.grasp else { return };
+        g.sum = Vec3::zeros();
+        g.count = 0;
+        if t < g.grasp.at_s {
+            return;
+        }
+        if g.origin.is_none() {
+            forward_kinematics(model, &mut self.data, q);
+            let (rot, at) = frame_placement(&self.data, &self.frame);
+            g.origin = Some((at, rot));
+        }
+        let (offset, rate) = g.path(t);
+        let (origin, axes) = g.origin.expect("set above");
+        g.set_point = origin + axes * offset;
+        g.set_velocity = axes * rate;
+    }
+
+    /// The grasp's mean force over the evaluations since the cycle began (base frame, N).
+    pub fn grasp_force(&self) -> [f64; 3] {
+        match &self.grasp {
+            Some(g) if g.count > 0 => (g.sum / f64::from(g.count)).into(),
+            _ => [0.0; 3],
+        }
     }
 
     /// The force at time `t` (s), base frame (N).
@@ -82,9 +164,35 @@ impl HandForce {
         if force.iter().all(|v| *v == 0.0) {
             return;
         }
+        self.jacobian(model, q);
+        self.add_force(model.dof(), &Vec3::from(*force), tau);
+    }
+
+    /// [`Self::add_torque`] of `force` and the grasp's spring and damper at state `q`, `qd`; the
+    /// grasp's part is counted into the cycle's mean ([`Self::grasp_force`]).
+    pub fn add_torque_moving(&mut self, model: &Model, q: &[f64], qd: &[f64], force: &[f64; 3], tau: &mut [f64]) {
+        let held = self.grasp.as_ref().is_some_and(|g| g.origin.is_some());
+        if !held {
+            return self.add_torque(model, q, force, tau);
+        }
+        self.jacobian(model, q);
         let n = model.dof();
+        let position = frame_placement(&self.data, &self.frame).1;
+        let velocity: Vec3 =
+            (0..n).map(|k| Vec3::new(self.linear[k], self.linear[n + k], self.linear[2 * n + k]) * qd[k]).sum();
+        let g = self.grasp.as_mut().expect("held");
+        let pull = g.grasp.stiffness * (g.set_point - position) + g.grasp.damping * (g.set_velocity - velocity);
+        g.sum += pull;
+        g.count += 1;
+        self.add_force(n, &(pull + Vec3::from(*force)), tau);
+    }
+
+    fn jacobian(&mut self, model: &Model, q: &[f64]) {
         forward_kinematics(model, &mut self.data, q);
         frame_jacobian(model, &self.data, &self.frame, &mut self.linear, &mut self.angular);
+    }
+
+    fn add_force(&self, n: usize, force: &Vec3, tau: &mut [f64]) {
         for (k, out) in tau.iter_mut().enumerate().take(n) {
             *out += (0..3).map(|i| self.linear[i * n + k] * force[i]).sum::<f64>();
         }

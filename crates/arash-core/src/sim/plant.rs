@@ -35,8 +35,9 @@ pub struct Plant {
     payload_attached: bool,
     armature: Option<Vec<f64>>,
     hand: Option<HandForce>,
-    /// The hand's force over the present cycle (base frame, N) and its joint torque at the
-    /// cycle's start.
+    /// The hand's scheduled force over the present cycle (base frame, N), the whole force
+    /// (with a grasp's mean over the cycle) and its joint torque at the cycle's start.
+    hand_scheduled: [f64; 3],
     hand_force: [f64; 3],
     hand_torque: Vec<f64>,
     time: f64,
@@ -97,6 +98,7 @@ impl Plant {
             payload_attached: false,
             armature: scenario.effects.armature.as_ref().map(|a| a.inertia.clone()),
             hand,
+            hand_scheduled: [0.0; 3],
             hand_force: [0.0; 3],
             hand_torque: vec![0.0; n],
             time: 0.0,
@@ -159,7 +161,8 @@ impl Plant {
         }
     }
 
-    /// The hand's force over the last cycle (base frame, N; zero without a hand).
+    /// The hand's force over the last cycle (base frame, N; zero without a hand): its
+    /// scheduled force, and a grasp's mean over the cycle.
     pub fn hand_force(&self) -> &[f64; 3] {
         &self.hand_force
     }
@@ -227,6 +230,10 @@ impl Plant {
             }
         }
         self.time += dt;
+        if let Some(hand) = &self.hand {
+            let grasp = hand.grasp_force();
+            self.hand_force = std::array::from_fn(|i| self.hand_scheduled[i] + grasp[i]);
+        }
         if self.x.iter().any(|v| !v.is_finite()) {
             return Err(PlantError::NonFinite(self.time));
         }
@@ -283,8 +290,10 @@ impl Plant {
         let n = self.model.dof();
         self.hand_torque.fill(0.0);
         let Some(hand) = &mut self.hand else { return };
-        self.hand_force = hand.force(self.time);
-        hand.add_torque(&self.model, &self.x[..n], &self.hand_force, &mut self.hand_torque);
+        hand.start_cycle(&self.model, self.time, &self.x[..n]);
+        self.hand_scheduled = hand.force(self.time);
+        let (q, qd) = self.x[..2 * n].split_at(n);
+        hand.add_torque_moving(&self.model, q, qd, &self.hand_scheduled, &mut self.hand_torque);
     }
 
     /// `ẋ = f(x, τ_m)`.
@@ -295,7 +304,7 @@ impl Plant {
             self.tau_joint[k] = -self.joint_side_effects(k, q[k], qd[k]);
         }
         if let Some(hand) = &mut self.hand {
-            hand.add_torque(&self.model, q, &self.hand_force, &mut self.tau_joint);
+            hand.add_torque_moving(&self.model, q, qd, &self.hand_scheduled, &mut self.tau_joint);
         }
         match &self.scenario.effects.compliance {
             None => {

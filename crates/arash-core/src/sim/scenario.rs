@@ -423,6 +423,57 @@ pub struct Step {
     pub force: [f64; 3],
 }
 
+/// A trainee's grasp of the instrument: a spring and a damper from the frame's origin to where
+/// the hand means it to be, a set-point that starts at the origin when the hand takes hold and
+/// then follows a path (the trainee's intended motion, free of tremor). The force it exerts
+/// depends on how the device answers, which is what transparency is measured by.
+///
+/// The defaults are one subject's fitted arm impedance in van Beek, Bergmann Tiest, Mugge and
+/// Kappers, "Haptic perception of force magnitude and its relation to postural arm dynamics in
+/// 3D", Scientific Reports 5, 18004 (2015), figure 3: K = 135 N/m, B = 6.45 N·s/m. Its mass
+/// (0.55 kg there) is left out: the arm carries the hand's weight, and along a path of a few
+/// millimetres a second its inertial force is well under a millinewton.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Grasp {
+    /// N/m and N·s/m.
+    pub stiffness: f64,
+    pub damping: f64,
+    /// When the hand takes hold (s).
+    pub at_s: f64,
+    /// The path, per axis of the frame as it is when the hand takes hold (for the instrument tip:
+    /// across, across, along the instrument into the eye): `a·sin(2π t/T)` from `at_s`, its
+    /// amplitude `a` (m) rising over one period so that it starts at rest, with period `T` (s).
+    pub amplitude_m: [f64; 3],
+    pub period_s: [f64; 3],
+    /// Presses along the frame's z: the set-point goes `depth_m` deeper and back as
+    /// `sin²(π (t − at)/duration)`.
+    pub press: Vec<PathPress>,
+}
+
+impl Default for Grasp {
+    fn default() -> Self {
+        Self {
+            stiffness: 135.0,
+            damping: 6.45,
+            at_s: 0.0,
+            amplitude_m: [0.0; 3],
+            period_s: [4.0; 3],
+            press: Vec::new(),
+        }
+    }
+}
+
+/// A press of the grasp's set-point along the frame's z.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PathPress {
+    pub at_s: f64,
+    pub duration_s: f64,
+    /// How much deeper the set-point goes (m).
+    pub depth_m: f64,
+}
+
 /// An operator's hand: a force at a frame of the robot that the plant feels and no log records
 /// (the truth records it). The parts add up.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -433,11 +484,13 @@ pub struct Hand {
     pub random: Option<RandomForce>,
     pub press: Vec<Press>,
     pub step: Vec<Step>,
+    /// A grasp that moves the instrument along a path.
+    pub grasp: Option<Grasp>,
 }
 
 impl Default for Hand {
     fn default() -> Self {
-        Self { frame: "instrument_tip".into(), random: None, press: Vec::new(), step: Vec::new() }
+        Self { frame: "instrument_tip".into(), random: None, press: Vec::new(), step: Vec::new(), grasp: None }
     }
 }
 
@@ -551,6 +604,25 @@ impl Scenario {
         for (i, s) in h.step.iter().enumerate() {
             finite_force(&format!("hand.step[{i}].force"), &s.force)?;
             window(&format!("hand.step[{i}]"), s.at_s, s.end_s)?;
+        }
+        if let Some(g) = &h.grasp {
+            for (field, value) in [("hand.grasp.stiffness", g.stiffness), ("hand.grasp.damping", g.damping)] {
+                if !(value.is_finite() && value >= 0.0) {
+                    return Err(field_error(field, format!("must be finite and ≥ 0, not {value}")));
+                }
+            }
+            window("hand.grasp", g.at_s, None)?;
+            finite_force("hand.grasp.amplitude_m", &g.amplitude_m)?;
+            for (axis, period) in g.period_s.iter().enumerate() {
+                positive(&format!("hand.grasp.period_s[{axis}]"), *period)?;
+            }
+            for (i, p) in g.press.iter().enumerate() {
+                window(&format!("hand.grasp.press[{i}]"), p.at_s, None)?;
+                positive(&format!("hand.grasp.press[{i}].duration_s"), p.duration_s)?;
+                if !p.depth_m.is_finite() {
+                    return Err(field_error(&format!("hand.grasp.press[{i}].depth_m"), "must be finite"));
+                }
+            }
         }
         Ok(())
     }

@@ -79,7 +79,10 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
     let mut cycle_config = config.cycle_config(&model)?;
     cycle_config.drive.torque_constant.clone_from(&torque_constant.values);
     let cycle = ControlCycle::new(cycle_config, controller);
-    let start_params = start_model.as_ref().map_or_else(|| model.cad_parameters(), |r| r.params.clone());
+    let in_use = match &start_model {
+        Some(r) => (r.params.clone(), r.effects.clone()),
+        None => (model.cad_parameters(), Vec::new()),
+    };
     let (cycle, force) = with_force(cycle, &config, &model, start_model.as_ref())?;
 
     let (request_tx, request_rx) = rtrb::RingBuffer::new(64);
@@ -202,7 +205,7 @@ pub fn run(options: DaemonOptions) -> anyhow::Result<()> {
         force_config: config.force.clone(),
         force: Mutex::new(force),
         haptic_config: config.haptic.clone(),
-        params: Mutex::new(start_params),
+        in_use: Mutex::new(in_use),
     });
     let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build()?;
     let served = runtime.block_on(async {

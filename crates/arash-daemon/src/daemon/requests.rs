@@ -54,10 +54,10 @@ pub(super) struct Operator {
     /// switch to a model file (None: `force.enabled = false`).
     pub(super) force_config: crate::rt::force::ForceConfig,
     pub(super) force: Mutex<Option<crate::rt::force::ForceSetup>>,
-    /// `[haptic]`, and the parameters of the model the cycle compensates with (the start's, or
-    /// the last switch's): the haptic mode's damping left comes from them.
+    /// `[haptic]`, and the parameters and effects of the model in use (the start's, or the last
+    /// switch's): the haptic mode compensates with them, and its damping left comes from them.
     pub(super) haptic_config: HapticConfig,
-    pub(super) params: Mutex<Vec<f64>>,
+    pub(super) in_use: Mutex<(Vec<f64>, Vec<arash_core::effects::EffectTerm>)>,
 }
 
 /// Queue `request` for the control thread; the ticket it returns is what [`applied`] waits for.
@@ -175,9 +175,10 @@ pub(super) async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::
             if let Some(setup) = setup {
                 *operator.force.lock().expect("force lock") = Some(setup);
             }
-            if let Some(r) = &resolved {
-                r.params.clone_into(&mut operator.params.lock().expect("params lock"));
-            }
+            *operator.in_use.lock().expect("model lock") = match &resolved {
+                Some(r) => (r.params.clone(), r.effects.clone()),
+                None => (operator.model.cad_parameters(), Vec::new()),
+            };
             Ok(status(operator))
         }
         CtlRequest::Haptic { fixtures } => haptic(operator, fixtures.as_deref()).await,
@@ -189,10 +190,6 @@ pub(super) async fn handle(operator: &Operator, request: CtlRequest) -> anyhow::
 async fn haptic(operator: &Operator, path: Option<&str>) -> anyhow::Result<serde_json::Value> {
     let mode = Mode::from_code(operator.shared.mode.load(Ordering::Relaxed));
     anyhow::ensure!(mode == Some(Mode::Enabled), "enable the motors before the haptic mode");
-    anyhow::ensure!(
-        operator.force.lock().expect("force lock").is_some(),
-        "the haptic mode compensates the model through the hand's force observer, and [force] is off"
-    );
     let fixtures = match path {
         Some(p) => {
             let text = read_file(std::path::Path::new(p), MAX_INPUT_FILE_BYTES).context("reading the fixture file")?;
@@ -200,9 +197,10 @@ async fn haptic(operator: &Operator, path: Option<&str>) -> anyhow::Result<serde
         }
         None => Default::default(),
     };
-    let params = operator.params.lock().expect("params lock").clone();
-    let built = HapticMode::build(&operator.model, &params, &operator.haptic_config, &fixtures, operator.dt)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.unwrap_or("the haptic mode")))?;
+    let (params, effects) = operator.in_use.lock().expect("model lock").clone();
+    let built =
+        HapticMode::build(&operator.model, (&params, &effects), &operator.haptic_config, &fixtures, operator.dt)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.unwrap_or("the haptic mode")))?;
     let passivity = serde_json::to_value(&built.passivity)?;
     applied(operator, send(operator, Request::Haptic(Box::new(built)))?).await?;
     let phase = operator.shared.phase.load(Ordering::Relaxed);

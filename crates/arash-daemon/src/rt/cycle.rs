@@ -45,13 +45,14 @@
 //!   the drive still enabled, so that whatever the instrument hit is not pushed further and a
 //!   hand can move the arm away. New runs and enabling are refused until
 //!   [`Request::ResetFault`], which holds the arm where it is. Contacts are events;
-//! - **haptic mode** ([`Request::Haptic`]): only from hold, enabled, with the force observer (its
-//!   compensation is the mode's) and no collision latched. The reference follows the arm, so
+//! - **haptic mode** ([`Request::Haptic`]): only from hold, enabled, with no collision latched. The reference follows the arm, so
 //!   there is no following error, and every other rule holds: the gate's limits and rate limit,
 //!   the faults. A fixture that renders a non-number latches `NON_FINITE_COMMAND`. Hold, a run,
-//!   disabling and any fault leave the mode; the gate's rate limit bounds the step in torque.
+//!   disabling and any fault leave the mode. Entering and leaving for hold or a run, the new
+//!   source's command starts where the old one's left off and the difference fades out over
+//!   `handover` cycles, so that a wall the hand pressed into does not vanish in one cycle.
 
-use arash_core::control::{Controller, Desired, Faults, SafetyGate, SafetyLimits, VelocityEstimator};
+use arash_core::control::{Controller, ControllerKind, Desired, Faults, SafetyGate, SafetyLimits, VelocityEstimator};
 use arash_core::record::{CycleRecord, Mode};
 
 use super::force::ForceMonitor;
@@ -87,6 +88,8 @@ pub struct CycleConfig {
     pub velocity_cutoff_hz: f64,
     /// Approach speed per joint (rad/s or m/s).
     pub approach_speed: Vec<f64>,
+    /// Cycles over which the command hands over between the haptic mode and the controller.
+    pub handover: u32,
 }
 
 /// An operator's request, applied at the start of a cycle.
@@ -132,8 +135,7 @@ pub enum Event {
     RunRefused,
     HapticStarted,
     HapticEnded,
-    /// The haptic mode was refused: not enabled, not holding, no force observer, or a collision
-    /// latched.
+    /// The haptic mode was refused: not enabled, not holding, or a collision latched.
     HapticRefused,
 }
 
@@ -187,6 +189,11 @@ pub struct ControlCycle {
     /// The haptic mode, while it is on, and one a fault ended, for dropping.
     haptic: Option<Box<HapticMode>>,
     left_haptic: Option<Box<HapticMode>>,
+    /// A handover between the mode and the controller: the command the last source gave, until
+    /// the new one's first cycle sets the offset, then the offset fading over the cycles left.
+    handover_from: Option<[f64; MAX_JOINTS]>,
+    handover_offset: [f64; MAX_JOINTS],
+    handover_left: u32,
 }
 
 impl ControlCycle {
@@ -234,6 +241,9 @@ impl ControlCycle {
             stopped: None,
             haptic: None,
             left_haptic: None,
+            handover_from: None,
+            handover_offset: [0.0; MAX_JOINTS],
+            handover_left: 0,
         }
     }
 
@@ -263,11 +273,42 @@ impl ControlCycle {
         self.haptic.is_some()
     }
 
-    /// Leave the haptic mode, if it is on; it comes back for dropping.
+    /// Leave the haptic mode, if it is on; it comes back for dropping. The controller takes
+    /// over from the mode's last command ([`Self::hand_over`]).
     fn leave_haptic(&mut self) -> Option<Garbage> {
         let left = self.haptic.take()?;
+        self.record.controller = self.controller.kind();
         self.event(Event::HapticEnded);
+        self.begin_handover();
         Some(Garbage::Haptic(left))
+    }
+
+    /// The command is about to change source: the next one starts from the last.
+    fn begin_handover(&mut self) {
+        if self.mode == Mode::Enabled {
+            self.handover_from = Some(fixed(&self.record.tau_cmd));
+        }
+    }
+
+    /// Start the new source's command `tau` where the old one left off and fade the difference
+    /// out over the handover's cycles, so that neither entering nor leaving the haptic mode
+    /// steps the torque.
+    fn hand_over(&mut self, tau: &mut [f64]) {
+        let n = self.dof;
+        if let Some(from) = self.handover_from.take() {
+            for ((offset, f), t) in self.handover_offset.iter_mut().zip(&from).zip(&tau[..n]) {
+                *offset = f - t;
+            }
+            self.handover_left = self.cfg.handover;
+        }
+        if self.handover_left == 0 {
+            return;
+        }
+        let share = f64::from(self.handover_left) / f64::from(self.cfg.handover.max(1));
+        for (t, offset) in tau[..n].iter_mut().zip(&self.handover_offset) {
+            *t += share * offset;
+        }
+        self.handover_left -= 1;
     }
 
     pub fn mode(&self) -> Mode {
@@ -355,6 +396,7 @@ impl ControlCycle {
                     self.gate.clear();
                     self.mismatch_count = [0; MAX_JOINTS];
                     self.last_sent = [0.0; MAX_JOINTS];
+                    (self.handover_from, self.handover_left) = (None, 0);
                     let q = fixed(&self.record.q);
                     let old = self.reference.hold_at(&q[..self.dof]);
                     self.event(Event::Enabled);
@@ -369,6 +411,7 @@ impl ControlCycle {
                     self.mode = Mode::Disabled;
                     self.event(Event::Disabled);
                 }
+                (self.handover_from, self.handover_left) = (None, 0);
                 self.leave_haptic()
             }
             Request::ResetFault => {
@@ -411,13 +454,15 @@ impl ControlCycle {
             }
             Request::Haptic(mode) => {
                 let holding = self.reference.phase() == Phase::Hold && !self.floating;
-                if self.mode != Mode::Enabled || !holding || self.collision || self.force.is_none() {
+                if self.mode != Mode::Enabled || !holding || self.collision {
                     self.event(Event::HapticRefused);
                     return Some(Garbage::Haptic(mode));
                 }
                 if self.haptic.is_none() {
                     self.event(Event::HapticStarted);
+                    self.begin_handover();
                 }
+                self.record.controller = ControllerKind::Haptic;
                 self.haptic.replace(mode).map(Garbage::Haptic)
             }
             Request::Controller(mut c, monitor) => {
@@ -474,12 +519,18 @@ impl ControlCycle {
             r.tau_cmd[..self.dof].copy_from_slice(&self.last_sent[..self.dof]);
         } else if let (true, Some(force)) = (self.floating, &self.force) {
             force.compensation(&mut r.tau_cmd);
-        } else if let (Some(haptic), Some(force)) = (self.haptic.as_mut(), &self.force) {
-            if haptic.command(force, &r.q, &r.qd, &mut r.tau_cmd).is_err() {
+        } else if let Some(haptic) = self.haptic.as_mut() {
+            if haptic.command(&r.q, &r.qd, &mut r.tau_cmd).is_err() {
                 self.gate.latch(Faults::NON_FINITE_COMMAND);
             }
+            let mut tau = std::mem::take(&mut self.record.tau_cmd);
+            self.hand_over(&mut tau);
+            self.record.tau_cmd = tau;
         } else {
             self.controller.step(self.cfg.dt, q, qd, &desired, &mut r.tau_cmd);
+            let mut tau = std::mem::take(&mut self.record.tau_cmd);
+            self.hand_over(&mut tau);
+            self.record.tau_cmd = tau;
         }
         if self.mode == Mode::Enabled {
             self.check_link();
@@ -671,6 +722,8 @@ impl ControlCycle {
 
     fn latch(&mut self, faults: Faults) {
         let was_enabled = self.mode == Mode::Enabled;
+        self.handover_from = None;
+        self.handover_left = 0;
         self.mode = Mode::Faulted;
         self.event(Event::FaultLatched(faults));
         if let Some(Garbage::Haptic(left)) = self.leave_haptic() {

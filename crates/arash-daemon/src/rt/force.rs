@@ -196,9 +196,7 @@ impl ForceSetup {
         params: &[f64],
         effects: &[arash_core::effects::EffectTerm],
     ) -> Result<ForceMonitor, String> {
-        // Online the velocity is the estimator's, noisy at rest: the controllers' Coulomb width.
-        let paper = RobustGains::paper(model).map(|g| g.epsilon);
-        let epsilon = compensation_epsilon(model, &paper.unwrap_or_else(|_| model_epsilon(model)));
+        let epsilon = cycle_epsilon(model);
         let observer =
             MomentumObserver::new(model, params, effects, &self.bandwidth_hz, &epsilon, TorqueTiming::Preceding)
                 .map_err(|e: ObserverError| e.to_string())?;
@@ -214,6 +212,14 @@ impl ForceSetup {
         let sigma = self.sigma.clone().unwrap_or_else(|| vec![0.0; model.dof()]);
         Ok(ForceMonitor { observer, map, thresholds, sigma })
     }
+}
+
+/// The Coulomb width `ε` per joint of everything the cycle compensates by a model: online the
+/// velocity is the estimator's, noisy at rest, so the controllers' width (the paper's, else the
+/// default), widened to the model's own friction law where that is wider.
+pub fn cycle_epsilon(model: &Model) -> Vec<f64> {
+    let paper = RobustGains::paper(model).map(|g| g.epsilon);
+    compensation_epsilon(model, &paper.unwrap_or_else(|_| model_epsilon(model)))
 }
 
 impl ForceMonitor {
@@ -240,12 +246,6 @@ impl ForceMonitor {
     /// The model's compensation at the last sample (see [`MomentumObserver::compensation`]).
     pub fn compensation(&self, out: &mut [f64]) {
         self.observer.compensation(out);
-    }
-
-    /// The same with only the share `viscous` of the viscous friction compensated (the haptic
-    /// mode's).
-    pub fn compensation_leaving(&self, viscous: f64, out: &mut [f64]) {
-        self.observer.compensation_leaving(viscous, out);
     }
 }
 

@@ -1,12 +1,11 @@
 //! The haptic mode in the cycle (docs/haptics.md): the trainee moves the instrument, and the
-//! cycle commands the model's compensation (gravity, friction with a smooth law at rest, the
-//! cables, the effects found) with a share of the viscous friction left to damp the rendered
-//! fixtures, plus the fixtures' torque. Built off the real-time thread; a step never allocates.
+//! cycle commands `arash_core::haptics::HapticLaw`, the model's compensation with a share of
+//! the viscous friction left to damp the rendered fixtures, plus the fixtures' torque: the same
+//! law the simulated rig's tests run. Built off the real-time thread; a step never allocates.
 
-use arash_core::haptics::{check_passivity, FixtureRenderer, Fixtures, Passivity, RenderError, RenderLoop, Rendered};
+use arash_core::effects::EffectTerm;
+use arash_core::haptics::{check_passivity, Fixtures, HapticLaw, Passivity, RenderError, RenderLoop, Rendered};
 use arash_core::Model;
-
-use super::force::ForceMonitor;
 
 /// `[haptic]` in the daemon's configuration.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -20,11 +19,15 @@ pub struct HapticConfig {
     /// How long after its measurement a command acts, beyond the hold's half period (ms).
     /// Default: one period, since the drive's telemetry answers the previous command.
     pub latency_ms: Option<f64>,
+    /// Over how long the command hands over between the mode and the controller, entering and
+    /// leaving (ms): the difference between the two fades out linearly instead of stepping, so
+    /// that a wall the hand pressed into does not vanish in one cycle.
+    pub handover_ms: f64,
 }
 
 impl Default for HapticConfig {
     fn default() -> Self {
-        Self { viscous_compensation: 0.0, latency_ms: None }
+        Self { viscous_compensation: 0.0, latency_ms: None, handover_ms: 100.0 }
     }
 }
 
@@ -38,6 +41,9 @@ impl HapticConfig {
         }
         if let Some(l) = self.latency_ms.filter(|l| !(l.is_finite() && *l >= 0.0)) {
             return Err(format!("haptic.latency_ms must be finite and at least 0, not {l}"));
+        }
+        if !(self.handover_ms.is_finite() && self.handover_ms >= 0.0) {
+            return Err(format!("haptic.handover_ms must be finite and at least 0, not {}", self.handover_ms));
         }
         Ok(())
     }
@@ -58,18 +64,18 @@ pub fn parse_fixtures(text: &str) -> Result<Fixtures, String> {
 
 /// The mode as the cycle runs it.
 pub struct HapticMode {
-    renderer: FixtureRenderer,
-    viscous: f64,
+    law: HapticLaw,
     /// What the passivity check found, for `ctl status`.
     pub passivity: Passivity,
 }
 
 impl HapticMode {
-    /// The mode rendering `fixtures` on `model` with parameters `params` at `period_s`: refused
-    /// where the loop cannot render them passively, with the bound in the message.
+    /// The mode rendering `fixtures` on `model` with parameters `params` and `effects` at
+    /// `period_s`: refused where the loop cannot render them passively, with the bound in the
+    /// message. The Coulomb widths are the controllers' ([`super::force::cycle_epsilon`]).
     pub fn build(
         model: &Model,
-        params: &[f64],
+        (params, effects): (&[f64], &[EffectTerm]),
         config: &HapticConfig,
         fixtures: &Fixtures,
         period_s: f64,
@@ -77,20 +83,14 @@ impl HapticMode {
         config.validate()?;
         let looped = config.render_loop(model, params, period_s)?;
         let passivity = check_passivity(model, fixtures, &looped).map_err(|e| e.to_string())?;
-        let renderer = FixtureRenderer::new(model, fixtures).map_err(|e| e.to_string())?;
-        Ok(Self { renderer, viscous: config.viscous_compensation, passivity })
+        let epsilon = super::force::cycle_epsilon(model);
+        let law = HapticLaw::new(model, params, effects, &epsilon, config.viscous_compensation, fixtures)
+            .map_err(|e| e.to_string())?;
+        Ok(Self { law, passivity })
     }
 
-    /// This cycle's command at state `q`, `qd`: `force`'s compensation at its last sample, the
-    /// viscous share left out, and the fixtures' torque.
-    pub fn command(
-        &mut self,
-        force: &ForceMonitor,
-        q: &[f64],
-        qd: &[f64],
-        tau: &mut [f64],
-    ) -> Result<Rendered, RenderError> {
-        force.compensation_leaving(self.viscous, tau);
-        self.renderer.add_torque(q, qd, tau)
+    /// This cycle's command at state `q`, `qd`.
+    pub fn command(&mut self, q: &[f64], qd: &[f64], tau: &mut [f64]) -> Result<Rendered, RenderError> {
+        self.law.command(q, qd, tau)
     }
 }

@@ -35,9 +35,11 @@ from ._arash import (
     consistent_least_squares,
     external_force,
     filtfilt,
+    fixture_bounds,
     load_model,
     paper_validation_trajectory,
     read_log,
+    render_fixtures,
 )
 
 __all__ = [
@@ -57,11 +59,13 @@ __all__ = [
     "diagnose",
     "external_force",
     "filtfilt",
+    "fixture_bounds",
     "heldout_errors",
     "identify",
     "load_model",
     "paper_validation_trajectory",
     "read_log",
+    "render_fixtures",
     "repair_log",
     "RepairedLog",
     "simulate",

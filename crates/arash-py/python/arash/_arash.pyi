@@ -30,9 +30,11 @@ __all__ = [
     "consistent_least_squares",
     "external_force",
     "filtfilt",
+    "fixture_bounds",
     "load_model",
     "paper_validation_trajectory",
     "read_log",
+    "render_fixtures",
 ]
 
 __version__: str
@@ -186,6 +188,25 @@ def external_force(
     sample's "level" (0 free, 1 contact, 2 collision) and the "episodes" found. What was chosen
     from the model (bandwidth, σ, q̇) is in "reasons". ``zero_phase=True``: offline, without the
     observer's lag and in a hand's 5 Hz band; the levels stay the causal observer's."""
+
+def fixture_bounds(
+    robot: Robot,
+    fixtures: str,
+    *,
+    params: Optional[_ArrayLike] = None,
+    viscous_compensation: float = 0.0,
+    period_s: float = 1e-3,
+    latency_s: Optional[float] = None,
+) -> dict[str, Any]:
+    """Whether the fixtures of a fixture file's TOML text render passively: each fixture's least
+    "damping_left", its "stiffness_bound" and largest "share" of the damping, and the share of all
+    "together" (Colgate and Schenkel's b > K·(T/2 + latency) + |B|). ValueError names the field
+    over its bound."""
+
+def render_fixtures(robot: Robot, fixtures: str, q: _ArrayLike, qd: _ArrayLike) -> dict[str, Any]:
+    """The fixtures' joint "torque", the "force" at the instrument and its "moment" about the entry
+    point (base frame), the "energy" their springs hold and whether a wall or cone is in "contact",
+    at each sample of q and q̇."""
 
 @final
 class Identification:
