@@ -112,9 +112,13 @@ macro_rules! cycle_fields {
                 tau_ext: dof = "14",
                 /// The force at the observer's frame (base frame, N); empty without a frame.
                 frame_force: 3 = "15",
+                /// The force the haptic mode's fixtures rendered at the instrument (base frame,
+                /// N): zeros outside the mode; empty where nothing can render any (the
+                /// simulator's logs).
+                fixture_force: 3 = "16",
             }
             codes {
-                /// 0 none, 1 PD, 2 inverse dynamics, 3 robust.
+                /// 0 none, 1 PD, 2 inverse dynamics, 3 robust, 4 the haptic mode.
                 controller: ControllerKind = "11",
                 /// 0 disabled, 1 enabled, 2 faulted.
                 mode: Mode = "12",

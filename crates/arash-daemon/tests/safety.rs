@@ -874,37 +874,36 @@ fn the_haptic_mode_renders_its_wall_over_the_compensation_and_hands_over_without
     assert!(rig.cycle.request(Request::Haptic(haptic())).is_none());
     assert_eq!(rig.step(), vec![Event::HapticStarted]);
     let mut expected = gravity;
-    FixtureRenderer::new(&model, &wall).unwrap().add_torque(&[0.0; 3], &[0.0; 3], &mut expected).unwrap();
+    let rendered =
+        FixtureRenderer::new(&model, &wall).unwrap().add_torque(&[0.0; 3], &[0.0; 3], &mut expected).unwrap();
     assert!((expected[2] - gravity[2]).abs() > 0.4, "the wall pushes 0.5 N: {expected:?} against {gravity:?}");
     // Entering and leaving, the command hands over from one source to the other over
     // `haptic.handover_ms` (100 cycles): no step larger than the wall's push over that many, and
     // none at the switch itself (to the current's single precision on the wire).
     let fade = (expected[2] - gravity[2]).abs() / 100.0;
-    let mut last = gravity;
-    for _ in 0..200 {
-        rig.step();
-        let sent = rig.sent_torque();
-        for k in 0..3 {
-            assert!((sent[k] - last[k]).abs() <= fade + 1e-6, "joint {k}: {last:?} → {sent:?}");
+    let walk = |rig: &mut Rig, mut last: [f64; 3]| {
+        for _ in 0..200 {
+            rig.step();
+            let sent = rig.sent_torque();
+            for k in 0..3 {
+                assert!((sent[k] - last[k]).abs() <= fade + 1e-6, "joint {k}: {last:?} → {sent:?}");
+            }
+            last = sent;
         }
-        last = sent;
-    }
+        last
+    };
+    let last = walk(&mut rig, gravity);
     assert!((0..3).all(|k| (last[k] - expected[k]).abs() < 1e-5), "{last:?} against {expected:?}");
+    // The record carries the wall's force at the instrument, for the flight log.
+    assert_eq!(rig.cycle.record().fixture_force, rendered.force.to_vec());
     // Hold leaves the mode; the command walks back to the law's.
     assert!(matches!(rig.cycle.request(Request::Hold), Some(Garbage::Haptic(_))));
     assert_eq!(rig.step(), vec![Event::HapticEnded]);
     let sent = rig.sent_torque();
     assert!((0..3).all(|k| (sent[k] - last[k]).abs() <= fade + 1e-6), "{last:?} → {sent:?}");
-    last = sent;
-    for _ in 0..200 {
-        rig.step();
-        let sent = rig.sent_torque();
-        for k in 0..3 {
-            assert!((sent[k] - last[k]).abs() <= fade + 1e-6, "joint {k}: {last:?} → {sent:?}");
-        }
-        last = sent;
-    }
+    let last = walk(&mut rig, sent);
     assert!((0..3).all(|k| (last[k] - gravity[k]).abs() < 1e-5), "{last:?} against {gravity:?}");
+    assert_eq!(rig.cycle.record().fixture_force, vec![0.0; 3], "no fixtures outside the mode");
     // A fault ends the mode, and the mode goes off the real-time thread.
     assert!(rig.cycle.request(Request::Haptic(haptic())).is_none());
     rig.step();

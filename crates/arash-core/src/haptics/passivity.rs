@@ -206,44 +206,22 @@ pub fn check_passivity(model: &Model, fixtures: &Fixtures, looped: &RenderLoop) 
 
 fn demands(fixtures: &Fixtures) -> Vec<Demand> {
     let linear = ("N/m", "N·s/m");
-    let mut out = Vec::new();
-    for (i, w) in fixtures.wall.iter().enumerate() {
-        out.push(Demand {
-            name: format!("wall[{i}]"),
-            stiffness: w.stiffness,
-            damping: w.damping,
-            units: linear,
-            along: Along::Depth,
-        });
-    }
-    for (i, c) in fixtures.cone.iter().enumerate() {
-        out.push(Demand {
-            name: format!("cone[{i}]"),
-            stiffness: c.stiffness,
-            damping: c.damping,
-            units: ("N·m/rad", "N·m·s/rad"),
-            along: Along::Tilt,
-        });
-    }
-    for (i, v) in fixtures.viscous.iter().enumerate() {
-        out.push(Demand {
-            name: format!("viscous[{i}]"),
-            stiffness: 0.0,
-            damping: v.damping,
-            units: ("", "N·s/m"),
-            along: Along::Tip,
-        });
-    }
-    for (i, s) in fixtures.spring.iter().enumerate() {
-        out.push(Demand {
-            name: format!("spring[{i}]"),
-            stiffness: s.stiffness,
-            damping: s.damping,
-            units: linear,
-            along: Along::Tip,
-        });
-    }
-    out
+    let demand =
+        |name: String, stiffness: f64, damping: f64, units, along| Demand { name, stiffness, damping, units, along };
+    let walls = fixtures.wall.iter().enumerate();
+    let cones = fixtures.cone.iter().enumerate();
+    let fields = fixtures.viscous.iter().enumerate();
+    let springs = fixtures.spring.iter().enumerate();
+    walls
+        .map(|(i, w)| demand(format!("wall[{i}]"), w.stiffness, w.damping, linear, Along::Depth))
+        .chain(
+            cones.map(|(i, c)| {
+                demand(format!("cone[{i}]"), c.stiffness, c.damping, ("N·m/rad", "N·m·s/rad"), Along::Tilt)
+            }),
+        )
+        .chain(fields.map(|(i, v)| demand(format!("viscous[{i}]"), 0.0, v.damping, ("", "N·s/m"), Along::Tip)))
+        .chain(springs.map(|(i, s)| demand(format!("spring[{i}]"), s.stiffness, s.damping, linear, Along::Tip)))
+        .collect()
 }
 
 /// `1/b` along `along` at the geometry's configuration: `gᵀ D⁻¹ g`, or the largest over its

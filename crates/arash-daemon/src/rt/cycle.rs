@@ -206,6 +206,9 @@ impl ControlCycle {
         }
         let mut record = CycleRecord::new(dof);
         record.controller = controller.kind();
+        // Every cycle carries the fixtures' force, zero outside the haptic mode, so that a log's
+        // columns line up whether or not the mode ran.
+        record.fixture_force = vec![0.0; 3];
         Self {
             estimator: VelocityEstimator::new(dof, cfg.velocity_cutoff_hz),
             gate: SafetyGate::new(cfg.limits.clone()),
@@ -513,6 +516,7 @@ impl ControlCycle {
             false => (&r.q, &r.qd),
             true => (&r.q_des, &r.qd_des),
         };
+        r.fixture_force.fill(0.0);
         if self.missing > 0 && !blind {
             // The hold repeats the last command: it is what the log records and what the gate
             // sees, so that the rate limit does not run ahead on commands never sent.
@@ -520,8 +524,9 @@ impl ControlCycle {
         } else if let (true, Some(force)) = (self.floating, &self.force) {
             force.compensation(&mut r.tau_cmd);
         } else if let Some(haptic) = self.haptic.as_mut() {
-            if haptic.command(&r.q, &r.qd, &mut r.tau_cmd).is_err() {
-                self.gate.latch(Faults::NON_FINITE_COMMAND);
+            match haptic.command(&r.q, &r.qd, &mut r.tau_cmd) {
+                Ok(rendered) => r.fixture_force.copy_from_slice(&rendered.force),
+                Err(_) => self.gate.latch(Faults::NON_FINITE_COMMAND),
             }
             let mut tau = std::mem::take(&mut self.record.tau_cmd);
             self.hand_over(&mut tau);
