@@ -259,7 +259,7 @@ mod tests {
         let unique: std::collections::BTreeSet<&str> = names.iter().copied().collect();
         assert_eq!(unique.len(), names.len(), "{names:?}");
         let numbers: std::collections::BTreeSet<i32> = CYCLE_FIELDS.iter().map(|f| f.1).collect();
-        assert_eq!(numbers, (1..=15).collect(), "the flight log's field numbers");
+        assert_eq!(numbers, (1..=16).collect(), "the flight log's field numbers");
         let only_q = Cycle { q: vec![1.0], ..Default::default() };
         let key = only_q.encode_to_vec()[0];
         assert_eq!(i32::from(key >> 3), CYCLE_FIELDS.iter().find(|f| f.0 == "q").unwrap().1);
