@@ -98,11 +98,6 @@ pub enum FixtureError {
 }
 
 impl Fixtures {
-    /// Whether the file renders nothing.
-    pub fn is_empty(&self) -> bool {
-        self.wall.is_empty() && self.cone.is_empty() && self.viscous.is_empty() && self.spring.is_empty()
-    }
-
     /// Every number finite, every stiffness and damping at or above zero, every direction a
     /// direction, every angle a cone can have.
     pub fn validate(&self) -> Result<(), FixtureError> {

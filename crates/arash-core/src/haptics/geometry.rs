@@ -66,11 +66,6 @@ impl Geometry {
         self.model.dof()
     }
 
-    /// The model the geometry is of.
-    pub fn model(&self) -> &Model {
-        &self.model
-    }
-
     /// Place the instrument at `q`.
     pub fn at(&mut self, q: &[f64]) {
         forward_kinematics(&self.model, &mut self.data, q);

@@ -30,7 +30,6 @@ pub struct HapticLaw {
     renderer: FixtureRenderer,
     forces: Vec<f64>,
     scratch: Vec<f64>,
-    last: Rendered,
 }
 
 impl HapticLaw {
@@ -74,13 +73,7 @@ impl HapticLaw {
             renderer: FixtureRenderer::new(model, fixtures)?,
             forces: vec![0.0; n],
             scratch: vec![0.0; n],
-            last: Rendered::default(),
         })
-    }
-
-    /// What the fixtures rendered in the last command.
-    pub fn rendered(&self) -> &Rendered {
-        &self.last
     }
 
     /// The command at state `q`, `qd` into `tau`. A non-finite state, or a fixture that renders
@@ -93,8 +86,7 @@ impl HapticLaw {
             tau[..out.len()].copy_from_slice(&out);
         }
         self.scratch = out;
-        self.last = rendered?;
-        Ok(self.last)
+        rendered
     }
 
     /// The compensation alone at `q`, `qd` (finite) into `out`.

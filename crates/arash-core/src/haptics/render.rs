@@ -4,6 +4,7 @@
 
 use super::fixtures::{FixtureError, Fixtures};
 use super::geometry::Geometry;
+use crate::dense::{axpy, dot};
 use crate::model::Model;
 use crate::spatial::Vec3;
 
@@ -58,10 +59,6 @@ impl FixtureRenderer {
         })
     }
 
-    pub fn fixtures(&self) -> &Fixtures {
-        &self.fixtures
-    }
-
     /// Add the fixtures' joint torque at state `q`, `qd` to `tau`. A non-finite state or result
     /// is refused and leaves `tau` as it was.
     pub fn add_torque(&mut self, q: &[f64], qd: &[f64], tau: &mut [f64]) -> Result<Rendered, RenderError> {
@@ -76,16 +73,19 @@ impl FixtureRenderer {
         let mut force = Vec3::zeros();
         let mut moment = Vec3::zeros();
         let velocity = self.geometry.tip_velocity(qd);
+        // Every wall is at a depth along the same instrument: one depth, gradient and rate.
+        let (depth, rate) = match self.fixtures.wall.is_empty() {
+            true => (0.0, 0.0),
+            false => (self.geometry.depth(&mut self.gradient), dot(&self.gradient, qd)),
+        };
         for wall in &self.fixtures.wall {
-            let depth = self.geometry.depth(&mut self.gradient);
             let past = depth - wall.depth_m;
             if past <= 0.0 {
                 continue;
             }
-            let rate = dot(&self.gradient, qd);
             // A wall pushes; it never holds the tip in when the hand pulls out fast.
             let push = (wall.stiffness * past + wall.damping * rate).max(0.0);
-            axpy(-push, &self.gradient, &mut self.torque);
+            axpy(&mut self.torque, -push, &self.gradient);
             force -= push * self.geometry.direction;
             out.energy += 0.5 * wall.stiffness * past * past;
             out.contact = true;
@@ -98,7 +98,7 @@ impl FixtureRenderer {
             }
             let rate = dot(&self.gradient, qd);
             let turn = (cone.stiffness * past + cone.damping * rate).max(0.0);
-            axpy(-turn, &self.gradient, &mut self.torque);
+            axpy(&mut self.torque, -turn, &self.gradient);
             moment -= turn * about;
             out.energy += 0.5 * cone.stiffness * past * past;
             out.contact = true;
@@ -122,12 +122,4 @@ impl FixtureRenderer {
         out.moment = moment.into();
         Ok(out)
     }
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
-fn axpy(alpha: f64, x: &[f64], y: &mut [f64]) {
-    y.iter_mut().zip(x).for_each(|(y, x)| *y += alpha * x);
 }

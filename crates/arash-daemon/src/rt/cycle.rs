@@ -293,11 +293,16 @@ impl ControlCycle {
         }
     }
 
-    /// Start the new source's command `tau` where the old one left off and fade the difference
-    /// out over the handover's cycles, so that neither entering nor leaving the haptic mode
-    /// steps the torque.
-    fn hand_over(&mut self, tau: &mut [f64]) {
-        let n = self.dof;
+    /// No handover under way: the motors were disabled, re-enabled or a fault latched.
+    fn cancel_handover(&mut self) {
+        (self.handover_from, self.handover_left) = (None, 0);
+    }
+
+    /// Start the new source's command (the record's `tau_cmd`) where the old one left off and
+    /// fade the difference out over the handover's cycles, so that neither entering nor leaving
+    /// the haptic mode steps the torque.
+    fn hand_over(&mut self) {
+        let (n, tau) = (self.dof, &mut self.record.tau_cmd);
         if let Some(from) = self.handover_from.take() {
             for ((offset, f), t) in self.handover_offset.iter_mut().zip(&from).zip(&tau[..n]) {
                 *offset = f - t;
@@ -399,7 +404,7 @@ impl ControlCycle {
                     self.gate.clear();
                     self.mismatch_count = [0; MAX_JOINTS];
                     self.last_sent = [0.0; MAX_JOINTS];
-                    (self.handover_from, self.handover_left) = (None, 0);
+                    self.cancel_handover();
                     let q = fixed(&self.record.q);
                     let old = self.reference.hold_at(&q[..self.dof]);
                     self.event(Event::Enabled);
@@ -414,7 +419,7 @@ impl ControlCycle {
                     self.mode = Mode::Disabled;
                     self.event(Event::Disabled);
                 }
-                (self.handover_from, self.handover_left) = (None, 0);
+                self.cancel_handover();
                 self.leave_haptic()
             }
             Request::ResetFault => {
@@ -528,14 +533,10 @@ impl ControlCycle {
                 Ok(rendered) => r.fixture_force.copy_from_slice(&rendered.force),
                 Err(_) => self.gate.latch(Faults::NON_FINITE_COMMAND),
             }
-            let mut tau = std::mem::take(&mut self.record.tau_cmd);
-            self.hand_over(&mut tau);
-            self.record.tau_cmd = tau;
+            self.hand_over();
         } else {
             self.controller.step(self.cfg.dt, q, qd, &desired, &mut r.tau_cmd);
-            let mut tau = std::mem::take(&mut self.record.tau_cmd);
-            self.hand_over(&mut tau);
-            self.record.tau_cmd = tau;
+            self.hand_over();
         }
         if self.mode == Mode::Enabled {
             self.check_link();
@@ -727,8 +728,7 @@ impl ControlCycle {
 
     fn latch(&mut self, faults: Faults) {
         let was_enabled = self.mode == Mode::Enabled;
-        self.handover_from = None;
-        self.handover_left = 0;
+        self.cancel_handover();
         self.mode = Mode::Faulted;
         self.event(Event::FaultLatched(faults));
         if let Some(Garbage::Haptic(left)) = self.leave_haptic() {
