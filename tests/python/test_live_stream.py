@@ -109,10 +109,11 @@ def test_every_topic_is_advertised_with_a_schema_and_nothing_can_be_commanded(li
     topics = {c["topic"]: c for c in reader.channels.values()}
     assert set(topics) == {
         "/arash/cycle", "/arash/error", "/arash/timing", "/arash/event", "/robot_description", "/arash/transforms",
-        "/arash/hand_force_arrow",
+        "/arash/hand_force_arrow", "/arash/fixture_force_arrow",
     }
     assert topics["/arash/transforms"]["schemaName"] == "foxglove.FrameTransforms"
     assert topics["/arash/hand_force_arrow"]["schemaName"] == "foxglove.SceneUpdate"
+    assert topics["/arash/fixture_force_arrow"]["schemaName"] == "foxglove.SceneUpdate"
     assert topics["/arash/cycle"]["schemaName"] == "arash.Cycle"
     assert topics["/arash/error"]["metadata"]["units"] == "deg,deg,um"
 
@@ -170,6 +171,13 @@ def test_the_3d_panel_puts_the_links_and_the_force_arrow_where_pinocchio_does(li
         assert abs(arrow.shaft_length + arrow.head_length - 0.02 * np.linalg.norm(force)) < 1e-12
         arrows += 1
     assert arrows >= 100, arrows
+    # The run tracks a trajectory, so no fixture renders a force: each window deletes the
+    # fixtures' arrow, by its own id, and never the hand's.
+    fixture_updates = received["/arash/fixture_force_arrow"]
+    assert len(fixture_updates) >= 100, len(fixture_updates)
+    for log_time, _, update in fixture_updates:
+        assert np.linalg.norm(np.array(cycles[log_time].fixture_force)) == 0.0
+        assert not update.entities and [d.id for d in update.deletions] == ["fixture_force"]
 
 
 def test_the_decoded_cycles_equal_the_flight_logs_at_the_display_rate(live_run):
@@ -228,7 +236,7 @@ def test_ctl_status_counts_the_client_and_what_it_was_sent(live_run):
     live = status["live"]
     assert (live["clients"], live["connections"], live["dropped"]) == (1, 1, 0)
     assert live["sent"] >= sum(len(v) for v in received.values())
-    assert live["per_client"][0]["subscriptions"] == 7
+    assert live["per_client"][0]["subscriptions"] == 8
 
 
 def test_another_address_than_loopback_needs_the_flag_and_a_foreign_protocol_is_refused(tmp_path):

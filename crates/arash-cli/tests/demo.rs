@@ -183,6 +183,29 @@ fn the_demo_calibrates_diagnoses_and_controls_the_simulated_rig() {
         assert!(compared["z"].as_f64().unwrap().abs() < 3.0, "{compared}");
     }
 
+    // The haptic mode's chapter (docs/haptics.md), on this rig with its undeclared effects: the
+    // trainee's hand needs at least 3 times less force and moment about the remote centre with
+    // the model and its effects than with CAD, and the bare device far more than CAD; the
+    // stiffest wall accepted renders within 10 % of the ideal one and its energy does not grow
+    // after the deepest press; a wall over the bound is refused.
+    let haptic: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report/haptic/haptic.json")).unwrap()).unwrap();
+    let rows = haptic["transparency"].as_array().unwrap();
+    let named = |name: &str| rows.iter().find(|r| r["compensation"] == name).unwrap_or_else(|| panic!("{haptic}"));
+    let norm = |r: &serde_json::Value, what: &str| column(r, &[what]).iter().map(|v| v * v).sum::<f64>().sqrt();
+    let (none, cad, effects) = (named("none"), named("CAD"), named("identified + effects"));
+    eprintln!("haptic transparency: {rows:?}");
+    for what in ["force_rms", "moment_rms"] {
+        assert!(norm(effects, what) * 3.0 <= norm(cad, what), "{what}: {haptic}");
+        assert!(norm(none, what) > 3.0 * norm(cad, what), "{what}: {haptic}");
+    }
+    let wall = &haptic["wall"];
+    assert!(wall["contact_cycles"].as_u64().unwrap() > 1000, "{wall}");
+    assert!(wall["relative_error"].as_f64().unwrap() < 0.10, "{wall}");
+    assert!(wall["energy_after"].as_f64().unwrap() <= 1.01 * wall["energy_at_deepest"].as_f64().unwrap(), "{wall}");
+    assert!(wall["ringing"].as_u64().unwrap() <= 3, "{wall}");
+    assert!(wall["refused_over_bound"].as_str().unwrap().contains("above the passivity bound"), "{wall}");
+
     let mut figures = Vec::new();
     pngs(&dir.join("report"), &mut figures);
     let names: Vec<String> = figures.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();

@@ -11,10 +11,10 @@
 // Identification's SDP calls BLAS and LAPACK under their Fortran names; arash's own provide them.
 use arash_blas_lapack as _;
 use arash_core::control::Trajectory;
-use arash_core::haptics::{check_passivity, DepthWall, FixtureRenderer, Fixtures, HapticLaw, RenderLoop};
+use arash_core::haptics::{Fixtures, HapticLaw, RenderLoop};
 use arash_core::model_file::IdentifyMethod;
-use arash_core::record::{CycleRecord, TruthRecord};
-use arash_core::sim::scenario::{Grasp, Hand, PathPress};
+use arash_core::sim::scenario::{Grasp, PathPress};
+use arash_core::sim::trainee::{self, Cycle, Effort, Trial, WallPress};
 use arash_core::sim::{Rig, Scenario};
 use arash_core::Model;
 
@@ -24,34 +24,16 @@ const EXCITATION: &str = include_str!("../../../trajectories/excitation_L5_T15.j
 const START: [f64; 3] = [0.1, 0.3, 0.015];
 const DT: f64 = 1e-3;
 
-/// The hand holds `frame`: for transparency where a trainee does, above the eye (the carriage's
-/// origin, 8 cm up the instrument from its tip); for a press, at the tip.
-fn rig_with(model: &Model, frame: &str, grasp: Grasp, law: HapticLaw) -> Rig {
-    let hand = Hand { frame: frame.into(), grasp: Some(grasp), ..Hand::default() };
-    let scenario = Scenario { hand: Some(hand), ..Scenario::default() };
-    Rig::new(model, &scenario, Trajectory::Hold { q: START.to_vec() }, Box::new(law)).unwrap()
+/// The hand holds `frame` (for transparency where a trainee does, above the eye: the carriage's
+/// origin, 8 cm up the instrument from its tip; for a press, at the tip) under `law` for `seconds`.
+fn trial(model: &Model, frame: &str, grasp: Grasp, law: HapticLaw, seconds: f64) -> Vec<Cycle> {
+    let trial = Trial { frame: frame.into(), grasp, start: START.to_vec(), seconds };
+    trainee::run(model, &Scenario::default(), Box::new(law), &trial).unwrap()
 }
 
 /// The law on `params` with the controllers' Coulomb width and no viscous friction compensated.
 fn law(model: &Model, params: &[f64], fixtures: &Fixtures) -> HapticLaw {
     HapticLaw::new(model, params, &[], &[0.01, 0.01, 1e-3], 0.0, fixtures).unwrap()
-}
-
-fn run(rig: &mut Rig, seconds: f64) -> Vec<(CycleRecord, TruthRecord)> {
-    (0..(seconds / DT) as usize)
-        .map(|_| {
-            rig.step().unwrap();
-            let r = rig.record();
-            assert!(r.faults.is_empty(), "{:?} at t = {} with q = {:?}", r.faults.names(), r.t, r.q);
-            (rig.record().clone(), rig.truth().clone())
-        })
-        .collect()
-}
-
-/// The hand's RMS force per base axis after `from` seconds.
-fn rms_force(samples: &[(CycleRecord, TruthRecord)], from: f64) -> [f64; 3] {
-    let kept: Vec<_> = samples.iter().filter(|(r, _)| r.t >= from).collect();
-    std::array::from_fn(|a| (kept.iter().map(|(_, t)| t.hand_force[a].powi(2)).sum::<f64>() / kept.len() as f64).sqrt())
 }
 
 /// Along the same path the hand needs three times less force with the identified model than with
@@ -82,13 +64,18 @@ fn the_hand_needs_less_force_the_better_the_model_the_law_compensates() {
     for (label, params, with_law) in &conditions {
         let epsilon = arash_core::control::gains::compensation_epsilon(with_law, &[0.01, 0.01, 1e-3]);
         let law = HapticLaw::new(with_law, params, &[], &epsilon, 0.0, &Fixtures::default()).unwrap();
-        let mut rig = rig_with(&model, "insertion_carriage", grasp.clone(), law);
-        followed = run(&mut rig, 15.0);
-        let rms = rms_force(&followed, 3.0);
-        let moment = rms_moment(&model, &followed, 3.0);
-        eprintln!("{label}: the hand's RMS force per base axis {rms:.4?} N, moment about the RCM {moment:.5?} N·m");
-        figures.push(norm(rms));
+        followed = trial(&model, "insertion_carriage", grasp.clone(), law, 15.0);
+        let effort = Effort::of(&model, ("insertion_carriage", "remote_centre"), &followed, 3.0).unwrap();
+        eprintln!(
+            "{label}: the hand's RMS force per base axis {:.4?} N, moment about the RCM {:.5?} N·m",
+            effort.force_rms, effort.moment_rms
+        );
+        figures.push(norm(effort.force_rms));
     }
+    // The force that moves the bare device along the path the rig's own model let the hand
+    // follow, two ways: the trial's (the motors' and the hand's torque together) and, in its
+    // place, the rig's own inverse dynamics at the true state.
+    let effort = Effort::of(&model, ("insertion_carriage", "remote_centre"), &followed, 3.0).unwrap();
     let mut bare = model.clone();
     bare.coulomb_laws = arash_core::CoulombLaws::uniform(
         arash_core::model::CoulombShape::Tanh { epsilon: scenario.truth.coulomb_epsilon },
@@ -96,54 +83,33 @@ fn the_hand_needs_less_force_the_better_the_model_the_law_compensates() {
     );
     let mut data = arash_core::Data::new(&model);
     let mut at_grasp = arash_core::force::FrameForce::new(&model, "insertion_carriage", "remote_centre", 1e-3).unwrap();
-    // The force that moves the bare device, in place of the hand's in the truth.
-    let bare_samples: Vec<_> = followed
-        .iter()
-        .map(|(r, t)| {
-            let mut tau = [0.0; 3];
-            arash_core::dynamics::inverse_dynamics(&bare, &mut data, &t.q, &t.qd, &t.qdd, &truth, &mut tau);
-            let mut t = t.clone();
-            t.hand_force = at_grasp.map(&t.q, &tau, &[0.0; 3]).force.to_vec();
-            (r.clone(), t)
-        })
-        .collect();
-    let none = norm(rms_force(&bare_samples, 3.0));
+    let mut square = [0.0; 3];
+    let kept: Vec<_> = followed.iter().filter(|c| c.truth.t >= 3.0).collect();
+    for c in &kept {
+        let t = &c.truth;
+        let mut tau = [0.0; 3];
+        arash_core::dynamics::inverse_dynamics(&bare, &mut data, &t.q, &t.qd, &t.qdd, &truth, &mut tau);
+        let f = at_grasp.map(&t.q, &tau, &[0.0; 3]).force;
+        (0..3).for_each(|a| square[a] += f[a] * f[a] / kept.len() as f64);
+    }
+    let by_dynamics = square.map(f64::sqrt);
+    let none = norm(effort.bare_force_rms);
     eprintln!(
-        "the bare device's per base axis {:.4?} N, moment about the RCM {:.5?} N·m",
-        rms_force(&bare_samples, 3.0),
-        rms_moment(&model, &bare_samples, 3.0)
+        "the bare device's per base axis {:.4?} N (its inverse dynamics {by_dynamics:.4?} N), moment about the RCM {:.5?} N·m",
+        effort.bare_force_rms, effort.bare_moment_rms
     );
     eprintln!(
         "the hand's RMS force: bare device {none:.4} N, CAD {:.4} N, identified {:.4} N, the rig's own {:.4} N",
         figures[0], figures[1], figures[2]
     );
+    assert!(
+        (none - norm(by_dynamics)).abs() < 0.05 * none,
+        "the bare device's force from the trial's torques {none} against its inverse dynamics {}",
+        norm(by_dynamics)
+    );
     assert!(figures[1] < figures[0] / 3.0, "identified {} against CAD {}", figures[1], figures[0]);
     assert!(figures[2] < figures[0] / 3.0, "the rig's own parameters {} against CAD {}", figures[2], figures[0]);
     assert!(none > 3.0 * figures[0], "the bare device {none} against CAD {}", figures[0]);
-}
-
-/// The RMS per base axis, after `from` seconds, of the hand's moment about the remote centre:
-/// `(p − c) × F` at the carriage, where it holds the instrument.
-fn rms_moment(model: &Model, samples: &[(CycleRecord, TruthRecord)], from: f64) -> [f64; 3] {
-    let mut grasp = arash_core::force::FrameForce::new(model, "insertion_carriage", "remote_centre", 1e-3).unwrap();
-    let kept: Vec<_> = samples.iter().filter(|(r, _)| r.t >= from).collect();
-    let mut square = [0.0; 3];
-    for (_, t) in &kept {
-        // The map's moment is about `remote_centre`; a joint torque of zero leaves the force to us.
-        let at = grasp.map(&t.q, &[0.0; 3], &[0.0; 3]);
-        let (p, f) =
-            (arash_core::spatial::Vec3::from(at.position), arash_core::spatial::Vec3::from_column_slice(&t.hand_force));
-        let centre = arash_core::spatial::Vec3::from(centre_of(model, &t.q));
-        let m = (p - centre).cross(&f);
-        (0..3).for_each(|a| square[a] += m[a] * m[a] / kept.len() as f64);
-    }
-    square.map(f64::sqrt)
-}
-
-/// The remote centre's position at `q` (base frame).
-fn centre_of(model: &Model, q: &[f64]) -> [f64; 3] {
-    let mut centre = arash_core::force::FrameForce::new(model, "remote_centre", "remote_centre", 1e-3).unwrap();
-    centre.map(q, &[0.0; 3], &[0.0; 3]).position
 }
 
 /// What a lab has after `arash identify`: OLS with the defaults on 40 s of the excitation, logged
@@ -180,55 +146,33 @@ fn a_press_into_the_stiffest_wall_accepted_settles_and_renders_the_ideal_wall() 
     let model = arash_core::arash_asist();
     let truth = arash_core::sim::truth::true_parameters(&model, &Scenario::default());
     // The wall 2 mm deeper than the tip starts; the hand presses 6 mm deeper and back over 4 s.
-    let mut probe = FixtureRenderer::new(&model, &Fixtures::default()).unwrap();
-    let _ = probe.add_torque(&START, &[0.0; 3], &mut [0.0; 3]).unwrap();
-    let depth = {
-        let mut g = arash_core::haptics::geometry::Geometry::new(&model, &Fixtures::default()).unwrap();
-        g.at(&START);
-        g.depth(&mut [0.0; 3])
-    };
     let looped = RenderLoop::of_model(&model, &truth, 0.0, DT, DT).unwrap();
-    let probe_wall = |stiffness: f64| Fixtures {
-        wall: vec![DepthWall { depth_m: depth + 0.002, stiffness, damping: 0.0 }],
-        ..Default::default()
-    };
-    let bound = check_passivity(&model, &probe_wall(1.0), &looped).unwrap().fixtures[0].stiffness_bound.unwrap();
-    let wall = probe_wall(0.999 * bound);
-    check_passivity(&model, &wall, &looped).unwrap();
+    let (wall, bound) = trainee::wall_at_bound(&model, &START, 0.002, &looped, 0.999).unwrap();
     let grasp =
         Grasp { at_s: 0.5, press: vec![PathPress { at_s: 1.0, duration_s: 4.0, depth_m: 0.006 }], ..Grasp::default() };
-    let mut rig = rig_with(&model, "instrument_tip", grasp, law(&model, &truth, &wall));
-    let samples = run(&mut rig, 6.0);
-    let mut rendered = FixtureRenderer::new(&model, &wall).unwrap();
-    let mut ideal = FixtureRenderer::new(&model, &wall).unwrap();
-    let (mut error, mut total, mut contact) = (0.0, 0.0, 0);
-    let mut energy = Vec::new();
-    for (r, t) in &samples {
-        let from_encoders = rendered.add_torque(&r.q, &r.qd, &mut [0.0; 3]).unwrap();
-        let at_truth = ideal.add_torque(&t.q, &t.qd, &mut [0.0; 3]).unwrap();
-        energy.push((r.t, at_truth.energy));
-        if at_truth.contact && at_truth.energy > 0.5 * wall.wall[0].stiffness * 1e-10 {
-            contact += 1;
-            for a in 0..3 {
-                error += (from_encoders.force[a] - at_truth.force[a]).powi(2);
-                total += at_truth.force[a].powi(2);
-            }
-        }
-    }
-    assert!(contact > 1000, "the press reached the wall for {contact} ms only");
-    let relative = (error / total).sqrt();
+    let samples = trial(&model, "instrument_tip", grasp, law(&model, &truth, &wall), 6.0);
+    // Past the press's deepest set-point (t = 3 s) the hand withdraws.
+    let press = WallPress::of(&model, &wall, &samples, 3.0).unwrap();
+    assert!(press.contact_cycles > 1000, "the press reached the wall for {} ms only", press.contact_cycles);
     eprintln!(
-        "wall at {:.1} N/m (bound {bound:.1}): rendered against ideal {:.2} % RMS",
+        "wall at {:.1} N/m (bound {bound:.1}): rendered against ideal {:.2} % RMS, {:.2} mm deep at {:.2} N",
         wall.wall[0].stiffness,
-        100.0 * relative
+        100.0 * press.relative_error,
+        1e3 * press.penetration_m,
+        press.peak_force
     );
-    assert!(relative < 0.10, "the rendered wall is {:.1} % off the ideal one", 100.0 * relative);
-    // Past the press's deepest set-point (t = 3 s) the hand withdraws: the wall's energy must not
-    // rise above what it held then, and must not ring (no more than a handful of local maxima).
-    let at_peak = energy.iter().filter(|(t, _)| *t <= 3.0).map(|(_, e)| *e).fold(0.0, f64::max);
-    let after: Vec<f64> = energy.iter().filter(|(t, _)| *t > 3.0).map(|(_, e)| *e).collect();
-    let highest = after.iter().copied().fold(0.0, f64::max);
-    assert!(highest <= 1.01 * at_peak, "the wall's energy grew after the press: {highest} J against {at_peak} J");
-    let ringing = after.windows(3).filter(|w| w[1] > w[0] && w[1] > w[2] && w[1] > 0.01 * at_peak).count();
-    assert!(ringing <= 3, "the wall's energy rang: {ringing} local maxima while the hand withdrew");
+    assert!(
+        press.relative_error < 0.10,
+        "the rendered wall is {:.1} % off the ideal one",
+        100.0 * press.relative_error
+    );
+    // The wall's energy must not rise above what it held at the deepest set-point, and must not
+    // ring (no more than a handful of local maxima).
+    assert!(
+        press.energy_after <= 1.01 * press.energy_at_deepest,
+        "the wall's energy grew after the press: {} J against {} J",
+        press.energy_after,
+        press.energy_at_deepest
+    );
+    assert!(press.ringing <= 3, "the wall's energy rang: {} local maxima while the hand withdrew", press.ringing);
 }

@@ -93,7 +93,7 @@ const FOLDERS: &[(&str, &[&str])] = &[
         ],
     ),
     ("flightlog", &["uniform", "schema", "reader", "writer", "recover"]),
-    ("sim", &["scenario", "truth", "hand", "plant", "drive", "rig", "run"]),
+    ("sim", &["scenario", "truth", "hand", "plant", "drive", "rig", "run", "trainee"]),
 ];
 
 /// arash-daemon: the rig library, leaf first (its binary, `main.rs`, only calls `daemon`).

@@ -316,7 +316,7 @@ impl Logger {
             if let Some(live) = &self.live {
                 live.publish(Topic::Cycle, log_time, cycle);
                 live.publish(Topic::Error, log_time, &self.encoded);
-                live.publish_scene(log_time, &r.q, &r.frame_force);
+                live.publish_scene(log_time, &r.q, (&r.frame_force, &r.fixture_force));
             }
             segment.writer.write_protobuf(ERROR_TOPIC, ERROR_SCHEMA, r.t, &self.encoded)?;
         }

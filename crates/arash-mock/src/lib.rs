@@ -106,6 +106,8 @@ pub struct MockMotor {
     held: Vec<(u64, [u8; MAX_WIRE], usize)>,
     /// How long the drive waits for a host frame before it faults (its own watchdog).
     pub watchdog: std::time::Duration,
+    /// Where each powered cycle's truth goes (`--truth`), and its row's buffer.
+    truth: Option<(std::io::BufWriter<std::fs::File>, String)>,
 }
 
 /// A pseudo-terminal for the mock motor to play a drive on: the master end, set for
@@ -150,7 +152,34 @@ impl MockMotor {
             last_host_frame: std::time::Instant::now(),
             held: Vec::with_capacity(16),
             watchdog: std::time::Duration::from_millis(100),
+            truth: None,
         })
+    }
+
+    /// Write each powered cycle's truth to `path` as CSV (`Drive::truth_csv_header`).
+    pub fn record_truth(&mut self, path: &std::path::Path) -> anyhow::Result<()> {
+        use anyhow::Context;
+        use std::io::Write;
+        let file = std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+        let mut out = std::io::BufWriter::new(file);
+        writeln!(out, "{}", self.drive.truth_csv_header())?;
+        out.flush()?;
+        self.truth = Some((out, String::with_capacity(512)));
+        Ok(())
+    }
+
+    /// Append the last cycle's truth, flushed every tenth of a second of simulated time so that
+    /// a reader following the file lags little and a killed mock loses little.
+    fn write_truth(&mut self) -> anyhow::Result<()> {
+        use std::io::Write;
+        if let Some((out, row)) = self.truth.as_mut() {
+            self.drive.truth_csv_row(row);
+            writeln!(out, "{row}")?;
+            if self.drive.truth().cycle.is_multiple_of(100) {
+                out.flush()?;
+            }
+        }
+        Ok(())
     }
 
     /// The simulated drive (plant and truth), e.g. for tests.
@@ -238,6 +267,7 @@ impl MockMotor {
                 *t = self.setpoint[k] * self.config.torque_constant[k] * self.mismatch(k);
             }
             self.drive.apply(self.dt, &tau[..self.dof])?;
+            self.write_truth()?;
         }
         Ok(())
     }

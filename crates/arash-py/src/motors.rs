@@ -75,6 +75,19 @@ impl SimulatedMotors {
         self.drive.plant().q().to_vec()
     }
 
+    /// The header of `truth_row`'s CSV table (the columns `arash mock-motor --truth` writes).
+    fn truth_header(&self) -> String {
+        self.drive.truth_csv_header()
+    }
+
+    /// The last cycle's truth as a CSV row: t, q, q̇, the motors' and the hand's joint torques,
+    /// and the hand's force (SI, base frame).
+    fn truth_row(&self) -> String {
+        let mut row = String::new();
+        self.drive.truth_csv_row(&mut row);
+        row
+    }
+
     /// Simulated time (s).
     fn time(&self) -> f64 {
         self.drive.plant().time()

@@ -39,6 +39,10 @@ pub struct Args {
     /// mlockall): `ignore` tries it and serves without if refused; `require` refuses to start.
     #[arg(long, value_parser = <RtPolicy as std::str::FromStr>::from_str, default_value = "ignore")]
     rt: RtPolicy,
+    /// Write the simulated rig's truth to this CSV file, a row per powered cycle: t, q, q̇, the
+    /// motors' and the hand's joint torques, and the hand's force (SI, base frame).
+    #[arg(long)]
+    truth: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -57,6 +61,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut motor = MockMotor::new(&model, &scenario, DriveConfig::default(), faults)?;
     motor.watchdog = std::time::Duration::from_millis(args.watchdog_ms);
+    if let Some(path) = &args.truth {
+        motor.record_truth(path)?;
+    }
     if let Some(amps) = &args.powered {
         anyhow::ensure!(
             amps.len() == model.dof() && amps.iter().all(|a| a.is_finite()),

@@ -110,6 +110,34 @@ impl Drive {
         &self.truth
     }
 
+    /// The header of [`Self::truth_csv_row`]'s table: a simulator serving the rig behind a link
+    /// (`arash mock-motor --truth`, `python -m arash.cia402_sim --truth`) writes the truth a run
+    /// through the daemon is judged by, the same columns whichever link serves it.
+    pub fn truth_csv_header(&self) -> String {
+        let n = self.tau_meas.len();
+        let mut columns = vec!["t".to_string()];
+        for name in ["q", "qd", "tau_motor", "tau_hand"] {
+            columns.extend((1..=n).map(|k| format!("{name}{k}")));
+        }
+        columns.extend(["hand_x", "hand_y", "hand_z"].map(String::from));
+        columns.join(",")
+    }
+
+    /// The last cycle's truth as a CSV row (no newline) into `out`, cleared first: SI units, the
+    /// hand's force at its frame in the base frame (zeros without a hand).
+    pub fn truth_csv_row(&self, out: &mut String) {
+        use std::fmt::Write;
+        let tr = &self.truth;
+        out.clear();
+        let _ = write!(out, "{:.6}", tr.t);
+        for v in tr.q.iter().chain(&tr.qd).chain(&tr.tau_motor).chain(&tr.tau_hand) {
+            let _ = write!(out, ",{v:.9e}");
+        }
+        for a in 0..3 {
+            let _ = write!(out, ",{:.9e}", tr.hand_force.get(a).copied().unwrap_or(0.0));
+        }
+    }
+
     /// One cycle of `dt` seconds with `tau` commanded: the amplifiers saturate it, the current
     /// sensors measure it, and the plant integrates with it held. Never allocates.
     pub fn apply(&mut self, dt: f64, tau: &[f64]) -> Result<(), PlantError> {

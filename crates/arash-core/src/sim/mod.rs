@@ -7,7 +7,8 @@
 //! - [`plant`]: the continuous-time robot and its fixed-step integrator;
 //! - [`drive`]: amplifiers, encoders and current sensing around the plant;
 //! - [`rig`]: the drive, amplifiers and the control loop around the plant;
-//! - [`run`]: a whole run (what `arash simulate` and `arash.simulate` execute).
+//! - [`run`]: a whole run (what `arash simulate` and `arash.simulate` execute);
+//! - [`trainee`]: a trainee's trials in the haptic mode, read from the truth.
 
 pub mod drive;
 pub mod hand;
@@ -15,6 +16,7 @@ pub mod plant;
 pub mod rig;
 pub mod run;
 pub mod scenario;
+pub mod trainee;
 pub mod truth;
 
 pub use drive::Drive;

@@ -1,6 +1,7 @@
 //! The rig in Foxglove's 3D panel: each URDF joint's transform at the displayed cycle, so that
-//! the robot description on `/robot_description` moves as the arm does, and the hand's force as
-//! an arrow at the frame it is estimated at (docs/force.md, "In the daemon").
+//! the robot description on `/robot_description` moves as the arm does, the hand's force as an
+//! arrow at the frame it is estimated at (docs/force.md, "In the daemon"), and in the haptic
+//! mode the fixtures' rendered force as a second arrow at the instrument tip (docs/haptics.md).
 //!
 //! Foxglove's URDF layer places the fixed joints' links itself; the moving ones need a transform
 //! from their parent link each time they move, as ROS's robot_state_publisher sends. The arrow
@@ -23,8 +24,14 @@ pub const ARROW_M_PER_N: f64 = 0.02;
 /// The force below which no arrow is drawn (N): an arrow of no length has no direction.
 pub const LEAST_ARROW_N: f64 = 1e-3;
 
-/// The arrow's entity id in the scene: each update replaces the last.
+/// The arrows' entity ids in the scene: each update replaces the last.
 pub const ARROW_ID: &str = "hand_force";
+pub const FIXTURE_ARROW_ID: &str = "fixture_force";
+
+/// The hand's arrow is orange, the fixtures' blue: what the trainee pushed and what the eye
+/// pushed back.
+const HAND_COLOR: Color = Color { r: 1.0, g: 0.35, b: 0.1, a: 1.0 };
+const FIXTURE_COLOR: Color = Color { r: 0.1, g: 0.45, b: 1.0, a: 1.0 };
 
 /// The kinematics the scene is drawn with, built once from the robot's URDF.
 pub struct Scene {
@@ -34,14 +41,17 @@ pub struct Scene {
     base: String,
     /// The frame the hand's force is estimated at (`force.frame`), if any.
     frame: Option<Frame>,
+    /// The instrument tip the fixtures render at by default, if the robot names one.
+    tip: Option<Frame>,
 }
 
 impl Scene {
     /// The scene of `model`, with the hand's force drawn at `frame` (a frame name), if any.
     pub fn new(model: Model, frame: Option<&str>) -> Result<Self, UnknownFrame> {
         let frame = frame.map(|name| model.frame(name)).transpose()?;
+        let tip = arash_core::force::settings::default_frame(&model).map(|c| model.frame(&c.frame)).transpose()?;
         let base = model.frames.first().map_or_else(|| "base".to_string(), |f| f.name.clone());
-        Ok(Self { data: Data::new(&model), model, base, frame })
+        Ok(Self { data: Data::new(&model), model, base, frame, tip })
     }
 
     /// Place the links at `q` (joint units, SI): what [`Self::transforms`] and
@@ -83,11 +93,21 @@ impl Scene {
     /// placed; an update that deletes the arrow when the force is below [`LEAST_ARROW_N`] or not
     /// finite, or when there is no frame.
     pub fn hand_arrow(&self, force: &[f64], time: Timestamp) -> SceneUpdate {
-        let (Some(frame), [x, y, z]) = (&self.frame, force) else { return self.no_arrow(time) };
+        self.arrow((ARROW_ID, HAND_COLOR), self.frame.as_ref(), force, time)
+    }
+
+    /// The fixtures' rendered force `force` (N, base frame) as an arrow at the instrument tip
+    /// (the fixtures' default frame), as [`Self::hand_arrow`] draws the hand's.
+    pub fn fixture_arrow(&self, force: &[f64], time: Timestamp) -> SceneUpdate {
+        self.arrow((FIXTURE_ARROW_ID, FIXTURE_COLOR), self.tip.as_ref(), force, time)
+    }
+
+    fn arrow(&self, (id, color): (&str, Color), frame: Option<&Frame>, force: &[f64], time: Timestamp) -> SceneUpdate {
+        let (Some(frame), [x, y, z]) = (frame, force) else { return self.no_arrow(id, time) };
         let f = Vec3::new(*x, *y, *z);
         let size = f.norm();
         if !(size.is_finite() && size >= LEAST_ARROW_N) {
-            return self.no_arrow(time);
+            return self.no_arrow(id, time);
         }
         let (_, origin) = frame_placement(&self.data, frame);
         // The arrow points along its pose's x axis: the rotation that takes x onto the force.
@@ -100,23 +120,23 @@ impl Scene {
             shaft_diameter: 0.001,
             head_length: 0.25 * length,
             head_diameter: 0.003,
-            color: Some(Color { r: 1.0, g: 0.35, b: 0.1, a: 1.0 }),
+            color: Some(color),
         };
         let entity = SceneEntity {
             timestamp: Some(time),
             frame_id: self.base.clone(),
-            id: ARROW_ID.into(),
+            id: id.into(),
             arrows: vec![arrow],
             ..Default::default()
         };
         SceneUpdate { entities: vec![entity], ..Default::default() }
     }
 
-    fn no_arrow(&self, time: Timestamp) -> SceneUpdate {
+    fn no_arrow(&self, id: &str, time: Timestamp) -> SceneUpdate {
         let deletion = foxglove::messages::SceneEntityDeletion {
             timestamp: Some(time),
             r#type: foxglove::messages::scene_entity_deletion::Type::MatchingId as i32,
-            id: ARROW_ID.into(),
+            id: id.into(),
         };
         SceneUpdate { deletions: vec![deletion], ..Default::default() }
     }
@@ -213,5 +233,27 @@ mod tests {
         let pose = back.entities[0].arrows[0].pose.as_ref().unwrap();
         let direction = rotation(pose.orientation.as_ref().unwrap()) * Vec3::x();
         assert!((direction + Vec3::x()).norm() < 1e-12, "{direction}");
+    }
+
+    /// The fixtures' arrow is at the instrument tip whichever frame the hand's force is estimated
+    /// at, its own entity (so the two arrows do not replace each other), and deleted outside the
+    /// mode, where the rendered force is zero.
+    #[test]
+    fn the_fixtures_force_is_its_own_arrow_at_the_tip() {
+        let model = arash_core::arash_asist();
+        let mut scene = Scene::new(model.clone(), Some("insertion_carriage")).unwrap();
+        let q = [-0.1, 0.4, 0.02];
+        scene.place(&q);
+        let update = scene.fixture_arrow(&[0.0, 0.5, -0.5], timestamp(0));
+        let entity = &update.entities[0];
+        assert_eq!(entity.id, FIXTURE_ARROW_ID);
+        assert_ne!(FIXTURE_ARROW_ID, ARROW_ID);
+        let mut data = Data::new(&model);
+        forward_kinematics(&model, &mut data, &q);
+        let (_, tip) = frame_placement(&data, &model.frame("instrument_tip").unwrap());
+        let at = position(entity.arrows[0].pose.as_ref().unwrap().position.as_ref().unwrap());
+        assert!((at - tip).norm() < 1e-12, "{at} against the tip {tip}");
+        let gone = scene.fixture_arrow(&[0.0; 3], timestamp(0));
+        assert!(gone.entities.is_empty() && gone.deletions[0].id == FIXTURE_ARROW_ID);
     }
 }

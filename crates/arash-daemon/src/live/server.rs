@@ -54,9 +54,12 @@ pub enum Topic {
     /// `/arash/hand_force_arrow`, the hand's force as an arrow at its frame
     /// (`foxglove.SceneUpdate`).
     HandArrow = 7,
+    /// `/arash/fixture_force_arrow`, the fixtures' rendered force as an arrow at the instrument
+    /// tip (`foxglove.SceneUpdate`; no arrow outside the haptic mode).
+    FixtureArrow = 8,
 }
 
-const TOPICS: [Topic; 7] = [
+const TOPICS: [Topic; 8] = [
     Topic::Cycle,
     Topic::Error,
     Topic::Timing,
@@ -64,11 +67,13 @@ const TOPICS: [Topic; 7] = [
     Topic::RobotDescription,
     Topic::Transforms,
     Topic::HandArrow,
+    Topic::FixtureArrow,
 ];
 
 /// The live stream's own topics, beside the flight log's.
 pub const TRANSFORMS_TOPIC: &str = "/arash/transforms";
 pub const HAND_ARROW_TOPIC: &str = "/arash/hand_force_arrow";
+pub const FIXTURE_ARROW_TOPIC: &str = "/arash/fixture_force_arrow";
 
 impl Topic {
     fn from_id(id: u64) -> Option<Topic> {
@@ -84,6 +89,7 @@ impl Topic {
             Topic::RobotDescription => ROBOT_DESCRIPTION_TOPIC,
             Topic::Transforms => TRANSFORMS_TOPIC,
             Topic::HandArrow => HAND_ARROW_TOPIC,
+            Topic::FixtureArrow => FIXTURE_ARROW_TOPIC,
         }
     }
 }
@@ -157,9 +163,10 @@ impl LiveServer {
         }
     }
 
-    /// The 3D panel at a window's cycle: the links at `q` and the hand's force `frame_force` (N,
-    /// base frame; empty without a frame) as an arrow, drawn only while someone watches.
-    pub fn publish_scene(&self, log_time: u64, q: &[f64], frame_force: &[f64]) {
+    /// The 3D panel at a window's cycle: the links at `q`, the hand's force `frame_force` (N,
+    /// base frame; empty without a frame) and the fixtures' `fixture_force` (N, base frame) as
+    /// arrows, each drawn only while someone watches.
+    pub fn publish_scene(&self, log_time: u64, q: &[f64], (frame_force, fixture_force): (&[f64], &[f64])) {
         let watched = |topic: Topic| {
             self.clients
                 .lock()
@@ -167,8 +174,9 @@ impl LiveServer {
                 .iter()
                 .any(|c| c.subscriptions.lock().expect("subscriptions lock").contains_key(&(topic as u64)))
         };
-        let (links, arrow) = (watched(Topic::Transforms), watched(Topic::HandArrow));
-        if !(links || arrow) {
+        let (links, arrow, fixtures) =
+            (watched(Topic::Transforms), watched(Topic::HandArrow), watched(Topic::FixtureArrow));
+        if !(links || arrow || fixtures) {
             return;
         }
         let time = timestamp(log_time);
@@ -183,6 +191,11 @@ impl LiveServer {
             payload.clear();
             scene.hand_arrow(frame_force, time).encode(&mut payload).expect("a Vec grows as needed");
             self.publish(Topic::HandArrow, log_time, &payload);
+        }
+        if fixtures {
+            payload.clear();
+            scene.fixture_arrow(fixture_force, time).encode(&mut payload).expect("a Vec grows as needed");
+            self.publish(Topic::FixtureArrow, log_time, &payload);
         }
     }
 
@@ -381,6 +394,7 @@ fn advertisement(units: &[&str]) -> anyhow::Result<String> {
         ),
         foxglove_schema(Topic::Transforms, FrameTransforms::get_schema()),
         foxglove_schema(Topic::HandArrow, SceneUpdate::get_schema()),
+        foxglove_schema(Topic::FixtureArrow, SceneUpdate::get_schema()),
     ]
     .into_iter()
     .map(|builder| builder.build())

@@ -89,6 +89,11 @@ impl HapticMode {
         Ok(Self { law, passivity })
     }
 
+    /// The law the mode runs, for a simulated rig to run as the cycle would (`arash demo`).
+    pub fn into_law(self) -> HapticLaw {
+        self.law
+    }
+
     /// This cycle's command at state `q`, `qd`.
     pub fn command(&mut self, q: &[f64], qd: &[f64], tau: &mut [f64]) -> Result<Rendered, RenderError> {
         self.law.command(q, qd, tau)

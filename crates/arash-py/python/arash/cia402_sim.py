@@ -629,14 +629,25 @@ class RigPlant:
     through arash's serial protocol drive the same rig. Like the mock's power stage it moves only
     while every drive is enabled."""
 
-    def __init__(self, motors, resolution):
+    def __init__(self, motors, resolution, truth=None):
         self.motors, self.resolution = motors, list(resolution)
+        # Each powered cycle's truth as ``arash mock-motor --truth`` writes it, flushed every
+        # 100 cycles so that a reader following the file lags little.
+        self.truth, self._rows = truth, 0
+        if truth is not None:
+            truth.write(motors.truth_header() + "\n")
+            truth.flush()
 
     def cycle(self, tau, enabled, dt):
         n = len(self.resolution)
         if all(enabled):
             self.motors.apply(dt, list(tau))
             torque = self.motors.measured_torque()
+            if self.truth is not None:
+                self.truth.write(self.motors.truth_row() + "\n")
+                self._rows += 1
+                if self._rows % 100 == 0:
+                    self.truth.flush()
         else:
             torque = [0.0] * n
         counts = self.motors.encoder_counts()
@@ -803,8 +814,9 @@ RIG_TORQUE_PER_AMP = [0.3312, 0.3312, 11.04]
 RIG_RATED_CURRENT_MA = [5000, 5000, 1000]
 
 
-def rig_simulator(scenario=None, seed=None, nodes=(1, 2, 3), record=True):
-    """The simulated ARASH:ASiST (a scenario file, or the nominal rig) behind CiA 402 drives."""
+def rig_simulator(scenario=None, seed=None, nodes=(1, 2, 3), record=True, truth=None):
+    """The simulated ARASH:ASiST (a scenario file, or the nominal rig) behind CiA 402 drives;
+    ``truth``, an open text file, receives each powered cycle's truth as CSV."""
     from . import Robot, SimulatedMotors
 
     text = "" if scenario is None else open(scenario, encoding="utf-8").read()
@@ -812,7 +824,7 @@ def rig_simulator(scenario=None, seed=None, nodes=(1, 2, 3), record=True):
     resolution = [2 * math.pi * r / c for r, c in zip(RIG_TRANSMISSION, RIG_COUNTS_PER_REV)]
     specs = [DriveSpec(node=n, joint_torque_per_amp=k, counts_per_unit=1 / res, rated_current_ma=i)
              for n, k, res, i in zip(nodes, RIG_TORQUE_PER_AMP, resolution, RIG_RATED_CURRENT_MA)]
-    return Simulator(specs, RigPlant(motors, resolution), record=record)
+    return Simulator(specs, RigPlant(motors, resolution, truth), record=record)
 
 
 def main(argv=None):
@@ -824,6 +836,8 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, help="override the scenario's seed")
     parser.add_argument("--nodes", default="1,2,3", help="the drives' node IDs, in joint order (default 1,2,3)")
     parser.add_argument("--link", help="also make this path a symbolic link to the pseudo-terminal")
+    parser.add_argument("--truth", help="write the simulated rig's truth to this CSV file, a row per powered cycle "
+                                        "(the columns of `arash mock-motor --truth`)")
     args = parser.parse_args(argv)
     try:
         nodes = [int(n) for n in args.nodes.split(",")]
@@ -831,7 +845,8 @@ def main(argv=None):
         parser.error(f"--nodes takes node IDs separated by commas, got {args.nodes!r}")
     if len(nodes) != 3 or not all(1 <= n <= 127 for n in nodes):
         parser.error(f"--nodes takes three node IDs from 1 to 127, one per joint, got {args.nodes!r}")
-    sim = rig_simulator(args.scenario, args.seed, nodes, record=False)
+    truth = open(args.truth, "w", encoding="utf-8") if args.truth else None
+    sim = rig_simulator(args.scenario, args.seed, nodes, record=False, truth=truth)
     if args.link:
         if os.path.lexists(args.link):
             os.remove(args.link)
@@ -849,6 +864,8 @@ def main(argv=None):
             pass
     finally:
         sim.close()
+        if truth is not None:
+            truth.close()
         print("arash.cia402_sim: " + json.dumps(sim.statistics()), file=sys.stderr, flush=True)
     return 0
 

@@ -339,7 +339,7 @@ fn write_series(path: &Path, t: &[f64], estimate: &ForceLog, truth: &TruthColumn
     crate::report::write_atomically(path, &text)
 }
 
-fn slug(label: &str) -> String {
+pub(super) fn slug(label: &str) -> String {
     label.split(|c: char| !c.is_alphanumeric()).filter(|s| !s.is_empty()).collect::<Vec<_>>().join("_")
 }
 
