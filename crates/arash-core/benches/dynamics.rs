@@ -78,6 +78,15 @@ fn bench(c: &mut Criterion) {
             black_box(law.command(black_box(&q), &qd, &mut tau).unwrap())
         })
     });
+    // The same with the optional inertia feed-forward: M(q) and C(q, q̇) each cycle.
+    let mut heavy = law.clone().with_inertia(0.5, 40.0, 1e-3).unwrap();
+    c.bench_function("haptic law with inertia feed-forward (arash_asist)", |b| {
+        b.iter(|| {
+            t += 1e-3;
+            let q = [0.3 * t.sin(), 0.4, 0.01];
+            black_box(heavy.command(black_box(&q), &qd, &mut tau).unwrap())
+        })
+    });
 }
 
 criterion_group!(benches, bench);

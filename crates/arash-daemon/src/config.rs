@@ -242,6 +242,13 @@ impl DaemonConfig {
         self.following_error(model)?;
         self.force.validate(model).map_err(ConfigError::Force)?;
         self.haptic.validate().map_err(ConfigError::Haptic)?;
+        if self.haptic.acceleration_cutoff_hz >= 0.5 * self.control.rate_hz {
+            return Err(ConfigError::Haptic(format!(
+                "haptic.acceleration_cutoff_hz = {} is not below the loop's Nyquist frequency, {} Hz",
+                self.haptic.acceleration_cutoff_hz,
+                0.5 * self.control.rate_hz
+            )));
+        }
         Ok(())
     }
 
@@ -420,6 +427,24 @@ mod tests {
         assert!(DaemonConfig::parse("[force]\nfram = \"tip\"\n").unwrap_err().to_string().contains("fram"));
         refused("[force]\nframe = \"tool\"\n", "force.frame");
         DaemonConfig::parse("[force]\nframe = \"remote_centre\"\n").unwrap().validate(&model).unwrap();
+    }
+
+    #[test]
+    fn the_haptic_modes_settings_are_checked_by_name() {
+        let model = arash_core::arash_asist();
+        for (text, key) in [
+            ("[haptic]\nviscous_compensation = 1.0\n", "haptic.viscous_compensation"),
+            ("[haptic]\nlatency_ms = -1.0\n", "haptic.latency_ms"),
+            ("[haptic]\nhandover_ms = nan\n", "haptic.handover_ms"),
+            ("[haptic]\ninertia_compensation = 1.0\n", "haptic.inertia_compensation"),
+            ("[haptic]\ninertia_compensation = -0.1\n", "haptic.inertia_compensation"),
+            ("[haptic]\nacceleration_cutoff_hz = 0.0\n", "haptic.acceleration_cutoff_hz"),
+            ("[haptic]\nacceleration_cutoff_hz = 500.0\n", "haptic.acceleration_cutoff_hz = 500 is not below"),
+        ] {
+            let e = DaemonConfig::parse(text).unwrap().validate(&model).unwrap_err().to_string();
+            assert!(e.contains(key), "{text}: {e}");
+        }
+        DaemonConfig::parse("[haptic]\ninertia_compensation = 0.5\n").unwrap().validate(&model).unwrap();
     }
 
     #[test]

@@ -71,14 +71,11 @@ fn thirteen_thousand_control_cycles_of_a_run_and_the_haptic_mode_allocate_nothin
         spring: vec![arash_core::haptics::Spring { point: [0.0, 0.0, 0.0], stiffness: 1e-6, damping: 0.0 }],
         ..Default::default()
     };
-    let haptic = arash_daemon::rt::haptic::HapticMode::build(
-        &model,
-        (&model.cad_parameters(), &[]),
-        &Default::default(),
-        &fixtures,
-        1e-3,
-    )
-    .unwrap();
+    // With the inertia feed-forward on, whose matrices are the law's own buffers.
+    let config = arash_daemon::rt::haptic::HapticConfig { inertia_compensation: 0.5, ..Default::default() };
+    let haptic =
+        arash_daemon::rt::haptic::HapticMode::build(&model, (&model.cad_parameters(), &[]), &config, &fixtures, 1e-3)
+            .unwrap();
     let thread_shared = shared.clone();
     let control = std::thread::spawn(move || {
         let queues = Queues { requests: request_rx, garbage: garbage_tx, log: log_tx };

@@ -6,15 +6,20 @@
 //! friction), the effects' forces (the wiring disturbance, Stribeck friction, whatever the
 //! diagnosis added), and a share of the viscous friction: what is left uncompensated is the
 //! damping that renders the fixtures passively ([`super::passivity`]). Drive gains scale the sum,
-//! as the drives are commanded. Inertia is not fed forward: the hand moves the arm, and an
-//! acceleration differenced from encoders at 1 kHz is noise.
+//! as the drives are commanded.
+//!
+//! Optionally ([`HapticLaw::with_inertia`]) a share of the arm's inertial torque `M(q) q̈ + C q̇`
+//! is fed forward, `q̈` differenced from the velocity and low-passed, so that the trainee feels a
+//! lighter instrument. Off by default: along a trainee's path of a few millimetres a second it
+//! buys little, and the filter the differenced velocity needs lags, which takes damping away
+//! (docs/haptics.md, "Inertia").
 
 use super::fixtures::{FixtureError, Fixtures};
 use super::render::{FixtureRenderer, RenderError, Rendered};
 use crate::control::feedforward::EffectFeedforward;
 use crate::control::{Controller, ControllerKind, Desired};
 use crate::data::Data;
-use crate::dynamics::gravity_torque;
+use crate::dynamics::{coriolis_matrix, gravity_torque, mass_matrix};
 use crate::effects::EffectTerm;
 use crate::model::Model;
 
@@ -30,6 +35,35 @@ pub struct HapticLaw {
     renderer: FixtureRenderer,
     forces: Vec<f64>,
     scratch: Vec<f64>,
+    inertia: Option<InertiaFeedforward>,
+}
+
+/// The inertia feed-forward's state: the acceleration estimate, a first-order low-pass of the
+/// velocity's difference, and the matrices' buffers.
+#[derive(Clone, Debug)]
+struct InertiaFeedforward {
+    share: f64,
+    /// The low-pass's weight on each new difference: `1 − exp(−2π f_c T)`.
+    weight: f64,
+    period_s: f64,
+    previous_qd: Vec<f64>,
+    qdd: Vec<f64>,
+    primed: bool,
+    mass: Vec<f64>,
+    coriolis: Vec<f64>,
+}
+
+impl InertiaFeedforward {
+    /// The estimate after a cycle at velocity `qd`.
+    fn update(&mut self, qd: &[f64]) {
+        if self.primed {
+            for ((a, v), p) in self.qdd.iter_mut().zip(qd).zip(&self.previous_qd) {
+                *a += self.weight * ((v - p) / self.period_s - *a);
+            }
+        }
+        self.previous_qd.copy_from_slice(qd);
+        self.primed = true;
+    }
 }
 
 impl HapticLaw {
@@ -73,7 +107,38 @@ impl HapticLaw {
             renderer: FixtureRenderer::new(model, fixtures)?,
             forces: vec![0.0; n],
             scratch: vec![0.0; n],
+            inertia: None,
         })
+    }
+
+    /// Also feed forward `share` (in [0, 1)) of the inertial torque `M(q) q̈ + C(q, q̇) q̇`, with
+    /// `q̈` the velocity's difference over `period_s` low-passed at `cutoff_hz`. A share of 1
+    /// would cancel the arm's mass outright, which no filtered estimate can do stably; 0 leaves
+    /// the law as it was.
+    pub fn with_inertia(mut self, share: f64, cutoff_hz: f64, period_s: f64) -> Result<Self, FixtureError> {
+        if !(0.0..1.0).contains(&share) {
+            return Err(FixtureError::Loop(format!("the inertia's compensated share is {share}, not in [0, 1)")));
+        }
+        if !(period_s.is_finite() && period_s > 0.0 && cutoff_hz.is_finite() && cutoff_hz > 0.0)
+            || cutoff_hz >= 0.5 / period_s
+        {
+            return Err(FixtureError::Loop(format!(
+                "the acceleration's cut-off {cutoff_hz} Hz must be positive and below the loop's Nyquist frequency at a \
+                 period of {period_s} s"
+            )));
+        }
+        let n = self.model.dof();
+        self.inertia = (share > 0.0).then(|| InertiaFeedforward {
+            share,
+            weight: 1.0 - (-std::f64::consts::TAU * cutoff_hz * period_s).exp(),
+            period_s,
+            previous_qd: vec![0.0; n],
+            qdd: vec![0.0; n],
+            primed: false,
+            mass: vec![0.0; n * n],
+            coriolis: vec![0.0; n * n],
+        });
+        Ok(self)
     }
 
     /// The command at state `q`, `qd` into `tau`. A non-finite state, or a fixture that renders
@@ -89,12 +154,25 @@ impl HapticLaw {
         rendered
     }
 
-    /// The compensation alone at `q`, `qd` (finite) into `out`.
+    /// The compensation alone at `q`, `qd` (finite) into `out`. With the inertia feed-forward each
+    /// call is one cycle: it advances the acceleration estimate.
     pub fn compensation(&mut self, q: &[f64], qd: &[f64], out: &mut [f64]) {
         let layout = self.model.layout();
         gravity_torque(&self.model, &mut self.data, q, &self.params, out);
         self.forces.fill(0.0);
         self.effects.add_forces(q, qd, &mut self.forces);
+        if let Some(inertia) = self.inertia.as_mut() {
+            inertia.update(qd);
+            let n = qd.len();
+            mass_matrix(&self.model, &mut self.data, q, &self.params, &mut inertia.mass);
+            coriolis_matrix(&self.model, &mut self.data, q, qd, &self.params, &mut inertia.coriolis);
+            for (k, f) in self.forces.iter_mut().enumerate() {
+                let row = k * n..(k + 1) * n;
+                let inertial = crate::dense::dot(&inertia.mass[row.clone()], &inertia.qdd)
+                    + crate::dense::dot(&inertia.coriolis[row], qd);
+                *f += inertia.share * inertial;
+            }
+        }
         for (k, o) in out.iter_mut().enumerate() {
             let friction = self.viscous * self.params[layout.viscous(k)] * qd[k]
                 + self.params[layout.coulomb(k)] * (qd[k] / self.epsilon[k]).tanh()
@@ -113,6 +191,10 @@ impl Controller for HapticLaw {
 
     fn reset(&mut self) {
         self.effects.reset();
+        if let Some(inertia) = self.inertia.as_mut() {
+            inertia.primed = false;
+            inertia.qdd.fill(0.0);
+        }
     }
 
     fn step(&mut self, _dt: f64, q: &[f64], qd: &[f64], _desired: &Desired, tau: &mut [f64]) {

@@ -23,11 +23,25 @@ pub struct HapticConfig {
     /// leaving (ms): the difference between the two fades out linearly instead of stepping, so
     /// that a wall the hand pressed into does not vanish in one cycle.
     pub handover_ms: f64,
+    /// The share of the arm's inertial torque `M(q) q̈ + C q̇` fed forward, in [0, 1): the
+    /// trainee feels that much less of the instrument's mass. Off by default: on a trainee's
+    /// path of a few millimetres a second it buys little (docs/haptics.md, "Inertia").
+    pub inertia_compensation: f64,
+    /// The low-pass (Hz) of the differenced velocity the feed-forward takes as `q̈`. Its lag
+    /// takes damping away, about `s·M·ω²/ω_c` at frequency `ω`: at 10 Hz the hand's grasp rang
+    /// and its force doubled; at 40 Hz it halved (docs/haptics.md, "Inertia").
+    pub acceleration_cutoff_hz: f64,
 }
 
 impl Default for HapticConfig {
     fn default() -> Self {
-        Self { viscous_compensation: 0.0, latency_ms: None, handover_ms: 100.0 }
+        Self {
+            viscous_compensation: 0.0,
+            latency_ms: None,
+            handover_ms: 100.0,
+            inertia_compensation: 0.0,
+            acceleration_cutoff_hz: 40.0,
+        }
     }
 }
 
@@ -44,6 +58,18 @@ impl HapticConfig {
         }
         if !(self.handover_ms.is_finite() && self.handover_ms >= 0.0) {
             return Err(format!("haptic.handover_ms must be finite and at least 0, not {}", self.handover_ms));
+        }
+        if !(0.0..1.0).contains(&self.inertia_compensation) {
+            return Err(format!(
+                "haptic.inertia_compensation must be in [0, 1), not {}: all of it would cancel the arm's mass",
+                self.inertia_compensation
+            ));
+        }
+        if !(self.acceleration_cutoff_hz.is_finite() && self.acceleration_cutoff_hz > 0.0) {
+            return Err(format!(
+                "haptic.acceleration_cutoff_hz must be positive and finite, not {}",
+                self.acceleration_cutoff_hz
+            ));
         }
         Ok(())
     }
@@ -85,6 +111,7 @@ impl HapticMode {
         let passivity = check_passivity(model, fixtures, &looped).map_err(|e| e.to_string())?;
         let epsilon = super::force::cycle_epsilon(model);
         let law = HapticLaw::new(model, params, effects, &epsilon, config.viscous_compensation, fixtures)
+            .and_then(|law| law.with_inertia(config.inertia_compensation, config.acceleration_cutoff_hz, period_s))
             .map_err(|e| e.to_string())?;
         Ok(Self { law, passivity })
     }
