@@ -263,6 +263,7 @@ impl Logger {
             Event::ContactEnded => "contact ended".into(),
             Event::RunRefused => "run refused: a collision is latched (reset it first)".into(),
             Event::HapticStarted => "haptic mode: the hand moves the instrument under the rendered fixtures".into(),
+            Event::FixturesSwitched => "haptic mode: fixtures switched".into(),
             Event::HapticEnded => "haptic mode ended".into(),
             Event::HapticRefused => {
                 "haptic mode refused: enable the motors and hold first, with no collision latched".into()

@@ -904,6 +904,26 @@ fn the_haptic_mode_renders_its_wall_over_the_compensation_and_hands_over_without
     let last = walk(&mut rig, sent);
     assert!((0..3).all(|k| (last[k] - gravity[k]).abs() < 1e-5), "{last:?} against {gravity:?}");
     assert_eq!(rig.cycle.record().fixture_force, vec![0.0; 3], "no fixtures outside the mode");
+    // Fixtures switched in the mode hand over too: from free space to the wall under the tip,
+    // no step larger than the same fade.
+    let free = Box::new(
+        HapticMode::build(&model, (&params, &[]), &HapticConfig::default(), &Fixtures::default(), 1e-3).unwrap(),
+    );
+    assert!(rig.cycle.request(Request::Haptic(free)).is_none());
+    assert_eq!(rig.step(), vec![Event::HapticStarted]);
+    let sent = rig.sent_torque();
+    let last = walk(&mut rig, sent);
+    assert!((0..3).all(|k| (last[k] - gravity[k]).abs() < 1e-5), "free space: {last:?} against {gravity:?}");
+    assert!(matches!(rig.cycle.request(Request::Haptic(haptic())), Some(Garbage::Haptic(_))));
+    assert_eq!(rig.step(), vec![Event::FixturesSwitched]);
+    let sent = rig.sent_torque();
+    assert!((0..3).all(|k| (sent[k] - last[k]).abs() <= fade + 1e-6), "{last:?} → {sent:?}");
+    let last = walk(&mut rig, sent);
+    assert!((0..3).all(|k| (last[k] - expected[k]).abs() < 1e-5), "{last:?} against {expected:?}");
+    assert!(matches!(rig.cycle.request(Request::Hold), Some(Garbage::Haptic(_))));
+    rig.step();
+    let sent = rig.sent_torque();
+    walk(&mut rig, sent);
     // A fault ends the mode, and the mode goes off the real-time thread.
     assert!(rig.cycle.request(Request::Haptic(haptic())).is_none());
     rig.step();

@@ -48,7 +48,8 @@
 //! - **haptic mode** ([`Request::Haptic`]): only from hold, enabled, with no collision latched. The reference follows the arm, so
 //!   there is no following error, and every other rule holds: the gate's limits and rate limit,
 //!   the faults. A fixture that renders a non-number latches `NON_FINITE_COMMAND`. Hold, a run,
-//!   disabling and any fault leave the mode. Entering and leaving for hold or a run, the new
+//!   disabling and any fault leave the mode; a new request in the mode switches its fixtures.
+//!   Entering, switching and leaving for hold or a run, the new
 //!   source's command starts where the old one's left off and the difference fades out over
 //!   `handover` cycles, so that a wall the hand pressed into does not vanish in one cycle.
 
@@ -134,6 +135,8 @@ pub enum Event {
     /// A run was refused: a collision is latched.
     RunRefused,
     HapticStarted,
+    /// New fixtures in the haptic mode, handed over like an entry.
+    FixturesSwitched,
     HapticEnded,
     /// The haptic mode was refused: not enabled, not holding, or a collision latched.
     HapticRefused,
@@ -466,10 +469,13 @@ impl ControlCycle {
                     self.event(Event::HapticRefused);
                     return Some(Garbage::Haptic(mode));
                 }
-                if self.haptic.is_none() {
-                    self.event(Event::HapticStarted);
-                    self.begin_handover();
-                }
+                // Entering, or new fixtures under the hand (a wall that appears where the tip
+                // already is): either way the new command starts where the last left off.
+                self.event(match self.haptic {
+                    None => Event::HapticStarted,
+                    Some(_) => Event::FixturesSwitched,
+                });
+                self.begin_handover();
                 self.record.controller = ControllerKind::Haptic;
                 self.haptic.replace(mode).map(Garbage::Haptic)
             }
