@@ -47,6 +47,15 @@ pub struct Row {
     pub effort: Effort,
 }
 
+/// The wall: its stiffness (N/m), the passivity bound (N/m), the press, and the message refusing
+/// a wall over the bound.
+pub struct Rendering {
+    pub stiffness: f64,
+    pub bound: f64,
+    pub press: WallPress,
+    pub refusal: String,
+}
+
 /// The chapter's outcome.
 pub struct HapticChapter {
     /// The trainee's intended path: its peak speed per axis of the held frame (m/s).
@@ -54,11 +63,7 @@ pub struct HapticChapter {
     /// The bare device along the path the best compensation let the hand follow.
     pub bare: Effort,
     pub rows: Vec<Row>,
-    /// The wall: its stiffness, the bound, the press, and the refusal of a wall over the bound.
-    pub stiffness: f64,
-    pub bound: f64,
-    pub press: WallPress,
-    pub refusal: String,
+    pub rendering: Rendering,
 }
 
 /// Run the chapter on the rig of `rig_scenario` with `models` (label, file), the last the one the
@@ -70,8 +75,24 @@ pub fn run(
     models: &[(&str, ModelFile)],
 ) -> anyhow::Result<HapticChapter> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let dt = 1.0 / rig_scenario.physics.rate_hz;
     let grasp = transparency_grasp();
+    let (rows, bare) = transparency(dir, model, rig_scenario, models, &grasp)?;
+    let (label, file) = models.last().context("the haptic chapter needs a model")?;
+    let rendering = rendering(dir, model, rig_scenario, (label, file)).with_context(|| format!("{label}: the wall"))?;
+    let path_speed = std::array::from_fn(|a| grasp.amplitude_m[a] * std::f64::consts::TAU / grasp.period_s[a]);
+    Ok(HapticChapter { path_speed, bare, rows, rendering })
+}
+
+/// The trainee follows `grasp` in free space with each model's compensation: a row per model,
+/// and the bare device along the path the last one let the hand follow.
+fn transparency(
+    dir: &Path,
+    model: &Model,
+    rig_scenario: &Scenario,
+    models: &[(&str, ModelFile)],
+    grasp: &Grasp,
+) -> anyhow::Result<(Vec<Row>, Effort)> {
+    let dt = 1.0 / rig_scenario.physics.rate_hz;
     let mut rows = Vec::new();
     let mut last = Vec::new();
     for (label, file) in models {
@@ -85,9 +106,19 @@ pub fn run(
         rows.push(Row { label: label.to_string(), effort });
     }
     let bare = Effort::of(model, (GRASPED_AT, "remote_centre"), &last, SETTLE_S)?;
-    let (label, file) = models.last().context("the haptic chapter needs a model")?;
-    let params = params(model, file)?;
-    let looped = HapticConfig::default().render_loop(model, &params, dt).map_err(anyhow::Error::msg)?;
+    Ok((rows, bare))
+}
+
+/// The stiffest wall the mode accepts on `file`, pressed by the trainee, and one over its bound,
+/// refused.
+fn rendering(
+    dir: &Path,
+    model: &Model,
+    rig_scenario: &Scenario,
+    (label, file): (&str, &ModelFile),
+) -> anyhow::Result<Rendering> {
+    let dt = 1.0 / rig_scenario.physics.rate_hz;
+    let looped = HapticConfig::default().render_loop(model, &params(model, file)?, dt).map_err(anyhow::Error::msg)?;
     let (wall, bound) = trainee::wall_at_bound(model, &START, WALL_BEYOND_M, &looped, ACCEPTED_SHARE)?;
     let mut over = wall.clone();
     over.wall[0].stiffness = REFUSED_SHARE * bound;
@@ -95,25 +126,17 @@ pub fn run(
         Ok(_) => anyhow::bail!("{label}: a wall at {REFUSED_SHARE} × the passivity bound was accepted"),
         Err(e) => format!("{e:#}"),
     };
-    let mode = mode(model, file, &wall, dt).with_context(|| format!("{label}: the wall"))?;
     let press = Grasp {
         at_s: 0.5,
         press: vec![PathPress { at_s: 1.0, duration_s: PRESS_S, depth_m: PRESS_DEPTH_M }],
         ..Grasp::default()
     };
     let trial = Trial { frame: "instrument_tip".into(), grasp: press, start: START.to_vec(), seconds: 2.0 + PRESS_S };
-    let pressed = trainee::run(model, rig_scenario, Box::new(mode.into_law()), &trial).context("the press")?;
+    let law = mode(model, file, &wall, dt)?.into_law();
+    let pressed = trainee::run(model, rig_scenario, Box::new(law), &trial).context("the press")?;
     write_series(&dir.join("press.csv"), &pressed)?;
     let press = WallPress::of(model, &wall, &pressed, 1.0 + 0.5 * PRESS_S)?;
-    Ok(HapticChapter {
-        path_speed: std::array::from_fn(|a| grasp.amplitude_m[a] * std::f64::consts::TAU / grasp.period_s[a]),
-        bare,
-        rows,
-        stiffness: wall.wall[0].stiffness,
-        bound,
-        press,
-        refusal,
-    })
+    Ok(Rendering { stiffness: wall.wall[0].stiffness, bound, press, refusal })
 }
 
 /// The trainee's path in free space: held at the carriage, 4 mm across the instrument in the
@@ -156,13 +179,14 @@ impl HapticChapter {
         let effort = |label: &str, force: [f64; 3], moment: [f64; 3]| serde_json::json!({ "compensation": label, "force_rms": force, "moment_rms": moment });
         let mut transparency = vec![effort("none", self.bare.bare_force_rms, self.bare.bare_moment_rms)];
         transparency.extend(self.rows.iter().map(|r| effort(&r.label, r.effort.force_rms, r.effort.moment_rms)));
-        let p = &self.press;
+        let r = &self.rendering;
+        let p = &r.press;
         serde_json::json!({
             "path_peak_speed": self.path_speed,
             "transparency": transparency,
             "wall": {
-                "stiffness": self.stiffness,
-                "passivity_bound": self.bound,
+                "stiffness": r.stiffness,
+                "passivity_bound": r.bound,
                 "contact_cycles": p.contact_cycles,
                 "relative_error": p.relative_error,
                 "peak_force": p.peak_force,
@@ -170,7 +194,7 @@ impl HapticChapter {
                 "energy_at_deepest": p.energy_at_deepest,
                 "energy_after": p.energy_after,
                 "ringing": p.ringing,
-                "refused_over_bound": self.refusal,
+                "refused_over_bound": r.refusal,
             },
         })
     }
@@ -204,15 +228,16 @@ impl HapticChapter {
         for r in &self.rows {
             s.push_str(&line(&r.label, r.effort.force_rms, r.effort.moment_rms));
         }
-        let p = &self.press;
+        let r = &self.rendering;
+        let p = &r.press;
         s.push_str(&format!(
             "\nRendering: a depth wall at {:.0} N/m ({ACCEPTED_SHARE} of the passivity bound {:.0} N/m), the set-point \
              pressed {:.0} mm past it and back over {PRESS_S} s: in contact for {} ms, the rendered force within {:.2} % \
              RMS of the ideal wall's at the true state, at most {:.2} N and {:.2} mm deep; the wall's energy after the \
              deepest set-point {:.3} mJ against {:.3} mJ at it, {} local maxima while the hand withdrew.\n\nA wall at \
              {REFUSED_SHARE} of the bound is refused: {}\n",
-            self.stiffness,
-            self.bound,
+            r.stiffness,
+            r.bound,
             1e3 * (PRESS_DEPTH_M - WALL_BEYOND_M),
             p.contact_cycles,
             100.0 * p.relative_error,
@@ -221,7 +246,7 @@ impl HapticChapter {
             1e3 * p.energy_after,
             1e3 * p.energy_at_deepest,
             p.ringing,
-            self.refusal
+            r.refusal
         ));
         s
     }
