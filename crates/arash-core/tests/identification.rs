@@ -362,6 +362,29 @@ fn two_periods_preprocessed(seed: u64) -> (Model, BaseParameters, Vec<f64>, Prep
     (model, base, pi, pre)
 }
 
+/// The unfiltered prediction, taken as the inverse dynamics of β placed on its columns, is the
+/// regressor's columns (their Coulomb ones switched by the friction velocity) times β, under a
+/// sign law and a smooth one.
+#[test]
+fn the_unfiltered_prediction_is_the_regressor_times_beta() {
+    use arash_core::signal::estimate::{apply, coulomb_positions, put_coulomb, regressor_rows, unfiltered_prediction};
+    let (model, base, _, pre) = two_periods_preprocessed(11);
+    for laws in [CoulombLaws::undeclared(3), CoulombLaws::uniform(CoulombShape::Tanh { epsilon: 0.02 }, 3)] {
+        let model = Model { coulomb_laws: laws, ..model.clone() };
+        let beta: Vec<f64> = (0..base.rank).map(|i| 0.3 + (i as f64 * 0.7).sin()).collect();
+        let rows: Vec<usize> = pre.settled.clone().collect();
+        let mut w = regressor_rows(&model, &pre, &base.independent, &rows);
+        let directions = pre.friction.directions(&model.coulomb_laws);
+        put_coulomb(&mut w, 3, &coulomb_positions(&model, &base.independent), &directions, &rows);
+        let reference = apply(&w, &beta);
+        let ours = unfiltered_prediction(&model, &pre, &base.independent, &beta);
+        let scale = reference.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+        let worst = ours.iter().zip(&reference).fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+        assert_eq!(ours.len(), reference.len());
+        assert!(worst < 1e-12 * scale, "{worst} against {scale}");
+    }
+}
+
 #[test]
 fn consistent_identification_is_physical_and_fits_like_ols() {
     use arash_core::consistent::identify_consistent;

@@ -95,7 +95,13 @@ pub fn averaged(x: &[f64], dof: usize, averaging: Option<Averaging>) -> std::bor
 pub fn central_difference(x: &[f64], dof: usize, h: f64, periodic: bool) -> Vec<f64> {
     let n = x.len() / dof;
     let mut d = vec![0.0; x.len()];
-    for k in 0..n {
+    // The inside in one pass over whole rows, which the compiler vectorises; the two end rows
+    // as the ends say.
+    if n > 2 {
+        let inside = d[dof..(n - 1) * dof].iter_mut().zip(&x[2 * dof..]).zip(&x[..(n - 2) * dof]);
+        inside.for_each(|((out, next), prev)| *out = (next - prev) / (2.0 * h));
+    }
+    for k in [0, n.saturating_sub(1)].into_iter().take(n.min(2)) {
         let (prev, next, span) = match (k, periodic) {
             (0, true) => (n - 1, 1, 2.0),
             (k, true) if k == n - 1 => (k - 1, 0, 2.0),

@@ -143,15 +143,51 @@ impl Butterworth {
 
     /// Filter `x` with `wrap` samples of its other end before and after it (read circularly);
     /// write the part that is `x` to `out`.
+    ///
+    /// A long signal is filtered in pieces side by side, one run of them per core. Each piece is
+    /// read with the filter's memory of its neighbours on either side, as a periodic signal is
+    /// read with that much of its copies, so its result is the whole's to 10⁻¹² (the pieces
+    /// depend on the length alone, never on the cores, so the result does not either).
     fn filtfilt_wrapped(&self, x: &[f64], width: usize, wrap: usize, out: &mut [f64]) -> Result<(), FilterError> {
         assert!(width > 0 && x.len().is_multiple_of(width), "x must hold whole rows of {width} values");
         assert_eq!(out.len(), x.len(), "output must match the input shape");
         let (n, pad) = (x.len() / width, self.padlen());
-        let total = n + 2 * wrap;
-        if total <= pad {
-            return Err(FilterError::TooShort { what: "the signal".into(), len: total, padlen: pad });
+        if n + 2 * wrap <= pad {
+            return Err(FilterError::TooShort { what: "the signal".into(), len: n + 2 * wrap, padlen: pad });
         }
-        let kept = pad + wrap;
+        let rows = n.div_ceil(self.pieces(n, wrap));
+        let parts: Vec<(usize, &mut [f64])> =
+            out.chunks_mut(rows * width).enumerate().map(|(i, part)| (i * rows, part)).collect();
+        crate::parallel::map(parts, |(start, part)| {
+            let len = part.len() / width;
+            // The neighbours' memory: circular for a periodic signal, else what the log holds.
+            let (before, after) = match wrap {
+                0 if rows == n => (0, 0),
+                0 => (start.min(self.settle), (n - start - len).min(self.settle)),
+                _ => (wrap, wrap),
+            };
+            let from = (start + n - before % n) % n;
+            self.filter_piece(x, width, Piece { from, before, len, after }, part);
+        });
+        Ok(())
+    }
+
+    /// How many pieces [`Self::filtfilt_wrapped`] cuts `n` samples into: one unless each is long
+    /// enough that reading the filter's memory of its neighbours adds little.
+    fn pieces(&self, n: usize, wrap: usize) -> usize {
+        if wrap >= n {
+            return 1;
+        }
+        (n / PIECE_SAMPLES.max(4 * self.settle)).max(1)
+    }
+
+    /// Filter the rows `piece` reads (from row `from`, circularly) and write its own `len` rows,
+    /// those after its first `before`, into `out`.
+    fn filter_piece(&self, x: &[f64], width: usize, piece: Piece, out: &mut [f64]) {
+        let (n, pad) = (x.len() / width, self.padlen());
+        let Piece { from, before, len, after } = piece;
+        let total = before + len + after;
+        let kept = pad + before;
         let mut padded: Vec<Lanes> = Vec::with_capacity(total + 2 * pad);
         for first in (0..width).step_by(LANES) {
             let used = (width - first).min(LANES);
@@ -159,24 +195,22 @@ impl Butterworth {
                 let at = sample * width + first;
                 std::array::from_fn(|l| if l < used { x[at + l] } else { 0.0 })
             };
-            // Row `k` of the wrapped signal is sample `(start + k) mod n` of `x`.
-            let start = (n - wrap % n) % n;
-            let row = |k: usize| lanes((start + k) % n);
+            // Row `k` of the piece is sample `(from + k) mod n` of `x`.
+            let row = |k: usize| lanes((from + k) % n);
             // Odd extension: 2·x[0] − x[pad..1] before, 2·x[N−1] − x[N−2..N−pad−1] after.
             let odd = |edge: Lanes, inner: Lanes| -> Lanes { std::array::from_fn(|l| 2.0 * edge[l] - inner[l]) };
             let (head, tail) = (row(0), row(total - 1));
             padded.clear();
             padded.extend((1..=pad).rev().map(|i| odd(head, row(i))));
             // In order, without a division per sample: the long signals' filters read millions.
-            padded.extend((start..n).chain((0..n).cycle()).take(total).map(lanes));
+            padded.extend((from..n).chain((0..n).cycle()).take(total).map(lanes));
             padded.extend((2..pad + 2).map(|i| odd(tail, row(total - i))));
             self.run_from_steady_state(padded.iter_mut());
             self.run_from_steady_state(padded.iter_mut().rev());
-            for (k, v) in padded[kept..kept + n].iter().enumerate() {
+            for (k, v) in padded[kept..kept + len].iter().enumerate() {
                 out[k * width + first..k * width + first + used].copy_from_slice(&v[..used]);
             }
         }
-        Ok(())
     }
 
     /// Filter the samples in iteration order, in place, starting every section from the steady
@@ -243,6 +277,19 @@ impl Butterworth {
 /// Channels filtered side by side (see [`Butterworth::filtfilt_rows`]).
 pub const LANES: usize = 4;
 type Lanes = [f64; LANES];
+
+/// A signal is cut into pieces of at least this many samples to be filtered side by side.
+const PIECE_SAMPLES: usize = 1 << 16;
+
+/// The rows one piece of a signal reads: `before` of its neighbour's, its own `len`, `after` of
+/// the next one's, from row `from` on.
+#[derive(Clone, Copy)]
+struct Piece {
+    from: usize,
+    before: usize,
+    len: usize,
+    after: usize,
+}
 
 #[cfg(test)]
 mod tests {
@@ -358,6 +405,25 @@ mod tests {
         let reference = one_channel_at_a_time(&filter, &x.repeat(3));
         let worst = periodic.iter().zip(&reference[n..2 * n]).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(worst < 1e-12, "{worst}");
+    }
+
+    /// A signal long enough to be cut into pieces gives the whole's result to round-off, periodic
+    /// or not, at the pieces' seams as everywhere else.
+    #[test]
+    fn a_signal_filtered_in_pieces_is_the_whole_signal_filtered() {
+        let filter = Butterworth::lowpass(5, 20.0, 1000.0).unwrap();
+        let n = 3 * PIECE_SAMPLES + 1234;
+        assert!(filter.pieces(n, 0) >= 3, "{} pieces", filter.pieces(n, 0));
+        let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.00123).sin() + ((i * 7919) as f64).sin()).collect();
+        let worst = |ours: &[f64], reference: &[f64]| {
+            ours.iter().zip(reference).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max)
+        };
+        let mut pieces = vec![0.0; n];
+        filter.filtfilt(&x, &mut pieces).unwrap();
+        assert!(worst(&pieces, &one_channel_at_a_time(&filter, &x)) < 1e-12);
+        filter.filtfilt_rows_periodic(&x, 1, &mut pieces).unwrap();
+        let three = one_channel_at_a_time(&filter, &x.repeat(3));
+        assert!(worst(&pieces, &three[n..2 * n]) < 1e-12);
     }
 
     #[test]

@@ -51,11 +51,24 @@ impl FrictionVelocity {
         let dof = laws.shapes().len();
         let mut mean = vec![0.0; self.per];
         let share = 1.0 / self.period_count() as f64;
-        for period in self.periods() {
-            for (i, (m, v)) in mean.iter_mut().zip(period).enumerate() {
-                *m += laws.eval(i % dof, *v) * share;
+        // A long log's periods hold 10⁶ samples: its rows in one run per core. Each sample's
+        // mean is summed period by period whatever the runs, so the result does not depend on
+        // the cores.
+        let rows = (self.per / dof.max(1)).div_ceil(crate::parallel::cores()).max(1);
+        let runs: Vec<(usize, &mut [f64])> =
+            mean.chunks_mut(rows * dof).enumerate().map(|(i, run)| (i * rows * dof, run)).collect();
+        crate::parallel::map(runs, |(start, run)| {
+            for period in self.periods() {
+                let velocities = period.get(start..).unwrap_or_default();
+                // Row by row, each joint's law in turn: a remainder per sample to find the joint
+                // cost as much as the laws themselves.
+                for (means, row) in run.chunks_mut(dof).zip(velocities.chunks(dof)) {
+                    for ((m, v), shape) in means.iter_mut().zip(row).zip(laws.shapes()) {
+                        *m += shape.eval(*v) * share;
+                    }
+                }
             }
-        }
+        });
         mean
     }
 

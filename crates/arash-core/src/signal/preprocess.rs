@@ -223,10 +223,18 @@ pub const STILL_STEPS: f64 = 20.0;
 /// anything: its Coulomb columns never change sign, and what is fitted is a fragment.
 fn check_the_joints_move(q: &[f64], dof: usize, dt: f64) -> Result<(), PreprocessError> {
     let n = q.len() / dof;
-    let mut most = (0, 1);
+    // Row by row, every joint at once: a long log is read twice in order, not twice per joint
+    // with a stride.
+    let (mut lo, mut hi) = (vec![f64::INFINITY; dof], vec![f64::NEG_INFINITY; dof]);
+    for row in q.chunks_exact(dof) {
+        for ((l, h), v) in lo.iter_mut().zip(hi.iter_mut()).zip(row) {
+            *l = l.min(*v);
+            *h = h.max(*v);
+        }
+    }
+    let mut turns: Vec<Reversals> = Vec::with_capacity(dof);
     for joint in 0..dof {
         let at = |i: usize| q[i * dof + joint];
-        let (lo, hi) = (0..n).map(at).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
         // The typical change of the change, from at most MEDIAN_SAMPLES of them spread over the
         // log: an encoder step or the noise, whichever shows, but not the motion. (The change
         // itself holds the motion's speed: a pitch swinging ±0.2 rad at 2.6 Hz, logged at 100 Hz,
@@ -238,16 +246,19 @@ fn check_the_joints_move(q: &[f64], dof: usize, dt: f64) -> Result<(), Preproces
             0 => f64::INFINITY,
             len => *changes.select_nth_unstable_by(len / 2, f64::total_cmp).1,
         };
-        let span = hi - lo;
+        let span = hi[joint] - lo[joint];
         if span < STILL_STEPS * step || span == 0.0 {
             let steps = if step.is_finite() { span / step } else { 0.0 };
             return Err(PreprocessError::JointStill { joint: joint + 1, span, steps });
         }
-        let turns = reversals((0..n).map(at), (REVERSAL_SHARE * span).max(STILL_STEPS * step));
-        if turns > most.0 {
-            most = (turns, joint + 1);
-        }
+        turns.push(Reversals::new(q[joint], (REVERSAL_SHARE * span).max(STILL_STEPS * step)));
     }
+    for row in q.chunks_exact(dof).skip(1) {
+        turns.iter_mut().zip(row).for_each(|(r, v)| r.push(*v));
+    }
+    // The joint that turns back most, the first of equals.
+    let most =
+        turns.iter().enumerate().fold((0, 1), |most, (k, r)| if r.count > most.0 { (r.count, k + 1) } else { most });
     if most.0 < CYCLE_REVERSALS {
         let (reversals, joint) = most;
         return Err(PreprocessError::NoCycle { duration_s: n as f64 * dt, reversals, joint });
@@ -265,24 +276,32 @@ pub const CYCLE_REVERSALS: usize = 2;
 /// [`STILL_STEPS`] encoder steps at least): less is noise or a hesitation.
 const REVERSAL_SHARE: f64 = 0.05;
 
-/// How many times `x` turns back by more than `hysteresis`.
-fn reversals(mut x: impl Iterator<Item = f64>, hysteresis: f64) -> usize {
-    let Some(first) = x.next() else { return 0 };
-    let (mut count, mut direction, mut extreme) = (0, 0.0_f64, first);
-    for v in x {
-        let moved = v - extreme;
-        if direction * moved < 0.0 && moved.abs() > hysteresis {
-            count += 1;
-            direction = moved.signum();
-            extreme = v;
-        } else if direction == 0.0 && moved.abs() > hysteresis {
-            direction = moved.signum();
-            extreme = v;
-        } else if direction * moved > 0.0 {
-            extreme = v;
+/// How many times a signal, fed sample by sample, turns back by more than `hysteresis`.
+struct Reversals {
+    count: usize,
+    direction: f64,
+    extreme: f64,
+    hysteresis: f64,
+}
+
+impl Reversals {
+    fn new(first: f64, hysteresis: f64) -> Self {
+        Self { count: 0, direction: 0.0, extreme: first, hysteresis }
+    }
+
+    fn push(&mut self, v: f64) {
+        let moved = v - self.extreme;
+        if self.direction * moved < 0.0 && moved.abs() > self.hysteresis {
+            self.count += 1;
+            self.direction = moved.signum();
+            self.extreme = v;
+        } else if self.direction == 0.0 && moved.abs() > self.hysteresis {
+            self.direction = moved.signum();
+            self.extreme = v;
+        } else if self.direction * moved > 0.0 {
+            self.extreme = v;
         }
     }
-    count
 }
 
 /// Decide whether and over what to average, from the options or the data.
@@ -407,13 +426,20 @@ pub fn preprocess(
 ) -> Result<Preprocessed, PreprocessError> {
     let dt = validate_log(t, q, tau, dof)?;
     options.validate()?;
-    check_the_joints_move(q, dof, dt)?;
     let mut choices = Choices::default();
     let shake = jitter(t, dt);
     if shake > REPORTED_JITTER {
         choices.reasons.push(Choice::Jitter { share: shake, rate_hz: 1.0 / dt });
     }
-    let averaging = choose_periods(q, dof, 1.0 / dt, options.periods, options.period_s, &mut choices)?;
+    // Both read the whole log and neither needs the other; a joint that does not move is still
+    // the first thing said.
+    let (moves, averaging) = std::thread::scope(|scope| {
+        let moves = scope.spawn(|| check_the_joints_move(q, dof, dt));
+        let averaging = choose_periods(q, dof, 1.0 / dt, options.periods, options.period_s, &mut choices);
+        (moves.join().expect("the check does not panic"), averaging)
+    });
+    moves?;
+    let averaging = averaging?;
     let periodic = averaging.is_some();
     let (raw_q, raw_dt) = (q, dt);
     // A period that is not a whole number of samples is resampled to the nearest whole number.
@@ -464,28 +490,29 @@ pub fn preprocess(
         given: options.friction_cutoff_hz.is_some(),
         at_most_quarter: true,
     });
-    let positions = || filtered_motion(&filter, &q, dof, dt, periodic, options.filter_derivatives);
+    let positions = || {
+        let resting = match options.leave_out_rests {
+            true => super::resting::resting(raw_q, dof, averaging, raw_dt, options.decimate),
+            false => vec![false; n.div_ceil(options.decimate) * dof],
+        };
+        (filtered_motion(&filter, &q, dof, dt, periodic, options.filter_derivatives), resting)
+    };
     let torque_and_friction = || -> Result<_, FilterError> {
         let tau_avg = averaged(tau, dof, averaging);
         let tau_f = filter_columns(&filter, &tau_avg, dof, periodic)?;
-        let friction = RawVelocity::of_log(raw_q, dof, averaging, dt).filtered(
-            options.order,
-            friction_cutoff_hz,
-            options.decimate,
-        )?;
+        let raw = RawVelocity::of_log(raw_q, dof, averaging, dt);
+        let friction = raw.filtered(options.order, friction_cutoff_hz, options.decimate)?;
         Ok((tau_avg.into_owned(), tau_f, friction))
     };
-    // The two chains are independent; on two cores they take the time of the longer one.
+    // The two chains are independent; on two cores they take the time of the longer one. The
+    // friction velocity of a long log is the longer; the resting samples, read from the same
+    // raw log, go beside the positions to even them up.
     let (chain, other) = std::thread::scope(|scope| {
         let other = scope.spawn(torque_and_friction);
         (positions(), other.join().expect("filtering does not panic"))
     });
-    let ((q_f, qd, qdd), (tau_avg, tau_f, friction)) = (chain?, other?);
+    let (((q_f, qd, qdd), resting), (tau_avg, tau_f, friction)) = ((chain.0?, chain.1), other?);
     let keep = |x: &[f64]| every_nth_row(x, dof, options.decimate);
-    let resting = match options.leave_out_rests {
-        true => super::resting::resting(raw_q, dof, averaging, raw_dt, options.decimate),
-        false => vec![false; n.div_ceil(options.decimate) * dof],
-    };
     choices.reasons.extend(super::resting::explain(&resting, dof, settled.clone(), raw_dt));
     let t_out: Vec<f64> = (0..n).step_by(options.decimate).map(|i| t[0] + i as f64 * dt).collect();
     Ok(Preprocessed {

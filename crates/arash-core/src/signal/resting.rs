@@ -36,14 +36,15 @@ pub fn hold_samples(dt: f64) -> usize {
 pub fn resting_in_log(q: &[f64], dof: usize, hold: usize) -> Vec<bool> {
     let n = q.len() / dof.max(1);
     let mut resting = vec![false; n * dof];
-    for k in 0..dof {
-        let mut start = 0;
-        for i in 1..=n {
-            if i == n || q[i * dof + k] != q[start * dof + k] {
-                if i - start >= hold {
-                    (start..i).for_each(|s| resting[s * dof + k] = true);
+    // Row by row, every joint's run at once: the log is read once, in order.
+    let mut start = vec![0; dof];
+    for i in 1..=n {
+        for (k, first) in start.iter_mut().enumerate() {
+            if i == n || q[i * dof + k] != q[*first * dof + k] {
+                if i - *first >= hold {
+                    (*first..i).for_each(|s| resting[s * dof + k] = true);
                 }
-                start = i;
+                *first = i;
             }
         }
     }
@@ -57,6 +58,14 @@ pub fn resting(q: &[f64], dof: usize, averaging: Option<Averaging>, dt: f64, dec
     let raw = resting_in_log(q, dof, hold_samples(dt));
     let arranged = match averaging {
         None => raw,
+        // A period of whole samples: each period's own samples, or-ed slice by slice.
+        Some(a) if a.samples == a.per() as f64 => {
+            let mut any = vec![false; a.per() * dof];
+            for period in raw.chunks_exact(any.len()).take(a.count) {
+                any.iter_mut().zip(period).for_each(|(r, p)| *r |= *p);
+            }
+            any
+        }
         Some(a) => {
             let n = raw.len() / dof.max(1);
             let per = a.per();
