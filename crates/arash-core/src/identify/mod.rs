@@ -233,7 +233,13 @@ fn identify_with(
         (true, Some(_)) => cutoff::Against::SimulatedLoop,
         _ => cutoff::Against::Regressor,
     };
-    let (mut pre, laws) = preprocess_with_laws(declared, log, &options.preprocess, against)?;
+    // The log's hash (10⁷ bytes of a long log) beside its checks, which hold the other core idle.
+    let (fingerprint, prepared) = std::thread::scope(|scope| {
+        let fingerprint = scope.spawn(|| log.fingerprint());
+        let prepared = preprocess_with_laws(declared, log, &options.preprocess, against);
+        (fingerprint.join().expect("hashing does not panic"), prepared)
+    });
+    let (mut pre, laws) = prepared?;
     let Declared { model, base, urdf } = declared;
     // A robot that declares no Coulomb law gets each joint's from the data, which the fit, the
     // closed-loop simulation and the model file all use.
@@ -340,7 +346,7 @@ fn identify_with(
             samples_used: pre.settled.len(),
             sample_rate_hz: pre.sample_rate_hz,
             periods_averaged: pre.periods_averaged,
-            fingerprint: Some(log.fingerprint()),
+            fingerprint: Some(fingerprint),
         },
     ))
 }
