@@ -278,6 +278,9 @@ pub fn unfiltered_prediction(model: &Model, data: &Preprocessed, columns: &[usiz
     prediction_of(model, data, columns, beta, &data.friction.directions(&model.coulomb_laws))
 }
 
+/// Samples per band of the unfiltered prediction.
+const BAND_SAMPLES: usize = 4096;
+
 /// [`unfiltered_prediction`] with the Coulomb directions of `model`'s laws already taken.
 fn prediction_of(model: &Model, data: &Preprocessed, columns: &[usize], beta: &[f64], directions: &[f64]) -> Vec<f64> {
     let dof = data.dof;
@@ -290,9 +293,10 @@ fn prediction_of(model: &Model, data: &Preprocessed, columns: &[usize], beta: &[
     coulomb.iter().for_each(|&(k, _)| params[model.layout().coulomb(k)] = 0.0);
     let rows: Vec<usize> = data.settled.clone().collect();
     let mut predicted = vec![0.0; rows.len() * dof];
-    let per = rows.len().div_ceil(crate::parallel::cores()).max(1);
-    let runs: Vec<(&[usize], &mut [f64])> = rows.chunks(per).zip(predicted.chunks_mut(per * dof)).collect();
-    crate::parallel::map(runs, |(samples, out)| {
+    // Bands of samples, which `parallel::map` spreads over the cores.
+    let bands: Vec<(&[usize], &mut [f64])> =
+        rows.chunks(BAND_SAMPLES).zip(predicted.chunks_mut(BAND_SAMPLES * dof)).collect();
+    crate::parallel::map(bands, |(samples, out)| {
         let mut ws = Data::new(model);
         for (&s, tau) in samples.iter().zip(out.chunks_mut(dof)) {
             let at = s * dof..(s + 1) * dof;

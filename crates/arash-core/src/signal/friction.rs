@@ -51,12 +51,12 @@ impl FrictionVelocity {
         let dof = laws.shapes().len();
         let mut mean = vec![0.0; self.per];
         let share = 1.0 / self.period_count() as f64;
-        // A long log's periods hold 10⁶ samples: its rows in one run per core. Each sample's
-        // mean is summed period by period whatever the runs, so the result does not depend on
-        // the cores.
-        let rows = (self.per / dof.max(1)).div_ceil(crate::parallel::cores()).max(1);
+        // A long log's periods hold 10⁶ samples: runs of rows, which `parallel::map` spreads
+        // over the cores. Each sample's mean is summed period by period whatever the runs, so
+        // the result does not depend on the cores.
+        let run_len = RUN_ROWS * dof.max(1);
         let runs: Vec<(usize, &mut [f64])> =
-            mean.chunks_mut(rows * dof).enumerate().map(|(i, run)| (i * rows * dof, run)).collect();
+            mean.chunks_mut(run_len).enumerate().map(|(i, run)| (i * run_len, run)).collect();
         crate::parallel::map(runs, |(start, run)| {
             for period in self.periods() {
                 let velocities = period.get(start..).unwrap_or_default();
@@ -85,6 +85,9 @@ impl FrictionVelocity {
         mean
     }
 }
+
+/// Rows per run of [`FrictionVelocity::directions`].
+const RUN_ROWS: usize = 4096;
 
 /// The central difference of a log's positions, before the friction velocity's filter: what
 /// every candidate cut-off of that velocity starts from ([`super::cutoff`] tries several).
