@@ -354,6 +354,12 @@ impl Diagnosis {
                         d.set_item("helped", helped.iter().map(|&j| names[j].as_str()).collect::<Vec<_>>())?;
                         d.set_item("sigmas", sigmas)?;
                     }
+                    Reversion::Unshifted { samples, helped, sigmas } => {
+                        d.set_item("code", "unshifted")?;
+                        d.set_item("samples", samples)?;
+                        d.set_item("helped", helped.iter().map(|&j| names[j].as_str()).collect::<Vec<_>>())?;
+                        d.set_item("sigmas", sigmas)?;
+                    }
                 }
                 d.set_item("start_rms", r.start_rms)?;
                 d.set_item("rms_before", r.rms_before)?;

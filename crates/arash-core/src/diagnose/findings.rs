@@ -330,6 +330,9 @@ pub enum Reversion {
     /// The accepted effect `label` was dropped; it helped `helped` (joint indices) and harmed
     /// the joint by `sigmas` standard errors.
     DropEffect { label: String, helped: Vec<usize>, sigmas: f64 },
+    /// The delay found (`samples`) was taken off the joint's torque: shifted, it predicted worse
+    /// by `sigmas` standard errors; the shift helped `helped`.
+    Unshifted { samples: isize, helped: Vec<usize>, sigmas: f64 },
 }
 
 /// Settings the diagnosis ran with.

@@ -230,24 +230,25 @@ impl<'a> Context<'a> {
 
     /// The weighted problem on `data` with the torque shifted by `delay` samples.
     pub(super) fn problem(&self, data: &Prepared, delay: isize) -> Problem {
-        self.problem_with(data, delay, &self.free)
+        self.problem_with(data, &vec![delay; data.dof], &self.free)
     }
 
-    /// [`Self::problem`] with the declared columns `free` fitted and the others held at the given
-    /// model's values.
-    pub(super) fn problem_with(&self, data: &Prepared, delay: isize, free: &[bool]) -> Problem {
-        Problem::new(data, data.tau(delay), self.fixed_prediction(data, free), &self.weights, free)
+    /// [`Self::problem`] with each joint's torque shifted by its own `shifts[k]` samples, the
+    /// declared columns `free` fitted and the others held at the given model's values.
+    pub(super) fn problem_with(&self, data: &Prepared, shifts: &[isize], free: &[bool]) -> Problem {
+        Problem::new(data, data.tau_shifted(shifts), self.fixed_prediction(data, free), &self.weights, free)
     }
 
     /// Where held-out errors are measured, with the torque shifted by `delay` samples.
     pub(super) fn heldout(&self, delay: isize) -> HeldOut {
-        self.heldout_with(delay, &self.free)
+        self.heldout_with(&vec![delay; self.model.dof()], &self.free)
     }
 
-    /// [`Self::heldout`] with the declared columns `free` fitted.
-    pub(super) fn heldout_with(&self, delay: isize, free: &[bool]) -> HeldOut {
+    /// [`Self::heldout`] with each joint's torque shifted by `shifts[k]` and the declared columns
+    /// `free` fitted.
+    pub(super) fn heldout_with(&self, shifts: &[isize], free: &[bool]) -> HeldOut {
         match &self.validation {
-            Some(v) => HeldOut::Validation(self.problem_with(v, delay, free)),
+            Some(v) => HeldOut::Validation(self.problem_with(v, shifts, free)),
             None => HeldOut::Blocks { train: self.split.train.clone(), test: self.split.test.clone() },
         }
     }

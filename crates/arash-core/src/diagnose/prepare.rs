@@ -62,6 +62,16 @@ impl Prepared {
         out
     }
 
+    /// [`Self::tau`] with each joint's torque shifted by its own `shifts[k]` samples.
+    pub(super) fn tau_shifted(&self, shifts: &[isize]) -> Vec<f64> {
+        let dof = self.dof;
+        let mut out = Vec::with_capacity(self.kept.len() * dof);
+        for &i in &self.kept {
+            out.extend(shifts.iter().enumerate().map(|(k, d)| self.pre.tau[(i as isize + d) as usize * dof + k]));
+        }
+        out
+    }
+
     /// The kept samples of each run, as ranges of kept indices, in order.
     pub(super) fn runs(&self) -> Vec<std::ops::Range<usize>> {
         let mut bounds: Vec<usize> = self.starts.iter().map(|&s| self.kept.partition_point(|&i| i < s)).collect();

@@ -55,12 +55,16 @@ pub fn consistent_with_effects(
         super::regression::axpy(&mut predicted, *b, column, dof);
     }
     data.predicted = predicted;
-    let delay = found
-        .effects
-        .iter()
-        .find(|t| t.kind == EffectKind::Delay)
-        .and_then(|t| t.scale)
-        .map_or(0, |s| s.round() as isize);
+    // Each joint's shift: a delay term on one joint shifts that joint's torque, one on none all.
+    let mut shifts = vec![0isize; dof];
+    for term in found.effects.iter().filter(|t| t.kind == EffectKind::Delay) {
+        let shift = term.scale.map_or(0, |s| s.round() as isize);
+        match term.joint {
+            Some(k) if k < dof => shifts[k] = shift,
+            Some(_) => {}
+            None => shifts.fill(shift),
+        }
+    }
     let mut terms: Vec<_> =
         found.effects.iter().filter(|t| t.kind.at_run_time() && t.kind != EffectKind::Payload).cloned().collect();
     let mut columns = full_columns(model, &data.pre, &data.kept);
@@ -75,7 +79,7 @@ pub fn consistent_with_effects(
             columns.push((0..rows).map(|r| column.at(r / dof, r % dof, dof)).collect());
         }
     }
-    let tau = data.tau(delay);
+    let tau = data.tau_shifted(&shifts);
     let w = Mat::<f64>::from_fn(tau.len(), columns.len(), |i, j| columns[j][i]);
     let fit = identify_consistent_bounded(model, &w, &tau, consistent, &bounds)?;
     let predicted = crate::signal::estimate::apply(&w, &fit.params);
@@ -95,9 +99,7 @@ pub fn consistent_with_effects(
     model_out.fitted.training = joint_metrics(&tau, &predicted, dof).into();
     model_out.settings.method = IdentifyMethod::Consistent;
     model_out.settings.pull = consistent.pull;
-    if delay != 0 {
-        terms.extend(found.effects.iter().filter(|t| t.kind == EffectKind::Delay).cloned());
-    }
+    terms.extend(found.effects.iter().filter(|t| t.kind == EffectKind::Delay).cloned());
     model_out.effects = terms;
     Ok(model_out)
 }

@@ -37,6 +37,14 @@ impl Diagnosis {
         format!("       held-out gain by joint when added (it helps some and harms others): {}\n", each.join(", "))
     }
 
+    /// Joints by name, or "no joint".
+    fn joint_list(&self, joints: &[usize]) -> String {
+        match joints.is_empty() {
+            true => "no joint".to_string(),
+            false => joints.iter().map(|&j| self.joint_names[j].as_str()).collect::<Vec<_>>().join(", "),
+        }
+    }
+
     /// What the guard put back so that no joint predicts worse than the starting model.
     fn reverted_lines(&self) -> String {
         if self.reverted.is_empty() && self.still_worse.is_empty() {
@@ -51,12 +59,15 @@ impl Diagnosis {
                      held at the starting model's"
                 ),
                 Reversion::DropEffect { label, helped, sigmas } => {
-                    let helped: Vec<&str> = helped.iter().map(|&j| self.joint_names[j].as_str()).collect();
-                    let helped = match helped.is_empty() {
-                        true => "no joint".to_string(),
-                        false => helped.join(", "),
-                    };
+                    let helped = self.joint_list(helped);
                     format!("{name}: {label} harmed it by {sigmas:.1} standard errors (it helped {helped}); dropped")
+                }
+                Reversion::Unshifted { samples, helped, sigmas } => {
+                    let helped = self.joint_list(helped);
+                    format!(
+                        "{name}: the delay ({samples} samples) harmed it by {sigmas:.1} standard errors (it helped \
+                         {helped}); its torque is not shifted"
+                    )
                 }
             };
             s += &format!(

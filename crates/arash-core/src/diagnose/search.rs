@@ -574,6 +574,7 @@ impl Search<'_> {
         let (model, dof) = (ctx.model, self.problem.dof);
         let kept = guard::keep_no_worse(ctx, delay, (self.problem, self.heldout), pool, &state.chosen);
         drop_reverted(&mut state, &kept, &mut rejected, model);
+        unshift_delay(&mut state, &kept, &mut rejected, model);
         let (problem, heldout) = kept.rebuilt.as_ref().map_or((self.problem, self.heldout), |(p, h)| (p, h));
         let declared_only = model_columns(problem, pool, &[]);
         let final_cols = model_columns(problem, pool, &state.chosen);
@@ -705,7 +706,7 @@ impl Search<'_> {
                 }
             }
         }
-        updated.effects.extend(state.accepted.iter().map(|f| f.term.clone()));
+        updated.effects.extend(state.accepted.iter().flat_map(|f| model_terms(f, ctx.model.dof())));
         Ok(updated)
     }
 }
@@ -720,7 +721,9 @@ fn drop_reverted(state: &mut State, kept: &guard::Kept, rejected: &mut Vec<Rejec
         let found = state.accepted.remove(finding);
         let sigmas = match &step.action {
             Reversion::DropEffect { sigmas, .. } => *sigmas,
-            Reversion::HoldFriction => unreachable!("only a dropped effect has a pool index"),
+            Reversion::HoldFriction | Reversion::Unshifted { .. } => {
+                unreachable!("only a dropped effect has a pool index")
+            }
         };
         let reason = RejectionReason::WorseThanStart { joint: names[step.joint].clone(), sigmas };
         rejected.push(Rejection {
@@ -734,6 +737,52 @@ fn drop_reverted(state: &mut State, kept: &guard::Kept, rejected: &mut Vec<Rejec
         state.chosen.remove(at);
     }
     debug_assert_eq!(state.chosen, kept.chosen);
+}
+
+/// The delay's finding acts on the joints whose torque the guard left shifted; taken off every
+/// joint, it leaves the findings for the rejections, with the joint it made worse last.
+fn unshift_delay(state: &mut State, kept: &guard::Kept, rejected: &mut Vec<Rejection>, model: &Model) {
+    let Some(at) = state.accepted.iter().position(|f| f.term.kind == EffectKind::Delay) else { return };
+    let shifted: Vec<usize> = (0..kept.shifts.len()).filter(|&k| kept.shifts[k] != 0).collect();
+    if shifted.len() == kept.shifts.len() {
+        return;
+    }
+    if shifted.is_empty() {
+        let found = state.accepted.remove(at);
+        let last = kept.reverted.iter().rev().find(|(r, _)| matches!(r.action, Reversion::Unshifted { .. }));
+        let Some((step, _)) = last else { return };
+        let Reversion::Unshifted { sigmas, .. } = step.action else { return };
+        let names = model.joint_names();
+        rejected.push(Rejection {
+            name: found.name,
+            joints: found.joints,
+            label: found.label,
+            reason: RejectionReason::WorseThanStart { joint: names[step.joint].clone(), sigmas },
+            p_value: Some(found.p_value),
+            heldout_gain: Some(found.heldout_gain),
+        });
+        return;
+    }
+    let names = model.joint_names();
+    let finding = &mut state.accepted[at];
+    finding.term.joint = (shifted.len() == 1).then(|| shifted[0]);
+    finding.label = match finding.term.joint {
+        Some(_) => finding.term.describe(&names),
+        None => {
+            let on: Vec<&str> = shifted.iter().map(|&k| names[k].as_str()).collect();
+            format!("{} on {}", finding.term.describe(&names), on.join(", "))
+        }
+    };
+    finding.joints = shifted;
+}
+
+/// The model file's terms of a finding: its term, or for a delay kept on some joints only, one
+/// term per joint it shifts.
+fn model_terms(f: &Finding, dof: usize) -> Vec<EffectTerm> {
+    if f.term.kind != EffectKind::Delay || f.joints.len() == dof || f.joints.len() == 1 {
+        return vec![f.term.clone()];
+    }
+    f.joints.iter().map(|&k| EffectTerm { joint: Some(k), ..f.term.clone() }).collect()
 }
 
 /// The index in `accepted` of the `at`-th effect that is not the delay (the delay has no columns

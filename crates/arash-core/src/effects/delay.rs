@@ -1,6 +1,8 @@
 //! `delay`: the torque recorded later (or earlier) than the position. `scale` is the shift in
 //! samples, the coefficient the delay in seconds. A property of the log, not of the robot: it
-//! has no columns, the diagnosis searches it first as a shift, and a controller ignores it.
+//! has no columns, the diagnosis searches it first as a shift, and a controller ignores it. A
+//! term with no joint shifts every joint's torque, one on a joint that joint's alone (the
+//! diagnosis's guard takes the shift off a joint it harms, `diagnose/guard.rs`).
 
 use super::{Effect, EffectTerm, JointData, NotSearched, Sample, TermState};
 
@@ -26,7 +28,7 @@ impl Effect for Delay {
     fn detail(&self, term: &EffectTerm) -> String {
         format!(" ({} samples)", term.scale.unwrap_or(0.0))
     }
-    /// Searched as a shift of the whole log, not per joint.
+    /// Searched as a shift of the whole log, not per joint (the guard may take it off a joint).
     fn joint_candidates(&self, _: &JointData) -> Result<Vec<EffectTerm>, NotSearched> {
         Ok(vec![])
     }

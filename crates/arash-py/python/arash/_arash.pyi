@@ -445,8 +445,9 @@ class Diagnosis:
     @property
     def reverted(self) -> list[dict[str, Any]]:
         """What was put back so that no joint predicts held-out data worse than the starting model:
-        ``joint``, ``code`` (``hold_friction`` or ``drop_effect``), for a dropped effect ``label``,
-        ``helped`` and ``sigmas``; and ``start_rms``, ``rms_before``, ``rms_after``."""
+        ``joint``, ``code`` (``hold_friction``, ``drop_effect``, or ``unshifted``: the delay found
+        taken off the joint's torque), for a dropped effect ``label``, for the delay ``samples``,
+        for either ``helped`` and ``sigmas``; and ``start_rms``, ``rms_before``, ``rms_after``."""
     @property
     def still_worse(self) -> list[dict[str, Any]]:
         """Joints still worse than the starting model beyond the comparison's noise: ``joint``,
