@@ -769,8 +769,10 @@ fn unshift_delay(state: &mut State, kept: &guard::Kept, rejected: &mut Vec<Rejec
     finding.label = match finding.term.joint {
         Some(_) => finding.term.describe(&names),
         None => {
+            // As a term on one joint reads: "delay on yaw, insertion (6 samples)".
             let on: Vec<&str> = shifted.iter().map(|&k| names[k].as_str()).collect();
-            format!("{} on {}", finding.term.describe(&names), on.join(", "))
+            let (id, all) = (finding.term.kind.id(), finding.term.describe(&names));
+            format!("{id} on {}{}", on.join(", "), &all[id.len()..])
         }
     };
     finding.joints = shifted;
