@@ -334,7 +334,8 @@ impl Diagnosis {
     }
     /// What was put back so that no joint predicts the held-out data worse than the model the
     /// diagnosis started from, in order: one dict per step with `joint` (its name), `code`
-    /// (`hold_friction` or `drop_effect`), for a dropped effect its `label`, the joints it
+    /// (`hold_friction`, `drop_effect`, or `unshifted`: the delay taken off the joint's torque),
+    /// for a dropped effect its `label`, for the delay its `samples`, for either the joints it
     /// `helped` (names) and `sigmas` (how far it harmed the joint), and the joint's held-out RMS
     /// `start_rms` (the starting model's), `rms_before` and `rms_after` (N·m or N).
     #[getter]
