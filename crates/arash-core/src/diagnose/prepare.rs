@@ -53,13 +53,7 @@ impl Prepared {
 
     /// The filtered torque at the kept samples, shifted by `delay` full-rate samples.
     pub(super) fn tau(&self, delay: isize) -> Vec<f64> {
-        let dof = self.dof;
-        let mut out = Vec::with_capacity(self.kept.len() * dof);
-        for &i in &self.kept {
-            let j = (i as isize + delay) as usize;
-            out.extend_from_slice(&self.pre.tau[j * dof..(j + 1) * dof]);
-        }
-        out
+        self.tau_shifted(&vec![delay; self.dof])
     }
 
     /// [`Self::tau`] with each joint's torque shifted by its own `shifts[k]` samples.

@@ -725,18 +725,22 @@ fn drop_reverted(state: &mut State, kept: &guard::Kept, rejected: &mut Vec<Rejec
                 unreachable!("only a dropped effect has a pool index")
             }
         };
-        let reason = RejectionReason::WorseThanStart { joint: names[step.joint].clone(), sigmas };
-        rejected.push(Rejection {
-            name: found.name,
-            joints: found.joints,
-            label: found.label,
-            reason,
-            p_value: Some(found.p_value),
-            heldout_gain: Some(found.heldout_gain),
-        });
+        rejected.push(worse_than_start(found, names[step.joint].clone(), sigmas));
         state.chosen.remove(at);
     }
     debug_assert_eq!(state.chosen, kept.chosen);
+}
+
+/// The rejection of an accepted finding the guard took away, for the harm it did to `joint`.
+fn worse_than_start(found: Finding, joint: String, sigmas: f64) -> Rejection {
+    Rejection {
+        name: found.name,
+        joints: found.joints,
+        label: found.label,
+        reason: RejectionReason::WorseThanStart { joint, sigmas },
+        p_value: Some(found.p_value),
+        heldout_gain: Some(found.heldout_gain),
+    }
 }
 
 /// The delay's finding acts on the joints whose torque the guard left shifted; taken off every
@@ -747,23 +751,17 @@ fn unshift_delay(state: &mut State, kept: &guard::Kept, rejected: &mut Vec<Rejec
     if shifted.len() == kept.shifts.len() {
         return;
     }
+    let names = model.joint_names();
     if shifted.is_empty() {
-        let found = state.accepted.remove(at);
-        let last = kept.reverted.iter().rev().find(|(r, _)| matches!(r.action, Reversion::Unshifted { .. }));
-        let Some((step, _)) = last else { return };
-        let Reversion::Unshifted { sigmas, .. } = step.action else { return };
-        let names = model.joint_names();
-        rejected.push(Rejection {
-            name: found.name,
-            joints: found.joints,
-            label: found.label,
-            reason: RejectionReason::WorseThanStart { joint: names[step.joint].clone(), sigmas },
-            p_value: Some(found.p_value),
-            heldout_gain: Some(found.heldout_gain),
+        // Every joint was unshifted by a step of the guard; the last names the joint.
+        let last = kept.reverted.iter().rev().find_map(|(r, _)| match r.action {
+            Reversion::Unshifted { sigmas, .. } => Some((r.joint, sigmas)),
+            _ => None,
         });
+        let (joint, sigmas) = last.expect("a delay off every joint was taken off by the guard");
+        rejected.push(worse_than_start(state.accepted.remove(at), names[joint].clone(), sigmas));
         return;
     }
-    let names = model.joint_names();
     let finding = &mut state.accepted[at];
     finding.term.joint = (shifted.len() == 1).then(|| shifted[0]);
     finding.label = match finding.term.joint {
