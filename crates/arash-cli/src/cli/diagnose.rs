@@ -20,15 +20,19 @@ pub struct Args {
     runs: super::Runs,
     /// A model file (from `arash identify` or an earlier diagnosis) to diagnose against; its
     /// inertial parameters are held, friction is refitted and kept where it predicts the held-out
-    /// data better. No joint ends worse than this model on held-out data. Default: refit the
-    /// declared model.
+    /// data better. No joint ends worse than this model on held-out data. Default: the model
+    /// `arash identify` makes of the training log (see --from-identified).
     #[arg(long)]
     model: Option<PathBuf>,
-    /// Without --model: start from the model `arash identify` makes of the training log, its
-    /// parameters refitted with the effects, or held where that predicts a joint of a held-out
-    /// run worse (docs/diagnosis.md, "Where it starts").
-    #[arg(long, conflicts_with = "model")]
+    /// Without --model (the default): start from the model `arash identify` makes of the
+    /// training log, its parameters refitted with the effects, or held where that predicts a
+    /// joint of a held-out run worse (docs/diagnosis.md, "Where it starts").
+    #[arg(long, conflicts_with_all = ["model", "from_declared"])]
     from_identified: bool,
+    /// Without --model: start from the declared model refitted on the log at the diagnosis's
+    /// band instead.
+    #[arg(long, conflicts_with = "model")]
+    from_declared: bool,
     /// With --model: refit all its base parameters too.
     #[arg(long, conflicts_with = "hold_friction")]
     refit: bool,
@@ -208,6 +212,9 @@ fn options(args: &Args, model: &arash_core::Model) -> anyhow::Result<DiagnoseOpt
     options.hold_friction = args.hold_friction;
     if args.from_identified {
         options.start = Start::Identified;
+    }
+    if args.from_declared {
+        options.start = Start::Declared;
     }
     options.validate(model.dof())?;
     if let Some(v) = args.consistent_cutoff {

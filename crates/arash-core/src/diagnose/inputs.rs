@@ -179,7 +179,10 @@ impl<'a> Context<'a> {
         let dof = data.dof;
         let mut pred = vec![0.0; data.samples() * dof];
         if let (Some(g), false) = (self.given, self.refit) {
-            for ((c, b), _) in data.declared.iter().zip(&g.fitted.beta).zip(free).filter(|(_, f)| !**f) {
+            // The held columns at the given model's coefficients, with its own laws where the
+            // diagnosis chose others.
+            let columns = data.start_declared.as_ref().unwrap_or(&data.declared);
+            for ((c, b), _) in columns.iter().zip(&g.fitted.beta).zip(free).filter(|(_, f)| !**f) {
                 regression::axpy(&mut pred, *b, c, dof);
             }
             for term in g.effects.iter().filter(|t| t.kind != EffectKind::DriveGain) {

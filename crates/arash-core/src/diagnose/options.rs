@@ -110,12 +110,10 @@ pub struct DiagnoseOptions {
 pub enum Start {
     /// The model identification makes of the same log, with its choices: the diagnosis builds on
     /// it and ends no worse than it on any joint of any held-out run.
-    Identified,
-    /// The declared model refitted on the log at the diagnosis's band (default). Not yet the
-    /// identified model: on logs of the declared model, identification's Coulomb law, chosen at
-    /// its own cut-off, let a Stribeck term in where the diagnosis's law at its band does not
-    /// (docs/diagnosis.md, "Where it starts").
     #[default]
+    Identified,
+    /// The declared model refitted on the log at the diagnosis's band, each joint's Coulomb law
+    /// chosen there.
     Declared,
 }
 

@@ -22,8 +22,8 @@ use super::regression::{
 use super::weighted_fit::{error_summary, model_columns, Candidate, HeldOut, HeldOutBase, Problem};
 use super::Runs;
 use crate::effects::{EffectKind, EffectTerm};
-use crate::model::{JointKind, Model};
-use crate::model_file::ModelFile;
+use crate::model::{CoulombLaws, JointKind, Model};
+use crate::model_file::{ModelFile, Settings};
 use crate::signal::log::{Declared, Log};
 
 /// Whose Coulomb laws the diagnosis fits with, against a given model.
@@ -55,7 +55,7 @@ pub(super) fn diagnose_against(
         _ => Cow::Borrowed(declared.model),
     };
     let refit = given.is_none() || options.refit;
-    let choose_laws = refit && !model.coulomb_laws.is_declared();
+    let choose_laws = (refit || laws == Laws::Own) && !model.coulomb_laws.is_declared();
     let choice = choose_band(&model, declared.base, train, validation.as_ref(), options, choose_laws)?;
     if let Some(chosen) = &choice.laws {
         model.to_mut().coulomb_laws = chosen.laws.clone();
@@ -697,6 +697,9 @@ impl Search<'_> {
             // Against a given model its freed (friction) coefficients take the joint fit's values,
             // which come first in `x_after`, in the order of the base parameters.
             let mut fitted = x_after.iter();
+            if let Some(laws) = refitted_laws(ctx, free) {
+                (updated.settings.coulomb_epsilon, updated.settings.friction_velocities) = Settings::law_fields(&laws);
+            }
             let freed = updated.fitted.beta.iter_mut().zip(&ctx.base.independent).zip(free).filter(|(_, f)| **f);
             for ((b, j), _) in freed {
                 *b = *fitted.next().expect("one coefficient per free column");
@@ -709,6 +712,26 @@ impl Search<'_> {
         updated.effects.extend(state.accepted.iter().flat_map(|f| model_terms(f, ctx.model.dof())));
         Ok(updated)
     }
+}
+
+/// Held against a given model with laws of the diagnosis's own: each joint whose friction was
+/// refitted takes the law it was refitted with, and the others keep the given model's (`None`
+/// where the two agree).
+fn refitted_laws(ctx: &Context, free: &[bool]) -> Option<CoulombLaws> {
+    let given = ctx.given?.coulomb_laws();
+    if given == ctx.model.coulomb_laws {
+        return None;
+    }
+    let shapes = (0..ctx.model.dof())
+        .map(|k| {
+            let refitted = ctx.friction_columns_of(k).iter().zip(free).any(|(c, f)| *c && *f);
+            match refitted {
+                true => ctx.model.coulomb_laws.shape(k),
+                false => given.shape(k),
+            }
+        })
+        .collect();
+    Some(CoulombLaws::declared(shapes))
 }
 
 /// The accepted effects the guard dropped leave the findings for the rejections, with the joint

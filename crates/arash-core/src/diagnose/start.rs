@@ -13,7 +13,9 @@
 //! log of the declared model. The start still predicts with its own laws. The guard holds
 //! every joint to the identified model's held-out error; where the refit itself loses on a joint
 //! (no effect there to drop), the diagnosis runs again with the identified parameters held and
-//! friction refitted, where its guard can put the friction back. Where identification refuses
+//! friction refitted, each law again chosen at the band, where its guard can put the friction back
+//! with the identification's law (held with its laws, a Stribeck term made up for one on the
+//! TX40's motor-side null). Where identification refuses
 //! the log, the declared model is refitted, and the reason says why.
 
 use super::findings::{Diagnosis, StartedFrom};
@@ -69,7 +71,7 @@ fn from_identified(
         return Ok(started_from(refitted, &identified, true, vec![]));
     }
     let held = DiagnoseOptions { refit: false, ..options.clone() };
-    let d = diagnose_against(declared, (train, validation), Some(&identified), Laws::OfGiven, &held)?;
+    let d = diagnose_against(declared, (train, validation), Some(&identified), Laws::Own, &held)?;
     Ok(started_from(d, &identified, false, refitted.still_worse))
 }
 

@@ -359,10 +359,11 @@ def diagnose(
         refitted and kept where it predicts the held-out data better); no joint ends predicting
         the held-out data worse than it (``Diagnosis.reverted`` lists what was put back, and
         ``error_before`` is this model as it is); default: as ``start`` says.
-    start: without a model, ``"declared"`` (default: the declared model refitted at the
-        diagnosis's band) or ``"identified"`` (start from ``identify``'s model of this log, its
-        declared parameters refitted with the effects, or held where the refit predicts a joint of
-        a held-out run worse; ``settings["started_from"]``).
+    start: without a model, ``"identified"`` (default: start from ``identify``'s model of this
+        log, its declared parameters refitted with the effects, or held, with friction refitted
+        where it predicts better, where the refit predicts a joint of a held-out run worse;
+        ``settings["started_from"]``) or ``"declared"`` (the declared model refitted at the
+        diagnosis's band).
     validation: a tuple ``(t, q, tau)`` held out for ranking and the held-out errors, or a list of
         such runs recorded one after another (each run is filtered on its own: nothing across the
         jump from one to the next); default: the odd-numbered blocks of the training log.
