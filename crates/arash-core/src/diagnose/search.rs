@@ -3,7 +3,7 @@
 
 use std::borrow::Cow;
 
-use super::band_choice::choose_band;
+use super::band_choice::{choose_band, BandChoice};
 use super::calibration_error;
 use super::candidates::{candidates, not_the_cable};
 use super::delay::search_delay;
@@ -45,22 +45,52 @@ pub(super) fn diagnose_against(
     laws: Laws,
     options: &DiagnoseOptions,
 ) -> Result<Diagnosis, DiagnoseError> {
+    let choice = band_for(declared, (train, validation.as_ref()), given, laws, options)?;
+    diagnose_in_band(declared, (train, validation), given, laws, options, &choice)
+}
+
+/// A given model's Coulomb coefficients belong to the laws it was fitted with; without one
+/// the robot's declared laws are used, or, where it declares none, each joint's is chosen
+/// from the data with the band (docs/diagnosis.md, "The Coulomb law").
+fn start_model<'a>(model: &'a Model, given: Option<&ModelFile>, laws: Laws) -> Cow<'a, Model> {
+    match (given, laws) {
+        (Some(file), Laws::OfGiven) => file.with_its_law(model),
+        _ => Cow::Borrowed(model),
+    }
+}
+
+/// The band [`diagnose_against`] chooses, and with it each joint's Coulomb law where the
+/// diagnosis chooses them. It depends on the laws, not on what is refitted, so that a diagnosis
+/// run again with other parameters held can share it.
+pub(super) fn band_for(
+    declared: Declared,
+    (train, validation): (Log, Option<&Runs>),
+    given: Option<&ModelFile>,
+    laws: Laws,
+    options: &DiagnoseOptions,
+) -> Result<BandChoice, DiagnoseError> {
     options.validate(declared.model.dof())?;
-    validation.as_ref().map(Runs::check).transpose()?;
-    // A given model's Coulomb coefficients belong to the laws it was fitted with; without one
-    // the robot's declared laws are used, or, where it declares none, each joint's is chosen
-    // from the data with the band (docs/diagnosis.md, "The Coulomb law").
-    let mut model = match (given, laws) {
-        (Some(file), Laws::OfGiven) => file.with_its_law(declared.model),
-        _ => Cow::Borrowed(declared.model),
-    };
+    validation.map(Runs::check).transpose()?;
+    let model = start_model(declared.model, given, laws);
     let refit = given.is_none() || options.refit;
     let choose_laws = (refit || laws == Laws::Own) && !model.coulomb_laws.is_declared();
-    let choice = choose_band(&model, declared.base, train, validation.as_ref(), options, choose_laws)?;
+    choose_band(&model, declared.base, train, validation, options, choose_laws)
+}
+
+/// [`diagnose_against`] in the band `choice` ([`band_for`]'s, with the same laws).
+pub(super) fn diagnose_in_band(
+    declared: Declared,
+    (train, validation): (Log, Option<Runs>),
+    given: Option<&ModelFile>,
+    laws: Laws,
+    options: &DiagnoseOptions,
+    choice: &BandChoice,
+) -> Result<Diagnosis, DiagnoseError> {
+    let mut model = start_model(declared.model, given, laws);
     if let Some(chosen) = &choice.laws {
         model.to_mut().coulomb_laws = chosen.laws.clone();
     }
-    let mut ctx = Context::new(&model, declared.base, train, validation, given, options, &choice)?;
+    let mut ctx = Context::new(&model, declared.base, train, validation, given, options, choice)?;
     // 1. Delay.
     let (delay, delay_outcome) = if options.effects.contains(&EffectKind::Delay) && ctx.max_shift() > 0 {
         let (delay, outcome) = search_delay(&ctx);

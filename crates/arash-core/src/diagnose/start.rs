@@ -20,7 +20,7 @@
 
 use super::findings::{Diagnosis, StartedFrom};
 use super::options::{DiagnoseError, DiagnoseOptions, Start};
-use super::search::{diagnose_against, Laws};
+use super::search::{band_for, diagnose_against, diagnose_in_band, Laws};
 use super::Runs;
 use crate::base_parameters::{BaseParameterOptions, BaseParameters};
 use crate::choices::Choice;
@@ -66,12 +66,14 @@ fn from_identified(
         }
     };
     let refit = DiagnoseOptions { refit: true, hold_friction: false, ..options.clone() };
-    let refitted = diagnose_against(declared, (train, validation), Some(&identified), Laws::Own, &refit)?;
+    // Both runs choose their band and laws alike; the second shares the first's.
+    let band = band_for(declared, (train, validation.as_ref()), Some(&identified), Laws::Own, &refit)?;
+    let refitted = diagnose_in_band(declared, (train, validation), Some(&identified), Laws::Own, &refit, &band)?;
     if refitted.still_worse.is_empty() {
         return Ok(started_from(refitted, &identified, true, vec![]));
     }
     let held = DiagnoseOptions { refit: false, ..options.clone() };
-    let d = diagnose_against(declared, (train, validation), Some(&identified), Laws::Own, &held)?;
+    let d = diagnose_in_band(declared, (train, validation), Some(&identified), Laws::Own, &held, &band)?;
     Ok(started_from(d, &identified, false, refitted.still_worse))
 }
 
