@@ -270,7 +270,7 @@ pub(super) fn keep_no_worse(
         let rms_after = yardstick.rms(&now, k);
         kept.reverted.push((Reverted { joint: k, action, start_rms, rms_before, rms_after }, dropped));
     }
-    unshift_where_it_harms(ctx, pool, &mut kept, &yardstick, now.clone()).inspect(|e| now = e.clone());
+    unshift_where_it_harms(ctx, pool, &mut kept, &yardstick, &mut now);
     let excess = yardstick.excess(&now).into_iter().enumerate();
     kept.worse = excess
         .filter(|(_, e)| e.worst_run.0 > HARM_SIGMAS * e.worst_run.1)
@@ -286,44 +286,56 @@ pub(super) fn keep_no_worse(
 /// identification's 15 Hz band and saved it 10 % of its error in the diagnosis's 173 Hz). Against a weak start (an identification whose own fit
 /// the late joints degraded) the first pass leaves such a joint alone: on ARASH:ASiST with only
 /// the insertion late, the refit with the shift still beat the identification on the pitch and
-/// yaw, which the shift cost 17 % and 2 % of their held-out error. The held-out residual after,
-/// where a joint was unshifted.
+/// yaw, which the shift cost 17 % and 2 % of their held-out error. `now`, the held-out
+/// residual, is updated as joints are unshifted.
 fn unshift_where_it_harms(
     ctx: &Context,
     pool: &[Candidate],
     kept: &mut Kept,
     yardstick: &Yardstick,
-    mut now: Vec<f64>,
-) -> Option<Vec<f64>> {
+    now: &mut Vec<f64>,
+) {
     let dof = kept.shifts.len();
-    let mut changed = false;
+    // Neither the fitted columns nor the effects change in this pass.
+    let no_shift = no_shift_residual(ctx, pool, kept);
     loop {
         let shifted: Vec<usize> = (0..dof).filter(|&k| kept.shifted(k)).collect();
         let trials = crate::parallel::map(shifted, |k| {
-            let mut shifts = kept.shifts.clone();
-            shifts[k] = 0;
-            let (p, h) = rebuild(ctx, &shifts, &kept.free);
-            let without = heldout_residual(&p, &h, pool, &kept.chosen);
+            let (rebuilt, without) = unshifted(ctx, pool, kept, k);
             // Worse with the shift beyond the noise, in the band or in the start's, and no
             // worse without it in either.
-            let harm = in_errors(yardstick.excess_over(&without, &now)[k].worst_run);
-            let cost = in_errors(yardstick.excess_over(&now, &without)[k].worst_run);
-            (k, harm, cost, (p, h), without)
+            let harm = in_errors(yardstick.excess_over(&without, now)[k].worst_run);
+            let cost = in_errors(yardstick.excess_over(now, &without)[k].worst_run);
+            (k, harm, cost, rebuilt, without)
         });
         let harmed = trials.into_iter().filter(|t| t.1 > HARM_SIGMAS && t.2 <= HARM_SIGMAS);
         let Some((k, sigmas, _, rebuilt, without)) = harmed.max_by(|a, b| a.1.total_cmp(&b.1)) else { break };
-        let helped = shift_helps(ctx, pool, kept, k, yardstick, &now);
+        let helped = shift_helps(kept, k, yardstick, now, &no_shift);
         let samples = kept.shifts[k];
-        let (start_rms, rms_before) = (yardstick.rms(&yardstick.start, k), yardstick.rms(&now, k));
+        let (start_rms, rms_before) = (yardstick.rms(&yardstick.start, k), yardstick.rms(now, k));
         kept.shifts[k] = 0;
         kept.rebuilt = Some(rebuilt);
-        now = without;
+        *now = without;
         let action = Reversion::Unshifted { samples, helped, sigmas };
-        let rms_after = yardstick.rms(&now, k);
+        let rms_after = yardstick.rms(now, k);
         kept.reverted.push((Reverted { joint: k, action, start_rms, rms_before, rms_after }, None));
-        changed = true;
     }
-    changed.then_some(now)
+}
+
+/// The training problem and held-out data with joint `k`'s torque as logged (the others shifted
+/// as `kept` has them), and the held-out residual there.
+fn unshifted(ctx: &Context, pool: &[Candidate], kept: &Kept, k: usize) -> ((Problem, HeldOut), Vec<f64>) {
+    let mut shifts = kept.shifts.clone();
+    shifts[k] = 0;
+    let (p, h) = rebuild(ctx, &shifts, &kept.free);
+    let e = heldout_residual(&p, &h, pool, &kept.chosen);
+    ((p, h), e)
+}
+
+/// The held-out residual of `kept` with no joint's torque shifted.
+fn no_shift_residual(ctx: &Context, pool: &[Candidate], kept: &Kept) -> Vec<f64> {
+    let (p, h) = rebuild(ctx, &vec![0; kept.shifts.len()], &kept.free);
+    heldout_residual(&p, &h, pool, &kept.chosen)
 }
 
 /// A joint's excess over the start, `(mean, standard error)`: pooled over the held-out runs, and
@@ -369,7 +381,7 @@ fn next_reversion(
 ) -> Option<(usize, Next)> {
     let dof = excess.len();
     let given = ctx.given.is_some() && !ctx.refit;
-    let friction_free = |k: usize| ctx.friction_columns_of(k).iter().zip(&kept.free).any(|(c, f)| *c && *f);
+    let friction_free = |k: usize| ctx.friction_refitted(k, &kept.free);
     let acted_on = |k: usize| kept.shifted(k) || kept.chosen.iter().any(|&i| pool[i].term.joints(dof).contains(&k));
     let candidates = excess.iter().enumerate().filter_map(|(k, e)| {
         let ((pooled, pooled_se), (mean, se)) = (e.pooled, e.worst_run);
@@ -423,44 +435,32 @@ fn least_harmful_removal(
         rest.remove(at);
         (Removal::Effect(at), heldout_residual(problem, heldout, pool, &rest))
     };
-    let unshifted = || {
-        let mut shifts = kept.shifts.clone();
-        shifts[k] = 0;
-        let (p, h) = rebuild(ctx, &shifts, &kept.free);
-        let e = heldout_residual(&p, &h, pool, chosen);
-        (Removal::Shift(Box::new((p, h))), e)
+    let unshift = || {
+        let (rebuilt, e) = unshifted(ctx, pool, kept, k);
+        (Removal::Shift(Box::new(rebuilt)), e)
     };
     let acting: Vec<Option<usize>> = (0..chosen.len())
         .filter(|&at| pool[chosen[at]].term.joints(dof).contains(&k))
         .map(Some)
         .chain(kept.shifted(k).then_some(None))
         .collect();
-    let trials = crate::parallel::map(acting, |at| at.map_or_else(unshifted, without));
+    let trials = crate::parallel::map(acting, |at| at.map_or_else(unshift, without));
     let (removal, e) = trials
         .into_iter()
         .min_by(|a, b| yardstick.rms(&a.1, k).total_cmp(&yardstick.rms(&b.1, k)))
         .expect("an effect acts on the joint");
     let helped = match removal {
         Removal::Effect(_) => (0..dof).filter(|&j| yardstick.rms(&with, j) < yardstick.rms(&e, j)).collect(),
-        Removal::Shift(_) => shift_helps(ctx, pool, kept, k, yardstick, &with),
+        Removal::Shift(_) => shift_helps(kept, k, yardstick, &with, &no_shift_residual(ctx, pool, kept)),
     };
     (removal, helped, e)
 }
 
 /// The joints other than `k` the delay helps: those it shifts that predict better with it (the
-/// held-out residual `with`) than with no shift at all.
-fn shift_helps(
-    ctx: &Context,
-    pool: &[Candidate],
-    kept: &Kept,
-    k: usize,
-    yardstick: &Yardstick,
-    with: &[f64],
-) -> Vec<usize> {
+/// held-out residual `with`) than with no shift at all (`no_shift`).
+fn shift_helps(kept: &Kept, k: usize, yardstick: &Yardstick, with: &[f64], no_shift: &[f64]) -> Vec<usize> {
     let dof = kept.shifts.len();
-    let (p, h) = rebuild(ctx, &vec![0; dof], &kept.free);
-    let unshifted = heldout_residual(&p, &h, pool, &kept.chosen);
-    (0..dof).filter(|&j| j != k && kept.shifted(j) && yardstick.rms(with, j) < yardstick.rms(&unshifted, j)).collect()
+    (0..dof).filter(|&j| j != k && kept.shifted(j) && yardstick.rms(with, j) < yardstick.rms(no_shift, j)).collect()
 }
 
 /// The held-out samples of each run, as ranges of the held-out residual's samples: the validation

@@ -276,6 +276,11 @@ impl<'a> Context<'a> {
         factors
     }
 
+    /// Whether any of joint `k`'s friction columns is among the fitted columns `free`.
+    pub(super) fn friction_refitted(&self, k: usize, free: &[bool]) -> bool {
+        self.friction_columns_of(k).iter().zip(free).any(|(c, f)| *c && *f)
+    }
+
     /// The declared columns of joint `k`'s friction.
     pub(super) fn friction_columns_of(&self, k: usize) -> Vec<bool> {
         let layout = self.model.layout();

@@ -753,12 +753,9 @@ fn refitted_laws(ctx: &Context, free: &[bool]) -> Option<CoulombLaws> {
         return None;
     }
     let shapes = (0..ctx.model.dof())
-        .map(|k| {
-            let refitted = ctx.friction_columns_of(k).iter().zip(free).any(|(c, f)| *c && *f);
-            match refitted {
-                true => ctx.model.coulomb_laws.shape(k),
-                false => given.shape(k),
-            }
+        .map(|k| match ctx.friction_refitted(k, free) {
+            true => ctx.model.coulomb_laws.shape(k),
+            false => given.shape(k),
         })
         .collect();
     Some(CoulombLaws::declared(shapes))
