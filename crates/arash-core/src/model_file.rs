@@ -718,6 +718,44 @@ impl ModelFile {
         })
     }
 
+    /// The same model in the base parameters `base`, whose columns include this file's: β̂ on
+    /// its own columns and zero on the others (the weak ones an identification regrouped), so
+    /// that it predicts exactly as before, and its covariance likewise. `None` where `base` lacks
+    /// one of this file's columns. What sets each σ% is not carried over: it was measured among
+    /// the file's own columns.
+    pub fn in_base(&self, base: &BaseParameters) -> Option<Self> {
+        if self.base_independent == base.independent {
+            return Some(self.clone());
+        }
+        let at: Vec<Option<usize>> =
+            base.independent.iter().map(|j| self.base_independent.iter().position(|i| i == j)).collect();
+        if at.iter().flatten().count() != self.base_independent.len() {
+            return None;
+        }
+        let (p, r) = (self.base_independent.len(), at.len());
+        let placed = |v: &[f64]| -> Vec<f64> {
+            match v.len() == p {
+                true => at.iter().map(|i| i.map_or(0.0, |i| v[i])).collect(),
+                false => v.to_vec(),
+            }
+        };
+        let mut out = self.clone();
+        out.fitted.beta = placed(&self.fitted.beta);
+        out.fitted.sigma_percent = placed(&self.fitted.sigma_percent);
+        if self.fitted.beta_covariance.len() == p * p {
+            let entry = |k: usize| match (at[k / r], at[k % r]) {
+                (Some(a), Some(b)) => self.fitted.beta_covariance[a * p + b],
+                _ => 0.0,
+            };
+            out.fitted.beta_covariance = (0..r * r).map(entry).collect();
+        }
+        out.fitted.determination.clear();
+        out.base_names = base.names.clone();
+        out.base_expressions = base.expressions.clone();
+        out.base_independent = base.independent.clone();
+        Some(out)
+    }
+
     /// The joints of the robot the file describes (one stiffness each).
     fn dof(&self) -> usize {
         self.parameter_names.iter().filter(|n| n.ends_with(".ke")).count()

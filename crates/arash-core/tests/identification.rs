@@ -825,3 +825,58 @@ fn idim_iv_names_what_its_closed_loop_lacks() {
         identify_in_closed_loop(declared, data, closed_loop, IdentifyMethod::IdimIv, &options).unwrap_err().to_string();
     assert!(message.contains("5 entries"), "{message}");
 }
+
+/// An identification in the regrouped base parameters, placed in the exact ones
+/// (`ModelFile::in_base`), predicts exactly as it did: the weak parameters at zero, every other
+/// β̂ and its covariance where it was. The diagnosis starts from it so (diagnose/start.rs). The
+/// exact file has a column the regrouped base lacks, and is refused there.
+#[test]
+fn an_identification_placed_in_the_exact_base_parameters_predicts_as_it_did() {
+    use arash_core::identify::{identify, Declared, IdentifyOptions, Log};
+    use arash_core::model_file::IdentifyMethod;
+    let (model, exact, pi, traj, mut rng) = drawn_truth(31);
+    let regrouped = exact.identifiable(&model, &BaseParameterOptions::fitted(false));
+    assert!(regrouped.rank < exact.rank, "ARASH:ASiST has weak parameters to regroup");
+    let (t, q, tau) = simulated_log(&model, &pi, &traj, 2, &mut rng);
+    let mut options = IdentifyOptions::default();
+    options.preprocess.periods = Some(2);
+    options.preprocess.decimate = 5;
+    let declared = Declared { model: &model, base: &regrouped, urdf: ARASH_ASIST_URDF };
+    let file = identify(declared, Log { t: &t, q: &q, tau: &tau }, IdentifyMethod::Ols, &options).unwrap();
+    let placed = file.in_base(&exact).unwrap();
+    assert_eq!(placed.base_independent, exact.independent);
+    assert_eq!(placed.fitted.beta.len(), exact.rank);
+    let p = file.fitted.beta.len();
+    for (i, j) in exact.independent.iter().enumerate() {
+        match file.base_independent.iter().position(|k| k == j) {
+            Some(a) => {
+                assert_eq!(placed.fitted.beta[i], file.fitted.beta[a]);
+                for (i2, j2) in exact.independent.iter().enumerate() {
+                    let covariance = placed.fitted.beta_covariance[i * exact.rank + i2];
+                    match file.base_independent.iter().position(|k| k == j2) {
+                        Some(b) => assert_eq!(covariance, file.fitted.beta_covariance[a * p + b]),
+                        None => assert_eq!(covariance, 0.0),
+                    }
+                }
+            }
+            None => assert_eq!(placed.fitted.beta[i], 0.0, "weak parameter {}", exact.names[i]),
+        }
+    }
+    // The two predict alike on states the fit never saw, through the full regressor each.
+    let mut states = common::rng(32);
+    let (mut qs, mut qds, mut qdds) = (vec![], vec![], vec![]);
+    let (mut a, mut b, mut c) = (vec![0.0; 3], vec![0.0; 3], vec![0.0; 3]);
+    for _ in 0..200 {
+        arash_core::base_parameters::random_state(&model, &mut states, &mut a, &mut b, &mut c);
+        qs.extend_from_slice(&a);
+        qds.extend_from_slice(&b);
+        qdds.extend_from_slice(&c);
+    }
+    let before = file.predict(&model, &qs, &qds, &qdds);
+    let after = placed.predict(&model, &qs, &qds, &qdds);
+    let scale = before.iter().map(|v| v.abs()).fold(0.0, f64::max);
+    for (x, y) in before.iter().zip(&after) {
+        assert!((x - y).abs() <= 1e-12 * scale, "{x} against {y}");
+    }
+    assert!(placed.in_base(&regrouped).is_none(), "the regrouped base lacks the weak parameters' columns");
+}
