@@ -562,11 +562,16 @@ fn _diagnose<'py>(
         .transpose()
         .map_err(|e| PyValueError::new_err(format!("validation log: {}", e.value(py))))?;
     options.inner.validate(dof).map_err(value_error)?;
-    // A diagnosis from the identification works in the identification's base parameters.
-    let base = match (model, options.inner.start) {
-        (Some(m), _) => robot.base_of(&m.inner().base_independent)?,
-        (None, Start::Identified) => robot.identified_base()?,
-        (None, Start::Declared) => robot.diagnosed_base()?,
+    // Against a model, in its base parameters; without one, in the exact ones. Both are the
+    // diagnosed model's, which the consistent refit takes. From the identification the
+    // diagnosis also identifies, in the base parameters identification fits, cached here.
+    let base = match model {
+        Some(m) => robot.base_of(&m.inner().base_independent)?,
+        None => robot.diagnosed_base()?,
+    };
+    let start_base = match (model, options.inner.start) {
+        (None, Start::Identified) => robot.fitted_base(false)?,
+        _ => base,
     };
     let robot_model = Arc::clone(&robot.model);
     let given = model.map(|m| m.inner().clone());
@@ -574,7 +579,7 @@ fn _diagnose<'py>(
         .detach(|| {
             let train = Log { t: &t, q: &q, tau: &tau };
             let held = held.as_ref().map(|(t, q, tau)| Runs { log: Log { t, q, tau }, starts: &validation_starts });
-            let declared = Declared { model: &robot_model, base, urdf: &robot.urdf };
+            let declared = Declared { model: &robot_model, base: start_base, urdf: &robot.urdf };
             let inner = core_diagnose(declared, train, held, given.as_ref(), &options.inner)?;
             let consistent = options
                 .consistent

@@ -349,11 +349,6 @@ impl Robot {
     }
 
     /// The base parameters the diagnosis fits without a model (`BaseParameterOptions::diagnosed`).
-    /// The base parameters identification fits (the weak ones regrouped).
-    pub(crate) fn identified_base(&self) -> PyResult<&CoreBase> {
-        self.cached_base(BaseParameterOptions::default())
-    }
-
     pub(crate) fn diagnosed_base(&self) -> PyResult<&CoreBase> {
         self.cached_base(BaseParameterOptions::diagnosed())
     }

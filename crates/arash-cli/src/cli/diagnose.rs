@@ -153,7 +153,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     )
     .context("diagnosis failed")?;
     let mut diagnosis = diagnosis;
-    // A diagnosis from the identification works in the identification's base parameters.
+    // The consistent refit works in the diagnosed model's base parameters (a given model's).
     let base = match diagnosis.model.base_independent == base.independent {
         true => base,
         false => BaseParameters::with_independent(&model, &diagnosis.model.base_independent)?
