@@ -13,6 +13,7 @@ pytest.importorskip("pinocchio")
 import arash  # noqa: E402
 
 from support.closed_loop import paper_validation_fp, pd_gravity_log, seeded_loop  # noqa: E402
+from support.computed_torque_loop import computed_torque_loop  # noqa: E402
 from support.paths import ROBOT_FILES, ROOT  # noqa: E402
 from support.independent import Condition  # noqa: E402
 from support.simulated import true_parameters  # noqa: E402
@@ -201,7 +202,10 @@ def test_a_noisy_sign_law_closed_loop_keeps_sign_where_a_smooth_law_would_fit_th
     than a smooth law's own v where that law acts, and a law that narrow is a law of the filter's
     slow passage through zero, not of the joint: sign(q̇) is kept and says why, and the model
     predicts the true robot at FP% ≥ 95 on every joint. (Kept, tanh(q̇/1.2·10⁻⁴) validated the
-    insertion at 94.7 %; docs/identification.md, "A sign-law closed loop".)"""
+    insertion at 94.7 %; docs/identification.md, "A sign-law closed loop".) Since the choice also
+    leaves out the rows near stops shorter than a rest (2026-12-07), no smooth law predicts the
+    held-out stretches better than sign(q̇) here, so there is none to refuse (the stray rule is
+    checked on its own in ``signal/friction_law.rs``)."""
     robot, truth, log = noisy_sign_law_closed_loop
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
@@ -210,8 +214,6 @@ def test_a_noisy_sign_law_closed_loop_keeps_sign_where_a_smooth_law_would_fit_th
     validation = paper_validation_fp(model.robot, model, truth, "sign")
     print(f"{laws['text']}\nFP% on the paper's trajectories:\n{np.round(validation, 2)}")
     assert model.robot.friction_velocities[2] is None, laws["text"]
-    # The fittest smooth law was a law of the filter, and the choice names the joint it refused.
-    assert 2 in [u["joint"] for u in laws["unresolved"]], laws["text"]
     assert np.all(validation >= 95.0), validation
 
 
@@ -235,20 +237,44 @@ def test_a_closed_loop_that_sticks_validates_with_its_resting_samples_left_out(s
     assert np.all(validation >= 95.0), validation
 
 
-@pytest.mark.xfail(strict=True, reason="issue 59 item 3, open: on fresh seeds of a random excitation the sign-law "
-                   "loop's law choice keeps smooth laws of the filtered velocity (docs/identification.md, "
-                   "'Fresh seeds')")
 def test_a_sign_law_closed_loop_on_a_fresh_random_excitation_validates_with_the_chosen_laws():
     """The sign-law closed loop (PD with CAD gravity, 16-bit encoders differenced, no disturbance)
     on a random Fourier excitation of seed 3, four 10 s periods, which no choice was tuned on: with
-    each law left to the data, the model should predict the true robot on the paper's four
-    trajectories at FP% ≥ 95 on every joint. Measured: the data choose tanh(q̇/5.9·10⁻³),
-    tanh(q̇/6.8·10⁻³) and tanh(q̇/2.5·10⁻⁴), and the yaw and the insertion validate at 93.0 and
-    91.9 % (bench/closed_loop_seeds.py). Strict: the test says so when the choice is fixed."""
+    each law left to the data, the model predicts the true robot on the paper's four trajectories
+    at FP% ≥ 95 on every joint. Until the law's choice left out the rows near stops shorter than a
+    rest, and refused a law whose transition lies in rests and stops (``signal/resting.rs``,
+    ``Resolution`` in ``signal/friction_law.rs``), the data chose tanh(q̇/5.9·10⁻³), tanh(q̇/6.8·10⁻³)
+    and tanh(q̇/2.5·10⁻⁴), and the yaw and the insertion validated at 93.0 and 91.9 %
+    (bench/closed_loop_seeds.py; docs/identification.md, "Fresh seeds, and a second loop")."""
     robot, log, truth = seeded_loop(3, "sign", designed=False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         model = arash.identify(robot, *log)
     validation = paper_validation_fp(model.robot, model, truth, "sign")
     print(f"laws {model.robot.friction_velocities}; FP% on the paper's trajectories:\n{np.round(validation, 2)}")
+    assert model.robot.friction_velocities == [None] * 3, model.settings["reasons"]
+    assert np.all(validation >= 95.0), validation
+
+
+@pytest.mark.parametrize("law,seed", [("sign", 3), ("smooth", 1)], ids=["sign law", "smooth law"])
+def test_a_second_independent_loop_with_coarser_encoders_validates_with_the_chosen_laws(law, seed):
+    """The second generator (``support/computed_torque_loop.py``: computed torque on CAD with
+    integral action, an α–β observer's velocity, the command a cycle late) with 14-bit encoders
+    on a random excitation, each law left to the data: the model predicts the true robot on the
+    paper's four trajectories at FP% ≥ 95 on every joint, and the smooth-law insertion, which
+    moves through its transition, keeps a law near the plant's. On the sign-law loop the choice
+    before the rule above took tanh(q̇/6.2·10⁻³), tanh(q̇/9.1·10⁻³) and tanh(q̇/3.1·10⁻⁴) and
+    validated at 92.9 / 98.6 / 91.4 %."""
+    plant = "sign" if law == "sign" else [2e-3] * 3
+    robot, log, truth = computed_torque_loop(seed, plant, designed=False, bits=14)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        model = arash.identify(robot, *log)
+    validation = paper_validation_fp(model.robot, model, truth, plant)
+    laws = model.robot.friction_velocities
+    print(f"laws {laws}; FP% on the paper's trajectories:\n{np.round(validation, 2)}")
+    if law == "sign":
+        assert laws == [None] * 3, model.settings["reasons"]
+    else:
+        assert laws[2] is not None and 0.5 * 2e-3 < laws[2] < 2 * 2e-3, laws
     assert np.all(validation >= 95.0), validation

@@ -213,7 +213,7 @@ pub enum Concern {
     /// The best cut-off is the highest tried, a quarter of the sample rate.
     BestAtHighestCutoff { cutoff_hz: f64 },
     /// The laws and cut-offs had not settled after `rounds` rounds.
-    LawsNotSettled { rounds: usize },
+    LawsNotSettled { rounds: usize, unsettled: Vec<usize> },
     /// An instrumental-variable estimate did not settle.
     ClosedLoopNotSettled { estimator: String, iterations: usize, last_change_sigma: f64 },
     /// A datasheet's gain and the load's differ.
@@ -368,13 +368,17 @@ pub struct JointLaw {
 }
 
 /// A joint's fittest law not kept: its friction velocity strays from the velocity at the main
-/// cut-off by `stray` RMS over `samples` samples, more than the law's `velocity`.
+/// cut-off by `stray` RMS over `samples` samples, more than the law's `velocity`, or only
+/// `transition` of those samples are clear of rests and stops, fewer than `needed`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct UnresolvedLaw {
     pub joint: usize,
     pub velocity: f64,
     pub stray: f64,
     pub samples: usize,
+    /// Samples in the law's transition clear of rests and stops, and the fewest that show it.
+    pub transition: usize,
+    pub needed: usize,
 }
 
 /// A drive gain from a calibration with a load: `gain ± sigma`, the load's share of the joint's
@@ -718,13 +722,23 @@ impl Display for Choice {
                     each.join("; ")
                 )?;
                 for u in unresolved {
-                    write!(
-                        f,
-                        "; joint {}'s fittest tanh(q̇/{:.3e}) not kept: where it acts, its friction velocity strays \
-                         from the velocity at the main cut-off by {:.3e} RMS ({} samples), more than the law's v, so \
-                         it is a law of the filter, not of the motion",
-                        u.joint, u.velocity, u.stray, u.samples
-                    )?;
+                    match u.stray > u.velocity {
+                        true => write!(
+                            f,
+                            "; joint {}'s fittest tanh(q̇/{:.3e}) not kept: where it acts, its friction velocity \
+                             strays from the velocity at the main cut-off by {:.3e} RMS ({} samples), more than the \
+                             law's v, so it is a law of the filter, not of the motion",
+                            u.joint, u.velocity, u.stray, u.samples
+                        )?,
+                        false => write!(
+                            f,
+                            "; joint {}'s fittest tanh(q̇/{:.3e}) not kept: only {} of the {} samples where it acts \
+                             are clear of rests and of stops shorter than a rest (at least {} are needed, three of \
+                             the torque filter's memories), so its transition is the stops' ramp through the \
+                             filter, not the joint's friction",
+                            u.joint, u.velocity, u.transition, u.samples, u.needed
+                        )?,
+                    }
                 }
                 Ok(())
             }
@@ -952,10 +966,17 @@ impl Display for Concern {
                 "the best cut-off is the highest tried, a quarter of the sample rate ({cutoff_hz:.1} Hz): the torque \
                  the model explains reaches the sampling limit (sample faster, or the model lacks a fast effect)"
             ),
-            Self::LawsNotSettled { rounds } => write!(
+            Self::LawsNotSettled { rounds, unsettled } => write!(
                 f,
                 "the Coulomb laws and the cut-offs had not settled after {rounds} rounds of choosing each with the \
-                 other: the laws kept are the last chosen, at the cut-offs chosen for them"
+                 other: {} keep sign(q̇), the simpler law, since the last round moved them between sign(q̇) and a \
+                 smooth law; the other joints keep the last chosen; the cut-offs are those chosen for the laws \
+                 kept",
+                match unsettled.as_slice() {
+                    [] => "no joint".to_string(),
+                    [k] => format!("joint {k}"),
+                    ks => format!("joints {}", ks.iter().map(|k| k.to_string()).collect::<Vec<_>>().join(", ")),
+                }
             ),
             Self::ClosedLoopNotSettled { estimator, iterations, last_change_sigma } => write!(
                 f,

@@ -38,7 +38,7 @@ use crate::signal::data_choices::{
 };
 use crate::signal::estimate::joint_metrics;
 use crate::signal::filter::Butterworth;
-use crate::signal::friction_law::{laws_for_fit, ChosenLaws};
+use crate::signal::friction_law::{laws_for_fit, ChosenLaws, RawPositions};
 use crate::signal::log::Log;
 use crate::signal::preprocess::{
     edge_limited_cutoff_hz, validate_log, PreprocessError, Preprocessed, CUTOFF_PER_BANDWIDTH,
@@ -337,7 +337,8 @@ impl<'a> Search<'a> {
     /// which filters every candidate's column over all it is given, costs no more on a longer log.
     fn laws(&self, model: &Model, band: Band) -> Result<Option<ChosenLaws>, DiagnoseError> {
         let pre = filtered(self.train, model.dof(), self.options, band).map_err(DiagnoseError::Training)?;
-        laws_for_fit(model, self.base, &pre).map_err(DiagnoseError::Training)
+        let raw = RawPositions::of(self.train, model.dof()).map_err(DiagnoseError::Training)?;
+        laws_for_fit(model, self.base, &pre, raw).map_err(DiagnoseError::Training)
     }
 
     /// The declared model fitted at `cutoff` on the fitted samples, and its prediction of the

@@ -197,19 +197,30 @@ fn preprocess_with_laws(
     }
     // The laws `pre` was preprocessed with.
     let mut laws = model.coulomb_laws.clone();
+    let raw = friction_law::RawPositions::of(log, model.dof())?;
     for round in 1..=LAW_ROUNDS {
-        let Some(chosen) = friction_law::laws_for_fit(model, base, &pre)? else { return Ok((pre, None)) };
+        let Some(chosen) = friction_law::laws_for_fit(model, base, &pre, raw)? else { return Ok((pre, None)) };
         if friction_law::settled(&laws, &chosen.laws) {
             pre.choices.reasons.push(chosen.reason);
             return Ok((pre, Some(chosen.laws)));
         }
-        laws = chosen.laws;
+        let unsettled = match round == LAW_ROUNDS {
+            true => {
+                let (steady, unsettled) = friction_law::steady(&laws, &chosen.laws);
+                laws = steady;
+                unsettled
+            }
+            false => {
+                laws = chosen.laws;
+                Vec::new()
+            }
+        };
         let with_laws = Model { coulomb_laws: laws.clone(), ..model.clone() };
         pre = cutoff::preprocess_for_fit(Declared { model: &with_laws, ..declared }, log, options, against)?;
         if round == LAW_ROUNDS {
             // The cut-offs are those of the laws kept, so that the fit is the one they were chosen for.
             pre.choices.reasons.push(chosen.reason);
-            pre.choices.warnings.push(Concern::LawsNotSettled { rounds: LAW_ROUNDS });
+            pre.choices.warnings.push(Concern::LawsNotSettled { rounds: LAW_ROUNDS, unsettled });
         }
     }
     Ok((pre, Some(laws)))

@@ -24,13 +24,16 @@
 //! controllers' friction compensation and the diagnosis against that file use it.
 
 use super::estimate::{coulomb_positions, regressor_rows};
-use super::preprocess::{PreprocessError, Preprocessed};
+use super::log::Log;
+use super::preprocess::{validate_log, PreprocessError, Preprocessed};
 use crate::base_parameters::BaseParameters;
 use crate::choices::{Choice, JointLaw, UnresolvedLaw};
 use crate::dense::{self, dot, Unseen};
 use crate::effects::FRICTION_VELOCITY_SHARES;
 use crate::model::{CoulombLaws, CoulombShape, Model};
-use crate::signal::filter::Butterworth;
+use crate::signal::filter::{Butterworth, FilterError};
+use crate::signal::friction::RawVelocity;
+use crate::signal::resting::{arrange, stopped_in_log};
 use faer::Mat;
 use std::collections::HashMap;
 use std::ops::Range;
@@ -171,6 +174,8 @@ pub fn choose_laws<E>(
         velocity,
         stray: r.stray,
         samples: r.samples,
+        transition: r.transition,
+        needed: r.needed,
     });
     let reason = explain(&laws, &scores, rms_speed, fold_total, unresolved.collect());
     Ok(ChosenLaws { laws, scores, reason })
@@ -236,16 +241,33 @@ pub const LAW_ACTS_BELOW: f64 = 3.0;
 /// below [`LAW_ACTS_BELOW`]·v. There the law's column leaves sign(q̇)'s (the friction velocity is
 /// slow), or the motion is in the law's transition (the velocity at the main cut-off is): its
 /// shape is read from both, and both must agree to within v.
+///
+/// And how many samples show the law at all: where it acts, the joint neither resting nor near a
+/// stop ([`stops`]). A transition that lies within rests and stops is not seen: the joint's
+/// friction there is whatever holds it, under a sign law as under a smooth one, and the filtered
+/// rows beside them show the filter's ramp through that holding friction, which a smooth law of
+/// the filtered velocity imitates whatever the joint's law. With fewer than
+/// [`LAW_TRANSITION_GUARDS`] filter memories of such samples, `sign(q̇)`, the simpler law, stays
+/// (docs/identification.md, "Fresh seeds, and a second loop").
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Resolution {
     pub stray: f64,
     pub samples: usize,
+    /// Samples where the law acts, clear of rests and stops.
+    pub transition: usize,
+    /// The fewest such samples that show a law: [`LAW_TRANSITION_GUARDS`] filter memories.
+    pub needed: usize,
 }
 
+/// Filter memories' worth of samples, in the law's transition and clear of rests and stops, that
+/// a smooth law needs to be told from `sign(q̇)`: as many as one fold leaves unscored at its two
+/// ends and one more.
+pub const LAW_TRANSITION_GUARDS: usize = 3;
+
 impl Resolution {
-    /// Nothing strays (the friction velocity is the main cut-off's, or the law acts on no
-    /// moving sample).
-    pub const EXACT: Resolution = Resolution { stray: 0.0, samples: 0 };
+    /// Nothing strays and no sample is asked for: a law resolved whatever it is (the choice's
+    /// own tests).
+    pub const EXACT: Resolution = Resolution { stray: 0.0, samples: 0, transition: 0, needed: 0 };
 
     /// Whether a law of friction velocity `v` is told apart from sign(q̇) on this velocity. A
     /// friction velocity filtered well below the motion's band moves slowly into and out of every
@@ -253,29 +275,30 @@ impl Resolution {
     /// joint's friction: its coefficients do not carry over to the true velocity
     /// (docs/identification.md, "A sign-law closed loop").
     pub fn resolves(&self, v: f64) -> bool {
-        self.stray <= v
+        self.stray <= v && self.transition >= self.needed
     }
 
     /// Joint `k`'s resolution of a law of friction velocity `v` in `data`, over its settled
-    /// samples. A friction velocity filtered at or above the main cut-off is the wider-band of
-    /// the two velocities, the closer to the motion's own, and is taken as exact.
-    pub fn of(data: &Preprocessed, k: usize, v: f64) -> Self {
-        if data.friction_cutoff_hz >= data.cutoff_hz {
-            return Self::EXACT;
-        }
+    /// samples: `stopped` are those near a stop ([`stops`]), `memory` the torque filter's memory
+    /// in samples.
+    pub fn of(data: &Preprocessed, stopped: &[bool], k: usize, v: f64, memory: usize) -> Self {
+        // A friction velocity filtered at or above the main cut-off is the wider-band of the two,
+        // the closer to the motion's own: nothing strays.
+        let strays = data.friction_cutoff_hz < data.cutoff_hz;
         let dof = data.dof;
-        let (mut sum, mut samples) = (0.0, 0);
+        let (mut sum, mut samples, mut transition) = (0.0, 0, 0);
         for i in data.settled.clone().map(|s| s * dof + k) {
             let slow = data.qd_friction[i].abs().min(data.qd[i].abs()) < LAW_ACTS_BELOW * v;
             if !data.resting[i] && slow {
-                sum += (data.qd_friction[i] - data.qd[i]).powi(2);
+                if strays {
+                    sum += (data.qd_friction[i] - data.qd[i]).powi(2);
+                }
                 samples += 1;
+                transition += usize::from(!stopped[i]);
             }
         }
-        match samples {
-            0 => Self::EXACT,
-            n => Self { stray: (sum / n as f64).sqrt(), samples: n },
-        }
+        let stray = if samples > 0 { (sum / samples as f64).sqrt() } else { 0.0 };
+        Self { stray, samples, transition, needed: LAW_TRANSITION_GUARDS * memory }
     }
 }
 
@@ -325,6 +348,30 @@ pub fn settled(previous: &CoulombLaws, next: &CoulombLaws) -> bool {
     })
 }
 
+/// `next`'s laws where each joint's is of the kind `previous`'s was (smooth in both, whatever its
+/// friction velocity, or `sign(q̇)` in both), and `sign(q̇)` on the joints whose kind changed,
+/// which are listed. Where rounds of choosing the laws and the cut-offs with each other do not
+/// settle, a joint that takes a smooth law in one round and `sign(q̇)` in the next is not shown a
+/// law by the data, and `sign(q̇)` is the simpler one; a smooth law whose friction velocity moves
+/// with the cut-off is still a smooth law (the TX40's, whose rounds alternate between two cut-offs).
+pub fn steady(previous: &CoulombLaws, next: &CoulombLaws) -> (CoulombLaws, Vec<usize>) {
+    let mut unsettled = Vec::new();
+    let shapes = previous
+        .shapes()
+        .iter()
+        .zip(next.shapes())
+        .enumerate()
+        .map(|(k, (a, b))| match a.epsilon().is_some() == b.epsilon().is_some() {
+            true => *b,
+            false => {
+                unsettled.push(k);
+                CoulombShape::Sign
+            }
+        })
+        .collect();
+    (CoulombLaws::declared(shapes), unsettled)
+}
+
 /// At most this many samples are fitted per candidate law: evenly spread over a long log, they
 /// choose as all of it would, at a bounded cost.
 const MOST_FITTED: usize = 10_000;
@@ -338,6 +385,7 @@ pub fn laws_for_fit(
     model: &Model,
     base: &BaseParameters,
     data: &Preprocessed,
+    raw: RawPositions,
 ) -> Result<Option<ChosenLaws>, PreprocessError> {
     let dof = model.dof();
     let columns = &base.independent;
@@ -353,8 +401,10 @@ pub fn laws_for_fit(
         |x: &[f64], k: usize| (rows.iter().map(|&s| x[s * dof + k].powi(2)).sum::<f64>() / rows.len() as f64).sqrt();
     let weights: Vec<f64> = (0..dof).map(|k| rms(&data.tau, k)).map(|r| if r > 0.0 { 1.0 / r } else { 1.0 }).collect();
     let rms_speed: Vec<f64> = (0..dof).map(|k| rms(&data.qd_friction, k)).collect();
-    // A resting joint's rows are left out as the fit leaves them out: zero.
-    let resting = |s: usize, k: usize| data.resting[s * dof + k];
+    // A resting joint's rows are left out as the fit leaves them out: zero. So are the rows near
+    // a stop, whose friction ramps through the filter as no law of the velocity does.
+    let stopped = stops(raw, data)?;
+    let resting = |s: usize, k: usize| data.resting[s * dof + k] || stopped[s * dof + k];
     // Each law's directions side by side, filtered together, read at the rows; the laws split
     // between the cores.
     let some_columns = |k: usize, laws: &[CoulombShape]| -> Result<Vec<Vec<f64>>, PreprocessError> {
@@ -393,8 +443,37 @@ pub fn laws_for_fit(
         Butterworth::lowpass(data.order, data.cutoff_hz, data.rate_hz()).map_or(0.0, |f| f.memory_s(data.rate_hz()));
     let guard = (memory_s * data.rate_hz() / step as f64).ceil() as usize;
     let problem = LawProblem { columns: stacked, y, dof, coulomb: positions, weights, guard };
-    let resolves = |k, v| Resolution::of(data, k, v);
+    let memory = (memory_s * data.rate_hz()).ceil() as usize;
+    let resolves = |k, v| Resolution::of(data, &stopped, k, v, memory);
     choose_laws(problem, &rms_speed, &model.coulomb_laws, columns, resolves).map(Some)
+}
+
+/// The positions `data` was preprocessed from, as logged: `N × dof` at a step of `dt` (s).
+#[derive(Clone, Copy)]
+pub struct RawPositions<'a> {
+    pub q: &'a [f64],
+    pub dt: f64,
+}
+
+impl<'a> RawPositions<'a> {
+    /// The positions of `log`, at its step as preprocessing reads it.
+    pub fn of(log: Log<'a>, dof: usize) -> Result<Self, PreprocessError> {
+        Ok(Self { q: log.q, dt: validate_log(log.t, log.q, log.tau, dof)? })
+    }
+}
+
+/// Which of `data`'s samples lie near a stop shorter than a rest: [`stopped_in_log`] on the raw
+/// positions and their friction velocity at the raw rate, widened by the longer memory of the
+/// friction velocity's filter and the torque's, arranged as `data`'s samples are.
+fn stops(raw: RawPositions, data: &Preprocessed) -> Result<Vec<bool>, FilterError> {
+    let dof = data.dof;
+    let velocity = RawVelocity::of_log(raw.q, dof, None, raw.dt).filtered(data.order, data.friction_cutoff_hz, 1)?;
+    let friction = Butterworth::lowpass(data.order, data.friction_cutoff_hz, 1.0 / raw.dt)?;
+    let torque = Butterworth::lowpass(data.order, data.cutoff_hz, data.sample_rate_hz)?;
+    let memory_s = friction.memory_s(1.0 / raw.dt).max(torque.memory_s(data.sample_rate_hz));
+    let widen = (memory_s / raw.dt).ceil() as usize;
+    let stopped = stopped_in_log(raw.q, &velocity.mean(), dof, raw.dt, widen);
+    Ok(arrange(stopped, dof, data.averaging(), data.decimate))
 }
 
 /// Golden-section steps that refine a friction velocity between its grid neighbours: the bracket,
@@ -792,11 +871,9 @@ mod tests {
         }
     }
 
-    /// The smooth law the data fit is kept only where the velocity it switches with strays from
-    /// the motion's by less than its friction velocity: a stray of twice v keeps sign(q̇) and
-    /// names the stray, one of half v keeps the law.
-    #[test]
-    fn a_law_narrower_than_its_velocitys_stray_keeps_sign_and_says_so() {
+    /// The laws one joint chooses, judged by `resolves`, on a sine whose torque is viscous plus
+    /// tanh(q̇/v) friction; and that v.
+    fn chosen_on_a_sine(resolves: impl Fn(usize, f64) -> Resolution) -> (ChosenLaws, f64) {
         let n = 4000;
         let velocity: Vec<f64> = (0..n).map(|i| 0.3 * (i as f64 * 0.01).sin()).collect();
         let rms = (velocity.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
@@ -804,26 +881,58 @@ mod tests {
         let y: Vec<f64> = velocity.iter().map(|v| 2.0 * v + 0.7 * truth.eval(*v)).collect();
         let column = |law: CoulombShape| velocity.iter().map(|v| law.eval(*v)).collect::<Vec<f64>>();
         let columns = |_: usize, laws: &[CoulombShape]| Ok::<_, Infallible>(laws.iter().map(|l| column(*l)).collect());
-        let problem = || LawProblem {
+        let problem = LawProblem {
             columns: vec![velocity.clone(), column(CoulombShape::Sign)],
-            y: y.clone(),
+            y,
             dof: 1,
             coulomb: vec![(0, 1)],
             weights: vec![1.0],
             guard: 20,
         };
-        let stray = |share: f64| move |_: usize, v: f64| Resolution { stray: share * v, samples: 50 };
-        let refused = choose_laws(problem(), &[rms], &CoulombLaws::undeclared(1), columns, stray(2.0)).unwrap();
-        assert_eq!(refused.laws.shape(0), CoulombShape::Sign, "{}", refused.reason);
-        let named = |r: &Choice| match r {
-            Choice::LawsChosen { unresolved, .. } => unresolved.iter().map(|u| (u.joint, u.samples)).collect(),
+        let chosen = choose_laws(problem, &[rms], &CoulombLaws::undeclared(1), columns, resolves).unwrap();
+        (chosen, truth.epsilon().unwrap())
+    }
+
+    /// The joints a choice refused a law on, each with what `of` reads of its reason.
+    fn refused(chosen: &ChosenLaws, of: impl Fn(&UnresolvedLaw) -> usize) -> Vec<(usize, usize)> {
+        match &chosen.reason {
+            Choice::LawsChosen { unresolved, .. } => unresolved.iter().map(|u| (u.joint, of(u))).collect(),
             _ => Vec::new(),
-        };
-        assert_eq!(named(&refused.reason), [(0, 50)], "{}", refused.reason);
-        let kept = choose_laws(problem(), &[rms], &CoulombLaws::undeclared(1), columns, stray(0.5)).unwrap();
+        }
+    }
+
+    /// The smooth law the data fit is kept only where the velocity it switches with strays from
+    /// the motion's by less than its friction velocity: a stray of twice v keeps sign(q̇) and
+    /// names the stray, one of half v keeps the law.
+    #[test]
+    fn a_law_narrower_than_its_velocitys_stray_keeps_sign_and_says_so() {
+        let stray =
+            |share: f64| move |_: usize, v: f64| Resolution { stray: share * v, samples: 50, transition: 0, needed: 0 };
+        let (sign, _) = chosen_on_a_sine(stray(2.0));
+        assert_eq!(sign.laws.shape(0), CoulombShape::Sign, "{}", sign.reason);
+        assert_eq!(refused(&sign, |u| u.samples), [(0, 50)], "{}", sign.reason);
+        let (kept, truth) = chosen_on_a_sine(stray(0.5));
         let found = kept.laws.shape(0).epsilon().expect("the smooth law is kept");
-        assert!((found / truth.epsilon().unwrap() - 1.0).abs() < 0.03, "{}", kept.reason);
-        assert!(named(&kept.reason).is_empty(), "{}", kept.reason);
+        assert!((found / truth - 1.0).abs() < 0.03, "{}", kept.reason);
+        assert!(refused(&kept, |u| u.samples).is_empty(), "{}", kept.reason);
+    }
+
+    /// A smooth law the data fit is kept only where enough samples in its transition are clear of
+    /// rests and stops: with fewer than needed, sign(q̇) stays and the choice says how many there
+    /// were; with as many as needed, the law is kept.
+    #[test]
+    fn a_law_whose_transition_lies_beside_stops_keeps_sign_and_says_so() {
+        let clear = |transition: usize| {
+            move |_: usize, _: f64| Resolution { transition, samples: 100, needed: 60, ..Resolution::EXACT }
+        };
+        let (sign, _) = chosen_on_a_sine(clear(59));
+        assert_eq!(sign.laws.shape(0), CoulombShape::Sign, "{}", sign.reason);
+        assert_eq!(refused(&sign, |u| u.transition), [(0, 59)], "{}", sign.reason);
+        assert!(sign.reason.to_string().contains("only 59 of the 100 samples"), "{}", sign.reason);
+        let (kept, truth) = chosen_on_a_sine(clear(60));
+        let found = kept.laws.shape(0).epsilon().expect("the smooth law is kept");
+        assert!((found / truth - 1.0).abs() < 0.03, "{}", kept.reason);
+        assert!(refused(&kept, |u| u.transition).is_empty(), "{}", kept.reason);
     }
 
     /// A log too short, for its filter's memory, to hold [`LAW_MIN_FOLDS`] stretches that share no

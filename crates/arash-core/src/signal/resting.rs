@@ -13,6 +13,7 @@
 
 use crate::choices::Choice;
 use crate::signal::conditioning::Averaging;
+use crate::signal::encoder::encoder_step;
 
 /// A joint rests where its reading holds for at least this long (s). A reading repeated for a
 /// sample or two is slow motion across one encoder step; under closed-loop control a joint held by
@@ -51,11 +52,55 @@ pub fn resting_in_log(q: &[f64], dof: usize, hold: usize) -> Vec<bool> {
     resting
 }
 
-/// [`resting_in_log`] arranged as the preprocessed samples are: with `averaging`, a sample of the
-/// averaged period rests where the joint rests in any of the periods (the averaged torque holds
-/// that period's holding friction); then every `decimate`-th sample.
+/// Encoder steps a joint can travel without its reading changing: to the edge of its step and
+/// back. A friction velocity that travels further over a run of identical readings is not the
+/// joint's motion.
+pub const STOP_TRAVEL_STEPS: f64 = 2.0;
+
+/// Which samples of the raw log `q` (`N × dof`, step `dt`) lie in or within `widen` samples of a
+/// *stop*: a run of identical readings, of any length, over which the joint's friction velocity
+/// `velocity` (the same layout, filtered at the friction velocity's cut-off) travels more than
+/// [`STOP_TRAVEL_STEPS`] of its encoder's step. Joints whose positions are not an encoder's
+/// ([`encoder_step`]) have none.
+///
+/// Under a set-valued friction a joint stops at most reversals for less than a rest: its
+/// friction there ramps with the controller's torque, while a friction velocity filtered at a
+/// few hertz passes slowly through zero, and a smooth law of that velocity fits the ramp better
+/// than `sign(q̇)` (docs/identification.md, "Fresh seeds, and a second loop"). `widen` is the
+/// filters' memory: a filtered sample that near a stop holds some of it.
+pub fn stopped_in_log(q: &[f64], velocity: &[f64], dof: usize, dt: f64, widen: usize) -> Vec<bool> {
+    let n = q.len() / dof.max(1);
+    let mut stopped = vec![false; n * dof];
+    for k in 0..dof {
+        let Some(step) = encoder_step(q, dof, k) else { continue };
+        let mut first = 0;
+        let mut travel = 0.0;
+        for i in 1..=n {
+            if i == n || q[i * dof + k] != q[first * dof + k] {
+                if travel > STOP_TRAVEL_STEPS * step {
+                    let (from, to) = (first.saturating_sub(widen), (i + widen).min(n));
+                    (from..to).for_each(|s| stopped[s * dof + k] = true);
+                }
+                first = i;
+                travel = 0.0;
+            } else {
+                // The reading held from sample i − 1 to i: the velocity's travel over that step.
+                travel += 0.5 * (velocity[(i - 1) * dof + k].abs() + velocity[i * dof + k].abs()) * dt;
+            }
+        }
+    }
+    stopped
+}
+
+/// [`resting_in_log`] arranged as the preprocessed samples are ([`arrange`]).
 pub fn resting(q: &[f64], dof: usize, averaging: Option<Averaging>, dt: f64, decimate: usize) -> Vec<bool> {
-    let raw = resting_in_log(q, dof, hold_samples(dt));
+    arrange(resting_in_log(q, dof, hold_samples(dt)), dof, averaging, decimate)
+}
+
+/// Flags of the raw log (`N × dof`) arranged as the preprocessed samples are: with `averaging`, a
+/// sample of the averaged period is flagged where the joint is flagged in any of the periods (the
+/// averaged torque holds that period's holding friction); then every `decimate`-th sample.
+pub fn arrange(raw: Vec<bool>, dof: usize, averaging: Option<Averaging>, decimate: usize) -> Vec<bool> {
     let arranged = match averaging {
         None => raw,
         // A period of whole samples: each period's own samples, or-ed slice by slice.
@@ -148,5 +193,40 @@ mod tests {
         assert!(!resting[..40].iter().any(|r| *r) && !resting[70..].iter().any(|r| *r));
         let decimated = super::resting(&q, 1, averaging, 1e-3, 10);
         assert_eq!(decimated, (0..10).map(|i| resting[10 * i]).collect::<Vec<_>>());
+    }
+
+    /// A joint on an encoder of step 1 moves a step a sample, holds for 5 samples twice (less
+    /// than a rest) and moves on. Over the first hold its friction velocity travels 3.2 steps
+    /// (half a step entering it at full speed, then 0.6 a sample): a stop, flagged with `widen`
+    /// samples either side. Over the second it travels 1.85, as a joint creeping within its step
+    /// can: not flagged. A second joint whose positions lie on no
+    /// grid (filtered, say) has no stops.
+    #[test]
+    fn a_hold_over_which_the_friction_velocity_travels_more_than_two_steps_is_a_stop() {
+        let dt = 1e-3;
+        let (mut q, mut v) = (Vec::new(), Vec::new());
+        let mut x = 0.0;
+        let mut push = |x: f64, speed: f64, i: usize| {
+            q.extend([x, (i as f64 * 0.37).sin() * 0.123]);
+            v.extend([speed, 0.0]);
+        };
+        let mut i = 0;
+        for (moves, holds, speed) in [(20, 5, 0.6), (20, 5, 0.3), (20, 0, 1.0)] {
+            for _ in 0..moves {
+                x += 1.0;
+                push(x, 1.0 / dt, i);
+                i += 1;
+            }
+            for _ in 0..holds {
+                push(x, speed / dt, i);
+                i += 1;
+            }
+        }
+        let widen = 2;
+        let stopped = stopped_in_log(&q, &v, 2, dt, widen);
+        let first: Vec<usize> = (0..i).filter(|&s| stopped[2 * s]).collect();
+        // The run holds the sample that reached the reading and the 5 held: 19..25, widened.
+        assert_eq!(first, (19 - widen..25 + widen).collect::<Vec<_>>());
+        assert!(!(0..i).any(|s| stopped[2 * s + 1]));
     }
 }
