@@ -243,10 +243,10 @@ pub const LAW_ACTS_BELOW: f64 = 3.0;
 /// shape is read from both, and both must agree to within v.
 ///
 /// And how many samples show the law at all: where it acts, the joint neither resting nor near a
-/// stop ([`stops`]). A transition that lies within rests and stops is not seen: the joint's
-/// friction there is whatever holds it, under a sign law as under a smooth one, and the filtered
-/// rows beside them show the filter's ramp through that holding friction, which a smooth law of
-/// the filtered velocity imitates whatever the joint's law. With fewer than
+/// stop ([`stopped_in_log`], widened). A transition that lies within rests and stops is not seen:
+/// the joint's friction there is whatever holds it, under a sign law as under a smooth one, and
+/// the filtered rows beside them show the filter's ramp through that holding friction, which a
+/// smooth law of the filtered velocity imitates whatever the joint's law. With fewer than
 /// [`LAW_TRANSITION_GUARDS`] filter memories of such samples, `sign(q̇)`, the simpler law, stays
 /// (docs/identification.md, "Fresh seeds, and a second loop").
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -279,8 +279,8 @@ impl Resolution {
     }
 
     /// Joint `k`'s resolution of a law of friction velocity `v` in `data`, over its settled
-    /// samples: `stopped` are those near a stop ([`stops`]), `memory` the torque filter's memory
-    /// in samples.
+    /// samples: `stopped` are those near a stop ([`stopped_in_log`], widened), `memory` the
+    /// torque filter's memory in samples.
     pub fn of(data: &Preprocessed, stopped: &[bool], k: usize, v: f64, memory: usize) -> Self {
         // A friction velocity filtered at or above the main cut-off is the wider-band of the two,
         // the closer to the motion's own: nothing strays.
