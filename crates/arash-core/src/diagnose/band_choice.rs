@@ -148,6 +148,8 @@ impl Trial {
 struct Search<'a> {
     base: &'a BaseParameters,
     train: Log<'a>,
+    /// The training log's positions at its step, read once: what each law choice finds stops in.
+    raw: RawPositions<'a>,
     validation: Option<Runs<'a>>,
     options: &'a DiagnoseOptions,
     positions: &'a Positions<'a>,
@@ -176,6 +178,7 @@ impl<'a> Search<'a> {
     ) -> Result<Self, DiagnoseError> {
         let (dof, fs) = (model.dof(), positions.fs);
         let train = first(train, dof, MOST_SEARCHED);
+        let raw = RawPositions::of(train, dof).map_err(DiagnoseError::Training)?;
         let validation = validation.map(|v| Runs {
             log: first(v.log, dof, MOST_SEARCHED),
             starts: &v.starts[..v.starts.partition_point(|&s| s < MOST_SEARCHED)],
@@ -251,6 +254,7 @@ impl<'a> Search<'a> {
         Ok(Self {
             base,
             train,
+            raw,
             validation,
             options,
             positions,
@@ -337,8 +341,7 @@ impl<'a> Search<'a> {
     /// which filters every candidate's column over all it is given, costs no more on a longer log.
     fn laws(&self, model: &Model, band: Band) -> Result<Option<ChosenLaws>, DiagnoseError> {
         let pre = filtered(self.train, model.dof(), self.options, band).map_err(DiagnoseError::Training)?;
-        let raw = RawPositions::of(self.train, model.dof()).map_err(DiagnoseError::Training)?;
-        laws_for_fit(model, self.base, &pre, raw).map_err(DiagnoseError::Training)
+        laws_for_fit(model, self.base, &pre, self.raw).map_err(DiagnoseError::Training)
     }
 
     /// The declared model fitted at `cutoff` on the fitted samples, and its prediction of the
