@@ -695,3 +695,35 @@ fn the_consistent_refit_with_the_effects_found_is_physical_and_tracks_the_wiring
     eprintln!("RMS tracking error without the effects {without:?}, with {with:?}");
     assert!(with[1] < 0.25 * without[1], "pitch: {} with the wiring term, {} without", with[1], without[1]);
 }
+
+/// The consistent refit at a calibration's narrow cut-off keeps the rig's Stribeck excess: its
+/// friction columns switch with the diagnosis's friction velocity, on which the excess and its
+/// v_s were estimated. Switched by a velocity filtered at that narrow cut-off instead (the rule
+/// before 2026-12-08), it kept 74 % of the yaw's (docs/diagnosis.md, "The consistent refit's
+/// friction velocity").
+#[test]
+fn the_consistent_refit_keeps_the_stribeck_excess_on_the_velocity_it_was_found_with() {
+    let model = rig_model();
+    let base = BaseParameters::compute(&model, &BaseParameterOptions::default()).unwrap();
+    let run = simulate(&model, "[effects.stribeck]\n", 3, 60.0);
+    let truth = arash_core::sim::scenario::Stribeck::default().static_excess;
+    let log = Log { t: &run.t, q: &run.q, tau: &run.tau };
+    let options = DiagnoseOptions { transmission: Some(transmission()), ..DiagnoseOptions::default() };
+    let d =
+        diagnose(Declared { model: &model, base: &base, urdf: ARASH_ASIST_URDF }, log, None, None, &options).unwrap();
+    // As `arash demo` refits: at the calibration's cut-off, 5 × the excitation's top harmonic.
+    let preprocess = PreprocessOptions { cutoff_hz: Some(5.0 * 5.0 / 15.0), ..options.preprocess.clone() };
+    let refit_options = DiagnoseOptions { preprocess, ..options.clone() };
+    let consistent = arash_core::identify::ConsistentOptions::default();
+    let refit =
+        arash_core::diagnose::consistent_with_effects(&model, &base, log, &d.model, &refit_options, &consistent)
+            .unwrap();
+    let found: Vec<_> = refit.effects.iter().filter(|t| t.kind == EffectKind::Stribeck).collect();
+    assert_eq!(found.len(), 3, "{}", d.report());
+    for term in found {
+        let k = term.joint.unwrap();
+        let excess = term.coefficients[0];
+        eprintln!("joint {k}: Stribeck excess {excess:.4e} (the rig's {:.4e})", truth[k]);
+        assert!((excess - truth[k]).abs() <= 0.1 * truth[k], "joint {k}: {excess} against the rig's {}", truth[k]);
+    }
+}

@@ -93,7 +93,8 @@ pub struct Args {
     consistent: bool,
     /// Low-pass cut-off (Hz) of that fit; default: --cutoff. The calibration's own cut-off (in
     /// its model file as settings.cutoff_hz) gives the controller a model that sees the data as
-    /// the calibrated one did.
+    /// the calibrated one did. Its friction columns switch with the diagnosis's friction
+    /// velocity, on which the effects were found (or --friction-cutoff).
     #[arg(long, requires = "consistent")]
     consistent_cutoff: Option<f64>,
     /// Directory for report.txt, diagnosis.json, model.json and the figures.
@@ -168,15 +169,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if args.consistent {
         let train = Log { t: &train.t, q: &train.q, tau: &train.tau };
         let main_hz = args.consistent_cutoff.unwrap_or(diagnosis.settings.cutoff_hz);
-        let (refit, _) = write_consistent(
-            &args.output,
-            &model,
-            &base,
-            train,
-            &diagnosis,
-            &options,
-            Cutoffs { main_hz, friction_hz: None },
-        )?;
+        let (refit, _) = write_consistent(&args.output, &model, &base, train, &diagnosis, &options, main_hz)?;
         println!("{}", consistent_summary(&refit, &model.joint_names()));
     }
     println!("wrote {}/ (report.txt, diagnosis.json, model.json, figures)", args.output.display());
@@ -223,16 +216,9 @@ fn options(args: &Args, model: &arash_core::Model) -> anyhow::Result<DiagnoseOpt
     Ok(options)
 }
 
-/// The cut-offs a consistent fit with the effects filters at (Hz): the main one, and the friction
-/// velocity's (`None` keeps the options').
-#[derive(Clone, Copy, Debug)]
-pub struct Cutoffs {
-    pub main_hz: f64,
-    pub friction_hz: Option<f64>,
-}
-
 /// Fit the physically consistent model together with the effects `diagnosis` found, on `train`
-/// filtered at `cutoffs`, and write it to `dir/model_consistent.json`; returns it and the path.
+/// filtered at `main_hz` (the friction velocity the diagnosis's, unless the options set one),
+/// and write it to `dir/model_consistent.json`; returns it and the path.
 pub fn write_consistent(
     dir: &Path,
     model: &arash_core::Model,
@@ -240,13 +226,9 @@ pub fn write_consistent(
     train: Log,
     diagnosis: &Diagnosis,
     options: &DiagnoseOptions,
-    cutoffs: Cutoffs,
+    main_hz: f64,
 ) -> anyhow::Result<(ModelFile, PathBuf)> {
-    let preprocess = PreprocessOptions {
-        cutoff_hz: Some(cutoffs.main_hz),
-        friction_cutoff_hz: cutoffs.friction_hz.or(options.preprocess.friction_cutoff_hz),
-        ..options.preprocess.clone()
-    };
+    let preprocess = PreprocessOptions { cutoff_hz: Some(main_hz), ..options.preprocess.clone() };
     let options = DiagnoseOptions { preprocess, ..options.clone() };
     let refit = consistent_with_effects(model, base, train, &diagnosis.model, &options, &ConsistentOptions::default())
         .context("the consistent fit with the effects found failed")?;

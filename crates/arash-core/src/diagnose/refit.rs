@@ -39,13 +39,14 @@ pub fn consistent_with_effects(
 ) -> Result<ModelFile, DiagnoseError> {
     let model = &*found.with_its_law(model);
     let (dof, standard) = (model.dof(), model.num_params());
-    // The found model's band, or the one asked for (a calibration's, whose friction velocity it
-    // then shares unless one is set too).
+    // The found model's band, or the one asked for (a calibration's). The friction velocity is
+    // the one the effects were found with unless one is set: their friction terms (Stribeck's
+    // exp(−(q̇/v_s)²)) are functions of it, their v_s and bounds were estimated on it, and on a
+    // velocity filtered at a calibration's slow cut-off (2 Hz at a 4 Hz cut-off, on the demo's
+    // rig) the refit kept a tenth of the yaw's Stribeck excess and half the insertion's
+    // (docs/diagnosis.md, "The consistent refit's friction velocity").
     let cutoff_hz = options.preprocess.cutoff_hz.unwrap_or(found.settings.cutoff_hz);
-    let friction_hz = match options.preprocess.cutoff_hz {
-        None => options.preprocess.friction_cutoff_hz.or(found.settings.friction_cutoff_hz).unwrap_or(cutoff_hz),
-        Some(_) => options.preprocess.friction_cutoff_hz.unwrap_or(cutoff_hz),
-    };
+    let friction_hz = options.preprocess.friction_cutoff_hz.or(found.settings.friction_cutoff_hz).unwrap_or(cutoff_hz);
     let band = Band { cutoff_hz, friction_hz };
     let mut data =
         prepare(model, base, train.into(), options, band, options.max_delay_s).map_err(DiagnoseError::Training)?;

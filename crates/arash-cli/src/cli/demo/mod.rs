@@ -7,7 +7,6 @@
 //! through identification and the diagnosis, and write a report with figures. Everything goes
 //! to `logs/<run>/`.
 
-use super::diagnose::Cutoffs;
 use crate::report::demo as report;
 mod hand;
 mod haptic;
@@ -307,8 +306,7 @@ fn experiment(args: &Args, plan: &Plan, robot: DemoRobot, rig: &Rig, truth: Opti
 
     println!("\n[5/8] diagnosis of the residual");
     let diagnosis_dir = dir.join("report").join("diagnosis");
-    let settings = &calibration.consistent.settings;
-    let cutoffs = Cutoffs { main_hz: settings.cutoff_hz, friction_hz: settings.friction_cutoff_hz };
+    let main_hz = calibration.consistent.settings.cutoff_hz;
     // The diagnosis fits the exact base parameters (`BaseParameterOptions::diagnosed`): the
     // calibration's regrouping would be a bias an effect could take up.
     let exact = BaseParameters::compute(model, &BaseParameterOptions::diagnosed())?;
@@ -319,7 +317,7 @@ fn experiment(args: &Args, plan: &Plan, robot: DemoRobot, rig: &Rig, truth: Opti
     held_out.push(runlog::read(&slow, model, false, runlog::Effort::Torque)?);
     let held_out = Some(runlog::concatenate(held_out));
     let (diagnosis, with_effects) =
-        diagnose_run(diagnosed, urdf, &exact, &training_log, held_out.as_ref(), cutoffs, &diagnosis_dir)?;
+        diagnose_run(diagnosed, urdf, &exact, &training_log, held_out.as_ref(), main_hz, &diagnosis_dir)?;
     rig::check_interrupt()?;
 
     println!("\n[6/8] tracking the validation trajectory at ω = {} rad/s through the daemon", args.tracking_omega);
@@ -538,17 +536,23 @@ fn calibrate(
 /// CAD over its whole range (docs/demo.md).
 ///
 /// The diagnosis chooses its own band from the data (its report says which, and why); the
-/// consistent fit with the effects is made at the calibration's cut-offs (the main one and the
-/// friction velocity's), so that the controller's model sees the data as the calibrated one did.
-/// (At the diagnosis's former fixed 20 Hz that fit traded Stribeck friction for a viscous
-/// coefficient many times the true one, which the controller then applied to a noisy velocity.)
+/// consistent fit with the effects is made at the calibration's main cut-off, so that the
+/// controller's model sees the motion as the calibrated one did (at the diagnosis's former fixed
+/// 20 Hz that fit traded Stribeck friction for a viscous coefficient many times the true one,
+/// which the controller then applied to a noisy velocity), and with the friction velocity the
+/// diagnosis found the effects with. The effects' friction terms (Stribeck's exp(−(q̇/v_s)²))
+/// are functions of that velocity, and their v_s and bounds were estimated on it; the
+/// calibration's friction velocity only has to switch sign(q̇), and where it came out slow (2 Hz
+/// at a 4 Hz cut-off, in 2 of 15 runs) the refit kept a half to a tenth of each Stribeck term,
+/// and the haptic chapter's hand force with CAD was 2.6 times the model's instead of 4
+/// (docs/diagnosis.md, "The consistent refit's friction velocity").
 fn diagnose_run(
     model: &Model,
     urdf: &str,
     base: &BaseParameters,
     log: &runlog::Log,
     held_out: Option<&runlog::Log>,
-    cutoffs: Cutoffs,
+    main_hz: f64,
     out: &Path,
 ) -> anyhow::Result<(Diagnosis, PathBuf)> {
     let log = Log { t: &log.t, q: &log.q, tau: &log.tau };
@@ -560,7 +564,7 @@ fn diagnose_run(
     let report = diagnosis.report();
     super::diagnose::write_outputs(out, &diagnosis, &report)?;
     println!("{}", indent(&report));
-    let (refit, path) = super::diagnose::write_consistent(out, model, base, log, &diagnosis, &options, cutoffs)?;
+    let (refit, path) = super::diagnose::write_consistent(out, model, base, log, &diagnosis, &options, main_hz)?;
     println!("{}", indent(&super::diagnose::consistent_summary(&refit, &model.joint_names())));
     Ok((diagnosis, path))
 }
