@@ -190,8 +190,14 @@ fn preprocess_with_laws(
     options: &PreprocessOptions,
     against: cutoff::Against,
 ) -> Result<(preprocess::Preprocessed, Option<crate::model::CoulombLaws>), IdentifyError> {
-    let mut pre = cutoff::preprocess_for_fit(declared, log, options, against)?;
     let (model, base) = (declared.model, declared.base);
+    // The log is read once; each round of laws searches the cut-offs again.
+    let reading = cutoff::Reading::of(declared, log, options)?;
+    let preprocess_for_fit = |declared: Declared| match &reading {
+        Some(reading) => reading.preprocess_for_fit(declared, against),
+        None => preprocess::preprocess(log.t, log.q, log.tau, model.dof(), options),
+    };
+    let mut pre = preprocess_for_fit(declared)?;
     if model.coulomb_laws.is_declared() {
         return Ok((pre, None));
     }
@@ -216,7 +222,7 @@ fn preprocess_with_laws(
             }
         };
         let with_laws = Model { coulomb_laws: laws.clone(), ..model.clone() };
-        pre = cutoff::preprocess_for_fit(Declared { model: &with_laws, ..declared }, log, options, against)?;
+        pre = preprocess_for_fit(Declared { model: &with_laws, ..declared })?;
         if round == LAW_ROUNDS {
             // The cut-offs are those of the laws kept, so that the fit is the one they were chosen for.
             pre.choices.reasons.push(chosen.reason);

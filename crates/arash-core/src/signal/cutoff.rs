@@ -31,7 +31,8 @@ use super::friction::RawVelocity;
 use super::log::{Declared, Log};
 use super::options::PreprocessOptions;
 use super::preprocess::{
-    edge_limited_cutoff_hz, filtered_motion, preprocess, Choices, PreprocessError, Preprocessed, MIN_CUTOFF_HZ,
+    edge_limited_cutoff_hz, filtered_motion, preprocess, Choices, Conditioned, PreprocessError, Preprocessed,
+    MIN_CUTOFF_HZ,
 };
 use crate::choices::{Choice, Concern};
 use crate::signal::conditioning::{filter_columns, mean_of, periods_of};
@@ -135,43 +136,78 @@ pub fn preprocess_for_fit(
     options: &PreprocessOptions,
     against: Against,
 ) -> Result<Preprocessed, PreprocessError> {
-    let dof = declared.model.dof();
-    let coulomb = !coulomb_positions(declared.model, &declared.base.independent).is_empty();
-    if options.cutoff_hz.is_some() && (options.friction_cutoff_hz.is_some() || !coulomb) {
-        return preprocess(log.t, log.q, log.tau, dof, options);
+    match Reading::of(declared, log, options)? {
+        Some(reading) => reading.preprocess_for_fit(declared, against),
+        None => preprocess(log.t, log.q, log.tau, declared.model.dof(), options),
     }
-    // The period, the rate and the spectral rule, found once; every candidate keeps the period.
-    let reference = preprocess(log.t, log.q, log.tau, dof, &PreprocessOptions { decimate: 1, ..options.clone() })?;
-    let fixed = PreprocessOptions { period_s: reference.period_s, periods: Some(1), decimate: 1, ..options.clone() };
-    let mut search = Search::new(declared, log, &reference, &fixed, against);
-    let cutoffs = match options.cutoff_hz {
-        Some(cutoff) => vec![cutoff],
-        None => search.grid.iter().copied().take_while(|c| *c <= search.top * (1.0 + 1e-9)).collect(),
-    };
-    search.filter_velocities(&cutoffs, options.friction_cutoff_hz)?;
-    // The trials are independent; in order, so that ties are broken as before.
-    let tried = crate::parallel::map(cutoffs, |cutoff| search.trial(cutoff, options.friction_cutoff_hz));
-    let trials: Vec<Trial> = tried.into_iter().collect::<Result<Vec<_>, _>>()?.into_iter().flatten().collect();
-    let Some(best) = chosen(&trials, search.block_rows()).cloned() else {
-        // No candidate could be fitted: preprocess as asked, and let the fit say why.
-        return preprocess(log.t, log.q, log.tau, dof, options);
-    };
-    let chosen = PreprocessOptions {
-        cutoff_hz: Some(best.cutoff_hz),
-        friction_cutoff_hz: Some(best.friction_hz),
-        decimate: options.decimate,
-        ..fixed
-    };
-    let mut pre = preprocess(log.t, log.q, log.tau, dof, &chosen)?;
-    pre.choices = explain(&reference, &pre.choices, options, &trials, &best, search.length_limited);
-    Ok(pre)
+}
+
+/// A log read once for every search of its cut-offs (identification searches again with each
+/// round of Coulomb laws): the reference preprocessing, which finds the period, the rate and the
+/// spectral rule, and the log conditioned for the trials. None of it depends on the laws.
+pub struct Reading<'a> {
+    log: Log<'a>,
+    options: PreprocessOptions,
+    reference: Preprocessed,
+    /// The options every trial shares: the reference's period, no decimation.
+    fixed: PreprocessOptions,
+    conditioned: Conditioned<'a>,
+}
+
+impl<'a> Reading<'a> {
+    /// `None` where `options` leave nothing to search: the cut-off given, and the friction
+    /// velocity's too or no Coulomb column in `declared`'s base parameters.
+    pub fn of(declared: Declared, log: Log<'a>, options: &PreprocessOptions) -> Result<Option<Self>, PreprocessError> {
+        let dof = declared.model.dof();
+        let coulomb = !coulomb_positions(declared.model, &declared.base.independent).is_empty();
+        if options.cutoff_hz.is_some() && (options.friction_cutoff_hz.is_some() || !coulomb) {
+            return Ok(None);
+        }
+        // The period, the rate and the spectral rule, found once; every candidate keeps the period.
+        let reference = preprocess(log.t, log.q, log.tau, dof, &PreprocessOptions { decimate: 1, ..options.clone() })?;
+        let fixed =
+            PreprocessOptions { period_s: reference.period_s, periods: Some(1), decimate: 1, ..options.clone() };
+        let conditioned = Conditioned::of(log.t, log.q, log.tau, dof, &fixed)?;
+        Ok(Some(Self { log, options: options.clone(), reference, fixed, conditioned }))
+    }
+
+    /// The log preprocessed at the cut-offs that explain it best with `declared`'s Coulomb laws
+    /// (whose base parameters must be those it was read with).
+    pub fn preprocess_for_fit(&self, declared: Declared, against: Against) -> Result<Preprocessed, PreprocessError> {
+        let Self { log, options, reference, fixed, conditioned } = self;
+        let dof = declared.model.dof();
+        let mut search = Search::new(declared, *log, reference, fixed, against, conditioned);
+        let cutoffs = match options.cutoff_hz {
+            Some(cutoff) => vec![cutoff],
+            None => search.grid.iter().copied().take_while(|c| *c <= search.top * (1.0 + 1e-9)).collect(),
+        };
+        search.filter_velocities(&cutoffs, options.friction_cutoff_hz)?;
+        // The trials are independent; in order, so that ties are broken as before.
+        let tried = crate::parallel::map(cutoffs, |cutoff| search.trial(cutoff, options.friction_cutoff_hz));
+        let trials: Vec<Trial> = tried.into_iter().collect::<Result<Vec<_>, _>>()?.into_iter().flatten().collect();
+        let Some(best) = chosen(&trials, search.block_rows()).cloned() else {
+            // No candidate could be fitted: preprocess as asked, and let the fit say why.
+            return preprocess(log.t, log.q, log.tau, dof, options);
+        };
+        let chosen = PreprocessOptions {
+            cutoff_hz: Some(best.cutoff_hz),
+            friction_cutoff_hz: Some(best.friction_hz),
+            decimate: options.decimate,
+            ..fixed.clone()
+        };
+        let mut pre = match options.decimate {
+            1 => conditioned.at_cutoff(&chosen)?,
+            _ => preprocess(log.t, log.q, log.tau, dof, &chosen)?,
+        };
+        pre.choices = explain(reference, &pre.choices, options, &trials, &best, search.length_limited);
+        Ok(pre)
+    }
 }
 
 /// What every trial shares: the model, the log, the grid of cut-offs, and the friction
 /// velocities' Coulomb directions, computed once per cut-off of the grid that a trial tries.
 struct Search<'a> {
     declared: Declared<'a>,
-    log: Log<'a>,
     fixed: &'a PreprocessOptions,
     reference: &'a Preprocessed,
     /// Cut-offs [`CUTOFFS_PER_OCTAVE`] per octave from the lowest worth trying to a quarter of
@@ -190,6 +226,8 @@ struct Search<'a> {
     raw_velocity: RawVelocity,
     /// A periodic log's periods in two halves (an averaged log holds at least two periods).
     folds: Option<Folds>,
+    /// The log read with `fixed`, which each trial filters at its cut-off.
+    conditioned: &'a Conditioned<'a>,
 }
 
 /// A periodic log's even and odd periods, each half averaged: the positions of one half predict
@@ -222,6 +260,7 @@ impl<'a> Search<'a> {
         reference: &'a Preprocessed,
         fixed: &'a PreprocessOptions,
         against: Against,
+        conditioned: &'a Conditioned<'a>,
     ) -> Self {
         let fs = reference.sample_rate_hz;
         let n = reference.samples();
@@ -239,7 +278,19 @@ impl<'a> Search<'a> {
         let directions = vec![None; grid.len()];
         let raw_velocity = reference.raw_velocity(log.q);
         let folds = Folds::of(&log, reference, declared.model.dof());
-        Self { declared, log, fixed, reference, grid, top, length_limited, scored, directions, raw_velocity, folds }
+        Self {
+            declared,
+            fixed,
+            reference,
+            grid,
+            top,
+            length_limited,
+            scored,
+            directions,
+            raw_velocity,
+            folds,
+            conditioned,
+        }
     }
 
     /// Filter the friction velocity at every grid point the trials at `cutoffs` try, on every
@@ -291,7 +342,7 @@ impl<'a> Search<'a> {
         let Declared { model, base, .. } = self.declared;
         let (dof, fs) = (model.dof(), self.reference.sample_rate_hz);
         let options = PreprocessOptions { cutoff_hz: Some(cutoff), ..self.fixed.clone() };
-        let pre = match preprocess(self.log.t, self.log.q, self.log.tau, dof, &options) {
+        let pre = match self.conditioned.at_cutoff(&options) {
             Ok(pre) => pre,
             Err(PreprocessError::TooShortForCutoff { .. }) => return Ok(None),
             Err(e) => return Err(e),

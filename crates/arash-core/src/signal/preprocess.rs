@@ -6,6 +6,8 @@
 //! differentiated circularly (three periods side by side, the middle kept): one period of a
 //! periodic signal has no ends, so it gets no end effects.
 
+use std::borrow::Cow;
+
 use super::data_choices::{bandwidth, find_period, harmonic_bandwidth, PERIODIC_MISMATCH};
 use super::friction::{FrictionVelocity, RawVelocity};
 use super::options::{PreprocessOptions, SettingError};
@@ -424,121 +426,191 @@ pub fn preprocess(
     dof: usize,
     options: &PreprocessOptions,
 ) -> Result<Preprocessed, PreprocessError> {
-    let dt = validate_log(t, q, tau, dof)?;
-    options.validate()?;
-    let mut choices = Choices::default();
-    let shake = jitter(t, dt);
-    if shake > REPORTED_JITTER {
-        choices.reasons.push(Choice::Jitter { share: shake, rate_hz: 1.0 / dt });
-    }
-    // Both read the whole log and neither needs the other; a joint that does not move is still
-    // the first thing said.
-    let (moves, averaging) = std::thread::scope(|scope| {
-        let moves = scope.spawn(|| check_the_joints_move(q, dof, dt));
-        let averaging = choose_periods(q, dof, 1.0 / dt, options.periods, options.period_s, &mut choices);
-        (moves.join().expect("the check does not panic"), averaging)
-    });
-    moves?;
-    let averaging = averaging?;
-    let periodic = averaging.is_some();
-    let (raw_q, raw_dt) = (q, dt);
-    // A period that is not a whole number of samples is resampled to the nearest whole number.
-    let dt = averaging.map_or(dt, |a| dt * a.samples / a.per() as f64);
-    let fs = 1.0 / dt;
-    // q is needed for the cut-off and by both chains below; τ only by its own, which averages it.
-    let (q, (cutoff_hz, bandwidth_hz)) = match averaging {
-        Some(a) => {
-            // The periods one by one only where the spectral rule reads their scatter.
-            let cutoff = match options.cutoff_hz {
-                Some(_) => choose_cutoff(&[], None, dof, fs, options.cutoff_hz, &mut choices),
-                None => choose_cutoff(&[], Some(&periods_of(q, dof, a)), dof, fs, None, &mut choices),
-            };
-            (averaged(q, dof, averaging), cutoff)
+    Conditioned::of(t, q, tau, dof, options)?.at_cutoff(options)
+}
+
+/// What preprocessing reads from a log before it filters anything, which no cut-off changes:
+/// the checks, the periods and their means, the resting samples and the raw friction velocity.
+/// A cut-off search preprocesses one log at a dozen cut-offs; on the 300 s bench log these were
+/// most of each.
+pub(super) struct Conditioned<'a> {
+    t0: f64,
+    dof: usize,
+    /// The log's sample period, and the one after a period's resampling to whole samples.
+    raw_dt: f64,
+    dt: f64,
+    averaging: Option<Averaging>,
+    raw_q: &'a [f64],
+    /// Positions and torque: the periods' means, or the log's own.
+    q: Cow<'a, [f64]>,
+    tau: Cow<'a, [f64]>,
+    raw_velocity: RawVelocity,
+    resting: Vec<bool>,
+    /// The options it was read with, which [`Self::at_cutoff`] must share but for the cut-offs.
+    periods: (Option<usize>, Option<f64>),
+    decimate: usize,
+    leave_out_rests: bool,
+    choices: Choices,
+}
+
+impl<'a> Conditioned<'a> {
+    /// Check the log and read what `options` ask of it, whatever the cut-offs.
+    pub(super) fn of(
+        t: &[f64],
+        q: &'a [f64],
+        tau: &'a [f64],
+        dof: usize,
+        options: &PreprocessOptions,
+    ) -> Result<Self, PreprocessError> {
+        let raw_dt = validate_log(t, q, tau, dof)?;
+        options.validate()?;
+        let mut choices = Choices::default();
+        let shake = jitter(t, raw_dt);
+        if shake > REPORTED_JITTER {
+            choices.reasons.push(Choice::Jitter { share: shake, rate_hz: 1.0 / raw_dt });
         }
-        None => (std::borrow::Cow::Borrowed(q), choose_cutoff(q, None, dof, fs, options.cutoff_hz, &mut choices)),
-    };
-    let n = q.len() / dof;
-    let filter = Butterworth::lowpass(options.order, cutoff_hz, fs)?;
-    let decimated_nyquist = 0.5 * fs / options.decimate as f64;
-    if cutoff_hz >= decimated_nyquist {
-        return Err(PreprocessError::DecimationAliases {
-            factor: options.decimate,
-            nyquist_hz: decimated_nyquist,
-            cutoff_hz,
+        // Both read the whole log and neither needs the other; a joint that does not move is still
+        // the first thing said.
+        let (moves, averaging) = std::thread::scope(|scope| {
+            let moves = scope.spawn(|| check_the_joints_move(q, dof, raw_dt));
+            let averaging = choose_periods(q, dof, 1.0 / raw_dt, options.periods, options.period_s, &mut choices);
+            (moves.join().expect("the check does not panic"), averaging)
         });
-    }
-    let edge = match periodic {
-        true => 0,
-        false => (EDGE_CUTOFF_PERIODS * fs / cutoff_hz).ceil() as usize,
-    };
-    if 4 * edge > n {
-        return Err(PreprocessError::TooShortForCutoff {
-            duration_s: n as f64 * dt,
-            cutoff_hz,
-            edge_s: edge as f64 * dt,
-            lowest_hz: edge_limited_cutoff_hz(n, fs, false),
-        });
-    }
-    if edge > 0 {
-        choices.reasons.push(Choice::EdgesLeftOut { edge_s: edge as f64 * dt, cutoff_periods: EDGE_CUTOFF_PERIODS });
-    }
-    // Decimated indices whose samples lie at least `edge` samples from either end.
-    let settled = edge.div_ceil(options.decimate)..(n - edge).div_ceil(options.decimate);
-    let friction_cutoff_hz = friction_cutoff_hz(options.friction_cutoff_hz, cutoff_hz, fs);
-    choices.reasons.push(Choice::FrictionCutoff {
-        cutoff_hz: friction_cutoff_hz,
-        given: options.friction_cutoff_hz.is_some(),
-        at_most_quarter: true,
-    });
-    let positions = || {
-        let resting = match options.leave_out_rests {
-            true => super::resting::resting(raw_q, dof, averaging, raw_dt, options.decimate),
-            false => vec![false; n.div_ceil(options.decimate) * dof],
+        moves?;
+        let averaging = averaging?;
+        // A period that is not a whole number of samples is resampled to the nearest whole number.
+        let dt = averaging.map_or(raw_dt, |a| raw_dt * a.samples / a.per() as f64);
+        let positions = || {
+            let n = averaging.map_or(q.len() / dof, |a| a.per());
+            let resting = match options.leave_out_rests {
+                true => super::resting::resting(q, dof, averaging, raw_dt, options.decimate),
+                false => vec![false; n.div_ceil(options.decimate) * dof],
+            };
+            (averaged(q, dof, averaging), resting)
         };
-        (filtered_motion(&filter, &q, dof, dt, periodic, options.filter_derivatives), resting)
-    };
-    let torque_and_friction = || -> Result<_, FilterError> {
-        let tau_avg = averaged(tau, dof, averaging);
-        let tau_f = filter_columns(&filter, &tau_avg, dof, periodic)?;
-        let raw = RawVelocity::of_log(raw_q, dof, averaging, dt);
-        let friction = raw.filtered(options.order, friction_cutoff_hz, options.decimate)?;
-        Ok((tau_avg.into_owned(), tau_f, friction))
-    };
-    // The two chains are independent; on two cores they take the time of the longer one. The
-    // friction velocity of a long log is the longer; the resting samples, read from the same
-    // raw log, go beside the positions to even them up.
-    let (chain, other) = std::thread::scope(|scope| {
-        let other = scope.spawn(torque_and_friction);
-        (positions(), other.join().expect("filtering does not panic"))
-    });
-    let (((q_f, qd, qdd), resting), (tau_avg, tau_f, friction)) = ((chain.0?, chain.1), other?);
-    let keep = |x: &[f64]| every_nth_row(x, dof, options.decimate);
-    choices.reasons.extend(super::resting::explain(&resting, dof, settled.clone(), raw_dt));
-    let t_out: Vec<f64> = (0..n).step_by(options.decimate).map(|i| t[0] + i as f64 * dt).collect();
-    Ok(Preprocessed {
-        dof,
-        t: t_out,
-        q: keep(&q_f),
-        qd: keep(&qd),
-        qdd: keep(&qdd),
-        qd_friction: friction.mean(),
-        friction,
-        tau: keep(&tau_f),
-        tau_unfiltered: keep(&tau_avg),
-        cutoff_hz,
-        bandwidth_hz,
-        friction_cutoff_hz,
-        sample_rate_hz: fs,
-        periods_averaged: averaging.map_or(1, |a| a.count),
-        period_s: averaging.map(|a| a.per() as f64 * dt),
-        order: options.order,
-        periodic,
-        decimate: options.decimate,
-        resting,
-        settled,
-        choices,
-        averaging,
-    })
+        let torque_and_velocity = || (averaged(tau, dof, averaging), RawVelocity::of_log(q, dof, averaging, dt));
+        // Independent, and on two cores they take the time of the longer one.
+        let ((q_avg, resting), (tau_avg, raw_velocity)) = std::thread::scope(|scope| {
+            let other = scope.spawn(torque_and_velocity);
+            (positions(), other.join().expect("averaging does not panic"))
+        });
+        Ok(Self {
+            t0: t[0],
+            dof,
+            raw_dt,
+            dt,
+            averaging,
+            raw_q: q,
+            q: q_avg,
+            tau: tau_avg,
+            raw_velocity,
+            resting,
+            periods: (options.periods, options.period_s),
+            decimate: options.decimate,
+            leave_out_rests: options.leave_out_rests,
+            choices,
+        })
+    }
+
+    /// The log filtered at the cut-offs of `options`, whose other settings must be those it was
+    /// read with.
+    pub(super) fn at_cutoff(&self, options: &PreprocessOptions) -> Result<Preprocessed, PreprocessError> {
+        debug_assert!(
+            (options.periods, options.period_s, options.decimate, options.leave_out_rests)
+                == (self.periods.0, self.periods.1, self.decimate, self.leave_out_rests),
+            "a log conditioned with other settings"
+        );
+        let (dof, dt, averaging) = (self.dof, self.dt, self.averaging);
+        let mut choices = self.choices.clone();
+        let periodic = averaging.is_some();
+        let fs = 1.0 / dt;
+        let cutoff = match averaging {
+            // The periods one by one only where the spectral rule reads their scatter.
+            Some(a) => match options.cutoff_hz {
+                Some(_) => choose_cutoff(&[], None, dof, fs, options.cutoff_hz, &mut choices),
+                None => choose_cutoff(&[], Some(&periods_of(self.raw_q, dof, a)), dof, fs, None, &mut choices),
+            },
+            None => choose_cutoff(&self.q, None, dof, fs, options.cutoff_hz, &mut choices),
+        };
+        let (cutoff_hz, bandwidth_hz) = cutoff;
+        let q = &self.q;
+        let n = q.len() / dof;
+        let filter = Butterworth::lowpass(options.order, cutoff_hz, fs)?;
+        let decimated_nyquist = 0.5 * fs / options.decimate as f64;
+        if cutoff_hz >= decimated_nyquist {
+            return Err(PreprocessError::DecimationAliases {
+                factor: options.decimate,
+                nyquist_hz: decimated_nyquist,
+                cutoff_hz,
+            });
+        }
+        let edge = match periodic {
+            true => 0,
+            false => (EDGE_CUTOFF_PERIODS * fs / cutoff_hz).ceil() as usize,
+        };
+        if 4 * edge > n {
+            return Err(PreprocessError::TooShortForCutoff {
+                duration_s: n as f64 * dt,
+                cutoff_hz,
+                edge_s: edge as f64 * dt,
+                lowest_hz: edge_limited_cutoff_hz(n, fs, false),
+            });
+        }
+        if edge > 0 {
+            choices
+                .reasons
+                .push(Choice::EdgesLeftOut { edge_s: edge as f64 * dt, cutoff_periods: EDGE_CUTOFF_PERIODS });
+        }
+        // Decimated indices whose samples lie at least `edge` samples from either end.
+        let settled = edge.div_ceil(options.decimate)..(n - edge).div_ceil(options.decimate);
+        let friction_cutoff_hz = friction_cutoff_hz(options.friction_cutoff_hz, cutoff_hz, fs);
+        choices.reasons.push(Choice::FrictionCutoff {
+            cutoff_hz: friction_cutoff_hz,
+            given: options.friction_cutoff_hz.is_some(),
+            at_most_quarter: true,
+        });
+        let torque_and_friction = || -> Result<_, FilterError> {
+            let tau_f = filter_columns(&filter, &self.tau, dof, periodic)?;
+            let friction = self.raw_velocity.filtered(options.order, friction_cutoff_hz, options.decimate)?;
+            Ok((tau_f, friction))
+        };
+        // The two chains are independent; on two cores they take the time of the longer one.
+        let (motion, other) = std::thread::scope(|scope| {
+            let other = scope.spawn(torque_and_friction);
+            (
+                filtered_motion(&filter, q, dof, dt, periodic, options.filter_derivatives),
+                other.join().expect("filtering does not panic"),
+            )
+        });
+        let ((q_f, qd, qdd), (tau_f, friction)) = (motion?, other?);
+        let keep = |x: &[f64]| every_nth_row(x, dof, options.decimate);
+        choices.reasons.extend(super::resting::explain(&self.resting, dof, settled.clone(), self.raw_dt));
+        let t_out: Vec<f64> = (0..n).step_by(options.decimate).map(|i| self.t0 + i as f64 * dt).collect();
+        Ok(Preprocessed {
+            dof,
+            t: t_out,
+            q: keep(&q_f),
+            qd: keep(&qd),
+            qdd: keep(&qdd),
+            qd_friction: friction.mean(),
+            friction,
+            tau: keep(&tau_f),
+            tau_unfiltered: keep(&self.tau),
+            cutoff_hz,
+            bandwidth_hz,
+            friction_cutoff_hz,
+            sample_rate_hz: fs,
+            periods_averaged: averaging.map_or(1, |a| a.count),
+            period_s: averaging.map(|a| a.per() as f64 * dt),
+            order: options.order,
+            periodic,
+            decimate: options.decimate,
+            resting: self.resting.clone(),
+            settled,
+            choices,
+            averaging,
+        })
+    }
 }
 
 /// Positions, velocities and accelerations, each `samples × dof`.
@@ -649,6 +721,30 @@ mod tests {
             }
         }
         worst
+    }
+
+    /// A cut-off search filters one conditioned log at many cut-offs: each must be what
+    /// preprocessing the log at that cut-off gives, whatever was filtered before it.
+    #[test]
+    fn a_log_conditioned_once_filters_at_each_cut_off_as_preprocessing_does() {
+        let (t, q, tau) = periodic_log(4, 1e-4);
+        let options = PreprocessOptions { period_s: Some(15.0), periods: Some(1), ..Default::default() };
+        let conditioned = Conditioned::of(&t, &q, &tau, 3, &options).unwrap();
+        for (cutoff_hz, friction_cutoff_hz) in [(2.0, None), (0.7, Some(9.0)), (2.0, None)] {
+            let at = PreprocessOptions { cutoff_hz: Some(cutoff_hz), friction_cutoff_hz, ..options.clone() };
+            let (once, each) = (conditioned.at_cutoff(&at).unwrap(), preprocess(&t, &q, &tau, 3, &at).unwrap());
+            assert_eq!(
+                (once.periods_averaged, once.cutoff_hz, once.friction_cutoff_hz),
+                (4, cutoff_hz, each.friction_cutoff_hz)
+            );
+            for (a, b) in [(&once.q, &each.q), (&once.qd, &each.qd), (&once.qdd, &each.qdd), (&once.tau, &each.tau)] {
+                assert_eq!(a, b, "at {cutoff_hz} Hz");
+            }
+            assert_eq!(
+                (&once.qd_friction, &once.resting, &once.choices),
+                (&each.qd_friction, &each.resting, &each.choices)
+            );
+        }
     }
 
     #[test]
