@@ -204,12 +204,22 @@ fn preprocess_with_laws(
     // The laws `pre` was preprocessed with.
     let mut laws = model.coulomb_laws.clone();
     let raw = friction_law::RawPositions::of(log, model.dof())?;
+    // The cut-offs `laws` were chosen at, and why. The choice reads only the log preprocessed at
+    // its cut-offs, so at the same cut-offs it would choose the same laws: settled, without
+    // choosing again (most logs settle so, in their second round).
+    let mut last: Option<((f64, f64), Choice)> = None;
     for round in 1..=LAW_ROUNDS {
+        let band = (pre.cutoff_hz, pre.friction_cutoff_hz);
+        if let Some((_, reason)) = last.as_ref().filter(|(at, _)| *at == band) {
+            pre.choices.reasons.push(reason.clone());
+            return Ok((pre, Some(laws)));
+        }
         let Some(chosen) = friction_law::laws_for_fit(model, base, &pre, raw)? else { return Ok((pre, None)) };
         if friction_law::settled(&laws, &chosen.laws) {
             pre.choices.reasons.push(chosen.reason);
             return Ok((pre, Some(chosen.laws)));
         }
+        last = Some((band, chosen.reason.clone()));
         let unsettled = match round == LAW_ROUNDS {
             true => {
                 let (steady, unsettled) = friction_law::steady(&laws, &chosen.laws);
