@@ -193,11 +193,7 @@ fn preprocess_with_laws(
     let (model, base) = (declared.model, declared.base);
     // The log is read once; each round of laws searches the cut-offs again.
     let reading = cutoff::Reading::of(declared, log, options)?;
-    let preprocess_for_fit = |declared: Declared| match &reading {
-        Some(reading) => reading.preprocess_for_fit(declared, against),
-        None => preprocess::preprocess(log.t, log.q, log.tau, model.dof(), options),
-    };
-    let mut pre = preprocess_for_fit(declared)?;
+    let mut pre = reading.preprocess_for_fit(declared, against)?;
     if model.coulomb_laws.is_declared() {
         return Ok((pre, None));
     }
@@ -232,7 +228,7 @@ fn preprocess_with_laws(
             }
         };
         let with_laws = Model { coulomb_laws: laws.clone(), ..model.clone() };
-        pre = preprocess_for_fit(Declared { model: &with_laws, ..declared })?;
+        pre = reading.preprocess_for_fit(Declared { model: &with_laws, ..declared }, against)?;
         if round == LAW_ROUNDS {
             // The cut-offs are those of the laws kept, so that the fit is the one they were chosen for.
             pre.choices.reasons.push(chosen.reason);

@@ -27,7 +27,6 @@ use super::estimate::{
     apply, coulomb_positions, filter_each_column, joint_metrics, leave_out_rests, ols_beta_and_metrics, put_coulomb,
     regressor_rows,
 };
-use super::friction::RawVelocity;
 use super::log::{Declared, Log};
 use super::options::PreprocessOptions;
 use super::preprocess::{
@@ -136,18 +135,21 @@ pub fn preprocess_for_fit(
     options: &PreprocessOptions,
     against: Against,
 ) -> Result<Preprocessed, PreprocessError> {
-    match Reading::of(declared, log, options)? {
-        Some(reading) => reading.preprocess_for_fit(declared, against),
-        None => preprocess(log.t, log.q, log.tau, declared.model.dof(), options),
-    }
+    Reading::of(declared, log, options)?.preprocess_for_fit(declared, against)
 }
 
 /// A log read once for every search of its cut-offs (identification searches again with each
-/// round of Coulomb laws): the reference preprocessing, which finds the period, the rate and the
-/// spectral rule, and the log conditioned for the trials. None of it depends on the laws.
+/// round of Coulomb laws). None of it depends on the laws.
 pub struct Reading<'a> {
     log: Log<'a>,
     options: PreprocessOptions,
+    /// What the searches share; `None` where the options leave nothing to search.
+    searched: Option<Searched<'a>>,
+}
+
+/// What every search of one log shares: the reference preprocessing, which finds the period,
+/// the rate and the spectral rule, and the log conditioned for the trials.
+struct Searched<'a> {
     reference: Preprocessed,
     /// The options every trial shares: the reference's period, no decimation.
     fixed: PreprocessOptions,
@@ -155,27 +157,39 @@ pub struct Reading<'a> {
 }
 
 impl<'a> Reading<'a> {
-    /// `None` where `options` leave nothing to search: the cut-off given, and the friction
-    /// velocity's too or no Coulomb column in `declared`'s base parameters.
-    pub fn of(declared: Declared, log: Log<'a>, options: &PreprocessOptions) -> Result<Option<Self>, PreprocessError> {
+    /// Read `log` for the searches `options` ask for: none where the cut-off is given, and the
+    /// friction velocity's too or `declared`'s base parameters have no Coulomb column.
+    pub fn of(declared: Declared, log: Log<'a>, options: &PreprocessOptions) -> Result<Self, PreprocessError> {
         let dof = declared.model.dof();
         let coulomb = !coulomb_positions(declared.model, &declared.base.independent).is_empty();
-        if options.cutoff_hz.is_some() && (options.friction_cutoff_hz.is_some() || !coulomb) {
-            return Ok(None);
-        }
-        // The period, the rate and the spectral rule, found once; every candidate keeps the period.
-        let reference = preprocess(log.t, log.q, log.tau, dof, &PreprocessOptions { decimate: 1, ..options.clone() })?;
-        let fixed =
-            PreprocessOptions { period_s: reference.period_s, periods: Some(1), decimate: 1, ..options.clone() };
-        let conditioned = Conditioned::of(log.t, log.q, log.tau, dof, &fixed)?;
-        Ok(Some(Self { log, options: options.clone(), reference, fixed, conditioned }))
+        let searched = match options.cutoff_hz.is_some() && (options.friction_cutoff_hz.is_some() || !coulomb) {
+            true => None,
+            false => {
+                // The period, the rate and the spectral rule, found once; every candidate keeps the period.
+                let reference =
+                    preprocess(log.t, log.q, log.tau, dof, &PreprocessOptions { decimate: 1, ..options.clone() })?;
+                let fixed = PreprocessOptions {
+                    period_s: reference.period_s,
+                    periods: Some(1),
+                    decimate: 1,
+                    ..options.clone()
+                };
+                let conditioned = Conditioned::of(log.t, log.q, log.tau, dof, &fixed)?;
+                Some(Searched { reference, fixed, conditioned })
+            }
+        };
+        Ok(Self { log, options: options.clone(), searched })
     }
 
     /// The log preprocessed at the cut-offs that explain it best with `declared`'s Coulomb laws
-    /// (whose base parameters must be those it was read with).
+    /// (whose base parameters must be those it was read with), or as the options ask where they
+    /// leave nothing to search.
     pub fn preprocess_for_fit(&self, declared: Declared, against: Against) -> Result<Preprocessed, PreprocessError> {
-        let Self { log, options, reference, fixed, conditioned } = self;
+        let Self { log, options, searched } = self;
         let dof = declared.model.dof();
+        let Some(Searched { reference, fixed, conditioned }) = searched else {
+            return preprocess(log.t, log.q, log.tau, dof, options);
+        };
         let mut search = Search::new(declared, *log, reference, fixed, against, conditioned);
         let cutoffs = match options.cutoff_hz {
             Some(cutoff) => vec![cutoff],
@@ -222,8 +236,6 @@ struct Search<'a> {
     /// The unfiltered Coulomb directions of the friction velocity at each cut-off of the grid
     /// that some trial tries ([`Self::filter_velocities`]).
     directions: Vec<Option<Vec<f64>>>,
-    /// The positions' central difference, which every friction velocity is filtered from.
-    raw_velocity: RawVelocity,
     /// A periodic log's periods in two halves (an averaged log holds at least two periods).
     folds: Option<Folds>,
     /// The log read with `fixed`, which each trial filters at its cut-off.
@@ -276,21 +288,8 @@ impl<'a> Search<'a> {
         };
         let scored = spread(edge.min(n / 2)..n.saturating_sub(edge).max(n / 2), 1, MOST_SCORED);
         let directions = vec![None; grid.len()];
-        let raw_velocity = reference.raw_velocity(log.q);
         let folds = Folds::of(&log, reference, declared.model.dof());
-        Self {
-            declared,
-            fixed,
-            reference,
-            grid,
-            top,
-            length_limited,
-            scored,
-            directions,
-            raw_velocity,
-            folds,
-            conditioned,
-        }
+        Self { declared, fixed, reference, grid, top, length_limited, scored, directions, folds, conditioned }
     }
 
     /// Filter the friction velocity at every grid point the trials at `cutoffs` try, on every
@@ -301,7 +300,8 @@ impl<'a> Search<'a> {
             cutoffs.iter().flat_map(|&c| self.frictions(c, user)).filter_map(|(_, at)| at).collect();
         needed.sort_unstable();
         needed.dedup();
-        let (raw, order, laws) = (&self.raw_velocity, self.reference.order, &self.declared.model.coulomb_laws);
+        let (raw, order, laws) =
+            (self.conditioned.raw_velocity(), self.reference.order, &self.declared.model.coulomb_laws);
         let grid = &self.grid;
         let filtered = crate::parallel::map(needed.clone(), |i| {
             raw.filtered(order, grid[i], 1).map(|velocity| velocity.directions(laws))
@@ -360,7 +360,12 @@ impl<'a> Search<'a> {
         for (friction_hz, at) in self.frictions(cutoff, user_friction) {
             let directions: Cow<[f64]> = match at {
                 Some(i) => self.directions(i).into(),
-                None => self.raw_velocity.filtered(pre.order, friction_hz, 1)?.directions(&model.coulomb_laws).into(),
+                None => self
+                    .conditioned
+                    .raw_velocity()
+                    .filtered(pre.order, friction_hz, 1)?
+                    .directions(&model.coulomb_laws)
+                    .into(),
             };
             let filtered = filter_columns(&filter, &directions, dof, pre.periodic)?;
             put_coulomb(&mut w, dof, &positions, &filtered, &rows);

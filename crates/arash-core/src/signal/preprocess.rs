@@ -119,8 +119,7 @@ pub struct Preprocessed {
     pub settled: std::ops::Range<usize>,
     /// What was chosen, and why.
     pub choices: Choices,
-    /// How the log was averaged: what a friction velocity at another cut-off is computed from
-    /// ([`Self::raw_velocity`]).
+    /// How the log was averaged: how its raw samples map onto these ([`Self::averaging`]).
     averaging: Option<Averaging>,
 }
 
@@ -158,13 +157,6 @@ impl Preprocessed {
     pub fn coulomb_columns(&self, laws: &CoulombLaws) -> Vec<f64> {
         self.filter_like_torque(&self.friction.directions(laws), self.dof)
             .expect("the torque was filtered with these settings")
-    }
-
-    /// The central difference of the raw positions `q` (the log these signals came from),
-    /// arranged as these signals were averaged: friction velocities at other cut-offs are
-    /// filtered from it ([`RawVelocity::filtered`]).
-    pub fn raw_velocity(&self, q: &[f64]) -> RawVelocity {
-        RawVelocity::of_log(q, self.dof, self.averaging, 1.0 / self.sample_rate_hz)
     }
 }
 
@@ -481,12 +473,12 @@ impl<'a> Conditioned<'a> {
         // A period that is not a whole number of samples is resampled to the nearest whole number.
         let dt = averaging.map_or(raw_dt, |a| raw_dt * a.samples / a.per() as f64);
         let positions = || {
-            let n = averaging.map_or(q.len() / dof, |a| a.per());
+            let q_avg = averaged(q, dof, averaging);
             let resting = match options.leave_out_rests {
                 true => super::resting::resting(q, dof, averaging, raw_dt, options.decimate),
-                false => vec![false; n.div_ceil(options.decimate) * dof],
+                false => vec![false; (q_avg.len() / dof).div_ceil(options.decimate) * dof],
             };
-            (averaged(q, dof, averaging), resting)
+            (q_avg, resting)
         };
         let torque_and_velocity = || (averaged(tau, dof, averaging), RawVelocity::of_log(q, dof, averaging, dt));
         // Independent, and on two cores they take the time of the longer one.
@@ -510,6 +502,12 @@ impl<'a> Conditioned<'a> {
             leave_out_rests: options.leave_out_rests,
             choices,
         })
+    }
+
+    /// The central difference of the raw positions, arranged as the log was averaged: what a
+    /// friction velocity at any cut-off is filtered from ([`RawVelocity::filtered`]).
+    pub(super) fn raw_velocity(&self) -> &RawVelocity {
+        &self.raw_velocity
     }
 
     /// The log filtered at the cut-offs of `options`, whose other settings must be those it was
@@ -724,12 +722,15 @@ mod tests {
     }
 
     /// A cut-off search filters one conditioned log at many cut-offs: each must be what
-    /// preprocessing the log at that cut-off gives, whatever was filtered before it.
+    /// preprocessing the log at that cut-off gives, whatever cut-offs the log was read with and
+    /// whatever was filtered before it.
     #[test]
     fn a_log_conditioned_once_filters_at_each_cut_off_as_preprocessing_does() {
         let (t, q, tau) = periodic_log(4, 1e-4);
         let options = PreprocessOptions { period_s: Some(15.0), periods: Some(1), ..Default::default() };
-        let conditioned = Conditioned::of(&t, &q, &tau, 3, &options).unwrap();
+        // Read with cut-offs of its own, which none of the filtered logs below may keep.
+        let read_at = PreprocessOptions { cutoff_hz: Some(5.0), friction_cutoff_hz: Some(3.0), ..options.clone() };
+        let conditioned = Conditioned::of(&t, &q, &tau, 3, &read_at).unwrap();
         for (cutoff_hz, friction_cutoff_hz) in [(2.0, None), (0.7, Some(9.0)), (2.0, None)] {
             let at = PreprocessOptions { cutoff_hz: Some(cutoff_hz), friction_cutoff_hz, ..options.clone() };
             let (once, each) = (conditioned.at_cutoff(&at).unwrap(), preprocess(&t, &q, &tau, 3, &at).unwrap());
